@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# Build the reference YARP 3.5 (C++) from the PyPI sdist, the peer yarp_lite must
+# interoperate with byte for byte. Idempotent: an existing build is reused.
+#
+# Usage: launch_scripts/build_reference_yarp.sh [--print-prefix]
+# Result: $WALKMAN_YARP_PREFIX (default ~/.cache/walkman/yarp-3.5.0) holds bin/yarp,
+# bin/yarpserver and the libraries; tests find it there (see tests/conftest.py).
+set -euo pipefail
+
+VERSION=3.5.0
+SHA256=7a8f78e1b6d3477fcd5e73fd5839ebf6971c3c0f5d3208d3ec0ee2b0c44507b9
+URL="https://files.pythonhosted.org/packages/1d/3d/b5a491c21b122d9cdd65826a1cd5d7ba51580f9f84a6ebfc315beb048d30/yarp_middleware-${VERSION}.tar.gz"
+CACHE="${XDG_CACHE_HOME:-$HOME/.cache}/walkman"
+PREFIX="${WALKMAN_YARP_PREFIX:-$CACHE/yarp-$VERSION}"
+
+if [[ "${1:-}" == "--print-prefix" ]]; then echo "$PREFIX"; exit 0; fi
+
+if [[ -x "$PREFIX/bin/yarpserver" && -x "$PREFIX/bin/yarp" && -f "$PREFIX/.complete" ]]; then
+  echo "reference YARP $VERSION already built in $PREFIX"
+  exit 0
+fi
+
+say() { echo "[build_reference_yarp] $*"; }
+need=()
+for pkg in cmake g++ make ycm-cmake-modules curl; do
+  dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
+done
+if ((${#need[@]})); then
+  say "installing build tools: ${need[*]}"
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${need[@]}" >/dev/null
+fi
+
+mkdir -p "$CACHE"
+tarball="$CACHE/yarp_middleware-$VERSION.tar.gz"
+if ! echo "$SHA256  $tarball" | sha256sum -c --status 2>/dev/null; then
+  say "downloading yarp-middleware $VERSION sdist from PyPI"
+  curl -fsSL --retry 3 -o "$tarball.part" "$URL"
+  echo "$SHA256  $tarball.part" | sha256sum -c --status || { say "checksum mismatch for $URL"; exit 1; }
+  mv "$tarball.part" "$tarball"
+fi
+
+src="$CACHE/src/yarp_middleware-$VERSION"
+if [[ ! -f "$src/CMakeLists.txt" ]]; then
+  mkdir -p "$CACHE/src"
+  tar -xzf "$tarball" -C "$CACHE/src"
+fi
+
+# YARP 3.5 misses standard includes that GCC 12 no longer pulls in transitively.
+includes="-include utility -include cstdint -include limits -include iterator -include algorithm"
+includes+=" -include string -include functional -include memory -include stdexcept -include cstring -include array"
+build="$CACHE/build/yarp-$VERSION"
+mkdir -p "$build"
+say "configuring (log: $build/configure.log)"
+cmake -S "$src" -B "$build" -DCMAKE_BUILD_TYPE=Release -DCMAKE_INSTALL_PREFIX="$PREFIX" \
+  -DSKIP_ACE=ON -DYARP_COMPILE_BINDINGS=OFF -DYARP_COMPILE_GUIS=OFF -DYARP_COMPILE_TESTS=OFF \
+  -DYARP_COMPILE_EXAMPLES=OFF -DYARP_COMPILE_UNMAINTAINED=OFF -DYARP_COMPILE_DEVICE_PLUGINS=OFF \
+  -DYARP_COMPILE_CARRIER_PLUGINS=OFF -DYARP_COMPILE_libYARP_math=OFF \
+  -DCMAKE_CXX_FLAGS="$includes" >"$build/configure.log" 2>&1 || { tail -30 "$build/configure.log"; exit 1; }
+say "compiling with $(nproc) jobs, about 8 minutes on 2 cores (log: $build/build.log)"
+start=$SECONDS
+cmake --build "$build" -j"$(nproc)" >"$build/build.log" 2>&1 &
+pid=$!
+while kill -0 "$pid" 2>/dev/null; do
+  sleep 30
+  pct=$(grep -o '^\[ *[0-9]*%\]' "$build/build.log" | tail -1 | tr -d '[]% ' || true)
+  say "  ${pct:-0}% after $((SECONDS - start)) s"
+done
+wait "$pid" || { tail -40 "$build/build.log"; exit 1; }
+cmake --install "$build" >"$build/install.log" 2>&1 || { tail -20 "$build/install.log"; exit 1; }
+touch "$PREFIX/.complete"
+say "done in $((SECONDS - start)) s: $PREFIX/bin/yarpserver"

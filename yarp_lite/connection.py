@@ -1,0 +1,126 @@
+"""The sending end of one connection: handshake, messages, replies, acknowledgements.
+
+An :class:`OutgoingConnection` is what a port's output, an RPC client, the
+name client and the ``yarp-lite`` tools all use to talk to a remote port.  It
+is a thin layer: the carrier does the rituals, the stream does the I/O.  One
+connection is used by one thread at a time (a lock makes that so).
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Optional
+
+from yarp_lite.bottle import Bottle
+from yarp_lite.carriers import Carrier, Payload, make_carrier
+from yarp_lite.contact import Contact
+from yarp_lite.errors import LocalProtocolError, NetworkError, YarpError
+from yarp_lite.stream import SocketStream, Stream
+
+
+class OutgoingConnection:
+    """A connection we initiated to ``target`` (host/port known) with ``carrier``."""
+
+    def __init__(self, carrier: Carrier, stream: Stream, sender: str, target: str) -> None:
+        self.carrier = carrier
+        self.stream = stream
+        self.sender = sender
+        self.target = target
+        self.lock = threading.Lock()
+        self.closed = False
+
+    @classmethod
+    def open(cls, contact: Contact, sender: str, carrier: str = "",
+             timeout: Optional[float] = 10.0) -> "OutgoingConnection":
+        """Connect to ``contact`` and complete the header phase."""
+        if not contact.valid or not contact.host:
+            raise NetworkError(f"no address known for {contact.name or contact}")
+        chosen = make_carrier(carrier or contact.carrier or "tcp")
+        stream: Stream = SocketStream.connect(
+            contact.host, contact.port, timeout=timeout,
+            where=f"{chosen.name} {sender} -> {contact.name or contact.uri()}")
+        try:
+            if timeout:
+                stream.set_timeout(timeout)
+            chosen.send_header(stream, sender)
+            stream = chosen.expect_header_reply(stream)
+            if isinstance(stream, SocketStream):
+                stream.set_timeout(None)
+        except YarpError:
+            stream.close()
+            raise
+        return cls(chosen, stream, sender, contact.name)
+
+    @property
+    def carrier_name(self) -> str:
+        return self.carrier.name
+
+    def send(self, command: str, payload: Optional[Payload] = None,
+             want_reply: bool = False, timeout: Optional[float] = None) -> Optional[Bottle]:
+        """Send one message; return the reply Bottle when ``want_reply``.
+
+        ``command`` is ``d`` (data), ``a`` (admin data) or a port command such
+        as ``/read`` or ``*``; data without a wanted reply goes as ``D``.
+        """
+        if self.closed:
+            raise NetworkError(f"{self.stream.where}: connection closed")
+        if want_reply and not self.carrier.supports_reply:
+            raise LocalProtocolError(
+                f"carrier {self.carrier.name} cannot carry replies (try tcp or text_ack)")
+        if command == "d" and not want_reply:
+            command = "D"
+        with self.lock:
+            if timeout is not None and isinstance(self.stream, SocketStream):
+                self.stream.set_timeout(timeout)
+            try:
+                self.carrier.write_message(self.stream, command, payload)
+                reply = self.carrier.read_reply(self.stream) if want_reply else None
+                if self.carrier.requires_ack:
+                    self.carrier.read_ack(self.stream)
+            except YarpError:
+                self.abort()
+                raise
+            finally:
+                if timeout is not None and isinstance(self.stream, SocketStream) \
+                        and not self.closed:
+                    self.stream.set_timeout(None)
+        return reply
+
+    def send_text_command(self, command: str, timeout: float = 5.0) -> list:
+        """Send a port command on a text connection and collect its answer lines."""
+        with self.lock:
+            self.carrier.write_message(self.stream, command, None)
+            lines = []
+            if isinstance(self.stream, SocketStream):
+                self.stream.set_timeout(timeout)
+                try:
+                    while True:
+                        line = self.stream.read_line()
+                        if self.carrier.requires_ack and line == "<ACK>":
+                            break
+                        lines.append(line)
+                except NetworkError:
+                    pass
+            return lines
+
+    def abort(self) -> None:
+        """Drop the connection without saying goodbye."""
+        self.closed = True
+        self.stream.close()
+
+    def close(self) -> None:
+        """Say ``q`` (when the carrier allows) and close."""
+        if self.closed:
+            return
+        try:
+            if self.carrier.can_escape and not self.carrier.connectionless:
+                with self.lock:
+                    self.carrier.write_message(self.stream, "q", None)
+                    if self.carrier.requires_ack:
+                        self.stream.set_timeout(2.0) if isinstance(self.stream, SocketStream) \
+                            else None
+                        self.carrier.read_ack(self.stream)
+        except YarpError:
+            pass
+        finally:
+            self.abort()

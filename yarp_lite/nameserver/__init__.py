@@ -1,0 +1,1 @@
+"""The yarp_lite name server: registry, persistent connections, and the server."""

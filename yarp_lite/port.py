@@ -1,0 +1,708 @@
+"""Ports: named endpoints that register, accept connections, send and receive.
+
+Theory of operation
+-------------------
+A port owns a listening TCP socket registered with the name server.  The
+listener thread accepts connections; each accepted connection gets its own
+input thread, which reads the 8-byte carrier magic, lets the carrier finish
+the handshake, then loops over messages:
+
+* data (``d``/``D``) goes to the port's owner through :meth:`Port._deliver`
+  (a callback, a blocking :meth:`Port.read`, or a subclass's buffer);
+* admin Bottles (``a``) and port commands (``/x``, ``!x``, ``~x``, ``*``, ``q``)
+  are answered by :mod:`yarp_lite.admin`;
+* the reply (if the sender asked for one) and the acknowledgement leave
+  together in one write.
+
+Outputs are :class:`~yarp_lite.connection.OutgoingConnection`s the port
+initiated (on request of its owner, a ``yarp connect``, or the name server
+restoring a persistent connection).  :meth:`Port.write` sends on all of them
+from the calling thread; a broken output is dropped and logged, never raised
+at the writer.
+
+A peer's bytes never take a port down: a protocol violation closes that one
+connection with a log line naming the peer and the problem.  While a port is
+open, :class:`RegistrationKeeper` checks every few seconds that the name
+server still knows it, and registers it again after a name server restart.
+"""
+
+from __future__ import annotations
+
+import errno
+import itertools
+import logging
+import socket
+import threading
+import time
+from collections import deque
+from typing import Callable, Deque, Dict, List, Optional, Sequence, Tuple, Union
+
+from yarp_lite import admin
+from yarp_lite.admin import Route
+from yarp_lite.bottle import Bottle
+from yarp_lite.carriers import (PROTOCOL_NOT_FOUND, SUPPORTED, BottlePayload, Carrier,
+                                Incoming, Payload, carrier_for_header)
+from yarp_lite.connection import OutgoingConnection
+from yarp_lite.contact import Contact, apply_environment, check_port_name
+from yarp_lite.errors import LocalProtocolError, NetworkError, RemoteProtocolError, YarpError
+from yarp_lite.framing import DEFAULT_MAX_MESSAGE
+from yarp_lite.nameclient import NameClient
+from yarp_lite.stream import SocketStream, Stream
+
+log = logging.getLogger("yarp_lite.port")
+
+Reply = Optional[Union[Bottle, Sequence]]
+Reader = Callable[[Bottle], Reply]
+
+
+def _rooted(name: str) -> bool:
+    return name.startswith("/")
+
+
+class _InputUnit:
+    """One accepted connection and the thread reading it."""
+
+    _ids = itertools.count(1)
+
+    def __init__(self, port: "Port", sock: socket.socket) -> None:
+        self.port = port
+        self.id = next(self._ids)
+        self.stream: Stream = SocketStream(sock, f"{port.name} input #{self.id}")
+        self.route = Route("", port.name, "")
+        self.carrier: Optional[Carrier] = None
+        self.closing = False
+        self.thread = threading.Thread(target=self._run, daemon=True,
+                                       name=f"{port.name} input #{self.id}")
+
+    def start(self) -> None:
+        self.thread.start()
+
+    def close(self) -> None:
+        self.closing = True
+        self.stream.close()
+
+    def _run(self) -> None:
+        port = self.port
+        try:
+            if not self._handshake():
+                return
+            source = self.carrier.receiver(self.stream, self.stream.where, port.max_message)
+            while not self.closing:
+                message = source.next()
+                if not self._handle(message):
+                    break
+        except RemoteProtocolError as exc:
+            log.warning("%s: dropping connection from %s: %s", port.name,
+                        self.route.source or self.stream.remote_address, exc)
+        except NetworkError as exc:
+            log.debug("%s: input from %s ended: %s", port.name, self.route.source, exc)
+        except Exception:  # a bug must not kill the port, but must be seen
+            log.exception("%s: unexpected error on input from %s", port.name, self.route.source)
+        finally:
+            self.stream.close()
+            port._input_finished(self)
+
+    def _handshake(self) -> bool:
+        port = self.port
+        header = self.stream.read_exact(8)
+        carrier = carrier_for_header(header)
+        if carrier is None:
+            log.warning("%s: unknown protocol from %s (first bytes %r), hanging up",
+                        port.name, self.stream.remote_address, header)
+            self.stream.write(PROTOCOL_NOT_FOUND)
+            return False
+        self.carrier = carrier
+        sender = carrier.expect_sender(self.stream)
+        self.stream = carrier.respond_to_header(self.stream, sender, port.address.port)
+        self.route = Route(sender, port.name, carrier.name, carrier.connectionless)
+        port._input_started(self)
+        return True
+
+    def _handle(self, message: Incoming) -> bool:
+        """Process one message; False when the connection should close."""
+        port, carrier = self.port, self.carrier
+        command = message.command
+        chunks: List = []
+        keep_going = True
+        if command in ("d", "D"):
+            reply = port._deliver(message, self)
+            if message.wants_reply:
+                if not isinstance(reply, Payload):
+                    reply = BottlePayload(reply if reply is not None else Bottle())
+                chunks += carrier.reply_chunks(reply)
+        elif command == "a":
+            reply = admin.admin(port._admin_view, message.bottle())
+            chunks += carrier.reply_chunks(BottlePayload(reply))
+        elif command == "q":
+            keep_going = False
+        elif command in ("/", "!", "~", "*", "?", "h"):
+            lines = admin.port_command(port._admin_view, message.text)
+            if carrier.text_mode:
+                chunks.append(carrier.text_response(lines))
+        elif carrier.text_mode:
+            chunks.append(carrier.text_response(admin.NOT_UNDERSTOOD))
+        ack = carrier.ack_chunk()
+        if ack:
+            chunks.append(ack)
+        if chunks:
+            self.stream.write(*chunks)
+        return keep_going
+
+
+class _OutputUnit:
+    __slots__ = ("connection", "route", "spec")
+
+    def __init__(self, connection: OutgoingConnection, route: Route, spec: str) -> None:
+        self.connection = connection
+        self.route = route
+        self.spec = spec
+
+
+class _AdminView:
+    """The :class:`yarp_lite.admin.PortState` face of a port."""
+
+    def __init__(self, port: "Port") -> None:
+        self._port = port
+
+    @property
+    def name(self) -> str:
+        return self._port.name
+
+    def address(self) -> Contact:
+        return self._port.address
+
+    def input_routes(self) -> List[Route]:
+        return self._port.input_routes()
+
+    def output_routes(self) -> List[Route]:
+        return self._port.output_routes()
+
+    def add_output(self, target: str) -> Tuple[bool, str]:
+        return self._port._add_output(target)
+
+    def remove_output(self, target: str) -> bool:
+        return self._port.remove_output(target)
+
+    def remove_input(self, source: str) -> bool:
+        return self._port.remove_input(source)
+
+    def properties(self) -> Dict[str, object]:
+        return self._port.properties
+
+    def admin_fallback(self, command: Bottle) -> Optional[Bottle]:
+        handler = self._port.admin_reader
+        return Bottle(handler(command) or []) if handler is not None else None
+
+
+class _Handoff:
+    """Rendezvous between input threads and a blocking :meth:`Port.read`.
+
+    Like YARP's port adapter, a message waits until its reader takes it (so a
+    plain Port never buffers), and a reader that promised a reply holds the
+    sender until :meth:`Port.reply`.
+    """
+
+    def __init__(self) -> None:
+        self.cond = threading.Condition()
+        self.serial = threading.Lock()
+        self.item: Optional[Tuple[Incoming, Route]] = None
+        self.taken = False
+        self.readers = 0
+        self.reply_wanted = False
+        self.reply_value: Optional[Bottle] = None
+        self.reply_ready = False
+        self.closed = False
+
+    def offer(self, message: Incoming, route: Route) -> Optional[Bottle]:
+        with self.serial:
+            with self.cond:
+                if self.closed:
+                    return None
+                self.item, self.taken = (message, route), False
+                self.reply_ready, self.reply_value, self.reply_wanted = False, None, False
+                self.cond.notify_all()
+                while not self.taken and not self.closed:
+                    self.cond.wait()
+                if self.reply_wanted:
+                    while not self.reply_ready and not self.closed:
+                        self.cond.wait()
+                return self.reply_value
+
+    def take(self, timeout: Optional[float], will_reply: bool) -> Optional[Tuple[Incoming, Route]]:
+        deadline = None if timeout is None else time.monotonic() + timeout
+        with self.cond:
+            self.readers += 1
+            try:
+                while (self.item is None or self.taken) and not self.closed:
+                    remaining = None if deadline is None else deadline - time.monotonic()
+                    if remaining is not None and remaining <= 0:
+                        return None
+                    self.cond.wait(remaining)
+                if self.closed:
+                    return None
+                item = self.item
+                self.taken = True
+                self.item = None
+                self.reply_wanted = will_reply and item[0].wants_reply
+                self.cond.notify_all()
+                return item
+            finally:
+                self.readers -= 1
+
+    def give_reply(self, reply: Optional[Bottle]) -> bool:
+        with self.cond:
+            if not self.reply_wanted or self.reply_ready:
+                return False
+            self.reply_value, self.reply_ready = reply, True
+            self.cond.notify_all()
+            return True
+
+    def close(self) -> None:
+        with self.cond:
+            self.closed = True
+            self.cond.notify_all()
+
+
+class Port:
+    """A YARP port: open it under a name, connect it, write and read Bottles.
+
+    ``reader``, if given, is called in the receiving thread with each Bottle;
+    what it returns is the reply sent back when the sender asked for one.
+    Without it, :meth:`read` blocks until a message arrives.
+    """
+
+    def __init__(self, name: Optional[str] = None, *, reader: Optional[Reader] = None,
+                 nameclient: Optional[NameClient] = None, timeout: Optional[float] = None,
+                 max_message: int = DEFAULT_MAX_MESSAGE, rpc: bool = False,
+                 register: bool = True) -> None:
+        self.nameclient = nameclient or NameClient()
+        self.reader = reader
+        self.admin_reader: Optional[Callable[[Bottle], Reply]] = None
+        self.timeout = timeout
+        self.max_message = max_message
+        self.rpc = rpc
+        self.register = register
+        self.name = ""
+        self.address = Contact()
+        self.properties: Dict[str, object] = {}
+        self.envelope = ""
+        self._admin_view = _AdminView(self)
+        self._lock = threading.RLock()
+        self._inputs: Dict[int, _InputUnit] = {}
+        self._outputs: Dict[str, _OutputUnit] = {}
+        self._listener: Optional[socket.socket] = None
+        self.max_inputs = 512
+        self._refused = 0
+        self._accept_thread: Optional[threading.Thread] = None
+        self._handoff = _Handoff()
+        self._used_for_read = reader is not None
+        self._open = False
+        self._closing = False
+        self._input_events = threading.Condition(self._lock)
+        if name is not None:
+            self.open(name)
+
+    # -- lifecycle ---------------------------------------------------------------
+
+    def open(self, name: str = "...", host: str = "", socket_number: int = 0) -> "Port":
+        """Register ``name`` (after ``YARP_RENAME_*``/``YARP_PORT_PREFIX``) and listen.
+
+        ``host``/``socket_number`` pin the address of an unregistered port
+        (the name server's own port is one).
+        """
+        if self._open:
+            raise LocalProtocolError(f"port {self.name} is already open")
+        name = check_port_name(apply_environment(name))
+        listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            if self.register:
+                contact = self.nameclient.register(name)
+                try:
+                    listener.bind(("", contact.port))
+                except OSError as exc:
+                    if exc.errno != errno.EADDRINUSE:
+                        raise
+                    # Another name server handed out the same number: take a free one.
+                    listener.bind(("", 0))
+                    contact = self.nameclient.register(contact.name, "tcp", contact.host,
+                                                       listener.getsockname()[1])
+            else:
+                listener.bind((host, socket_number))
+                contact = Contact(name, "tcp", host or "127.0.0.1", listener.getsockname()[1])
+            listener.listen(64)
+        except BaseException:
+            listener.close()
+            raise
+        self.name, self.address, self._listener = contact.name, contact, listener
+        self._open, self._closing = True, False
+        self._handoff = _Handoff()
+        self._accept_thread = threading.Thread(target=self._accept_loop, daemon=True,
+                                               name=f"{self.name} listener")
+        self._accept_thread.start()
+        if self.register:
+            try:
+                self.nameclient.describe_port(self.name)
+                self.nameclient.announce(self.name)
+            except NetworkError as exc:
+                log.warning("%s: could not describe the port to the name server: %s",
+                            self.name, exc)
+            RegistrationKeeper.instance().add(self)
+        log.info("Port %s active at %s", self.name, self.address.uri())
+        return self
+
+    def close(self) -> None:
+        """Unregister, drop every connection (saying goodbye on outputs) and stop."""
+        with self._lock:
+            if not self._open:
+                return
+            self._open, self._closing = False, True
+            inputs = list(self._inputs.values())
+            outputs = list(self._outputs.values())
+            self._outputs.clear()
+        RegistrationKeeper.instance().remove(self)
+        if self.register:
+            try:
+                self.nameclient.unregister(self.name)
+            except YarpError as exc:
+                log.debug("%s: unregister failed: %s", self.name, exc)
+        listener = self._listener
+        if listener is not None:
+            try:
+                listener.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            listener.close()
+        self._handoff.close()
+        for output in outputs:
+            self._log_output_removed(output)
+            output.connection.close()
+        for unit in inputs:
+            unit.close()
+        if self._accept_thread is not None and self._accept_thread is not threading.current_thread():
+            self._accept_thread.join(timeout=2.0)
+        for unit in inputs:
+            if unit.thread is not threading.current_thread():
+                unit.thread.join(timeout=2.0)
+
+    def __enter__(self) -> "Port":
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    @property
+    def is_open(self) -> bool:
+        return self._open
+
+    # -- connections ---------------------------------------------------------------
+
+    def add_output(self, target: str, carrier: str = "") -> bool:
+        """Connect this port's output to ``target`` (``/name`` or ``udp://name``)."""
+        ok, message = self._add_output(f"{carrier}:/{target}" if carrier else target)
+        if not ok:
+            log.warning("%s", message)
+        return ok
+
+    def _add_output(self, spec: str) -> Tuple[bool, str]:
+        requested = Contact.parse(spec)
+        if self.rpc and self._outputs and requested.name not in self._outputs:
+            return False, "RPC output already connected"
+        try:
+            address = requested if requested.host else self.nameclient.query(requested.name)
+        except NetworkError:
+            address = None
+        if address is None or not address.valid:
+            return False, f"Do not know how to connect to {spec}"
+        carrier = requested.carrier or address.carrier or "tcp"
+        existing = self._outputs.get(address.name)
+        if existing is not None and existing.route.carrier == carrier:
+            return True, f"Desired connection already present from {self.name} to {spec}"
+        self.remove_output(address.name, quiet=True)
+        try:
+            connection = OutgoingConnection.open(address, self.name, carrier,
+                                                 timeout=self.timeout or 10.0)
+        except YarpError as exc:
+            log.debug("%s: cannot connect to %s: %s", self.name, spec, exc)
+            return False, f"Cannot connect to {spec}"
+        route = Route(self.name, address.name, connection.carrier_name,
+                      connection.carrier.connectionless)
+        with self._lock:
+            if not self._open:
+                connection.close()
+                return False, f"Cannot connect to {spec}"
+            self._outputs[address.name] = _OutputUnit(connection, route, spec)
+        if _rooted(route.target) and _rooted(route.source):
+            log.info("Sending output from %s to %s using %s", route.source, route.target,
+                     route.carrier)
+        return True, f"Added connection from {self.name} to {spec}"
+
+    def remove_output(self, target: str, quiet: bool = False) -> bool:
+        target = Contact.parse(target).name or target
+        with self._lock:
+            unit = self._outputs.pop(target, None)
+        if unit is None:
+            return False
+        if not quiet:
+            self._log_output_removed(unit)
+        if unit.connection.carrier.connectionless:
+            # The receiver cannot see a udp sender leave: tell it out of band.
+            threading.Thread(target=self._disconnect_input_remotely, args=(unit,),
+                             daemon=True).start()
+        unit.connection.close()
+        return True
+
+    def _disconnect_input_remotely(self, unit: _OutputUnit) -> None:
+        try:
+            contact = self.nameclient.query(unit.route.target)
+            if contact is not None:
+                connection = OutgoingConnection.open(contact, "admin", "text", timeout=2.0)
+                connection.send_text_command(f"~{self.name}", timeout=1.0)
+                connection.abort()
+        except YarpError:
+            pass
+
+    def remove_input(self, source: str) -> bool:
+        with self._lock:
+            units = [unit for unit in self._inputs.values() if unit.route.source == source]
+        for unit in units:
+            unit.close()
+        return bool(units)
+
+    def _log_output_removed(self, unit: _OutputUnit) -> None:
+        if _rooted(unit.route.target) and _rooted(unit.route.source):
+            log.info("Removing output from %s to %s", unit.route.source, unit.route.target)
+
+    def input_routes(self) -> List[Route]:
+        with self._lock:
+            return [unit.route for unit in self._inputs.values() if unit.carrier is not None]
+
+    def output_routes(self) -> List[Route]:
+        with self._lock:
+            return [unit.route for unit in self._outputs.values()]
+
+    @property
+    def input_count(self) -> int:
+        return len(self.input_routes())
+
+    @property
+    def output_count(self) -> int:
+        with self._lock:
+            return len(self._outputs)
+
+    def wait_for_inputs(self, count: int = 1, timeout: float = 10.0) -> bool:
+        deadline = time.monotonic() + timeout
+        with self._input_events:
+            while self.input_count < count:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return False
+                self._input_events.wait(remaining)
+        return True
+
+    # -- writing -----------------------------------------------------------------
+
+    def write(self, bottle: Union[Bottle, Sequence, Payload]) -> bool:
+        """Send to every output; False if any output failed (and was dropped)."""
+        payload = bottle if isinstance(bottle, Payload) else BottlePayload(bottle)
+        with self._lock:
+            outputs = list(self._outputs.values())
+        all_ok = True
+        for unit in outputs:
+            try:
+                unit.connection.send("D", payload, timeout=self.timeout)
+            except YarpError as exc:
+                all_ok = False
+                log.info("%s: output to %s failed (%s); removing it", self.name,
+                         unit.route.target, exc)
+                self._drop_output(unit)
+        return all_ok
+
+    def write_with_reply(self, bottle: Union[Bottle, Sequence],
+                         timeout: Optional[float] = None) -> Optional[Bottle]:
+        """Send to the first output and wait for its reply (YARP's write(b, reply))."""
+        with self._lock:
+            outputs = list(self._outputs.values())
+        if not outputs:
+            return None
+        unit = outputs[0]
+        try:
+            return unit.connection.send("d", BottlePayload(bottle), want_reply=True,
+                                        timeout=timeout if timeout is not None else self.timeout)
+        except YarpError as exc:
+            log.info("%s: request to %s failed (%s); removing the connection", self.name,
+                     unit.route.target, exc)
+            self._drop_output(unit)
+            raise
+
+    def _drop_output(self, unit: _OutputUnit) -> None:
+        with self._lock:
+            if self._outputs.get(unit.route.target) is unit:
+                del self._outputs[unit.route.target]
+        self._log_output_removed(unit)
+        unit.connection.abort()
+
+    # -- reading -----------------------------------------------------------------
+
+    def read(self, timeout: Optional[float] = None, will_reply: bool = False) -> Optional[Bottle]:
+        """Wait for the next Bottle; None on timeout or close.
+
+        With ``will_reply``, the sender is held until :meth:`reply`.
+        """
+        if self.reader is not None:
+            raise LocalProtocolError(f"{self.name} delivers to a callback; read() is unused")
+        self._used_for_read = True
+        item = self._handoff.take(timeout, will_reply)
+        if item is None:
+            return None
+        message, _ = item
+        self.envelope = message.envelope
+        return message.bottle()
+
+    def reply(self, bottle: Union[Bottle, Sequence]) -> bool:
+        """Answer the message taken by ``read(will_reply=True)``."""
+        return self._handoff.give_reply(bottle if isinstance(bottle, Bottle) else Bottle(bottle))
+
+    def _deliver(self, message: Incoming, unit: "_InputUnit") -> Union[None, Bottle, Payload]:
+        """Hand one data message to the owner; return its reply, if any."""
+        route = unit.route
+        if message.envelope:
+            self.envelope = message.envelope
+        if self.reader is not None:
+            reply = self.reader(message.bottle())
+            if reply is None:
+                return None
+            return reply if isinstance(reply, Bottle) else Bottle(reply)
+        if not self._used_for_read:
+            log.debug("%s: nobody reads this port; dropping a message from %s",
+                      self.name, route.source)
+            return None
+        return self._handoff.offer(message, route)
+
+    # -- input bookkeeping -----------------------------------------------------------
+
+    def _accept_loop(self) -> None:
+        listener = self._listener
+        while self._open and listener is not None:
+            try:
+                sock, _ = listener.accept()
+            except OSError:
+                break
+            with self._lock:
+                if not self._open:
+                    sock.close()
+                    break
+                if len(self._inputs) >= self.max_inputs:
+                    # Flooded: keep serving the connections we have.
+                    sock.close()
+                    self._refused += 1
+                    if self._refused in (1, 10, 100) or self._refused % 1000 == 0:
+                        log.warning("%s: %d connections refused, %d already open",
+                                    self.name, self._refused, len(self._inputs))
+                    continue
+                unit = _InputUnit(self, sock)
+                self._inputs[unit.id] = unit
+            unit.start()
+
+    def _input_started(self, unit: _InputUnit) -> None:
+        route = unit.route
+        if _rooted(route.source):
+            # As YARP: a new connection from the same source replaces old ones.
+            with self._lock:
+                stale = [other for other in self._inputs.values()
+                         if other is not unit and other.route.source == route.source]
+            for other in stale:
+                other.close()
+            log.info("Receiving input from %s to %s using %s", route.source, route.target,
+                     route.carrier)
+        with self._input_events:
+            self._input_events.notify_all()
+
+    def _input_finished(self, unit: _InputUnit) -> None:
+        with self._lock:
+            self._inputs.pop(unit.id, None)
+            self._input_events.notify_all()
+        if unit.carrier is not None and _rooted(unit.route.source) and not self._closing:
+            log.info("Removing input from %s to %s", unit.route.source, unit.route.target)
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name or '(closed)'}>"
+
+
+class RegistrationKeeper:
+    """Re-registers open ports when the name server comes back.
+
+    Real YARP ports stay unregistered after a name server restart; ours notice
+    (one ``list`` per name server every few seconds) and register again at the
+    same address, so persistent connections and lookups work without
+    restarting the modules.
+    """
+
+    _instance: Optional["RegistrationKeeper"] = None
+    _instance_lock = threading.Lock()
+    PERIOD = 2.0
+
+    def __init__(self) -> None:
+        self._ports: List[Port] = []
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._thread: Optional[threading.Thread] = None
+
+    @classmethod
+    def instance(cls) -> "RegistrationKeeper":
+        with cls._instance_lock:
+            if cls._instance is None:
+                cls._instance = cls()
+            return cls._instance
+
+    def add(self, port: Port) -> None:
+        with self._lock:
+            self._ports.append(port)
+            if self._thread is None or not self._thread.is_alive():
+                self._thread = threading.Thread(target=self._run, daemon=True,
+                                                name="yarp_lite registration keeper")
+                self._thread.start()
+
+    def remove(self, port: Port) -> None:
+        with self._lock:
+            if port in self._ports:
+                self._ports.remove(port)
+
+    def check_now(self) -> None:
+        """Run one check soon (tests and tools use this instead of sleeping)."""
+        self._wake.set()
+
+    def _run(self) -> None:
+        while True:
+            self._wake.wait(self.PERIOD)
+            self._wake.clear()
+            with self._lock:
+                ports = [port for port in self._ports if port.is_open]
+            by_client: Dict[int, List[Port]] = {}
+            for port in ports:
+                by_client.setdefault(id(port.nameclient), []).append(port)
+            for group in by_client.values():
+                self._check(group)
+
+    def _check(self, ports: List[Port]) -> None:
+        client = ports[0].nameclient
+        try:
+            known = {contact.name: contact for contact in client.list()}
+        except YarpError:
+            return  # server down: try again next period
+        for port in ports:
+            current = known.get(port.name)
+            if current is not None and current.port == port.address.port:
+                continue
+            if not port.is_open:
+                continue
+            try:
+                client.register(port.name, "tcp", port.address.host, port.address.port)
+                client.describe_port(port.name)
+                client.announce(port.name)
+                log.info("%s: registered again with the name server", port.name)
+            except YarpError as exc:
+                log.debug("%s: re-registration failed: %s", port.name, exc)
+
+
+__all__ = ["Port", "RegistrationKeeper", "Reader", "SUPPORTED"]

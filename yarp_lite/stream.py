@@ -1,0 +1,234 @@
+"""Thin blocking byte streams over sockets: the only place yarp_lite calls recv/send.
+
+A :class:`Stream` is what carriers talk through.  :class:`SocketStream` wraps
+a connected TCP socket with a small read buffer (so line reads and 8-byte
+reads do not cost a syscall each) and scatter-gather writes (so a header and
+a 1 MB blob leave in one ``sendmsg`` without being joined first).
+:class:`DatagramStream` (in :mod:`yarp_lite.carriers.udp`) offers the same
+interface over UDP.  Every read raises :class:`NetworkError` when the peer goes
+away, so callers never see ``OSError`` or a silent short read.
+"""
+
+from __future__ import annotations
+
+import socket
+from typing import Iterable, Optional, Tuple, Union
+
+from yarp_lite.errors import NetworkError, RemoteProtocolError
+from yarp_lite.lines import split_line
+
+Buffer = Union[bytes, bytearray, memoryview]
+Address = Tuple[str, int]
+
+_RECV_CHUNK = 262144
+#: Longest text line accepted from a peer (a text-mode Bottle or command).
+MAX_LINE = 1 << 20
+
+
+class Stream:
+    """Interface shared by the socket and datagram streams."""
+
+    where: str = "stream"
+
+    def read_exact(self, count: int) -> bytes:
+        raise NotImplementedError
+
+    def read_some(self) -> bytes:
+        raise NotImplementedError
+
+    def read_line(self, limit: int = MAX_LINE) -> str:
+        raise NotImplementedError
+
+    def unread(self, data: bytes) -> None:
+        """Push bytes back so the next read sees them first."""
+        raise NotImplementedError
+
+    def write(self, *chunks: Buffer) -> None:
+        raise NotImplementedError
+
+    def flush(self) -> None:
+        """Mark a message boundary (datagram streams send here)."""
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    @property
+    def local_address(self) -> Address:
+        raise NotImplementedError
+
+    @property
+    def remote_address(self) -> Address:
+        raise NotImplementedError
+
+
+class SocketStream(Stream):
+    """A connected TCP socket with buffered reads and gathered writes."""
+
+    def __init__(self, sock: socket.socket, where: str = "tcp") -> None:
+        self.sock = sock
+        self.where = where
+        self._buffer = bytearray()
+        self._start = 0
+        self._closed = False
+        try:
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        except OSError:
+            pass
+        try:
+            self._local = sock.getsockname()[:2]
+            self._remote = sock.getpeername()[:2]
+        except OSError as exc:
+            raise NetworkError(f"{where}: socket is not connected ({exc})") from exc
+
+    @classmethod
+    def connect(cls, host: str, port: int, timeout: Optional[float] = 10.0,
+                where: str = "") -> "SocketStream":
+        try:
+            sock = socket.create_connection((host, port), timeout=timeout)
+        except OSError as exc:
+            raise NetworkError(f"cannot connect to {host}:{port}: {exc.strerror or exc}") \
+                from exc
+        sock.settimeout(None)
+        return cls(sock, where or f"tcp {host}:{port}")
+
+    # -- reading ---------------------------------------------------------------
+
+    def _fill(self) -> None:
+        if self._closed:
+            raise NetworkError(f"{self.where}: stream closed")
+        try:
+            data = self.sock.recv(_RECV_CHUNK)
+        except (OSError, ValueError) as exc:
+            raise NetworkError(f"{self.where}: receive failed: {exc}") from exc
+        if not data:
+            raise NetworkError(f"{self.where}: peer closed the connection")
+        if self._start == len(self._buffer):
+            self._buffer = bytearray(data)
+            self._start = 0
+        else:
+            self._buffer += data
+
+    @property
+    def buffered(self) -> int:
+        return len(self._buffer) - self._start
+
+    def _take(self, count: int) -> bytes:
+        data = bytes(self._buffer[self._start:self._start + count])
+        self._start += count
+        if self._start == len(self._buffer):
+            self._buffer.clear()
+            self._start = 0
+        return data
+
+    def read_exact(self, count: int) -> bytes:
+        if count > self.buffered and count > _RECV_CHUNK:
+            return self._read_large(count)
+        while self.buffered < count:
+            self._fill()
+        return self._take(count)
+
+    def _read_large(self, count: int) -> bytes:
+        out = bytearray(count)
+        view = memoryview(out)
+        have = min(self.buffered, count)
+        view[:have] = self._buffer[self._start:self._start + have]
+        self._start += have
+        self.read_into(view[have:])
+        return bytes(out)
+
+    def read_into(self, view: memoryview) -> None:
+        """Fill ``view`` completely, straight from the socket when possible."""
+        filled = 0
+        have = min(self.buffered, len(view))
+        if have:
+            view[:have] = self._buffer[self._start:self._start + have]
+            self._start += have
+            filled = have
+        while filled < len(view):
+            try:
+                got = self.sock.recv_into(view[filled:])
+            except (OSError, ValueError) as exc:
+                raise NetworkError(f"{self.where}: receive failed: {exc}") from exc
+            if not got:
+                raise NetworkError(f"{self.where}: peer closed the connection")
+            filled += got
+
+    def read_some(self) -> bytes:
+        if not self.buffered:
+            self._fill()
+        return self._take(self.buffered)
+
+    def read_line(self, limit: int = MAX_LINE) -> str:
+        """One line as YARP reads it (see :func:`yarp_lite.lines.split_line`)."""
+        while True:
+            found = split_line(self._buffer, self._start)
+            if found is not None:
+                line, end = found
+                self._take(end - self._start)
+                return line
+            if self.buffered > limit:
+                raise RemoteProtocolError(f"line longer than {limit} bytes", self.where)
+            self._fill()
+
+    def unread(self, data: bytes) -> None:
+        self._buffer[self._start:self._start] = data
+
+    def peek(self, count: int) -> bytes:
+        while self.buffered < count:
+            self._fill()
+        return bytes(self._buffer[self._start:self._start + count])
+
+    # -- writing ---------------------------------------------------------------
+
+    def write(self, *chunks: Buffer) -> None:
+        if self._closed:
+            raise NetworkError(f"{self.where}: stream closed")
+        pending = [memoryview(chunk).cast("B") for chunk in chunks if len(chunk)]
+        try:
+            while pending:
+                sent = self.sock.sendmsg(pending[:1024])
+                while sent and pending:
+                    head = pending[0]
+                    if sent >= len(head):
+                        sent -= len(head)
+                        pending.pop(0)
+                    else:
+                        pending[0] = head[sent:]
+                        sent = 0
+        except (OSError, ValueError) as exc:
+            raise NetworkError(f"{self.where}: send failed: {exc}") from exc
+
+    def set_timeout(self, timeout: Optional[float]) -> None:
+        try:
+            self.sock.settimeout(timeout)
+        except OSError:
+            pass
+
+    def shutdown_read(self) -> None:
+        """Wake a thread blocked in recv on this stream (used by close())."""
+        try:
+            self.sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            self.shutdown_read()
+            self.sock.close()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    @property
+    def local_address(self) -> Address:
+        return self._local
+
+    @property
+    def remote_address(self) -> Address:
+        return self._remote
+
+
+def write_all(stream: Stream, chunks: Iterable[Buffer]) -> None:
+    stream.write(*chunks)
