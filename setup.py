@@ -1,0 +1,25 @@
+"""Walk-Man software architecture, reproduced as runnable Python middleware."""
+
+from setuptools import find_packages, setup
+
+setup(
+    name="walkman-architecture",
+    version="0.1.0",
+    description="Walk-Man humanoid software architecture: yarp_lite, GYM, HAL, network bridge, "
+                "ROS pilot nodes",
+    python_requires=">=3.11",
+    packages=find_packages(include=["yarp_lite*", "walkman*", "bridge*", "rosnodes*"]),
+    package_data={"": ["*.xml", "*.xsd", "*.ini", "*.urdf", "*.msg", "*.srv"]},
+    include_package_data=True,
+    install_requires=["numpy"],
+    extras_require={
+        "sim": ["mujoco", "pin"],
+        "bridge": ["lxml", "opencv-python-headless"],
+        "test": ["pytest", "hypothesis"],
+    },
+    entry_points={
+        "console_scripts": [
+            "yarp-lite=yarp_lite.cli:main",
+        ],
+    },
+)

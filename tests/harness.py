@@ -1,0 +1,276 @@
+"""Test harness: real processes on free ports, isolated YARP configuration, cleanup.
+
+Every integration test builds a :class:`YarpWorld`: a private
+``YARP_CONFIG_HOME``/``YARP_DATA_HOME``, a name server (real ``yarpserver`` or
+``yarp-lite server``) on a free socket, and helpers to start the companion
+tools of either implementation.  Processes run in their own session and are
+killed with their whole group when the test ends, pass or fail.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import queue
+import re
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Dict, List, Optional, Sequence
+
+REPO = Path(__file__).resolve().parents[1]
+CACHE = Path(os.environ.get("XDG_CACHE_HOME", str(Path.home() / ".cache"))) / "walkman"
+
+
+def reference_yarp_prefix() -> Optional[Path]:
+    """Where the reference YARP 3.5 build lives, or None if it was not built."""
+    prefix = Path(os.environ.get("WALKMAN_YARP_PREFIX", str(CACHE / "yarp-3.5.0")))
+    if (prefix / "bin" / "yarpserver").is_file() and (prefix / "bin" / "yarp").is_file():
+        return prefix
+    return None
+
+
+REFERENCE_MISSING = ("reference YARP 3.5 not built: run launch_scripts/build_reference_yarp.sh "
+                     "(the README's test command does it)")
+
+
+def free_port(start: int = 20000, end: int = 60000, span: int = 1) -> int:
+    """A TCP port number such that ``port .. port+span-1`` are currently free."""
+    import random
+
+    for _ in range(200):
+        base = random.randrange(start, end - span)
+        if all(_is_free(base + offset) for offset in range(span)):
+            return base
+    raise RuntimeError("no free port range found")
+
+
+def _is_free(port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        try:
+            probe.bind(("127.0.0.1", port))
+            return True
+        except OSError:
+            return False
+
+
+def compile_cpp(source: Path, name: str) -> Path:
+    """Compile a C++ helper against the reference YARP, cached by source hash."""
+    prefix = reference_yarp_prefix()
+    if prefix is None:
+        raise RuntimeError(REFERENCE_MISSING)
+    digest = hashlib.sha256(source.read_bytes()).hexdigest()[:16]
+    target = CACHE / "helpers" / f"{name}-{digest}"
+    if target.is_file():
+        return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    includes = []
+    for header in ("utility", "cstdint", "limits", "string", "functional", "memory", "vector",
+                   "algorithm", "stdexcept", "cstring", "array"):
+        includes += ["-include", header]
+    command = ["g++", "-O2", "-std=c++17", *includes, str(source), f"-I{prefix / 'include'}",
+               f"-L{prefix / 'lib'}", "-lYARP_os", "-lYARP_init", f"-Wl,-rpath,{prefix / 'lib'}",
+               "-lpthread", "-o", str(target) + ".tmp"]
+    subprocess.run(command, check=True, capture_output=True, text=True)
+    os.replace(str(target) + ".tmp", target)
+    return target
+
+
+class Proc:
+    """A child process whose combined output is collected line by line."""
+
+    def __init__(self, argv: Sequence[str], env: Dict[str, str], name: str,
+                 stdin: bool = False, cwd: Optional[Path] = None) -> None:
+        self.name = name
+        self.argv = list(argv)
+        self.lines: List[str] = []
+        self._queue: "queue.Queue[str]" = queue.Queue()
+        self.popen = subprocess.Popen(
+            self.argv, env=env, cwd=str(cwd or REPO), stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, stdin=subprocess.PIPE if stdin else subprocess.DEVNULL,
+            text=True, bufsize=1, start_new_session=True)
+        self._reader = threading.Thread(target=self._pump, daemon=True)
+        self._reader.start()
+
+    def _pump(self) -> None:
+        assert self.popen.stdout is not None
+        for line in self.popen.stdout:
+            line = line.rstrip("\n")
+            self.lines.append(line)
+            self._queue.put(line)
+
+    def send(self, text: str) -> None:
+        assert self.popen.stdin is not None
+        self.popen.stdin.write(text)
+        self.popen.stdin.flush()
+
+    def close_stdin(self) -> None:
+        if self.popen.stdin is not None:
+            self.popen.stdin.close()
+
+    def wait_for(self, pattern: str, timeout: float = 15.0) -> re.Match:
+        """Block until an output line matches ``pattern`` (searched anywhere)."""
+        regex = re.compile(pattern)
+        for line in list(self.lines):
+            match = regex.search(line)
+            if match:
+                return match
+        deadline = time.monotonic() + timeout
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise AssertionError(f"{self.name}: no line matching {pattern!r} within "
+                                     f"{timeout}s; output so far:\n" + "\n".join(self.lines))
+            try:
+                line = self._queue.get(timeout=min(remaining, 0.2))
+            except queue.Empty:
+                if self.popen.poll() is not None and self._queue.empty():
+                    self._reader.join(timeout=1)
+                    for line in list(self.lines):
+                        match = regex.search(line)
+                        if match:
+                            return match
+                    raise AssertionError(f"{self.name} exited ({self.popen.returncode}) "
+                                         f"before printing {pattern!r}:\n" + "\n".join(self.lines))
+                continue
+            match = regex.search(line)
+            if match:
+                return match
+
+    def output(self) -> str:
+        return "\n".join(self.lines)
+
+    def wait(self, timeout: float = 15.0) -> int:
+        code = self.popen.wait(timeout=timeout)
+        self._reader.join(timeout=2)
+        return code
+
+    def kill(self, sig: int = signal.SIGKILL) -> None:
+        if self.popen.poll() is None:
+            try:
+                os.killpg(self.popen.pid, sig)
+            except ProcessLookupError:
+                pass
+        try:
+            self.popen.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            os.killpg(self.popen.pid, signal.SIGKILL)
+            self.popen.wait(timeout=5)
+
+    def interrupt(self) -> int:
+        """Ctrl-C, as a user would stop a tool; returns the exit status."""
+        if self.popen.poll() is None:
+            os.killpg(self.popen.pid, signal.SIGINT)
+        try:
+            return self.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.kill()
+            return -9
+
+
+@dataclass
+class Implementation:
+    """One YARP implementation: how to run its server and its companion tool."""
+
+    name: str
+    server: List[str]
+    tool: List[str]
+
+
+def lite_implementation() -> Implementation:
+    python = sys.executable
+    return Implementation("yarp_lite", [python, "-m", "yarp_lite", "server"],
+                          [python, "-m", "yarp_lite"])
+
+
+def real_implementation() -> Optional[Implementation]:
+    prefix = reference_yarp_prefix()
+    if prefix is None:
+        return None
+    return Implementation("yarp", [str(prefix / "bin" / "yarpserver")],
+                          [str(prefix / "bin" / "yarp")])
+
+
+@dataclass
+class YarpWorld:
+    """An isolated YARP network: config dirs, one name server, and child processes."""
+
+    root: Path
+    server_impl: Implementation
+    socket_number: int = 0
+    processes: List[Proc] = field(default_factory=list)
+    server: Optional[Proc] = None
+
+    def __post_init__(self) -> None:
+        self.config = self.root / "config"
+        self.data = self.root / "data"
+        self.config.mkdir(parents=True, exist_ok=True)
+        self.data.mkdir(parents=True, exist_ok=True)
+        if not self.socket_number:
+            self.socket_number = free_port(span=60)
+
+    @property
+    def env(self) -> Dict[str, str]:
+        env = dict(os.environ)
+        env.update({"YARP_CONFIG_HOME": str(self.config), "YARP_DATA_HOME": str(self.data),
+                    "PYTHONUNBUFFERED": "1"})
+        env.pop("YARP_NAMESPACE", None)
+        env.pop("YARP_PORT_PREFIX", None)
+        return env
+
+    def apply_to_process(self, monkeypatch) -> None:
+        """Point in-process yarp_lite code at this world (via monkeypatch)."""
+        for key, value in self.env.items():
+            if key.startswith("YARP"):
+                monkeypatch.setenv(key, value)
+        monkeypatch.delenv("YARP_NAMESPACE", raising=False)
+
+    def start_server(self, extra: Sequence[str] = ()) -> Proc:
+        argv = [*self.server_impl.server, "--socket", str(self.socket_number), "--ip",
+                "127.0.0.1", "--write", *extra]
+        self.server = self.start(argv, f"{self.server_impl.name} server")
+        self.server.wait_for(r"Ok\. Ready!|Name server can be browsed", timeout=20)
+        return self.server
+
+    def stop_server(self) -> None:
+        if self.server is not None:
+            self.server.kill(signal.SIGKILL)
+            self.server = None
+
+    def start(self, argv: Sequence[str], name: str = "", stdin: bool = False,
+              env: Optional[Dict[str, str]] = None) -> Proc:
+        proc = Proc(argv, env or self.env, name or " ".join(argv[:3]), stdin=stdin)
+        self.processes.append(proc)
+        return proc
+
+    def tool(self, impl: Implementation, *args: str, stdin: bool = False) -> Proc:
+        return self.start([*impl.tool, *args], f"{impl.name} {' '.join(args)}", stdin=stdin)
+
+    def run_tool(self, impl: Implementation, *args: str, timeout: float = 20.0,
+                 input_text: Optional[str] = None) -> subprocess.CompletedProcess:
+        return subprocess.run([*impl.tool, *args], env=self.env, capture_output=True,
+                              text=True, timeout=timeout, input=input_text, cwd=str(REPO))
+
+    def close(self) -> None:
+        for proc in reversed(self.processes):
+            proc.kill()
+        self.processes.clear()
+
+
+def wait_until(predicate, timeout: float = 10.0, interval: float = 0.05,
+               message: str = "condition") -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout}s waiting for {message}")
+        time.sleep(interval)
+
+
+def have_root() -> bool:
+    return os.geteuid() == 0 and shutil.which("ip") is not None
