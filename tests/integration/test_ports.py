@@ -1,0 +1,286 @@
+"""yarp_lite ports on real sockets, against a ``yarp-lite server`` process."""
+
+from __future__ import annotations
+
+import socket
+import struct
+import threading
+import time
+
+import pytest
+
+from harness import wait_until
+from yarp_lite import network
+from yarp_lite.bottle import Bottle, Int8, Vocab, encode
+from yarp_lite.buffered_port import BufferedPort
+from yarp_lite.carriers import PROTOCOL_NOT_FOUND
+from yarp_lite.errors import LocalProtocolError
+from yarp_lite.framing import encode_message, encode_sender_name, yarp_number
+from yarp_lite.nameclient import NameClient
+from yarp_lite.port import Port
+from yarp_lite.rpc import RpcClient, RpcServer
+
+CARRIERS = ["tcp", "fast_tcp", "udp", "text", "text_ack"]
+
+
+@pytest.fixture
+def ports():
+    opened = []
+
+    def make(cls=Port, *args, **kwargs):
+        port = cls(*args, **kwargs)
+        opened.append(port)
+        return port
+    yield make
+    for port in opened:
+        port.close()
+
+
+def test_open_registers_and_close_unregisters(lite_world, ports):
+    port = ports(Port, "/test/a")
+    client = NameClient()
+    contact = client.query("/test/a")
+    assert contact is not None and contact.port == port.address.port
+    assert "/test/a" in [c.name for c in client.list()]
+    assert client.get("/test/a", "accepts")  # described like a real YARP port
+    port.close()
+    assert client.query("/test/a") is None
+
+
+def test_invalid_names_are_refused(lite_world):
+    for name in ("noslash", "/ends/", "/has space", ""):
+        with pytest.raises(LocalProtocolError, match="invalid port name"):
+            Port(name)
+
+
+@pytest.mark.parametrize("carrier", CARRIERS)
+def test_write_read_on_every_carrier(lite_world, ports, carrier):
+    received = []
+    got = threading.Event()
+
+    def reader(bottle):
+        received.append(bottle)
+        if len(received) == 3:
+            got.set()
+
+    ports(Port, "/in", reader=reader)
+    out = ports(Port, "/out")
+    outcome = network.connect("/out", "/in", carrier)
+    assert outcome.ok, outcome.message
+    assert network.connection_carrier("/out", "/in") == carrier
+    bottles = [Bottle([1, "two", 3.5]), Bottle([Bottle([Int8(4)]), Vocab("ok"), b"\x00\x01"]),
+               Bottle(["last"])]
+    for bottle in bottles:
+        assert out.write(bottle)
+        if carrier == "udp":
+            time.sleep(0.05)
+    assert got.wait(5), f"received only {received}"
+    if carrier in ("text", "text_ack"):
+        # Text loses the exact integer width, exactly as in YARP.
+        assert [str(b) for b in received] == [str(b) for b in bottles]
+    else:
+        assert [encode(b) for b in received] == [encode(b) for b in bottles]
+
+
+def test_rpc_with_handler_and_with_read_reply(lite_world, ports):
+    ports(RpcServer, "/calc", handler=lambda b: Bottle([sum(b)]))
+    client = ports(RpcClient, "/calc/client", "/calc")
+    assert client.call(Bottle([1, 2, 3])) == [6]
+
+    manual = ports(RpcServer, "/manual")
+
+    def serve():
+        request = manual.read(timeout=5)
+        manual.reply(Bottle(["echo", *request]))
+    threading.Thread(target=serve, daemon=True).start()
+    client2 = ports(RpcClient, "/manual/client", "/manual")
+    assert client2.call(["hi"], timeout=5) == ["echo", "hi"]
+
+
+def test_rpc_to_a_port_that_never_replies_gets_an_empty_reply(lite_world, ports):
+    ports(Port, "/silent", reader=lambda b: None)
+    client = ports(RpcClient, "/silent/client", "/silent")
+    assert client.call(["anyone?"], timeout=5) == []
+
+
+def test_rpc_port_accepts_one_output(lite_world, ports):
+    ports(Port, "/x1", reader=lambda b: None)
+    ports(Port, "/x2", reader=lambda b: None)
+    client = ports(RpcClient, "/one", "/x1")
+    assert not client.add_output("/x2")
+
+
+def test_buffered_port_latest_only_and_strict(lite_world, ports):
+    latest = ports(BufferedPort, "/latest")
+    strict = ports(BufferedPort, "/strict", strict=True)
+    sender = ports(Port, "/sender")
+    assert network.connect("/sender", "/latest").ok
+    assert network.connect("/sender", "/strict").ok
+    for index in range(20):
+        sender.write([index])
+    wait_until(lambda: strict.pending == 20, message="20 strict messages")
+    assert [strict.read()[0] for _ in range(20)] == list(range(20))
+    assert latest.read(timeout=2) == [19]
+    assert latest.dropped == 19 and latest.read(wait=False) is None
+
+
+def test_buffered_port_callback_and_background_write(lite_world, ports):
+    seen = []
+    ports(BufferedPort, "/cb", on_read=seen.append)
+    writer = ports(BufferedPort, "/bw", strict=True)
+    assert network.connect("/bw", "/cb").ok
+    for index in range(50):
+        writer.write([index])
+    assert writer.wait_for_write(5)
+    wait_until(lambda: len(seen) == 50)
+    assert [b[0] for b in seen] == list(range(50))
+
+
+def test_admin_interface(lite_world, ports):
+    ports(Port, "/adm/in", reader=lambda b: None)
+    out = ports(Port, "/adm/out")
+    contact = NameClient().query("/adm/out")
+    assert network.request(contact, [Vocab("ver")], admin=True) == [Vocab("ver"), 1, 2, 3]
+    reply = network.request(contact, [Vocab("add"), "/adm/in"], admin=True)
+    assert reply == [0, "Added connection from /adm/out to /adm/in\r\n"]
+    assert network.request(contact, [Vocab("list"), Vocab("out")], admin=True) == ["/adm/in"]
+    details = network.request(contact, [Vocab("list"), Vocab("out"), "/adm/in"], admin=True)
+    assert details.find("carrier") == "tcp"
+    help_reply = network.request(contact, [Vocab("help")], admin=True)
+    assert help_reply[0] == Vocab("many") and len(help_reply) > 10
+    assert network.request(contact, [Vocab("del"), "/adm/in"], admin=True)[0] == 0
+    assert out.output_count == 0
+    assert network.request(contact, ["bogus"], admin=True)[0] == Vocab("fail")
+
+
+def test_describe_lists_connections(lite_world, ports):
+    ports(Port, "/d/in", reader=lambda b: None)
+    ports(Port, "/d/out")
+    assert network.connect("/d/out", "/d/in").ok
+    lines = network.describe("/d/out")
+    assert lines[0].startswith("This is /d/out at tcp://")
+    assert "There is an output connection from /d/out to /d/in using tcp" in lines
+
+
+def test_port_prefix_and_rename(lite_world, ports, monkeypatch):
+    monkeypatch.setenv("YARP_PORT_PREFIX", "/robot")
+    assert ports(Port, "/arm").name == "/robot/arm"
+    monkeypatch.delenv("YARP_PORT_PREFIX")
+    monkeypatch.setenv("YARP_RENAME_leg", "/left_leg")
+    assert ports(Port, "/leg").name == "/left_leg"
+
+
+# -- persistent connections ------------------------------------------------------------------
+
+
+def test_persistent_connection_before_ports_exist_and_after_restart(lite_world, ports):
+    assert network.connect("/p/out", "/p/in", persist=True).ok
+    received = []
+    receiver = ports(Port, "/p/in", reader=received.append)
+    sender = ports(Port, "/p/out")
+    wait_until(lambda: sender.output_count == 1, message="persistent connection made")
+    sender.write(["first"])
+    wait_until(lambda: received == [["first"]])
+    receiver.close()
+    wait_until(lambda: sender.output_count == 0 or not sender.write(["lost"]), timeout=5)
+    ports(Port, "/p/in", reader=received.append)
+    wait_until(lambda: sender.output_count == 1, message="connection restored")
+    sender.write(["second"])
+    wait_until(lambda: ["second"] in received)
+    listing = NameClient().subscriptions()
+    assert listing[0] == "subscriptions" and len(listing) == 2
+
+
+def test_subscriptions_and_registrations_survive_a_server_restart(lite_world, ports):
+    from yarp_lite.port import RegistrationKeeper
+
+    received = []
+    ports(Port, "/s/in", reader=received.append)
+    sender = ports(Port, "/s/out")
+    assert network.connect("/s/out", "/s/in", persist=True).ok
+    wait_until(lambda: sender.output_count == 1)
+    lite_world.stop_server()
+    lite_world.start_server()
+    RegistrationKeeper.instance().check_now()
+    wait_until(lambda: NameClient().query("/s/out") is not None, timeout=10,
+               message="ports registered again")
+    assert NameClient().subscriptions()[1:] != []
+    sender.remove_output("/s/in")
+    # The restored server remakes the persistent connection when the ports announce.
+    RegistrationKeeper.instance().check_now()
+    assert network.connect("/s/out", "/s/in", persist=True).ok
+    wait_until(lambda: sender.output_count == 1, timeout=10)
+
+
+# -- bad input -----------------------------------------------------------------------------
+
+
+def _raw(port: Port) -> socket.socket:
+    return socket.create_connection(("127.0.0.1", port.address.port), timeout=5)
+
+
+def _still_works(ports, target: Port, received: list) -> None:
+    sender = ports(Port, "...")  # anonymous: the server names it /tmp/port/N
+    assert sender.name.startswith("/tmp/port/")
+    assert network.connect(sender.name, target.name).ok
+    sender.write(["alive"])
+    wait_until(lambda: ["alive"] in received, message="port still serving")
+
+
+def test_unknown_protocol_gets_yarps_explanation(lite_world, ports):
+    received = []
+    port = ports(Port, "/bad/a", reader=received.append)
+    with _raw(port) as sock:
+        sock.sendall(b"GET / HTTP/1.0\r\n\r\n")
+        reply = b""
+        while chunk := sock.recv(4096):
+            reply += chunk
+    assert reply == PROTOCOL_NOT_FOUND
+    _still_works(ports, port, received)
+
+
+@pytest.mark.parametrize("after_header", [
+    yarp_number(10) + bytes([1, 1]) + b"\xff" * 8 + struct.pack("<ii", 0x7FFFFFF0, 0),  # 2 GB
+    b"XXXXXXXXXXXXXXXXXXXXXXXXXXXX",                                                    # garbage
+    b"".join(encode_message("D", [b"\x00\x01\x00\x00\x05\x00\x00\x00"])),               # truncated bottle
+    b"".join(encode_message("D", [b"abc"]))[:25],                                       # dies mid-message
+])
+def test_malformed_messages_drop_only_that_connection(lite_world, ports, after_header):
+    received = []
+    port = ports(Port, "/bad/b", reader=received.append)
+    with _raw(port) as sock:
+        sock.sendall(yarp_number(7777 + 3 + 128) + encode_sender_name("/evil"))
+        assert sock.recv(8).startswith(b"YA")
+        sock.sendall(after_header)
+        time.sleep(0.2)
+    _still_works(ports, port, received)
+    assert received == [["alive"]]
+
+
+def test_a_flood_of_registrations_and_connections(lite_world, ports):
+    client = NameClient()
+    errors = []
+
+    def register(index):
+        try:
+            client.register(f"/flood/{index}")
+        except Exception as exc:  # noqa: BLE001 - collected and asserted below
+            errors.append(exc)
+    threads = [threading.Thread(target=register, args=(i,)) for i in range(100)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert not errors
+    names = [c.name for c in client.list()]
+    assert sum(name.startswith("/flood/") for name in names) == 100
+    numbers = [c.port for c in client.list() if c.name.startswith("/flood/")]
+    assert len(set(numbers)) == 100  # every registration got its own socket number
+    received = []
+    port = ports(Port, "/bad/c", reader=received.append)
+    idle = [_raw(port) for _ in range(50)]  # connections that never say anything
+    try:
+        _still_works(ports, port, received)
+    finally:
+        for sock in idle:
+            sock.close()

@@ -1,0 +1,144 @@
+"""BufferedPort: a port that buffers what it receives and sends in the background.
+
+Reading side, as YARP's ``BufferedPort``/``PortReaderBuffer``:
+
+* default ("latest-only"): a new message replaces one still unread, so a slow
+  reader always sees the freshest state; :attr:`dropped` counts the casualties;
+* ``strict=True``: every message is kept, in order; when ``max_pending`` are
+  waiting, the sender is held back (TCP pushes back) rather than losing data;
+* ``on_read=callback``: each Bottle goes to the callback, one at a time.
+
+Writing side: :meth:`write` hands the Bottle to a sender thread and returns
+at once; a newer write replaces a Bottle not yet sent (``strict=False``) or
+queues behind it (``strict=True``).  :meth:`wait_for_write` blocks until
+everything handed over has left.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from typing import Callable, Deque, Optional, Sequence, Tuple, Union
+
+from yarp_lite.bottle import Bottle
+from yarp_lite.carriers import Incoming, Payload
+from yarp_lite.port import Port
+
+
+class BufferedPort(Port):
+    def __init__(self, name: Optional[str] = None, *, strict: bool = False,
+                 max_pending: int = 1000,
+                 on_read: Optional[Callable[[Bottle], None]] = None, **kwargs) -> None:
+        self.strict = strict
+        self.max_pending = max_pending
+        self.on_read = on_read
+        self.dropped = 0
+        self.received = 0
+        self._inbox: Deque[Tuple[Bottle, str]] = deque()
+        self._inbox_cond = threading.Condition()
+        self._callback_lock = threading.Lock()
+        self._outbox: Deque[Tuple[Union[Bottle, Payload], bool]] = deque()
+        self._outbox_cond = threading.Condition()
+        self._sending = False
+        self._sender: Optional[threading.Thread] = None
+        super().__init__(name, **kwargs)
+        self._used_for_read = True
+
+    # -- receiving -----------------------------------------------------------------
+
+    def _deliver(self, message: Incoming, unit) -> Optional[Bottle]:  # type: ignore[override]
+        bottle = message.bottle()
+        self.received += 1
+        if self.on_read is not None:
+            with self._callback_lock:
+                self.envelope = message.envelope
+                self.on_read(bottle)
+            return None
+        with self._inbox_cond:
+            if self.strict:
+                while len(self._inbox) >= self.max_pending and self.is_open:
+                    self._inbox_cond.wait(0.5)
+            elif self._inbox:
+                self.dropped += len(self._inbox)
+                self._inbox.clear()
+            self._inbox.append((bottle, message.envelope))
+            self._inbox_cond.notify_all()
+        return None
+
+    def read(self, wait: bool = True, timeout: Optional[float] = None,  # type: ignore[override]
+             will_reply: bool = False) -> Optional[Bottle]:
+        """The oldest unread Bottle; None if ``wait`` is False or time runs out."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        with self._inbox_cond:
+            while not self._inbox:
+                if not wait or not self.is_open:
+                    return None
+                remaining = None if deadline is None else deadline - time.monotonic()
+                if remaining is not None and remaining <= 0:
+                    return None
+                self._inbox_cond.wait(remaining if remaining is not None else 0.5)
+            bottle, self.envelope = self._inbox.popleft()
+            self._inbox_cond.notify_all()
+            return bottle
+
+    @property
+    def pending(self) -> int:
+        with self._inbox_cond:
+            return len(self._inbox)
+
+    # -- sending ---------------------------------------------------------------------
+
+    def write(self, bottle: Union[Bottle, Sequence, Payload], strict: Optional[bool] = None) -> bool:
+        """Queue ``bottle`` for the sender thread; return immediately."""
+        keep_all = self.strict if strict is None else strict
+        item = bottle if isinstance(bottle, (Bottle, Payload)) else Bottle(bottle)
+        with self._outbox_cond:
+            if not keep_all and self._outbox:
+                self._outbox.clear()
+            self._outbox.append((item, keep_all))
+            if self._sender is None or not self._sender.is_alive():
+                self._sender = threading.Thread(target=self._send_loop, daemon=True,
+                                                name=f"{self.name} sender")
+                self._sender.start()
+            self._outbox_cond.notify_all()
+        return True
+
+    def write_now(self, bottle: Union[Bottle, Sequence, Payload]) -> bool:
+        """Send in the calling thread, like a plain Port."""
+        return super().write(bottle)
+
+    def wait_for_write(self, timeout: Optional[float] = None) -> bool:
+        deadline = None if timeout is None else time.monotonic() + timeout
+        with self._outbox_cond:
+            while self._outbox or self._sending:
+                remaining = None if deadline is None else deadline - time.monotonic()
+                if remaining is not None and remaining <= 0:
+                    return False
+                self._outbox_cond.wait(remaining if remaining is not None else 0.5)
+        return True
+
+    def _send_loop(self) -> None:
+        while True:
+            with self._outbox_cond:
+                while not self._outbox:
+                    if not self.is_open:
+                        return
+                    self._outbox_cond.wait(0.5)
+                item, _ = self._outbox.popleft()
+                self._sending = True
+            try:
+                Port.write(self, item)
+            finally:
+                with self._outbox_cond:
+                    self._sending = False
+                    self._outbox_cond.notify_all()
+
+    def close(self) -> None:
+        if self.is_open:
+            self.wait_for_write(timeout=2.0)
+        super().close()
+        with self._inbox_cond:
+            self._inbox_cond.notify_all()
+        with self._outbox_cond:
+            self._outbox_cond.notify_all()
