@@ -40,8 +40,12 @@ REFERENCE_MISSING = ("reference YARP 3.5 not built: run launch_scripts/build_ref
                      "(the README's test command does it)")
 
 
-def free_port(start: int = 20000, end: int = 60000, span: int = 1) -> int:
-    """A TCP port number such that ``port .. port+span-1`` are currently free."""
+def free_port(start: int = 11000, end: int = 32000, span: int = 1) -> int:
+    """A TCP port number such that ``port .. port+span-1`` are currently free.
+
+    Chosen below the kernel's ephemeral range (32768+), where outgoing
+    connections would otherwise take numbers a YARP server is about to hand out.
+    """
     import random
 
     for _ in range(200):
@@ -193,8 +197,10 @@ def real_implementation() -> Optional[Implementation]:
     prefix = reference_yarp_prefix()
     if prefix is None:
         return None
-    return Implementation("yarp", [str(prefix / "bin" / "yarpserver")],
-                          [str(prefix / "bin" / "yarp")])
+    # stdbuf: YARP's tools print through stdio, fully buffered into a pipe.
+    line_buffered = ["stdbuf", "-oL", "-eL"]
+    return Implementation("yarp", [*line_buffered, str(prefix / "bin" / "yarpserver")],
+                          [*line_buffered, str(prefix / "bin" / "yarp")])
 
 
 @dataclass
@@ -235,8 +241,23 @@ class YarpWorld:
         argv = [*self.server_impl.server, "--socket", str(self.socket_number), "--ip",
                 "127.0.0.1", "--write", *extra]
         self.server = self.start(argv, f"{self.server_impl.name} server")
-        self.server.wait_for(r"Ok\. Ready!|Name server can be browsed", timeout=20)
+        wait_until(self._server_answers, timeout=20, message=f"{self.server_impl.name} server")
         return self.server
+
+    def _server_answers(self) -> bool:
+        if self.server is not None and self.server.popen.poll() is not None:
+            raise AssertionError("name server exited:\n" + self.server.output())
+        conf = self.config / "yarp.conf"
+        if not conf.is_file() or not conf.read_text().split():
+            return False
+        host = conf.read_text().split()[0]
+        try:
+            with socket.create_connection((host, self.socket_number), timeout=1) as sock:
+                sock.sendall(b"NAME_SERVER query /root\n")
+                sock.settimeout(2)
+                return b"registration name /root" in sock.recv(4096)
+        except OSError:
+            return False
 
     def stop_server(self) -> None:
         if self.server is not None:

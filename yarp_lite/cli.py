@@ -483,13 +483,13 @@ def cmd_rpc(args: List[str], admin: bool) -> int:
     while True:
         contact = requested if requested.host else client.query(requested.name)
         if contact is None:
-            log.error("Cannot make connection")
+            log.error("Cannot make connection: %s is not registered", requested.name)
             return 1
         try:
             connection = OutgoingConnection.open(
                 contact, sender, requested.carrier or ("text_ack" if admin else "tcp"))
-        except YarpError:
-            log.error("Cannot make connection")
+        except YarpError as exc:
+            log.error("Cannot make connection: %s", exc)
             return 1
         if not first:
             log.info("Target disappeared, reconnecting...")

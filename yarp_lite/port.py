@@ -399,12 +399,19 @@ class Port:
 
     def add_output(self, target: str, carrier: str = "") -> bool:
         """Connect this port's output to ``target`` (``/name`` or ``udp://name``)."""
-        ok, message = self._add_output(f"{carrier}:/{target}" if carrier else target)
+        ok, message = self._add_output(f"{carrier}:/{target}" if carrier else target,
+                                       only_if_needed=True)
         if not ok:
             log.warning("%s", message)
         return ok
 
-    def _add_output(self, spec: str) -> Tuple[bool, str]:
+    def _add_output(self, spec: str, only_if_needed: bool = False) -> Tuple[bool, str]:
+        """Connect to ``spec``; a connection to the same port is replaced.
+
+        ``only_if_needed`` keeps an existing connection with the right carrier
+        (``Port::addOutput``); the admin ``[add]`` and ``/port`` commands always
+        reconnect, as in YARP, which also clears a connection to a dead peer.
+        """
         requested = Contact.parse(spec)
         if self.rpc and self._outputs and requested.name not in self._outputs:
             return False, "RPC output already connected"
@@ -416,7 +423,7 @@ class Port:
             return False, f"Do not know how to connect to {spec}"
         carrier = requested.carrier or address.carrier or "tcp"
         existing = self._outputs.get(address.name)
-        if existing is not None and existing.route.carrier == carrier:
+        if only_if_needed and existing is not None and existing.route.carrier == carrier:
             return True, f"Desired connection already present from {self.name} to {spec}"
         self.remove_output(address.name, quiet=True)
         try:
