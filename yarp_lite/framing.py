@@ -89,9 +89,20 @@ def decode_sender_name(raw: Buffer) -> str:
 # Index, port command, acknowledgement
 
 
+_INDEX_ONE = struct.Struct("<8s10sii")
+_INDEX_TWO = struct.Struct("<8s10siii")
+_INDEX_HEAD = b"YA\x0a\x00\x00\x00RP"
+
+
 def encode_index(block_lengths: Sequence[int]) -> bytes:
     """The index announcing the payload blocks (``defaultSendIndex``)."""
-    if len(block_lengths) > MAX_BLOCKS:
+    count = len(block_lengths)
+    if count == 2:
+        return _INDEX_TWO.pack(_INDEX_HEAD, b"\x02\x01" + b"\xff" * 8, block_lengths[0],
+                               block_lengths[1], 0)
+    if count == 1:
+        return _INDEX_ONE.pack(_INDEX_HEAD, b"\x01\x01" + b"\xff" * 8, block_lengths[0], 0)
+    if count > MAX_BLOCKS:
         raise ValueError(f"{len(block_lengths)} blocks do not fit in a YARP index")
     return b"".join((yarp_number(_INDEX_HEADER_LENGTH),
                      bytes((len(block_lengths), 1)), b"\xff" * 8,
@@ -312,7 +323,8 @@ def encode_message(command: str, chunks: Sequence[Buffer] = ()) -> list:
     groups them, so the index bytes match real YARP's.
     """
     head = command_header(command)
-    data_length = sum(memoryview(chunk).nbytes for chunk in chunks)
+    data_length = sum(len(chunk) if type(chunk) is bytes else memoryview(chunk).nbytes
+                      for chunk in chunks)
     if command in ("d", "D", "a"):
         return [encode_index([len(head), data_length]), head, *chunks]
     return [encode_index([len(head) + data_length]), head, *chunks]

@@ -11,7 +11,9 @@ away, so callers never see ``OSError`` or a silent short read.
 
 from __future__ import annotations
 
+import os
 import socket
+import time
 from typing import Iterable, Optional, Tuple, Union
 
 from yarp_lite.errors import NetworkError, RemoteProtocolError
@@ -21,6 +23,13 @@ Buffer = Union[bytes, bytearray, memoryview]
 Address = Tuple[str, int]
 
 _RECV_CHUNK = 262144
+#: Adaptive busy-poll window (``YARP_LITE_SPIN_US``, 0 disables).  When the
+#: peer answered within this window last time (request/reply traffic), the
+#: next read polls the socket for that long before sleeping: on a VM a sleep
+#: and wake-up costs more than the whole Python round trip.  Streams that
+#: wait longer (periodic data) never spin, so idle connections cost nothing.
+SPIN_SECONDS = float(os.environ.get("YARP_LITE_SPIN_US", "150")) / 1e6
+_perf = time.perf_counter
 #: Longest text line accepted from a peer (a text-mode Bottle or command).
 MAX_LINE = 1 << 20
 
@@ -70,6 +79,7 @@ class SocketStream(Stream):
         self._buffer = bytearray()
         self._start = 0
         self._closed = False
+        self._last_wait = 0.0
         try:
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         except OSError:
@@ -96,10 +106,24 @@ class SocketStream(Stream):
     def _fill(self) -> None:
         if self._closed:
             raise NetworkError(f"{self.where}: stream closed")
+        data = None
+        started = _perf()
         try:
-            data = self.sock.recv(_RECV_CHUNK)
+            if SPIN_SECONDS and self._last_wait < SPIN_SECONDS:
+                deadline = started + SPIN_SECONDS
+                recv = self.sock.recv
+                while True:
+                    try:
+                        data = recv(_RECV_CHUNK, socket.MSG_DONTWAIT)
+                        break
+                    except BlockingIOError:
+                        if _perf() > deadline:
+                            break
+            if data is None:
+                data = self.sock.recv(_RECV_CHUNK)
         except (OSError, ValueError) as exc:
             raise NetworkError(f"{self.where}: receive failed: {exc}") from exc
+        self._last_wait = _perf() - started
         if not data:
             raise NetworkError(f"{self.where}: peer closed the connection")
         if self._start == len(self._buffer):
@@ -183,6 +207,14 @@ class SocketStream(Stream):
     def write(self, *chunks: Buffer) -> None:
         if self._closed:
             raise NetworkError(f"{self.where}: stream closed")
+        if all(type(chunk) is bytes for chunk in chunks):
+            total = b"".join(chunks)
+            if len(total) <= _RECV_CHUNK:
+                try:
+                    self.sock.sendall(total)
+                except (OSError, ValueError) as exc:
+                    raise NetworkError(f"{self.where}: send failed: {exc}") from exc
+                return
         pending = [memoryview(chunk).cast("B") for chunk in chunks if len(chunk)]
         try:
             while pending:

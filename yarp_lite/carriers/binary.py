@@ -79,17 +79,17 @@ class BinaryMessageSource(MessageSource):
 
 def read_binary_bottle(stream: Stream, limit: int = DEFAULT_MAX_MESSAGE) -> Bottle:
     """Read one self-delimiting binary Bottle (a reply has no length prefix)."""
-    buffer = bytearray()
+    buffer = stream.read_some()
     while True:
         try:
-            bottle, used = decode_reply_prefix(bytes(buffer), f"{stream.where}: reply")
+            bottle, used = decode_reply_prefix(buffer, f"{stream.where}: reply")
         except NeedMoreData:
             if len(buffer) > limit:
                 raise RemoteProtocolError(f"reply longer than {limit} bytes", stream.where)
             buffer += stream.read_some()
             continue
         if used < len(buffer):
-            stream.unread(bytes(buffer[used:]))  # the acknowledgement, usually
+            stream.unread(buffer[used:])  # the acknowledgement, usually
         return bottle
 
 
