@@ -103,6 +103,8 @@ def test_persistent_connection_made_when_ports_appear_and_after_restart(
     reader = world.tool(port_impl, "read", "/pr")
     writer = world.tool(port_impl, "write", "/pw", stdin=True)
     reader.wait_for("Receiving input from /pw to /pr", timeout=20)
+    wait_until(lambda: world.run_tool(port_impl, "exists", "/pw", "/pr").returncode == 0,
+               message="writer connected")
     writer.send("first\n")
     reader.wait_for("^first$")
     reader.kill()
