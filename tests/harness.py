@@ -9,7 +9,6 @@ killed with their whole group when the test ends, pass or fail.
 
 from __future__ import annotations
 
-import hashlib
 import os
 import queue
 import re
@@ -24,20 +23,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
+from yarp_lite import reference
+
 REPO = Path(__file__).resolve().parents[1]
-CACHE = Path(os.environ.get("XDG_CACHE_HOME", str(Path.home() / ".cache"))) / "walkman"
 
 
 def reference_yarp_prefix() -> Optional[Path]:
-    """Where the reference YARP 3.5 build lives, or None if it was not built."""
-    prefix = Path(os.environ.get("WALKMAN_YARP_PREFIX", str(CACHE / "yarp-3.5.0")))
-    if (prefix / "bin" / "yarpserver").is_file() and (prefix / "bin" / "yarp").is_file():
-        return prefix
-    return None
+    return reference.prefix()
 
 
-REFERENCE_MISSING = ("reference YARP 3.5 not built: run launch_scripts/build_reference_yarp.sh "
-                     "(the README's test command does it)")
+REFERENCE_MISSING = reference.MISSING
+compile_cpp = reference.compile_cpp
 
 
 def free_port(start: int = 11000, end: int = 32000, span: int = 1) -> int:
@@ -62,28 +58,6 @@ def _is_free(port: int) -> bool:
             return True
         except OSError:
             return False
-
-
-def compile_cpp(source: Path, name: str) -> Path:
-    """Compile a C++ helper against the reference YARP, cached by source hash."""
-    prefix = reference_yarp_prefix()
-    if prefix is None:
-        raise RuntimeError(REFERENCE_MISSING)
-    digest = hashlib.sha256(source.read_bytes()).hexdigest()[:16]
-    target = CACHE / "helpers" / f"{name}-{digest}"
-    if target.is_file():
-        return target
-    target.parent.mkdir(parents=True, exist_ok=True)
-    includes = []
-    for header in ("utility", "cstdint", "limits", "string", "functional", "memory", "vector",
-                   "algorithm", "stdexcept", "cstring", "array"):
-        includes += ["-include", header]
-    command = ["g++", "-O2", "-std=c++17", *includes, str(source), f"-I{prefix / 'include'}",
-               f"-L{prefix / 'lib'}", "-lYARP_os", "-lYARP_init", f"-Wl,-rpath,{prefix / 'lib'}",
-               "-lpthread", "-o", str(target) + ".tmp"]
-    subprocess.run(command, check=True, capture_output=True, text=True)
-    os.replace(str(target) + ".tmp", target)
-    return target
 
 
 class Proc:

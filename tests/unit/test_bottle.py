@@ -180,3 +180,15 @@ def test_corrupting_one_byte_never_raises_anything_else(bottle, data):
         decode(bytes(raw))
     except RemoteProtocolError:
         pass
+
+
+@FUZZ
+@given(bottles, st.binary(min_size=0, max_size=70000))
+def test_chunked_encoding_equals_plain_encoding(bottle, big):
+    from yarp_lite.bottle import encode_chunks
+
+    bottle = Bottle([*bottle, big, Bottle([big, "tail"])])
+    chunks = encode_chunks(bottle)
+    assert b"".join(bytes(chunk) for chunk in chunks) == encode(bottle)
+    if len(big) >= 16384:
+        assert any(isinstance(chunk, memoryview) for chunk in chunks)  # not copied

@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar, List, Optional, Sequence, Union
 
-from yarp_lite.bottle import Bottle, decode, encode
+from yarp_lite.bottle import Bottle, decode, encode_chunks
 from yarp_lite.bottle_text import format_bottle, is_complete, parse
 from yarp_lite.errors import LocalProtocolError
 from yarp_lite.stream import Stream
@@ -50,7 +50,7 @@ class BottlePayload(Payload):
 
     def binary(self) -> List[Buffer]:
         if self._binary is None:
-            self._binary = [encode(self._bottle)]
+            self._binary = encode_chunks(self._bottle)
         return self._binary
 
     def text(self) -> str:
