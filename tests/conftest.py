@@ -10,7 +10,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from harness import (REFERENCE_MISSING, YarpWorld, lite_implementation,  # noqa: E402
+from harness import (YarpWorld, lite_implementation, missing_reference,  # noqa: E402
                      real_implementation)
 
 
@@ -23,7 +23,7 @@ def lite():
 def reference():
     impl = real_implementation()
     if impl is None:
-        pytest.skip(REFERENCE_MISSING)
+        missing_reference()
     return impl
 
 

@@ -42,16 +42,25 @@ def parse_registration(line: str) -> Optional[Contact]:
 
 
 def local_ips() -> List[str]:
-    """IPv4 addresses of this machine, for the ``ips`` property ports register."""
-    ips = ["127.0.0.1"]
+    """IPv4 addresses of this machine's interfaces (YARP's ``getIpsAsBottle``)."""
+    import fcntl
+    import struct
+
+    ips: List[str] = []
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     try:
-        for info in socket.getaddrinfo(socket.gethostname(), None, socket.AF_INET):
-            address = info[4][0]
+        for _, name in socket.if_nameindex():
+            try:
+                request = struct.pack("256s", name.encode()[:15])
+                raw = fcntl.ioctl(probe.fileno(), 0x8915, request)  # SIOCGIFADDR
+            except OSError:
+                continue  # interface without an IPv4 address
+            address = socket.inet_ntoa(raw[20:24])
             if address not in ips:
                 ips.append(address)
-    except OSError:
-        pass
-    return ips
+    finally:
+        probe.close()
+    return ips or ["127.0.0.1"]
 
 
 class NameClient:

@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from harness import compile_cpp, real_implementation, REFERENCE_MISSING
+from harness import compile_cpp, missing_reference, real_implementation
 from yarp_lite.bottle import (Bottle, Float32, Int8, Int16, Int64, Vocab, decode, encode)
 from yarp_lite.bottle_text import format_bottle, parse
 from yarp_lite.errors import RemoteProtocolError
@@ -48,7 +48,7 @@ class Oracle:
 @pytest.fixture(scope="module")
 def oracle():
     if real_implementation() is None:
-        pytest.skip(REFERENCE_MISSING)
+        missing_reference()
     instance = Oracle(compile_cpp(SOURCE, "bottle_oracle"))
     yield instance
     instance.close()

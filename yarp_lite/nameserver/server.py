@@ -33,6 +33,7 @@ from yarp_lite.errors import LocalProtocolError, YarpError
 from yarp_lite.nameconfig import (DEFAULT_PORT, ServerAddress, config_file, data_home,
                                   namespace as current_namespace, read_server_address,
                                   write_server_address)
+from yarp_lite.nameclient import local_ips
 from yarp_lite.nameserver.registry import Registry
 from yarp_lite.nameserver.service import NameService, Outcome
 from yarp_lite.nameserver.subscriptions import Action, Subscriptions
@@ -42,21 +43,8 @@ log = logging.getLogger("yarp_lite.nameserver")
 
 
 def default_host() -> str:
-    """``NameConfig::getHostName``: a non-loopback IPv4 address if there is one."""
-    candidates = []
-    try:
-        candidates = [info[4][0] for info in socket.getaddrinfo(socket.gethostname(), None,
-                                                                socket.AF_INET)]
-    except OSError:
-        pass
-    try:
-        probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        probe.connect(("192.0.2.255", 9))  # no packet is sent; picks the default route
-        candidates.append(probe.getsockname()[0])
-        probe.close()
-    except OSError:
-        pass
-    usable = [ip for ip in candidates if not ip.startswith("127.")]
+    """``NameConfig::getHostName``: the shortest non-loopback IPv4 address, if any."""
+    usable = [ip for ip in local_ips() if not ip.startswith("127.")]
     return min(usable, key=len) if usable else "127.0.0.1"
 
 

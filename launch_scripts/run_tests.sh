@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Install what is missing, build the reference YARP 3.5 (cached), run the test suite.
+# Extra arguments go to pytest (e.g. -k interop, -x).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+launch_scripts/bootstrap.sh
+launch_scripts/build_reference_yarp.sh
+# The interop suite must really run against the reference, not skip.
+export WALKMAN_REQUIRE_REFERENCE=1
+set +e
+.venv/bin/python -m pytest tests -ra "$@"
+status=$?
+set -e
+if [[ $status -eq 5 ]]; then
+  echo "[run_tests] pytest collected no tests: that is a failure" >&2
+  exit 1
+fi
+exit $status
