@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
-from yarp_lite import reference
+from yarp_lite import nameconfig, reference
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -193,6 +193,7 @@ class YarpWorld:
     root: Path
     server_impl: Implementation
     socket_number: int = 0
+    namespace: str = "/root"
     processes: List[Proc] = field(default_factory=list)
     server: Optional[Proc] = None
 
@@ -211,6 +212,8 @@ class YarpWorld:
                     "PYTHONUNBUFFERED": "1"})
         env.pop("YARP_NAMESPACE", None)
         env.pop("YARP_PORT_PREFIX", None)
+        if self.namespace != "/root":
+            env["YARP_NAMESPACE"] = self.namespace
         return env
 
     def apply_to_process(self, monkeypatch) -> None:
@@ -218,7 +221,8 @@ class YarpWorld:
         for key, value in self.env.items():
             if key.startswith("YARP"):
                 monkeypatch.setenv(key, value)
-        monkeypatch.delenv("YARP_NAMESPACE", raising=False)
+        if self.namespace == "/root":
+            monkeypatch.delenv("YARP_NAMESPACE", raising=False)
 
     def start_server(self, extra: Sequence[str] = ()) -> Proc:
         argv = [*self.server_impl.server, "--socket", str(self.socket_number), "--ip",
@@ -230,15 +234,15 @@ class YarpWorld:
     def _server_answers(self) -> bool:
         if self.server is not None and self.server.popen.poll() is not None:
             raise AssertionError("name server exited:\n" + self.server.output())
-        conf = self.config / "yarp.conf"
+        conf = nameconfig.config_file(self.namespace, self.env)
         if not conf.is_file() or not conf.read_text().split():
             return False
         host = conf.read_text().split()[0]
         try:
             with socket.create_connection((host, self.socket_number), timeout=1) as sock:
-                sock.sendall(b"NAME_SERVER query /root\n")
+                sock.sendall(f"NAME_SERVER query {self.namespace}\n".encode())
                 sock.settimeout(2)
-                return b"registration name /root" in sock.recv(4096)
+                return f"registration name {self.namespace}".encode() in sock.recv(4096)
         except OSError:
             return False
 
