@@ -34,6 +34,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
 from yarp_lite import reference  # noqa: E402
+from yarp_lite.freeport import free_port  # noqa: E402
 
 PYTHON = sys.executable
 
@@ -66,27 +67,37 @@ def role_lite_rpc_client(target: str, count: int) -> None:
     client.close()
 
 
+class _RateMeter:
+    """Counts messages of a stream; the first one only starts the clock."""
+
+    def __init__(self, count: int) -> None:
+        self.count, self.seen, self.bytes = count, 0, 0
+        self.first = self.last = 0.0
+        self.done = threading.Event()
+
+    def on_message(self, size: int) -> None:
+        now = time.perf_counter()
+        if self.seen == 0:
+            self.first = now
+        else:
+            self.bytes += size
+        self.last = now
+        self.seen += 1
+        if self.seen >= self.count:
+            self.done.set()
+
+    def report(self) -> None:
+        self.done.wait(120)
+        print(json.dumps({"mb_per_s": self.bytes / (self.last - self.first) / 1e6}), flush=True)
+
+
 def role_lite_sink(name: str, count: int) -> None:
     from yarp_lite.port import Port
 
-    state = {"count": 0, "first": 0.0, "last": 0.0, "bytes": 0}
-    done = threading.Event()
-
-    def reader(bottle):
-        now = time.perf_counter()
-        if state["count"] == 0:
-            state["first"] = now
-        else:
-            state["bytes"] += len(bottle[0])
-        state["last"] = now
-        state["count"] += 1
-        if state["count"] >= count:
-            done.set()
-    port = Port(name, reader=reader)
+    meter = _RateMeter(count)
+    port = Port(name, reader=lambda bottle: meter.on_message(len(bottle[0])))
     print("ready", flush=True)
-    done.wait(120)
-    print(json.dumps({"mb_per_s": state["bytes"] / (state["last"] - state["first"]) / 1e6}),
-          flush=True)
+    meter.report()
     port.close()
 
 
@@ -148,24 +159,11 @@ def role_ros_sink(count: int) -> None:
     from std_msgs.msg import UInt8MultiArray
 
     rospy.init_node("sink", disable_signals=True)
-    state = {"count": 0, "first": 0.0, "last": 0.0, "bytes": 0}
-    done = threading.Event()
-
-    def on_message(message):
-        now = time.perf_counter()
-        if state["count"] == 0:
-            state["first"] = now
-        else:
-            state["bytes"] += len(message.data)
-        state["last"] = now
-        state["count"] += 1
-        if state["count"] >= count:
-            done.set()
-    rospy.Subscriber("/blob", UInt8MultiArray, on_message, tcp_nodelay=True)
+    meter = _RateMeter(count)
+    rospy.Subscriber("/blob", UInt8MultiArray, lambda message: meter.on_message(len(message.data)),
+                     tcp_nodelay=True)
     print("ready", flush=True)
-    done.wait(120)
-    print(json.dumps({"mb_per_s": state["bytes"] / (state["last"] - state["first"]) / 1e6}),
-          flush=True)
+    meter.report()
 
 
 def role_ros_source(count: int, size: int) -> None:
@@ -300,7 +298,7 @@ class Bench:
 
         if shutil.which("roscore") is None:
             return None
-        port = _free_port()
+        port = free_port()
         env = dict(self.env, ROS_MASTER_URI=f"http://127.0.0.1:{port}", ROS_HOME=str(self.tmp / "ros"),
                    ROS_LOG_DIR=str(self.tmp / "ros" / "log"), ROS_HOSTNAME="127.0.0.1")
         core = subprocess.Popen(["roscore", "-p", str(port)], env=env, stdout=subprocess.DEVNULL,
@@ -374,20 +372,6 @@ def _last_line_starting(child: subprocess.Popen, word: str) -> str:
     raise RuntimeError(f"no '{word}' line from {child.args}")
 
 
-def _free_port() -> int:
-    import random
-    import socket
-
-    while True:
-        port = random.randrange(11000, 32000)
-        with socket.socket() as probe:
-            try:
-                probe.bind(("127.0.0.1", port))
-                return port
-            except OSError:
-                continue
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="fewer samples (CI smoke run)")
@@ -403,7 +387,7 @@ def main() -> int:
     results: Dict[str, object] = {}
     try:
         print("yarp_lite benchmark (loopback, one process per peer)", flush=True)
-        bench.start_name_server(real=False, socket_number=_free_port())
+        bench.start_name_server(real=False, socket_number=free_port())
         print("  RPC round trips ...", flush=True)
         results["rpc_lite"] = bench.rpc_lite_lite(spin=True)
         results["rpc_lite_nospin"] = bench.rpc_lite_lite(spin=False)
@@ -422,7 +406,7 @@ def main() -> int:
         if bench.prefix:
             bench.close()
             bench.children = []
-            bench.start_name_server(real=True, socket_number=_free_port())
+            bench.start_name_server(real=True, socket_number=free_port())
             results["ns_real"] = bench.name_server_costs(real=True)
     finally:
         bench.close()

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
-from yarp_lite import nameconfig, reference
+from yarp_lite import freeport, nameconfig, reference
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -45,28 +45,8 @@ def missing_reference() -> None:
     pytest.skip(REFERENCE_MISSING)
 
 
-def free_port(start: int = 11000, end: int = 32000, span: int = 1) -> int:
-    """A TCP port number such that ``port .. port+span-1`` are currently free.
-
-    Chosen below the kernel's ephemeral range (32768+), where outgoing
-    connections would otherwise take numbers a YARP server is about to hand out.
-    """
-    import random
-
-    for _ in range(200):
-        base = random.randrange(start, end - span)
-        if all(_is_free(base + offset) for offset in range(span)):
-            return base
-    raise RuntimeError("no free port range found")
-
-
-def _is_free(port: int) -> bool:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
-        try:
-            probe.bind(("127.0.0.1", port))
-            return True
-        except OSError:
-            return False
+def free_port(span: int = 1) -> int:
+    return freeport.free_port(span)
 
 
 class Proc:

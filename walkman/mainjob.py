@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 from yarp_lite import network
+from yarp_lite.freeport import free_port
 from yarp_lite.bottle import Bottle
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
@@ -25,20 +26,6 @@ from yarp_lite.port import Port
 
 def say(text: str) -> None:
     print(f"[main-job] {text}", flush=True)
-
-
-def free_port() -> int:
-    import random
-    import socket
-
-    while True:
-        port = random.randrange(11000, 32000)
-        with socket.socket() as probe:
-            try:
-                probe.bind(("127.0.0.1", port))
-                return port
-            except OSError:
-                continue
 
 
 def main() -> int:

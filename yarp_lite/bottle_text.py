@@ -37,9 +37,15 @@ _WHITESPACE = " \t\n\r"
 # Parsing
 
 
-def parse(text: str) -> Bottle:
-    """Parse one Bottle from its text form (``BottleImpl::fromString``)."""
-    result = Bottle()
+def _tokens(text: str) -> "tuple[list[str], bool]":
+    """Split text into top-level tokens as ``BottleImpl::fromString`` does.
+
+    Returns the tokens and whether every list, blob and quote was closed
+    (``BottleImpl::isComplete``; a ``,`` separates tokens but cannot change
+    nesting, so one scan answers both).  An unclosed trailing token is
+    dropped, as YARP drops it.
+    """
+    tokens: list[str] = []
     arg: list[str] = []
     quoted = back = begun = False
     nested = nested_alt = 0
@@ -68,43 +74,23 @@ def parse(text: str) -> Bottle:
             arg.append(ch)
         elif not quoted and ch in _SEPARATORS and nested == 0 and nested_alt == 0:
             if arg:
-                token = "".join(arg)
-                result.append(Vocab("null") if token == "null" else _smart_value(token))
+                tokens.append("".join(arg))
             arg = []
             begun = False
         else:
             arg.append(ch)
-    return result
+    return tokens, nested == 0 and nested_alt == 0 and not quoted
+
+
+def parse(text: str) -> Bottle:
+    """Parse one Bottle from its text form (``BottleImpl::fromString``)."""
+    return Bottle(Vocab("null") if token == "null" else _smart_value(token)
+                  for token in _tokens(text)[0])
 
 
 def is_complete(text: str) -> bool:
     """True when no list, blob or quote is left open (``BottleImpl::isComplete``)."""
-    quoted = back = begun = False
-    nested = nested_alt = 0
-    for ch in text + " ":
-        if back:
-            back = False
-            continue
-        if not begun and ch not in _WHITESPACE:
-            begun = True
-        if not begun:
-            continue
-        if ch == '"':
-            quoted = not quoted
-        if not quoted:
-            if ch == "(":
-                nested += 1
-            elif ch == ")":
-                nested -= 1
-            elif ch == "{":
-                nested_alt += 1
-            elif ch == "}":
-                nested_alt -= 1
-        if ch == "\\":
-            back = True
-        elif not quoted and ch in _WHITESPACE and nested == 0 and nested_alt == 0:
-            begun = False
-    return nested == 0 and nested_alt == 0 and not quoted
+    return _tokens(text)[1]
 
 
 def _looks_numeric(token: str) -> "tuple[bool, bool]":

@@ -144,13 +144,21 @@ class Message:
 
     @property
     def wants_reply(self) -> bool:
-        """Data sent with ``d`` (or admin data) expects a reply; ``D`` does not."""
-        return self.command in ("d", "a")
+        return wants_reply(self.command)
 
     @property
     def envelope(self) -> str:
-        """The envelope of ``d <envelope>`` / ``D <envelope>`` data, if any."""
-        return self.text[2:] if self.command in ("d", "D") and len(self.text) > 2 else ""
+        return envelope_of(self.command, self.text)
+
+
+def wants_reply(command: str) -> bool:
+    """Data sent with ``d`` (or admin data) expects a reply; ``D`` does not."""
+    return command in ("d", "a")
+
+
+def envelope_of(command: str, text: str) -> str:
+    """The envelope of ``d <envelope>`` / ``D <envelope>`` data, if any."""
+    return text[2:] if command in ("d", "D") and len(text) > 2 else ""
 
 
 def parse_payload(payload: Buffer, where: str = "payload") -> Message:

@@ -20,6 +20,7 @@ from typing import ClassVar, List, Optional, Sequence, Union
 from yarp_lite.bottle import Bottle, decode, encode_chunks
 from yarp_lite.bottle_text import format_bottle, is_complete, parse
 from yarp_lite.errors import LocalProtocolError
+from yarp_lite.framing import envelope_of, wants_reply
 from yarp_lite.stream import Stream
 
 Buffer = Union[bytes, bytearray, memoryview]
@@ -99,11 +100,11 @@ class Incoming:
 
     @property
     def wants_reply(self) -> bool:
-        return self.command in ("d", "a")
+        return wants_reply(self.command)
 
     @property
     def envelope(self) -> str:
-        return self.text[2:] if self.command in ("d", "D") and len(self.text) > 2 else ""
+        return envelope_of(self.command, self.text)
 
     def bottle(self) -> Bottle:
         if self._bottle is None:
