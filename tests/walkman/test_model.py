@@ -1,0 +1,108 @@
+"""One robot description: URDF (Pinocchio) and MJCF (MuJoCo) agree, FACTS.md limits hold."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import pinocchio as pin
+import pytest
+
+from walkman.model import MJCF_PATH, SCENE_PATH, URDF_PATH
+from walkman.model.description import home_posture, walkman
+from walkman.model.generate import render
+from walkman.model.mjcf import mjcf_joint_order
+
+# From FACTS.md (rad).
+FACTS_LIMITS = {
+    "WaistLat": (-0.6109, 0.6109), "WaistSag": (-0.3491, 1.3963), "WaistYaw": (-2.8449, 2.8449),
+    "NeckYawj": (-0.6109, 0.6109), "NeckPitchj": (-0.2618, 1.0472),
+    "LShSag": (-2.8798, 2.7925), "LShLat": (0.0873, 3.8572), "LShYaw": (-2.8449, 2.8449),
+    "LElbj": (-2.9671, 0.5934), "LForearmPlate": (-2.529, 2.529), "LWrj1": (-1.48, 1.48),
+    "LWrj2": (-1.48, 1.48), "RShLat": (-3.8572, -0.1222),
+    "LHipLat": (-0.6978, 0.8722), "LHipYaw": (-0.8722, 1.57), "LHipSag": (-2.0933, 1.0467),
+    "LKneeSag": (0.0, 2.4422), "LAnkSag": (-1.3956, 0.6978), "LAnkLat": (-0.785, 0.785),
+    "RHipLat": (-0.8722, 0.6978), "RHipYaw": (-1.57, 0.8722),
+}
+EFFORT_220 = ["LHipLat", "LHipSag", "LKneeSag", "LAnkSag", "WaistSag"]
+EFFORT_60 = ["LElbj", "LForearmPlate", "LWrj1", "LWrj2"]
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return walkman()
+
+
+def test_committed_model_files_are_up_to_date():
+    for name, text in render().items():
+        path = URDF_PATH.parent / name
+        assert path.read_text() == text, f"{name} is stale: run python -m walkman.model.generate"
+
+
+def test_33_joints_31_body_plus_2_hands(robot):
+    names = robot.joint_names
+    assert len(names) == 33 and len(set(names)) == 33
+    assert names[-2:] == ["l_handj", "r_handj"]
+    assert 100 < robot.total_mass < 140
+
+
+def test_limits_and_efforts_follow_facts(robot):
+    for name, (low, high) in FACTS_LIMITS.items():
+        joint = robot.joint(name)
+        assert (joint.lower, joint.upper) == (low, high), name
+    for name in EFFORT_220:
+        assert robot.joint(name).effort == 220.0
+    for name in EFFORT_60:
+        assert robot.joint(name).effort == 60.0
+
+
+def test_pinocchio_and_mujoco_agree_on_names_order_and_limits(robot):
+    model = pin.buildModelFromUrdf(str(URDF_PATH))
+    pin_names = [model.names[i] for i in range(1, model.njoints)]
+    mj = mujoco.MjModel.from_xml_path(str(MJCF_PATH))
+    mj_names = [mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_JOINT, i) for i in range(1, mj.njnt)]
+    assert pin_names == mj_names == mjcf_joint_order(robot)
+    for index, name in enumerate(pin_names):
+        joint = mj.joint(name)
+        assert tuple(joint.range) == pytest.approx((robot.joint(name).lower, robot.joint(name).upper))
+        assert model.lowerPositionLimit[index] == pytest.approx(robot.joint(name).lower)
+        assert model.upperPositionLimit[index] == pytest.approx(robot.joint(name).upper)
+        assert model.effortLimit[index] == pytest.approx(robot.joint(name).effort)
+
+
+def test_same_kinematics_in_both(robot):
+    """The head camera frame is at the same place in Pinocchio and MuJoCo, posture by posture."""
+    model = pin.buildModelFromUrdf(str(URDF_PATH))
+    data = model.createData()
+    mj = mujoco.MjModel.from_xml_path(str(MJCF_PATH))
+    mjd = mujoco.MjData(mj)
+    posture = home_posture(robot)
+    posture.update({"NeckYawj": 0.4, "NeckPitchj": 0.5, "WaistYaw": 0.3, "LElbj": -1.0})
+    order = mjcf_joint_order(robot)
+    q = [posture[name] for name in order]
+    pin.framesForwardKinematics(model, data, pin.utils.np.array(q))
+    mjd.qpos[7:] = q
+    mjd.qpos[:7] = [0, 0, 0, 1, 0, 0, 0]
+    mujoco.mj_forward(mj, mjd)
+    for frame, site in (("multisense_frame", "multisense"), ("l_arm_ft_frame", "l_arm_ft"),
+                        ("r_leg_ft_frame", "r_leg_ft")):
+        pin_pos = data.oMf[model.getFrameId(frame)].translation
+        mj_pos = mjd.site(site).xpos
+        assert pin_pos == pytest.approx(mj_pos, abs=1e-6), frame
+
+
+def test_scene_has_the_drc_props_and_sensors():
+    mj = mujoco.MjModel.from_xml_path(str(SCENE_PATH))
+    for joint in ("valve", "steering", "throttle", "door", "door_handle"):
+        assert mj.joint(joint) is not None
+    assert mj.camera("multisense") is not None
+    for sensor in ("l_arm_ft_force", "r_leg_ft_torque", "imu_gyro", "imu_orientation"):
+        assert mj.sensor(sensor) is not None
+    assert mj.equality("harness") is not None and mj.equality("grasp_l_valve") is not None
+    assert mj.nu == 33
+
+
+def test_home_posture_is_inside_limits(robot):
+    for name, value in home_posture(robot).items():
+        joint = robot.joint(name)
+        assert joint.lower <= value <= joint.upper, name
