@@ -304,15 +304,20 @@ class Port:
 
     # -- lifecycle ---------------------------------------------------------------
 
-    def open(self, name: str = "...", host: str = "", socket_number: int = 0) -> "Port":
+    def open(self, name: str = "...", host: str = "", socket_number: int = 0,
+             wait: Optional[float] = None) -> "Port":
         """Register ``name`` (after ``YARP_RENAME_*``/``YARP_PORT_PREFIX``) and listen.
 
-        ``host``/``socket_number`` pin the address of an unregistered port
-        (the name server's own port is one).
+        ``wait`` (seconds, ``math.inf`` for ever) keeps trying while the name
+        server is unreachable, saying so every few seconds, so programs can
+        start before it.  ``host``/``socket_number`` pin the address of an
+        unregistered port (the name server's own port is one).
         """
         if self._open:
             raise LocalProtocolError(f"port {self.name} is already open")
         name = check_port_name(apply_environment(name))
+        if wait and self.register:
+            self._wait_for_name_server(name, wait)
         listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
@@ -350,6 +355,25 @@ class Port:
             RegistrationKeeper.instance().add(self)
         log.info("Port %s active at %s", self.name, self.address.uri())
         return self
+
+    def _wait_for_name_server(self, name: str, wait: float) -> None:
+        deadline = time.monotonic() + wait
+        announced = 0.0
+        while not self.nameclient.ping():
+            now = time.monotonic()
+            if now > deadline:
+                raise NetworkError(f"{name}: no name server for namespace "
+                                   f"{self.nameclient.namespace} after {wait:g} s")
+            if now - announced > 5.0:
+                try:
+                    where = self.nameclient.server_address()
+                    place = f"{where.host}:{where.port}"
+                except NetworkError:
+                    place = "(no yarp.conf yet)"
+                log.info("%s: waiting for the name server %s at %s", name,
+                         self.nameclient.namespace, place)
+                announced = now
+            time.sleep(0.5)
 
     def close(self) -> None:
         """Unregister, drop every connection (saying goodbye on outputs) and stop."""

@@ -1,0 +1,79 @@
+"""YARP-style ``.ini`` configuration files and where to find them.
+
+The format of ``Property::fromConfig``: ``key value...`` per line, values in
+Bottle text (``0.5`` is a number, ``"a b"`` a string), ``[section]`` headers,
+``//`` and ``#`` comments.  :func:`find_config` locates a file like YARP's
+ResourceFinder does for ``--from NAME --context CONTEXT``: the path itself,
+then ``$YARP_DATA_HOME/contexts/CONTEXT``, then the contexts shipped in
+``models/contexts``.  Errors name the file and line.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Dict, List, Optional
+
+from yarp_lite.bottle_text import parse
+
+Sections = Dict[str, Dict[str, list]]
+
+SHIPPED_CONTEXTS = Path(__file__).resolve().parents[2] / "models" / "contexts"
+
+
+class IniError(Exception):
+    """A configuration file is missing or malformed; the message says where."""
+
+
+def parse_ini(text: str, where: str = "<config>") -> Sections:
+    sections: Sections = {"": {}}
+    current = ""
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("//", 1)[0]
+        if line.lstrip().startswith("#"):
+            continue
+        line = line.strip()
+        if not line:
+            continue
+        if line.startswith("["):
+            if not line.endswith("]") or len(line) < 3:
+                raise IniError(f"{where}:{number}: malformed section header {raw.strip()!r}")
+            current = line[1:-1].strip()
+            sections.setdefault(current, {})
+            continue
+        words = parse(line)
+        if not words:
+            raise IniError(f"{where}:{number}: cannot read {raw.strip()!r}")
+        key = str(words[0])
+        sections[current][key] = list(words[1:])
+    return sections
+
+
+def find_config(name: str, context: str = "") -> Path:
+    """Where ``--from name [--context context]`` points, like YARP's ResourceFinder."""
+    candidates: List[Path] = [Path(name)]
+    if context:
+        data_home = os.environ.get("YARP_DATA_HOME")
+        if data_home:
+            candidates.append(Path(data_home) / "contexts" / context / name)
+        candidates.append(SHIPPED_CONTEXTS / context / name)
+    candidates.append(SHIPPED_CONTEXTS / name)
+    for candidate in candidates:
+        if candidate.is_file():
+            return candidate
+    searched = ", ".join(str(c) for c in candidates)
+    raise IniError(f"configuration {name!r} not found (looked in {searched})")
+
+
+def load(name: str, context: str = "", defaults: Optional[Dict[str, object]] = None) -> Dict[str, object]:
+    """Top-level keys of a config, single values unwrapped, over ``defaults``."""
+    path = find_config(name, context)
+    sections = parse_ini(path.read_text(), str(path))
+    values: Dict[str, object] = dict(defaults or {})
+    for key, items in sections[""].items():
+        values[key] = items[0] if len(items) == 1 else items
+    for section, entries in sections.items():
+        if section:
+            values[section] = entries
+    values["__file__"] = str(path)
+    return values

@@ -1,0 +1,156 @@
+"""What travels on the HAL's YARP ports: pure functions between values and Bottles.
+
+Port names follow YARP's control-board wrapper (``/<robot>/<chain>/...``):
+
+``state:o``       positions in degrees, a float64 Vector, as YARP streams them
+``stateExt:o``    ``(stamp SEQ TIME) (q ...) (qdot ...) (tau ...) (temperature ...)``
+                  in SI units (rad, rad/s, N*m, deg C) -- what the whole-body
+                  interface reads
+``command:i``     ``[pos] (q ...) [SEQ]``: stream positions (rad); ``[move] (q ...)``:
+                  go there at the reference speed; ``[idle]``: motors off
+``rpc:i``         ``[get] [jnts]``, ``[get] [names]``, ``[get] [lims]``,
+                  ``[set] [vels] (...)``, ``[set] [mode] [pos]|[idle]``
+``/<robot>/rpc:i`` ``[get] chains`` -> ``((chain name...) ...)``: the grouping;
+                  ``[get] stats``; ``[set] harness on|off``  (vocabs hold 4 letters,
+                  so longer words are plain strings)
+``/<robot>/<ft>/analog:o``  Fx Fy Fz Tx Ty Tz (N, N*m), like YARP's analogServer
+``/<robot>/inertial``       roll pitch yaw (deg), acc (m/s^2), gyro (deg/s), mag (0),
+                             YARP's inertial layout
+
+Every decoder validates what it is given and raises :class:`HalProtocolError`
+naming the problem, so a malformed command is refused and logged, never
+applied.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import List, Optional, Sequence, Tuple
+
+from yarp_lite.bottle import Bottle, Float64, Vocab
+
+
+class HalError(Exception):
+    """Base of the HAL's errors."""
+
+
+class HalProtocolError(HalError):
+    """A message on a HAL port is malformed (peer misbehaviour)."""
+
+
+class HalUsageError(HalError):
+    """The whole-body interface was misused (wrong vector length, NaN, ...)."""
+
+
+def port_names(robot: str, chain: str) -> dict:
+    base = f"/{robot}/{chain}"
+    return {"state": f"{base}/state:o", "state_ext": f"{base}/stateExt:o",
+            "command": f"{base}/command:i", "rpc": f"{base}/rpc:i"}
+
+
+def robot_rpc_name(robot: str) -> str:
+    return f"/{robot}/rpc:i"
+
+
+def ft_port_name(robot: str, sensor: str) -> str:
+    return f"/{robot}/{sensor}/analog:o"
+
+
+def imu_port_name(robot: str) -> str:
+    return f"/{robot}/inertial"
+
+
+def _floats(values: Sequence[float]) -> Bottle:
+    return Bottle(float(value) for value in values)
+
+
+@dataclass(frozen=True)
+class ChainState:
+    seq: int
+    time: float
+    q: Tuple[float, ...]
+    qdot: Tuple[float, ...]
+    tau: Tuple[float, ...]
+    temperature: Tuple[float, ...]
+
+
+def encode_state(q_rad: Sequence[float]) -> Bottle:
+    return _floats(math.degrees(value) for value in q_rad)
+
+
+def encode_state_ext(state: ChainState) -> Bottle:
+    return Bottle([Bottle(["stamp", state.seq, Float64(state.time)]),
+                   Bottle(["q", *map(float, state.q)]), Bottle(["qdot", *map(float, state.qdot)]),
+                   Bottle(["tau", *map(float, state.tau)]),
+                   Bottle(["temperature", *map(float, state.temperature)])])
+
+
+def decode_state_ext(bottle: Bottle, joints: int) -> ChainState:
+    try:
+        stamp = bottle.find_group("stamp")
+        groups = {key: bottle.find_group(key) for key in ("q", "qdot", "tau", "temperature")}
+        if stamp is None or any(group is None for group in groups.values()):
+            raise HalProtocolError(f"stateExt needs stamp, q, qdot, tau, temperature: {bottle}")
+        vectors = {key: tuple(float(v) for v in group[1:]) for key, group in groups.items()}
+    except (TypeError, ValueError) as exc:
+        raise HalProtocolError(f"stateExt has a non-numeric value: {exc}") from exc
+    for key, vector in vectors.items():
+        if len(vector) != joints:
+            raise HalProtocolError(f"stateExt {key} has {len(vector)} values, expected {joints}")
+    return ChainState(int(stamp[1]), float(stamp[2]), vectors["q"], vectors["qdot"],
+                      vectors["tau"], vectors["temperature"])
+
+
+@dataclass(frozen=True)
+class Command:
+    mode: str                      # "pos", "move" or "idle"
+    values: Tuple[float, ...] = ()
+    seq: Optional[int] = None      # stamp of the state this command answers (latency)
+
+
+def encode_command(command: Command) -> Bottle:
+    bottle = Bottle([Vocab(command.mode)])
+    if command.mode != "idle":
+        bottle.append(_floats(command.values))
+    if command.seq is not None:
+        bottle.append(int(command.seq))
+    return bottle
+
+
+def decode_command(bottle: Bottle, joints: int) -> Command:
+    """Validate a ``command:i`` message for a chain of ``joints`` joints."""
+    if not bottle or str(bottle[0]) not in ("pos", "move", "idle"):
+        raise HalProtocolError(f"command must start with [pos], [move] or [idle]: {bottle}")
+    mode = str(bottle[0])
+    if mode == "idle":
+        return Command("idle")
+    if len(bottle) < 2 or not isinstance(bottle[1], list):
+        raise HalProtocolError(f"[{mode}] needs a list of {joints} positions: {bottle}")
+    try:
+        values = tuple(float(value) for value in bottle[1])
+    except (TypeError, ValueError):
+        raise HalProtocolError(f"[{mode}] positions must be numbers: {bottle[1]}") from None
+    if len(values) != joints:
+        raise HalProtocolError(f"[{mode}] has {len(values)} positions, the chain has {joints}")
+    if not all(math.isfinite(value) for value in values):
+        raise HalProtocolError(f"[{mode}] positions must be finite: {values}")
+    seq = int(bottle[2]) if len(bottle) > 2 and isinstance(bottle[2], int) else None
+    return Command(mode, values, seq)
+
+
+def encode_ft(wrench: Sequence[float]) -> Bottle:
+    return _floats(wrench)
+
+
+def encode_inertial(rpy_rad: Sequence[float], acc: Sequence[float], gyro_rad: Sequence[float]) -> Bottle:
+    return _floats([*(math.degrees(a) for a in rpy_rad), *acc,
+                    *(math.degrees(g) for g in gyro_rad), 0.0, 0.0, 0.0])
+
+
+def decode_inertial(bottle: Bottle) -> Tuple[List[float], List[float], List[float]]:
+    if len(bottle) < 9:
+        raise HalProtocolError(f"inertial message has {len(bottle)} values, expected 12")
+    values = [float(v) for v in bottle]
+    return ([math.radians(v) for v in values[0:3]], values[3:6],
+            [math.radians(v) for v in values[6:9]])

@@ -1,0 +1,390 @@
+"""``walkman-hal``: the robot driver ("EtherCAT master") remotized on YARP.
+
+Theory of operation
+-------------------
+One thread steps the backend at 1 kHz of wall-clock time.  Before each step
+it applies the newest command each chain received; every ``period_ms`` it
+snapshots the state of every chain; every 10 ms the F/T sensors and the IMU.
+Snapshots go to a single publisher thread that writes the ports, so a slow
+reader can never stall the physics (streams are latest-only: a snapshot not
+yet sent is replaced by a newer one).
+
+Per chain, like YARP's control-board wrapper: ``/<robot>/<chain>/state:o``
+(degrees), ``stateExt:o`` (SI, with stamp, velocities, spring torques and
+board temperatures), ``command:i`` and ``rpc:i``; per sensor
+``/<robot>/<ft>/analog:o``; ``/<robot>/inertial``; ``/<robot>/rpc:i`` tells
+clients how joints are grouped, so the grouping can change without touching
+a module.  Malformed commands are refused with a log line naming the chain
+and the problem; chains without commands hold their last reference.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import signal
+import sys
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Deque, Dict, List, Optional, Tuple
+
+import numpy as np
+
+from walkman.hal import protocol
+from walkman.hal.backend import DEFAULT_REF_SPEED, Backend
+from walkman.hal.config import HalConfig, load_config
+from walkman.hal.protocol import ChainState, Command, HalProtocolError
+from yarp_lite.bottle import Bottle, Vocab
+from yarp_lite.buffered_port import BufferedPort
+from yarp_lite.nameclient import NameClient
+from yarp_lite.port import Port
+from yarp_lite.rpc import RpcServer
+
+log = logging.getLogger("walkman.hal")
+
+SENSOR_PERIOD_S = 0.01
+STATUS_PERIOD_S = 5.0
+
+
+@dataclass
+class _Chain:
+    name: str
+    joints: List[str]
+    indices: np.ndarray
+    ports: Dict[str, Port] = field(default_factory=dict)
+    pending: Optional[Command] = None
+    targets: Optional[np.ndarray] = None     # [move] goals, reached at the reference speed
+    ref_speed: Optional[np.ndarray] = None
+    commands: int = 0
+    refused: int = 0
+
+
+class Publisher(threading.Thread):
+    """Writes snapshots to ports; the physics thread never blocks on a socket."""
+
+    def __init__(self) -> None:
+        super().__init__(daemon=True, name="hal publisher")
+        self.cond = threading.Condition()
+        self.pending: Dict[int, Tuple[Port, Bottle]] = {}
+        self.running = True
+        self.sent = 0
+
+    def publish(self, port: Port, bottle: Bottle) -> None:
+        with self.cond:
+            self.pending[id(port)] = (port, bottle)
+            self.cond.notify()
+
+    def run(self) -> None:
+        while True:
+            with self.cond:
+                while not self.pending and self.running:
+                    self.cond.wait(0.5)
+                if not self.running:
+                    return
+                batch, self.pending = list(self.pending.values()), {}
+            for port, bottle in batch:
+                port.write(bottle)
+                self.sent += 1
+
+    def stop(self) -> None:
+        with self.cond:
+            self.running = False
+            self.cond.notify()
+
+
+class HalServer:
+    def __init__(self, backend: Backend, config: HalConfig,
+                 nameclient: Optional[NameClient] = None, realtime: bool = True) -> None:
+        self.backend = backend
+        self.config = config
+        self.robot = config.robot
+        self.nameclient = nameclient or NameClient()
+        self.realtime = realtime
+        self.lock = threading.Lock()
+        self.chains: Dict[str, _Chain] = {
+            name: _Chain(name, joints, np.array([backend.index[j] for j in joints]))
+            for name, joints in config.chains.items()}
+        self.ports: List[Port] = []
+        self.publisher = Publisher()
+        self.running = False
+        self.seq = 0
+        self.published_at: Deque[Tuple[int, float]] = deque(maxlen=2000)
+        self.latencies: Deque[float] = deque(maxlen=5000)
+        self.overruns = 0
+        self.max_step_s = 0.0
+        self.started_at = 0.0
+        self.steps = 0
+        self.ft_ports: Dict[str, Port] = {}
+        self.imu_port: Optional[Port] = None
+
+    # -- ports -----------------------------------------------------------------------
+
+    def open(self, wait: float = math.inf) -> None:
+        robot_rpc = RpcServer(nameclient=self.nameclient, handler=self._robot_rpc)
+        robot_rpc.open(protocol.robot_rpc_name(self.robot), wait=wait)
+        self.ports.append(robot_rpc)
+        for chain in self.chains.values():
+            names = protocol.port_names(self.robot, chain.name)
+            chain.ports["state"] = self._open(Port(nameclient=self.nameclient), names["state"])
+            chain.ports["state_ext"] = self._open(Port(nameclient=self.nameclient),
+                                                  names["state_ext"])
+            chain.ports["command"] = self._open(
+                Port(nameclient=self.nameclient,
+                     reader=lambda bottle, chain=chain: self._on_command(chain, bottle)),
+                names["command"])
+            chain.ports["rpc"] = self._open(
+                RpcServer(nameclient=self.nameclient,
+                          handler=lambda bottle, chain=chain: self._chain_rpc(chain, bottle)),
+                names["rpc"])
+        for sensor in self.backend.ft_sensors:
+            self.ft_ports[sensor] = self._open(Port(nameclient=self.nameclient),
+                                               protocol.ft_port_name(self.robot, sensor))
+        self.imu_port = self._open(Port(nameclient=self.nameclient),
+                                   protocol.imu_port_name(self.robot))
+        log.info("HAL for %s: %d chains (%s), %s backend, state every %g ms", self.robot,
+                 len(self.chains), ", ".join(self.chains), type(self.backend).__name__,
+                 self.config.period_ms)
+
+    def _open(self, port: Port, name: str) -> Port:
+        port.open(name)
+        self.ports.append(port)
+        return port
+
+    def close(self) -> None:
+        self.running = False
+        self.publisher.stop()
+        for port in self.ports:
+            port.close()
+        self.backend.close()
+
+    # -- incoming ----------------------------------------------------------------------
+
+    def _on_command(self, chain: _Chain, bottle: Bottle) -> None:
+        try:
+            command = protocol.decode_command(bottle, len(chain.joints))
+        except HalProtocolError as exc:
+            chain.refused += 1
+            if chain.refused in (1, 10, 100) or chain.refused % 1000 == 0:
+                log.warning("%s: refused command #%d: %s", chain.name, chain.refused, exc)
+            return
+        now = time.perf_counter()
+        with self.lock:
+            chain.pending = command
+            chain.commands += 1
+            if command.seq is not None:
+                for seq, stamp in reversed(self.published_at):
+                    if seq == command.seq:
+                        self.latencies.append(now - stamp)
+                        break
+
+    def _chain_rpc(self, chain: _Chain, request: Bottle) -> Bottle:
+        verb = str(request[0]) if request else ""
+        what = str(request[1]) if len(request) > 1 else ""
+        lower = self.backend.lower[chain.indices]
+        upper = self.backend.upper[chain.indices]
+        if verb == "get" and what == "jnts":
+            return Bottle([len(chain.joints)])
+        if verb == "get" and what == "names":
+            return Bottle([Bottle(chain.joints)])
+        if verb == "get" and what == "lims":
+            return Bottle([Bottle([float(lo), float(hi)]) for lo, hi in zip(lower, upper)])
+        if verb == "set" and what == "vels" and len(request) > 2 and isinstance(request[2], list):
+            speeds = [float(v) for v in request[2]]
+            if len(speeds) != len(chain.joints) or not all(v > 0 and math.isfinite(v)
+                                                          for v in speeds):
+                return Bottle([Vocab("fail"), f"need {len(chain.joints)} positive speeds"])
+            with self.lock:
+                chain.ref_speed = np.array(speeds)
+            return Bottle([Vocab("ok")])
+        if verb == "set" and what == "mode" and len(request) > 2:
+            mode = str(request[2])
+            if mode not in ("pos", "idle"):
+                return Bottle([Vocab("fail"), "mode must be [pos] or [idle]"])
+            with self.lock:
+                chain.pending = Command("idle") if mode == "idle" else \
+                    Command("pos", tuple(self.backend.positions()[chain.indices]))
+            return Bottle([Vocab("ok")])
+        return Bottle([Vocab("fail"), "unknown request; try [get] [jnts]|[names]|[lims], "
+                                      "[set] [vels] (...), [set] [mode] [pos]|[idle]"])
+
+    def _robot_rpc(self, request: Bottle) -> Bottle:
+        verb = str(request[0]) if request else ""
+        what = str(request[1]) if len(request) > 1 else ""
+        if verb == "get" and what == "chains":
+            return Bottle([Bottle([name, *chain.joints]) for name, chain in self.chains.items()])
+        if verb == "get" and what == "stats":
+            return Bottle([Bottle([key, value]) for key, value in self.stats().items()])
+        if verb == "set" and what == "harness" and len(request) > 2:
+            plant = getattr(self.backend, "plant", None)
+            if plant is None:
+                return Bottle([Vocab("fail"), "this backend has no harness"])
+            plant.set_harness(str(request[2]) in ("on", "true", "1"))
+            return Bottle([Vocab("ok")])
+        return Bottle([Vocab("fail"), "unknown request; try [get] chains, [get] stats, "
+                                      "[set] harness on|off"])
+
+    # -- the loop ----------------------------------------------------------------------------
+
+    def _apply_commands(self) -> None:
+        backend = self.backend
+        with self.lock:
+            for chain in self.chains.values():
+                command, chain.pending = chain.pending, None
+                if command is None:
+                    continue
+                if command.mode == "idle":
+                    backend.set_idle(chain.indices)
+                    chain.targets = None
+                elif command.mode == "pos":
+                    backend.set_references(chain.indices, command.values)
+                    chain.targets = None
+                else:
+                    chain.targets = np.array(command.values)
+            moving = [chain for chain in self.chains.values() if chain.targets is not None]
+        for chain in moving:
+            current = backend.reference[chain.indices]
+            speed = chain.ref_speed if chain.ref_speed is not None else DEFAULT_REF_SPEED
+            step = np.clip(chain.targets - current, -speed * backend.dt, speed * backend.dt)
+            backend.set_references(chain.indices, current + step)
+            if np.allclose(current + step, chain.targets):
+                chain.targets = None
+
+    def _publish_state(self) -> None:
+        backend = self.backend
+        self.seq += 1
+        q, qdot, tau = backend.positions(), backend.velocities(), backend.torques()
+        temperature = backend.temperatures()
+        now = time.perf_counter()
+        for chain in self.chains.values():
+            idx = chain.indices
+            state_ext = chain.ports["state_ext"]
+            if state_ext.output_count:
+                state = ChainState(self.seq, backend.time, tuple(q[idx]), tuple(qdot[idx]),
+                                   tuple(tau[idx]), tuple(temperature[idx]))
+                self.publisher.publish(state_ext, protocol.encode_state_ext(state))
+            if chain.ports["state"].output_count:
+                self.publisher.publish(chain.ports["state"], protocol.encode_state(q[idx]))
+        self.published_at.append((self.seq, now))
+
+    def _publish_sensors(self) -> None:
+        for sensor, port in self.ft_ports.items():
+            if port.output_count:
+                self.publisher.publish(port, protocol.encode_ft(self.backend.ft(sensor)))
+        if self.imu_port is not None and self.imu_port.output_count:
+            imu = self.backend.imu()
+            self.publisher.publish(self.imu_port, protocol.encode_inertial(
+                imu.rpy, imu.acceleration, imu.gyro))
+
+    def run(self, duration: Optional[float] = None) -> None:
+        backend = self.backend
+        self.publisher.start()
+        self.running = True
+        state_every = max(1, round(self.config.period_ms / 1000.0 / backend.dt))
+        sensor_every = max(1, round(SENSOR_PERIOD_S / backend.dt))
+        self.started_at = time.perf_counter()
+        deadline = self.started_at
+        next_status = self.started_at + STATUS_PERIOD_S
+        while self.running:
+            begin = time.perf_counter()
+            self._apply_commands()
+            backend.step()
+            self.steps += 1
+            if self.steps % state_every == 0:
+                self._publish_state()
+            if self.steps % sensor_every == 0:
+                self._publish_sensors()
+            for event in getattr(backend, "events", []):
+                log.info("%s", event)
+            if getattr(backend, "events", None):
+                backend.events.clear()
+            self.max_step_s = max(self.max_step_s, time.perf_counter() - begin)
+            if duration is not None and backend.time >= duration:
+                break
+            if begin > next_status:
+                self._log_status()
+                next_status = begin + STATUS_PERIOD_S
+            if self.realtime:
+                deadline += backend.dt
+                delay = deadline - time.perf_counter()
+                if delay > 0:
+                    time.sleep(delay)
+                elif delay < -0.05:
+                    self.overruns += 1
+                    deadline = time.perf_counter()  # fell behind: do not try to catch up
+
+    def stats(self) -> Dict[str, float]:
+        wall = max(time.perf_counter() - self.started_at, 1e-9)
+        latencies = sorted(self.latencies)
+        stats = {"sim_time": round(self.backend.time, 3),
+                 "real_time_factor": round(self.backend.time / wall, 3),
+                 "overruns": self.overruns, "max_step_ms": round(self.max_step_s * 1e3, 3),
+                 "messages_sent": self.publisher.sent}
+        if latencies:
+            stats["sense_to_move_median_ms"] = round(latencies[len(latencies) // 2] * 1e3, 3)
+            stats["sense_to_move_p99_ms"] = round(latencies[int(len(latencies) * 0.99)] * 1e3, 3)
+        return stats
+
+    def _log_status(self) -> None:
+        stats = self.stats()
+        extra = self.backend.status()
+        commands = sum(chain.commands for chain in self.chains.values())
+        log.info("t=%.1fs real-time factor %.2f, %d commands, %d messages out, "
+                 "max step %.2f ms, overruns %d %s", stats["sim_time"],
+                 stats["real_time_factor"], commands, stats["messages_sent"],
+                 stats["max_step_ms"], stats["overruns"],
+                 {k: v for k, v in extra.items() if k not in ("time",)})
+
+
+def make_backend(name: str, scene: bool, harness: bool, thermal_speedup: float) -> Backend:
+    if name == "sim":
+        from walkman.hal.sim import SimBackend
+
+        return SimBackend(scene=scene, harness=harness, thermal_speedup=thermal_speedup)
+    if name == "ethercat":
+        from walkman.hal.ethercat.master import EthercatBackend
+
+        return EthercatBackend(scene=scene, harness=harness, thermal_speedup=thermal_speedup)
+    raise ValueError(f"unknown backend {name!r}: choose sim or ethercat")
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    parser = argparse.ArgumentParser(prog="walkman-hal", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--backend", choices=["sim", "ethercat"], default="sim",
+                        help="sim: MuJoCo with compliant servos; ethercat: emulated boards")
+    parser.add_argument("--config", type=Path, help="chain grouping (models/hal_*.ini)")
+    parser.add_argument("--scene", choices=["drc", "robot"], default="drc",
+                        help="drc: with valve, car and door; robot: the robot alone")
+    parser.add_argument("--no-harness", action="store_true", help="let the pelvis go free")
+    parser.add_argument("--thermal-speedup", type=float, default=1.0,
+                        help="heat the motors faster than real time (demos, tests)")
+    parser.add_argument("--duration", type=float, help="stop after this much simulated time")
+    parser.add_argument("--verbose", action="store_true")
+    options = parser.parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if options.verbose else logging.INFO,
+                        format="[%(levelname)s] %(message)s", stream=sys.stderr)
+    try:
+        config = load_config(options.config)
+    except Exception as exc:  # noqa: BLE001 - configuration errors are user errors
+        log.error("%s", exc)
+        return 2
+    backend = make_backend(options.backend, options.scene == "drc", not options.no_harness,
+                           options.thermal_speedup)
+    server = HalServer(backend, config)
+    signal.signal(signal.SIGTERM, lambda *_: setattr(server, "running", False))
+    try:
+        server.open()
+        server.run(options.duration)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        log.info("HAL stopping: %s", server.stats())
+        server.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,186 @@
+"""The ``sim`` backend: Walk-Man in MuJoCo, 1 kHz physics, compliant position control.
+
+Each joint is a position servo whose stiffness is the joint's series-elastic
+spring (a few thousand N*m/rad) with damping, saturated at the joint's
+effort: modules command positions, the robot is compliant under contact, as
+the real series-elastic actuators are.  Idle joints get zero torque.
+
+Grasping is modelled, not simulated finger by finger: when a hand closes
+(``l_handj`` above 0.8 rad) with its grip point within 6 cm of a graspable
+part (valve rim, steering wheel, door handle), a weld between hand and part
+is switched on at their current relative pose; opening the hand (below 0.4
+rad) releases it.  The pelvis hangs from a ``harness`` weld (on by default)
+that walking can loosen.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Dict, List, Optional, Tuple
+
+import mujoco
+import numpy as np
+
+from walkman.hal.backend import Backend, Imu, quat_to_rpy
+from walkman.hal.thermal import ThermalModel
+from walkman.model import MJCF_PATH, SCENE_PATH
+from walkman.model.description import Robot, walkman
+from walkman.model.mjcf import GRASPABLE, HANDS
+
+GRASP_CLOSED = 0.8
+GRASP_OPEN = 0.4
+GRASP_DISTANCE = 0.06
+
+
+class MujocoPlant:
+    """The MuJoCo model and data, with whole-body index maps (shared by both backends)."""
+
+    def __init__(self, model: Robot, scene: bool = True, harness: bool = True,
+                 path: Optional[Path] = None) -> None:
+        self.robot = model
+        self.m = mujoco.MjModel.from_xml_path(str(path or (SCENE_PATH if scene else MJCF_PATH)))
+        self.d = mujoco.MjData(self.m)
+        mujoco.mj_resetDataKeyframe(self.m, self.d, 0)
+        names = model.joint_names
+        self.qpos_adr = np.array([self.m.joint(n).qposadr[0] for n in names])
+        self.dof_adr = np.array([self.m.joint(n).dofadr[0] for n in names])
+        self.actuator = np.array([self.m.actuator(n).id for n in names])
+        self.stiffness = np.array([model.joint(n).stiffness for n in names])
+        self.position_range = self.m.actuator_ctrlrange[self.actuator].copy()
+        self.effort = np.array([model.joint(n).effort for n in names])
+        self.harness_id = self.m.equality("harness").id
+        self.d.eq_active[self.harness_id] = 1 if harness else 0
+        self.sensor_adr: Dict[str, Tuple[int, int]] = {}
+        for index in range(self.m.nsensor):
+            sensor = self.m.sensor(index)
+            self.sensor_adr[sensor.name] = (sensor.adr[0], sensor.dim[0])
+        self.grasps: Dict[str, int] = {}
+        self.grasp_sites: Dict[str, Tuple[int, int]] = {}
+        for hand in HANDS:
+            for part, body, site in GRASPABLE:
+                try:
+                    eq_id = self.m.equality(f"grasp_{hand}_{part}").id
+                except KeyError:
+                    continue
+                self.grasps[f"{hand}_{part}"] = eq_id
+                self.grasp_sites[f"{hand}_{part}"] = (self.m.site(f"{hand}_hand_grip").id,
+                                                      self.m.site(site).id)
+        mujoco.mj_forward(self.m, self.d)
+
+    def sensor(self, name: str) -> np.ndarray:
+        adr, dim = self.sensor_adr[name]
+        return self.d.sensordata[adr:adr + dim]
+
+    def set_servo(self, indices: np.ndarray, torque_mode: np.ndarray, idle: np.ndarray) -> None:
+        """Configure actuators: compliant position servo, raw torque, or off."""
+        for index in indices:
+            actuator = self.actuator[index]
+            gain = self.m.actuator_gainprm[actuator]
+            bias = self.m.actuator_biasprm[actuator]
+            if idle[index]:
+                gain[0], bias[1], bias[2] = 0.0, 0.0, 0.0
+            elif torque_mode[index]:
+                gain[0], bias[1], bias[2] = 1.0, 0.0, 0.0
+            else:
+                gain[0], bias[1], bias[2] = self.stiffness[index], -self.stiffness[index], -60.0
+            # ctrl is a position (clamped to the joint range) or a torque (to the effort).
+            self.m.actuator_ctrlrange[actuator] = (
+                (-self.effort[index], self.effort[index]) if torque_mode[index]
+                else self.position_range[index])
+
+    def update_grasps(self, hand_positions: Dict[str, float]) -> List[str]:
+        """Switch grasp welds on/off from hand closure and distance; return events."""
+        events = []
+        for key, eq_id in self.grasps.items():
+            hand = key.split("_", 1)[0]
+            closure = hand_positions[hand]
+            active = bool(self.d.eq_active[eq_id])
+            if not active and closure > GRASP_CLOSED:
+                hand_site, part_site = self.grasp_sites[key]
+                gap = np.linalg.norm(self.d.site_xpos[hand_site] - self.d.site_xpos[part_site])
+                if gap < GRASP_DISTANCE:
+                    self._weld_here(eq_id)
+                    self.d.eq_active[eq_id] = 1
+                    events.append(f"grasped {key}")
+            elif active and closure < GRASP_OPEN:
+                self.d.eq_active[eq_id] = 0
+                events.append(f"released {key}")
+        return events
+
+    def _weld_here(self, eq_id: int) -> None:
+        """Make the weld hold the two bodies where they are now."""
+        body1, body2 = self.m.eq_obj1id[eq_id], self.m.eq_obj2id[eq_id]
+        p1, p2 = self.d.xpos[body1], self.d.xpos[body2]
+        q1, q2 = self.d.xquat[body1], self.d.xquat[body2]
+        rotation = np.zeros(9)
+        mujoco.mju_quat2Mat(rotation, q1)
+        relpos = rotation.reshape(3, 3).T @ (p2 - p1)
+        inverse, relquat = np.zeros(4), np.zeros(4)
+        mujoco.mju_negQuat(inverse, q1)
+        mujoco.mju_mulQuat(relquat, inverse, q2)
+        self.m.eq_data[eq_id][0:3] = 0.0
+        self.m.eq_data[eq_id][3:6] = relpos
+        self.m.eq_data[eq_id][6:10] = relquat
+        self.m.eq_data[eq_id][10] = 1.0
+
+    def grasped(self) -> List[str]:
+        return [key for key, eq_id in self.grasps.items() if self.d.eq_active[eq_id]]
+
+    def set_harness(self, on: bool) -> None:
+        self.d.eq_active[self.harness_id] = 1 if on else 0
+
+    def prop_position(self, joint: str) -> float:
+        return float(self.d.qpos[self.m.joint(joint).qposadr[0]])
+
+
+class SimBackend(Backend):
+    """MuJoCo at 1 kHz with compliant position servos."""
+
+    def __init__(self, model: Optional[Robot] = None, scene: bool = True, harness: bool = True,
+                 thermal_speedup: float = 1.0) -> None:
+        super().__init__(model or walkman())
+        self.plant = MujocoPlant(self.model, scene=scene, harness=harness)
+        self.dt = float(self.plant.m.opt.timestep)
+        self.thermal = ThermalModel(len(self.joint_names), speedup=thermal_speedup)
+        self._torque_mode = np.zeros(len(self.joint_names), dtype=bool)
+        self._hands = (self.index["l_handj"], self.index["r_handj"])
+        self.events: List[str] = []
+        self._steps = 0
+
+    def _apply_modes(self, indices: np.ndarray) -> None:
+        self.plant.set_servo(indices, self._torque_mode, self.idle)
+
+    def step(self) -> None:
+        plant = self.plant
+        plant.d.ctrl[plant.actuator] = np.where(self.idle, 0.0, self.reference)
+        mujoco.mj_step(plant.m, plant.d)
+        self.time += self.dt
+        self.thermal.step(self.torques(), self.dt)
+        self._steps += 1
+        if self._steps % 10 == 0 and plant.grasps:
+            q = self.positions()
+            self.events += plant.update_grasps({"l": q[self._hands[0]], "r": q[self._hands[1]]})
+
+    def positions(self) -> np.ndarray:
+        return self.plant.d.qpos[self.plant.qpos_adr].copy()
+
+    def velocities(self) -> np.ndarray:
+        return self.plant.d.qvel[self.plant.dof_adr].copy()
+
+    def torques(self) -> np.ndarray:
+        return self.plant.d.actuator_force[self.plant.actuator].copy()
+
+    def temperatures(self) -> np.ndarray:
+        return self.thermal.temperature.copy()
+
+    def ft(self, sensor: str) -> np.ndarray:
+        return np.concatenate([self.plant.sensor(f"{sensor}_force"),
+                               self.plant.sensor(f"{sensor}_torque")])
+
+    def imu(self) -> Imu:
+        quat = self.plant.sensor("imu_orientation")
+        return Imu(quat_to_rpy(*quat), tuple(self.plant.sensor("imu_accelerometer")),
+                   tuple(self.plant.sensor("imu_gyro")))
+
+    def status(self) -> Dict[str, object]:
+        return {"backend": "sim", "time": round(self.time, 3), "grasped": self.plant.grasped()}
