@@ -20,6 +20,8 @@ setup(
     entry_points={
         "console_scripts": [
             "yarp-lite=yarp_lite.cli:main",
+            "walkman-hal=walkman.hal.server:main",
+            "walkman-module=walkman.gym.supervisor:main",
         ],
     },
 )

@@ -7,7 +7,9 @@ Port names follow YARP's control-board wrapper (``/<robot>/<chain>/...``):
                   in SI units (rad, rad/s, N*m, deg C) -- what the whole-body
                   interface reads
 ``command:i``     ``[pos] (q ...) [SEQ]``: stream positions (rad); ``[move] (q ...)``:
-                  go there at the reference speed; ``[idle]``: motors off
+                  go there at the reference speed; ``[idle]``: motors off;
+                  ``[pjnt] (i ...) (q ...) [SEQ]``: only the listed joints of the
+                  chain (indices within the chain), the others keep their reference
 ``rpc:i``         ``[get] [jnts]``, ``[get] [names]``, ``[get] [lims]``,
                   ``[set] [vels] (...)``, ``[set] [mode] [pos]|[idle]``
 ``/<robot>/rpc:i`` ``[get] chains`` -> ``((chain name...) ...)``: the grouping;
@@ -104,13 +106,16 @@ def decode_state_ext(bottle: Bottle, joints: int) -> ChainState:
 
 @dataclass(frozen=True)
 class Command:
-    mode: str                      # "pos", "move" or "idle"
+    mode: str                      # "pos", "move", "pjnt" or "idle"
     values: Tuple[float, ...] = ()
     seq: Optional[int] = None      # stamp of the state this command answers (latency)
+    joints: Optional[Tuple[int, ...]] = None  # "pjnt": which joints of the chain
 
 
 def encode_command(command: Command) -> Bottle:
     bottle = Bottle([Vocab(command.mode)])
+    if command.mode == "pjnt":
+        bottle.append(Bottle(int(i) for i in (command.joints or ())))
     if command.mode != "idle":
         bottle.append(_floats(command.values))
     if command.seq is not None:
@@ -118,23 +123,40 @@ def encode_command(command: Command) -> Bottle:
     return bottle
 
 
+def _values(mode: str, item: object, count: int) -> Tuple[float, ...]:
+    if not isinstance(item, list):
+        raise HalProtocolError(f"[{mode}] needs a list of {count} positions, got {item!r}")
+    try:
+        values = tuple(float(value) for value in item)
+    except (TypeError, ValueError):
+        raise HalProtocolError(f"[{mode}] positions must be numbers: {item}") from None
+    if len(values) != count:
+        raise HalProtocolError(f"[{mode}] has {len(values)} positions, expected {count}")
+    if not all(math.isfinite(value) for value in values):
+        raise HalProtocolError(f"[{mode}] positions must be finite: {values}")
+    return values
+
+
 def decode_command(bottle: Bottle, joints: int) -> Command:
     """Validate a ``command:i`` message for a chain of ``joints`` joints."""
-    if not bottle or str(bottle[0]) not in ("pos", "move", "idle"):
-        raise HalProtocolError(f"command must start with [pos], [move] or [idle]: {bottle}")
+    if not bottle or str(bottle[0]) not in ("pos", "move", "idle", "pjnt"):
+        raise HalProtocolError(f"command must start with [pos], [move], [pjnt] or [idle]: {bottle}")
     mode = str(bottle[0])
     if mode == "idle":
         return Command("idle")
-    if len(bottle) < 2 or not isinstance(bottle[1], list):
-        raise HalProtocolError(f"[{mode}] needs a list of {joints} positions: {bottle}")
-    try:
-        values = tuple(float(value) for value in bottle[1])
-    except (TypeError, ValueError):
-        raise HalProtocolError(f"[{mode}] positions must be numbers: {bottle[1]}") from None
-    if len(values) != joints:
-        raise HalProtocolError(f"[{mode}] has {len(values)} positions, the chain has {joints}")
-    if not all(math.isfinite(value) for value in values):
-        raise HalProtocolError(f"[{mode}] positions must be finite: {values}")
+    if mode == "pjnt":
+        if len(bottle) < 3 or not isinstance(bottle[1], list):
+            raise HalProtocolError(f"[pjnt] needs (joint indices) (positions): {bottle}")
+        indices = bottle[1]
+        if not indices or not all(isinstance(i, int) and not isinstance(i, Vocab)
+                                  and 0 <= i < joints for i in indices):
+            raise HalProtocolError(f"[pjnt] joint indices must be 0..{joints - 1}: {indices}")
+        if len(set(indices)) != len(indices):
+            raise HalProtocolError(f"[pjnt] repeats a joint: {indices}")
+        values = _values(mode, bottle[2], len(indices))
+        seq = int(bottle[3]) if len(bottle) > 3 and isinstance(bottle[3], int) else None
+        return Command(mode, values, seq, tuple(int(i) for i in indices))
+    values = _values(mode, bottle[1] if len(bottle) > 1 else None, joints)
     seq = int(bottle[2]) if len(bottle) > 2 and isinstance(bottle[2], int) else None
     return Command(mode, values, seq)
 

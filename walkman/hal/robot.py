@@ -241,12 +241,26 @@ class Robot:
             self.clamped += 1
         return clamped
 
-    def move(self, q: Sequence[float], mode: str = "pos") -> bool:
-        """Stream a whole-body position reference (rad).  False if the HAL is away."""
+    def move(self, q: Sequence[float], mode: str = "pos",
+             joints: Optional[Sequence[str]] = None) -> bool:
+        """Stream a whole-body position reference (rad).  False if the HAL is away.
+
+        With ``joints`` only those joints are commanded (the values for the
+        others in ``q`` are ignored), so modules sharing the robot do not
+        overwrite each other's joints.
+        """
         values = self.check(q)
+        selected = None if joints is None else {self.index[name] for name in joints}
         sent = True
         for chain, indices in self.chains.items():
-            command = Command(mode, tuple(values[indices]), self.last_seq or None)
+            if selected is None:
+                command = Command(mode, tuple(values[indices]), self.last_seq or None)
+            else:
+                mine = [k for k, index in enumerate(indices) if index in selected]
+                if not mine:
+                    continue
+                command = Command("pjnt", tuple(values[[indices[k] for k in mine]]),
+                                  self.last_seq or None, tuple(mine))
             sent = self._command_ports[chain].write(protocol.encode_command(command)) and sent
         return sent and self.connected
 

@@ -242,6 +242,8 @@ class HalServer:
                 elif command.mode == "pos":
                     backend.set_references(chain.indices, command.values)
                     chain.targets = None
+                elif command.mode == "pjnt":
+                    backend.set_references(chain.indices[list(command.joints)], command.values)
                 else:
                     chain.targets = np.array(command.values)
             moving = [chain for chain in self.chains.values() if chain.targets is not None]

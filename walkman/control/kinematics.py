@@ -1,0 +1,58 @@
+"""Kinematics of Walk-Man from its URDF, in whole-body joint order (Pinocchio).
+
+The pelvis is the fixed base: positions are expressed in the pelvis frame
+(``base``), which the harness holds still; a module that walks keeps its own
+estimate of where the pelvis is.  Frames are the URDF links (``torso``,
+``head``, ``l_hand``...) and the sensor frames (``multisense_frame``,
+``l_arm_ft_frame``...).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Dict, Optional, Sequence, Tuple
+
+import numpy as np
+import pinocchio as pin
+
+from walkman.model import URDF_PATH
+from walkman.model.description import Robot, walkman
+
+
+class Kinematics:
+    def __init__(self, urdf_path: Optional[Path] = None, model: Optional[Robot] = None) -> None:
+        self.robot = model or walkman()
+        self.model = pin.buildModelFromUrdf(str(urdf_path or URDF_PATH))
+        self.data = self.model.createData()
+        names = [self.model.names[i] for i in range(1, self.model.njoints)]
+        # whole-body index -> pinocchio configuration index
+        self.to_pin = np.array([names.index(name) for name in self.robot.joint_names])
+        self.joint_names = self.robot.joint_names
+        self._frames: Dict[str, int] = {}
+
+    def frame_id(self, frame: str) -> int:
+        if frame not in self._frames:
+            if not self.model.existFrame(frame):
+                raise KeyError(f"no frame {frame!r} in the model")
+            self._frames[frame] = self.model.getFrameId(frame)
+        return self._frames[frame]
+
+    def pin_q(self, q: Sequence[float]) -> np.ndarray:
+        out = np.zeros(self.model.nq)
+        out[self.to_pin] = np.asarray(q, dtype=float)
+        return out
+
+    def pose(self, q: Sequence[float], frame: str) -> Tuple[np.ndarray, np.ndarray]:
+        """(position, rotation matrix) of ``frame`` in the pelvis frame."""
+        pin.framesForwardKinematics(self.model, self.data, self.pin_q(q))
+        placement = self.data.oMf[self.frame_id(frame)]
+        return placement.translation.copy(), placement.rotation.copy()
+
+    def jacobian(self, q: Sequence[float], frame: str) -> np.ndarray:
+        """6 x 33 Jacobian (linear; angular) in the pelvis-aligned frame, whole-body columns."""
+        pq = self.pin_q(q)
+        pin.computeJointJacobians(self.model, self.data, pq)
+        pin.framesForwardKinematics(self.model, self.data, pq)
+        full = pin.getFrameJacobian(self.model, self.data, self.frame_id(frame),
+                                    pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        return full[:, self.to_pin]

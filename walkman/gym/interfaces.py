@@ -1,0 +1,192 @@
+"""The four pilot interfaces of a GYM module, on their standard ports.
+
+==================  ============================  =====================================
+interface           port                          Bottle
+==================  ============================  =====================================
+switch              ``/P/switch:i``               ``cmd seq`` (start pause resume stop quit)
+command             ``/P/command:i``              ``cmd seq`` or ``(cmd args...) seq``
+status              ``/P/status:o``               ``seq state data...``
+warning             ``/P/warning:o``              ``seq text``
+==================  ============================  =====================================
+
+As in the original GYM a receiver ignores a missing sequence number, so
+``yarp write /x /P/switch:i`` then typing ``start`` works; ``(turn 30)`` sends
+a command with an argument.  A command whose sequence number was already
+seen is dropped, so a command resent after a network hiccup runs once.
+
+Statuses are dictionary-compressed like the DRC modules did: a module that
+declares its list of states sends each as one character (``'a'`` for the
+first...), 16 bits on the wire instead of a word; :func:`decode_status`
+expands it on the pilot side.  Command decoding and status encoding can be
+replaced by custom serializers.
+"""
+
+from __future__ import annotations
+
+import itertools
+import queue
+import threading
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Callable, Deque, List, Optional, Sequence, Tuple
+
+from yarp_lite.bottle import Bottle, Vocab
+from yarp_lite.nameclient import NameClient
+from yarp_lite.port import Port
+
+
+@dataclass(frozen=True)
+class PilotCommand:
+    name: str
+    args: Tuple = ()
+    seq: Optional[int] = None
+
+
+class InterfaceError(ValueError):
+    """A message on a pilot port is malformed; the text says how."""
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, (bool, Vocab))
+
+
+def decode_command(bottle: Bottle) -> PilotCommand:
+    """``cmd seq`` | ``(cmd args...) seq`` | ``cmd args...`` -> :class:`PilotCommand`."""
+    if not bottle:
+        raise InterfaceError("empty command")
+    head = bottle[0]
+    seq = int(bottle[1]) if len(bottle) == 2 and _is_int(bottle[1]) else None
+    if isinstance(head, list):
+        if not head or not isinstance(head[0], str):
+            raise InterfaceError(f"a custom command starts with its name: {bottle}")
+        if len(bottle) > 2 or (len(bottle) == 2 and seq is None):
+            raise InterfaceError(f"expected (cmd args...) seq, got {bottle}")
+        return PilotCommand(str(head[0]), tuple(head[1:]), seq)
+    if not isinstance(head, str):
+        raise InterfaceError(f"a command starts with its name, not {head!r}")
+    if seq is not None:
+        return PilotCommand(str(head), (), seq)
+    return PilotCommand(str(head), tuple(bottle[1:]), None)
+
+
+def encode_command(command: PilotCommand) -> Bottle:
+    if command.args:
+        bottle = Bottle([Bottle([command.name, *command.args])])
+    else:
+        bottle = Bottle([command.name])
+    if command.seq is not None:
+        bottle.append(command.seq)
+    return bottle
+
+
+def encode_status(seq: int, state: str, data: Sequence = (),
+                  dictionary: Optional[Sequence[str]] = None) -> Bottle:
+    """``seq state data...``; with a dictionary the state is one letter."""
+    word = state
+    if dictionary is not None and state in dictionary:
+        word = chr(ord("a") + list(dictionary).index(state))
+    return Bottle([seq, word, *data])
+
+
+def decode_status(bottle: Bottle, dictionary: Optional[Sequence[str]] = None) -> Tuple[int, str, list]:
+    if len(bottle) < 2 or not _is_int(bottle[0]) or not isinstance(bottle[1], str):
+        raise InterfaceError(f"status must be seq state data..., got {bottle}")
+    state = str(bottle[1])
+    if dictionary is not None and len(state) == 1 and 0 <= ord(state) - ord("a") < len(dictionary):
+        state = dictionary[ord(state) - ord("a")]
+    return int(bottle[0]), state, list(bottle[2:])
+
+
+class _Inbox:
+    """Commands from a port, in order, each sequence number once."""
+
+    def __init__(self, decode: Callable[[Bottle], PilotCommand]) -> None:
+        self.decode = decode
+        self.queue: "queue.Queue[PilotCommand]" = queue.Queue(maxsize=1000)
+        self.recent: Deque[int] = deque(maxlen=256)
+        self.rejected: List[str] = []
+        self.lock = threading.Lock()
+        self.on_arrival: Optional[Callable[[], None]] = None
+
+    def feed(self, bottle: Bottle) -> None:
+        try:
+            command = self.decode(bottle)
+        except InterfaceError as exc:
+            self.rejected.append(str(exc))
+            if self.on_arrival:
+                self.on_arrival()
+            return
+        with self.lock:
+            if command.seq is not None:
+                if command.seq in self.recent:
+                    return  # already executed: a resend
+                self.recent.append(command.seq)
+        try:
+            self.queue.put_nowait(command)
+        except queue.Full:
+            self.rejected.append(f"command queue full, dropped {command.name}")
+        if self.on_arrival:
+            self.on_arrival()
+
+    def get(self, timeout: Optional[float] = None) -> Optional[PilotCommand]:
+        try:
+            return self.queue.get(timeout=timeout) if timeout else self.queue.get_nowait()
+        except queue.Empty:
+            return None
+
+    def take_rejections(self) -> List[str]:
+        rejected, self.rejected = self.rejected, []
+        return rejected
+
+
+class PilotInterfaces:
+    """Opens and serves ``/P/switch:i``, ``/P/command:i``, ``/P/status:o``, ``/P/warning:o``."""
+
+    def __init__(self, prefix: str, nameclient: Optional[NameClient] = None,
+                 statuses: Optional[Sequence[str]] = None,
+                 command_decoder: Callable[[Bottle], PilotCommand] = decode_command,
+                 status_encoder: Optional[Callable[[int, str, Sequence], Bottle]] = None) -> None:
+        self.prefix = prefix.rstrip("/")
+        self.nameclient = nameclient or NameClient()
+        self.statuses = list(statuses) if statuses else None
+        self.switch = _Inbox(decode_command)
+        self.commands = _Inbox(command_decoder)
+        self.status_encoder = status_encoder or (
+            lambda seq, state, data: encode_status(seq, state, data, self.statuses))
+        self._status_seq = itertools.count(1)
+        self._warning_seq = itertools.count(1)
+        self.state = "initializing"
+        self.data: list = []
+        self.ports: List[Port] = []
+        self.status_port: Optional[Port] = None
+        self.warning_port: Optional[Port] = None
+
+    def open(self, wait: float) -> None:
+        switch = Port(nameclient=self.nameclient, reader=self.switch.feed)
+        switch.open(f"{self.prefix}/switch:i", wait=wait)
+        command = Port(nameclient=self.nameclient, reader=self.commands.feed)
+        command.open(f"{self.prefix}/command:i", wait=wait)
+        self.status_port = Port(nameclient=self.nameclient)
+        self.status_port.open(f"{self.prefix}/status:o", wait=wait)
+        self.warning_port = Port(nameclient=self.nameclient)
+        self.warning_port.open(f"{self.prefix}/warning:o", wait=wait)
+        self.ports = [switch, command, self.status_port, self.warning_port]
+
+    def set_status(self, state: str, data: Sequence = ()) -> bool:
+        """Record the status; True when it changed (the watchdog then sends it at once)."""
+        changed = state != self.state or list(data) != self.data
+        self.state, self.data = state, list(data)
+        return changed
+
+    def send_status(self) -> None:
+        if self.status_port is not None:
+            self.status_port.write(self.status_encoder(next(self._status_seq), self.state,
+                                                       self.data))
+
+    def warn(self, text: str) -> None:
+        if self.warning_port is not None:
+            self.warning_port.write(Bottle([next(self._warning_seq), text]))
+
+    def close(self) -> None:
+        for port in self.ports:
+            port.close()

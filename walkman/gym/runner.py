@@ -1,0 +1,407 @@
+"""The process that runs one GYM module: pilot ports, watchdog, control loop.
+
+Theory of operation
+-------------------
+Three threads:
+
+* the **watchdog** (main thread) wakes every 0.5 s, or at once when a switch
+  command arrives.  It applies switch commands through the lifecycle table
+  (:mod:`walkman.gym.lifecycle`), publishes the status every 0.5 s (and at
+  once when it changes) and writes a heartbeat for the supervisor;
+* the **control thread** calls ``run()`` every ``thread_period`` while
+  running, and performs the hooks (``custom_init``, ``custom_pause``...) on
+  the watchdog's request, between two ``run()`` calls, so user code is never
+  re-entered;
+* the **connector** finds the HAL (whole-body interface) in the background, so
+  the module starts before the HAL and says "waiting_hal" meanwhile.
+
+``stop`` and ``quit`` always win: the watchdog asks the control thread and
+waits 2 s; if ``run()`` hangs, the process exits with :data:`EXIT_ESCALATED`
+and the supervisor starts a fresh one, stopped (``quit``: it simply exits).
+An exception in ``run()`` is reported on the warning port, the robot holds
+its position and the module stops.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import math
+import os
+import sys
+import threading
+import time
+import traceback
+from typing import Any, Dict, List, Optional, Type
+
+from walkman.gym import inifile
+from walkman.gym.interfaces import PilotInterfaces
+from walkman.gym.lifecycle import IllegalTransition, State, next_state
+from walkman.gym.thread import ControlThread, GenericThread
+from walkman.hal.protocol import HalUsageError
+from yarp_lite.nameclient import NameClient
+
+log = logging.getLogger("walkman.gym")
+
+EXIT_QUIT = 0
+EXIT_ESCALATED = 3
+HOOK_TIMEOUT = 2.0
+STATUS_PERIOD = 0.5
+DEFAULTS = {"thread_period": 10, "robot_name": "walkman", "urdf_path": ""}
+
+
+def load_module_class(name: str) -> Type[GenericThread]:
+    """``walkman.modules.<name>.Module``, or ``package.module:Class`` for your own."""
+    if ":" in name:
+        module_path, class_name = name.split(":", 1)
+    else:
+        module_path, class_name = f"walkman.modules.{name}", "Module"
+    try:
+        return getattr(importlib.import_module(module_path), class_name)
+    except (ImportError, AttributeError) as exc:
+        raise SystemExit(f"walkman-module: no module {name!r} ({exc})") from None
+
+
+class ControlLoop(threading.Thread):
+    """Runs the user's code; only this thread ever calls into it."""
+
+    def __init__(self, runner: "ModuleRunner") -> None:
+        super().__init__(daemon=True, name=f"{runner.name} control")
+        self.runner = runner
+        self.cond = threading.Condition()
+        self.request: Optional[str] = None
+        self.done: Optional[bool] = None
+        self.period_errors: List[float] = []
+        self.exit = False
+
+    def ask(self, hook: str, timeout: float = HOOK_TIMEOUT) -> Optional[bool]:
+        """Have the control thread perform a hook; None if it did not within ``timeout``."""
+        with self.cond:
+            self.request, self.done = hook, None
+            self.cond.notify_all()
+            if not self.cond.wait_for(lambda: self.done is not None, timeout):
+                return None
+            return self.done
+
+    def _serve_request(self) -> None:
+        with self.cond:
+            hook, self.request = self.request, None
+        if hook is None:
+            return
+        result = self.runner.perform(hook)
+        with self.cond:
+            self.done = result
+            self.cond.notify_all()
+
+    def run(self) -> None:
+        runner = self.runner
+        period = runner.thread.thread_period
+        deadline = time.perf_counter()
+        while not self.exit:
+            self._serve_request()
+            if runner.state != State.RUNNING:
+                with self.cond:
+                    self.cond.wait_for(lambda: self.request is not None or self.exit, 0.1)
+                deadline = time.perf_counter()
+                continue
+            try:
+                runner.thread.run()
+            except HalUsageError as exc:
+                runner.warn(f"{runner.name}: refused by the robot: {exc}")
+                runner.hold()
+            except Exception as exc:  # user code: report, hold, stop
+                runner.warn(f"{runner.name}: run() raised {type(exc).__name__}: {exc}")
+                log.debug("%s", traceback.format_exc())
+                runner.hold()
+                runner.fail_stop()
+            deadline += period
+            delay = deadline - time.perf_counter()
+            if delay > 0.0003:
+                time.sleep(delay - 0.0002)
+            while time.perf_counter() < deadline:
+                pass  # the last 0.2 ms: sleep is too coarse for a 2 ms period
+            self.period_errors.append(time.perf_counter() - deadline)
+            if len(self.period_errors) > 20000:
+                del self.period_errors[:10000]
+            if delay < -0.1:
+                deadline = time.perf_counter()  # far behind: skip rather than burst
+
+
+class ModuleRunner:
+    def __init__(self, name: str, module_class: Type[GenericThread], config: Dict[str, Any],
+                 prefix: Optional[str] = None, initial: State = State.CONSTRUCTOR,
+                 heartbeat_fd: Optional[int] = None,
+                 nameclient: Optional[NameClient] = None) -> None:
+        self.name = name
+        self.prefix = prefix or f"/{name}"
+        self.config = config
+        self.module_class = module_class
+        self.nameclient = nameclient or NameClient()
+        self.interfaces = PilotInterfaces(self.prefix, self.nameclient,
+                                          statuses=module_class.statuses or None)
+        self.state = initial
+        self.heartbeat_fd = heartbeat_fd
+        self.wake = threading.Event()
+        self.interfaces.switch.on_arrival = self.wake.set
+        self.interfaces.commands.on_arrival = None
+        self.robot = None
+        self.kinematics = None
+        self.robot_ready = threading.Event()
+        self.thread = self._make_thread()
+        self.loop = ControlLoop(self)
+        self.quit_requested = False
+        self.exit_code = EXIT_QUIT
+
+    def _make_thread(self) -> GenericThread:
+        if issubclass(self.module_class, ControlThread):
+            return self.module_class(self.name, self.config, self.interfaces,
+                                     on_status_change=self.wake.set)
+        return self.module_class(self.name, self.config, self.interfaces,
+                                 on_status_change=self.wake.set)
+
+    # -- set-up --------------------------------------------------------------------------
+
+    def start(self) -> None:
+        self.interfaces.open(wait=math.inf)
+        self._set_lifecycle_status()
+        if getattr(self.module_class, "needs_robot", False):
+            threading.Thread(target=self._connect_robot, daemon=True,
+                             name=f"{self.name} connector").start()
+        else:
+            self.robot_ready.set()
+        self.loop.start()
+        log.info("%s: ready for the pilot on %s/switch:i (state %s)", self.name, self.prefix,
+                 self.state.value)
+
+    def _connect_robot(self) -> None:
+        from walkman.control.kinematics import Kinematics
+        from walkman.hal.robot import Robot
+
+        while not self.quit_requested:
+            try:
+                self.robot = Robot(self.prefix, robot=str(self.config.get("robot_name", "walkman")),
+                                   nameclient=self.nameclient, connect_timeout=3600)
+                break
+            except Exception as exc:  # noqa: BLE001 - keep trying, say why
+                log.info("%s: HAL not reachable yet (%s)", self.name, exc)
+                time.sleep(2)
+        urdf = self.config.get("urdf_path") or None
+        self.kinematics = Kinematics(urdf)
+        thread = self.thread
+        if isinstance(thread, ControlThread):
+            thread.robot, thread.kinematics = self.robot, self.kinematics
+        self.robot_ready.set()
+        self.wake.set()
+
+    # -- hooks, run by the control thread ---------------------------------------------------
+
+    def perform(self, hook: str) -> bool:
+        thread = self.thread
+        try:
+            if hook == "init":
+                if not self.robot_ready.wait(timeout=0):
+                    return False
+                if isinstance(thread, ControlThread) and self.robot is not None:
+                    self.robot.wait_until_ready(5.0)
+                return bool(thread.custom_init())
+            if hook == "pause":
+                return bool(thread.custom_pause())
+            if hook == "resume":
+                return bool(thread.custom_resume())
+            if hook == "release":
+                thread.custom_release()
+                return True
+        except Exception as exc:  # user hook failed: report
+            self.warn(f"{self.name}: custom_{hook}() raised {type(exc).__name__}: {exc}")
+            return False
+        return False
+
+    def hold(self) -> None:
+        if self.robot is not None:
+            try:
+                self.robot.hold()
+            except Exception:  # noqa: BLE001 - holding is best effort
+                pass
+
+    def fail_stop(self) -> None:
+        """Called from the control thread after run() raised."""
+        self.perform("release")
+        self.state = State.STOPPED
+        self._set_lifecycle_status()
+        self.wake.set()
+
+    def warn(self, text: str) -> None:
+        log.warning("%s", text)
+        self.interfaces.warn(text)
+
+    # -- switch commands (watchdog) ----------------------------------------------------------------
+
+    def _set_lifecycle_status(self) -> None:
+        if self.state != State.RUNNING:
+            word = {State.CONSTRUCTOR: "initializing"}.get(self.state, self.state.value)
+            if self.state == State.CONSTRUCTOR and not self.robot_ready.is_set() and \
+                    getattr(self.module_class, "needs_robot", False) and self.robot is None:
+                word = "initializing"
+            self.interfaces.set_status(word)
+
+    def switch(self, command: str) -> None:
+        try:
+            target = next_state(self.name, self.state, command)
+        except IllegalTransition as exc:
+            self.warn(str(exc))
+            return
+        word = command.strip().lower()
+        if word == "start":
+            if not self.robot_ready.is_set():
+                self.interfaces.set_status("waiting_hal")
+                self.warn(f"{self.name}: start refused, the robot (HAL) is not connected yet")
+                return
+            ok = self.loop.ask("init", timeout=30)
+            if not ok:
+                self.warn(f"{self.name}: custom_init() failed, the module stays {self.state.value}")
+                self._set_lifecycle_status()
+                return
+            self.state = target
+        elif word == "pause":
+            self.state = State.PAUSED  # the loop stops calling run() right away
+            if self.loop.ask("pause") is None:
+                self.warn(f"{self.name}: custom_pause() did not return")
+            self._set_lifecycle_status()
+        elif word == "resume":
+            ok = self.loop.ask("resume")
+            if ok:
+                self.state = target
+            else:
+                self.warn(f"{self.name}: custom_resume() failed, staying paused")
+        elif word in ("stop", "quit"):
+            previous, self.state = self.state, State.STOPPED
+            result = self.loop.ask("release") if previous != State.CONSTRUCTOR else True
+            if result is None:
+                self.warn(f"{self.name}: run() does not give control back; restarting the "
+                          f"module process ({word})")
+                self.exit_code = EXIT_QUIT if word == "quit" else EXIT_ESCALATED
+                self.quit_requested = True
+                return
+            self.hold()
+            if word == "quit":
+                self.state = State.DESTRUCTOR
+                self.quit_requested = True
+            self._set_lifecycle_status()
+        log.info("%s: %s -> %s", self.name, word, self.state.value)
+        self.interfaces.send_status()
+
+    def watchdog(self) -> int:
+        """Serve the pilot until ``quit``; returns the process exit code."""
+        next_status = 0.0
+        while not self.quit_requested:
+            self.wake.wait(STATUS_PERIOD)
+            self.wake.clear()
+            for problem in self.interfaces.switch.take_rejections() + \
+                    self.interfaces.commands.take_rejections():
+                self.warn(f"{self.name}: {problem}")
+            while True:
+                command = self.interfaces.switch.get()
+                if command is None or self.quit_requested:
+                    break
+                self.switch(command.name)
+            now = time.monotonic()
+            if now >= next_status:
+                self.interfaces.send_status()
+                next_status = now + STATUS_PERIOD
+            self._heartbeat()
+        self.interfaces.send_status()
+        return self.exit_code
+
+    def _heartbeat(self) -> None:
+        if self.heartbeat_fd is not None:
+            try:
+                os.write(self.heartbeat_fd, b".")
+            except OSError:
+                self.heartbeat_fd = None
+
+    def close(self) -> None:
+        self.loop.exit = True
+        if self.robot is not None:
+            self.robot.close()
+        self.interfaces.close()
+
+    def period_stats(self) -> Dict[str, float]:
+        errors = sorted(abs(e) for e in self.loop.period_errors)
+        if not errors:
+            return {}
+        return {"median_ms": errors[len(errors) // 2] * 1e3,
+                "p99_ms": errors[int(len(errors) * 0.99)] * 1e3, "samples": len(errors)}
+
+
+def parse_args(argv: Optional[List[str]] = None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="walkman-module",
+                                     description="Run a GYM module (see walkman/modules/).")
+    parser.add_argument("module", help="module name (gaze_control, temperature...) or pkg.mod:Class")
+    parser.add_argument("--from", dest="config_file", help="configuration file (.ini)")
+    parser.add_argument("--context", default="", help="configuration context (folder)")
+    parser.add_argument("--name", help="port prefix (default /<module>)")
+    parser.add_argument("--period", type=float, help="thread_period in ms (overrides the .ini)")
+    parser.add_argument("--initial", choices=["constructor", "stopped"], default="constructor",
+                        help=argparse.SUPPRESS)
+    parser.add_argument("--heartbeat-fd", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--no-supervisor", action="store_true",
+                        help="run in this process (no restart on hang or crash)")
+    parser.add_argument("--verbose", action="store_true")
+    return parser.parse_args(argv)
+
+
+def load_config(options: argparse.Namespace) -> Dict[str, Any]:
+    name = options.config_file or f"{options.module.split(':')[-1]}.ini"
+    context = options.context or options.module
+    try:
+        config = inifile.load(name, context, DEFAULTS)
+    except inifile.IniError:
+        if options.config_file:
+            raise
+        config = dict(DEFAULTS)
+    if options.period:
+        config["thread_period"] = options.period
+    period = float(config["thread_period"])
+    if not 1 <= period <= 1000:
+        raise inifile.IniError(f"thread_period must be 1..1000 ms, got {period}")
+    return config
+
+
+def run_module(argv: Optional[List[str]] = None) -> int:
+    options = parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if options.verbose else logging.INFO,
+                        format="[%(levelname)s] %(message)s", stream=sys.stderr)
+    try:
+        config = load_config(options)
+    except inifile.IniError as exc:
+        log.error("%s", exc)
+        return 2
+    module_class = load_module_class(options.module)
+    name = options.module.split(":")[-1].split(".")[-1]
+    runner = ModuleRunner(name, module_class, config, prefix=options.name,
+                          initial=State(options.initial), heartbeat_fd=options.heartbeat_fd)
+    import signal
+
+    def request_quit(*_):
+        runner.quit_requested = True
+        runner.wake.set()
+    signal.signal(signal.SIGTERM, request_quit)
+    try:
+        runner.start()
+        code = runner.watchdog()
+    except KeyboardInterrupt:
+        code = EXIT_QUIT
+    stats = runner.period_stats()
+    if stats:
+        log.info("%s: loop period error median %.3f ms, p99 %.3f ms over %d ticks", name,
+                 stats["median_ms"], stats["p99_ms"], stats["samples"])
+    stuck = runner.loop.request is not None  # the control thread never took its last hook
+    runner.close()  # unregister the ports either way
+    if stuck or code == EXIT_ESCALATED:
+        os._exit(code)  # a thread stuck in run(): do not wait for it
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(run_module())

@@ -1,0 +1,104 @@
+"""``walkman-module NAME``: keeps a module process alive, whatever its code does.
+
+The supervisor starts the module process (:mod:`walkman.gym.runner`) and
+watches its heartbeat (a byte every 0.5 s on a pipe):
+
+* the process exits 0 (the pilot said ``quit``): the supervisor exits too;
+* it exits with ``EXIT_ESCALATED`` (``run()`` ignored a ``stop``), crashes, or
+  its heartbeat stops for 5 s (a hang that even blocks the watchdog): the
+  supervisor kills it and starts a fresh one in the *stopped* state, so the
+  pilot can ``start`` it again.  Restarts are logged and rate-limited.
+
+This is the "escalate from thread to process" of the module template: a
+module can never be left ignoring the pilot.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import select
+import signal
+import subprocess
+import sys
+import time
+from typing import List, Optional
+
+from walkman.gym.runner import EXIT_ESCALATED, EXIT_QUIT, parse_args, run_module
+
+log = logging.getLogger("walkman.gym.supervisor")
+
+HEARTBEAT_TIMEOUT = 5.0
+
+
+class Supervisor:
+    def __init__(self, argv: List[str]) -> None:
+        self.argv = argv
+        self.child: Optional[subprocess.Popen] = None
+        self.stopping = False
+        self.restarts: List[float] = []
+
+    def _spawn(self, initial: str) -> int:
+        read_fd, write_fd = os.pipe()
+        argv = [sys.executable, "-m", "walkman.gym.runner", *self.argv, "--initial", initial,
+                "--heartbeat-fd", str(write_fd)]
+        self.child = subprocess.Popen(argv, pass_fds=(write_fd,))
+        os.close(write_fd)
+        return read_fd
+
+    def run(self) -> int:
+        initial = "constructor"
+        while True:
+            read_fd = self._spawn(initial)
+            code = self._watch(read_fd)
+            os.close(read_fd)
+            if self.stopping or code == EXIT_QUIT:
+                return 0 if code in (EXIT_QUIT, None) else code
+            now = time.monotonic()
+            self.restarts = [t for t in self.restarts if now - t < 60] + [now]
+            if len(self.restarts) > 10:
+                log.error("module restarted 10 times in a minute; giving up")
+                return 1
+            reason = ("run() ignored the pilot" if code == EXIT_ESCALATED else
+                      "no heartbeat" if code is None else f"exit status {code}")
+            log.warning("module process ended (%s); starting a fresh one, stopped", reason)
+            initial = "stopped"
+
+    def _watch(self, read_fd: int) -> Optional[int]:
+        assert self.child is not None
+        last_beat = time.monotonic()
+        while True:
+            readable, _, _ = select.select([read_fd], [], [], 0.5)
+            if readable:
+                if os.read(read_fd, 1024):
+                    last_beat = time.monotonic()
+            code = self.child.poll()
+            if code is not None:
+                return code
+            if time.monotonic() - last_beat > HEARTBEAT_TIMEOUT and not self.stopping:
+                log.warning("module heartbeat lost for %.0f s: killing it", HEARTBEAT_TIMEOUT)
+                self.child.kill()
+                self.child.wait()
+                return None
+
+    def forward(self, signum: int, _frame) -> None:
+        self.stopping = True
+        if self.child is not None and self.child.poll() is None:
+            self.child.send_signal(signal.SIGINT if signum == signal.SIGINT else signal.SIGTERM)
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    options = parse_args(argv)
+    if options.no_supervisor:
+        return run_module(argv)
+    logging.basicConfig(level=logging.INFO, format="[%(levelname)s] %(message)s",
+                        stream=sys.stderr)
+    supervisor = Supervisor([arg for arg in argv if arg != "--no-supervisor"])
+    signal.signal(signal.SIGINT, supervisor.forward)
+    signal.signal(signal.SIGTERM, supervisor.forward)
+    return supervisor.run()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,115 @@
+"""What a module developer inherits: :class:`GenericThread` and :class:`ControlThread`.
+
+The paper's ``generic_thread``: override ``custom_init`` (required) and
+``run``; optionally ``custom_pause``, ``custom_resume``, ``custom_release``.
+Everything else -- ports, the pilot interfaces, the lifecycle, the loop
+timing, reconnections -- is the runner's job (:mod:`walkman.gym.runner`).
+
+A minimal module::
+
+    class Module(ControlThread):
+        statuses = ["idle", "moving"]
+
+        def custom_init(self):
+            self.goal = self.robot.sense_position()
+            return True
+
+        def run(self):
+            command = self.command_interface.get_command()   # pilot's command, or None
+            q = self.robot.sense_position()                  # sense
+            ...                                               # compute
+            self.robot.move(q)                               # move
+            self.status_interface.set_status("idle")
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any, Dict, List, Optional
+
+from walkman.gym.interfaces import PilotCommand, PilotInterfaces
+
+log = logging.getLogger("walkman.gym")
+
+
+class _CommandView:
+    def __init__(self, interfaces: PilotInterfaces) -> None:
+        self._interfaces = interfaces
+
+    def get_command(self) -> Optional[PilotCommand]:
+        """The oldest command not yet handled, or None (never blocks)."""
+        return self._interfaces.commands.get()
+
+
+class _StatusView:
+    def __init__(self, interfaces: PilotInterfaces, on_change) -> None:
+        self._interfaces = interfaces
+        self._on_change = on_change
+
+    def set_status(self, state: str, *data: Any) -> None:
+        if self._interfaces.set_status(state, data):
+            self._on_change()
+
+    @property
+    def status(self) -> str:
+        return self._interfaces.state
+
+
+class _WarningView:
+    def __init__(self, interfaces: PilotInterfaces) -> None:
+        self._interfaces = interfaces
+
+    def warn(self, text: str) -> None:
+        log.warning("%s", text)
+        self._interfaces.warn(text)
+
+
+class GenericThread:
+    """Base of every module; see the module docstring for the contract."""
+
+    #: The module's states, in order: sent as 'a', 'b', ... (dictionary compression).
+    statuses: List[str] = []
+
+    def __init__(self, name: str, config: Dict[str, Any], interfaces: PilotInterfaces,
+                 on_status_change=lambda: None) -> None:
+        self.name = name
+        self.config = config
+        self.thread_period = float(config.get("thread_period", 10)) / 1000.0
+        self.command_interface = _CommandView(interfaces)
+        self.status_interface = _StatusView(interfaces, on_status_change)
+        self.warning_interface = _WarningView(interfaces)
+
+    # -- to override ----------------------------------------------------------------------
+
+    def custom_init(self) -> bool:
+        raise NotImplementedError(f"{type(self).__name__} must implement custom_init()")
+
+    def run(self) -> None:
+        """One control step, called every ``thread_period`` while running."""
+
+    def custom_pause(self) -> bool:
+        return True
+
+    def custom_resume(self) -> bool:
+        return True
+
+    def custom_release(self) -> None:
+        """Undo custom_init (called on stop and quit)."""
+
+
+class ControlThread(GenericThread):
+    """A GenericThread with the robot: ``self.robot`` (whole-body) and ``self.kinematics``."""
+
+    needs_robot = True
+
+    def __init__(self, name: str, config: Dict[str, Any], interfaces: PilotInterfaces,
+                 on_status_change=lambda: None, robot=None, kinematics=None) -> None:
+        super().__init__(name, config, interfaces, on_status_change)
+        self.robot = robot
+        self.kinematics = kinematics
+
+    def sense(self):
+        return self.robot.sense_position()
+
+    def move(self, q) -> bool:
+        return self.robot.move(q)

@@ -1,0 +1,1 @@
+"""GYM modules: one per task.  ``walkman-module NAME`` runs ``walkman.modules.NAME.Module``."""
