@@ -14,6 +14,9 @@ As in the original GYM a receiver ignores a missing sequence number, so
 a command with an argument.  A command whose sequence number was already
 seen is dropped, so a command resent after a network hiccup runs once.
 
+Sequence numbers of statuses and warnings start at 2, because YARP's
+``yarp read`` treats a two-item ``1 "text"`` message as end-of-stream.
+
 Statuses are dictionary-compressed like the DRC modules did: a module that
 declares its list of states sends each as one character (``'a'`` for the
 first...), 16 bits on the wire instead of a word; :func:`decode_status`
@@ -153,8 +156,9 @@ class PilotInterfaces:
         self.commands = _Inbox(command_decoder)
         self.status_encoder = status_encoder or (
             lambda seq, state, data: encode_status(seq, state, data, self.statuses))
-        self._status_seq = itertools.count(1)
-        self._warning_seq = itertools.count(1)
+        # Sequences start at 2: ``yarp read`` takes ``(1 "text")`` for end-of-stream.
+        self._status_seq = itertools.count(2)
+        self._warning_seq = itertools.count(2)
         self.state = "initializing"
         self.data: list = []
         self.ports: List[Port] = []

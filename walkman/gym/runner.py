@@ -105,6 +105,11 @@ class ControlLoop(threading.Thread):
                     self.cond.wait_for(lambda: self.request is not None or self.exit, 0.1)
                 deadline = time.perf_counter()
                 continue
+            if not runner.robot_alive():
+                with self.cond:  # no HAL: do not drive blind; wait for it to come back
+                    self.cond.wait_for(lambda: self.request is not None or self.exit, 0.1)
+                deadline = time.perf_counter()
+                continue
             try:
                 runner.thread.run()
             except HalUsageError as exc:
@@ -152,6 +157,9 @@ class ModuleRunner:
         self.loop = ControlLoop(self)
         self.quit_requested = False
         self.exit_code = EXIT_QUIT
+        self._robot_alive = True
+        self._status_before_loss = ""
+        self.start_pending = False
 
     def _make_thread(self) -> GenericThread:
         if issubclass(self.module_class, ControlThread):
@@ -217,6 +225,25 @@ class ModuleRunner:
             return False
         return False
 
+    def robot_alive(self) -> bool:
+        """False (and said once) while a ControlThread's HAL is silent."""
+        robot = self.robot
+        if robot is None or not getattr(self.module_class, "needs_robot", False):
+            return True
+        alive = robot.connected
+        if alive != self._robot_alive:
+            self._robot_alive = alive
+            if alive:
+                self.warn(f"{self.name}: the robot (HAL) is back; running again")
+                self.interfaces.set_status(self._status_before_loss or "running")
+            else:
+                self._status_before_loss = self.interfaces.state
+                self.warn(f"{self.name}: lost the robot (HAL silent for "
+                          f"{robot.state_age:.1f} s); control paused until it is back")
+                self.interfaces.set_status("waiting_hal")
+            self.wake.set()
+        return alive
+
     def hold(self) -> None:
         if self.robot is not None:
             try:
@@ -254,9 +281,13 @@ class ModuleRunner:
         word = command.strip().lower()
         if word == "start":
             if not self.robot_ready.is_set():
+                # Started before the HAL: say so, and start as soon as it is there.
+                self.start_pending = True
                 self.interfaces.set_status("waiting_hal")
-                self.warn(f"{self.name}: start refused, the robot (HAL) is not connected yet")
+                log.info("%s: start requested; waiting for the robot (HAL) first", self.name)
+                self.interfaces.send_status()
                 return
+            self.start_pending = False
             ok = self.loop.ask("init", timeout=30)
             if not ok:
                 self.warn(f"{self.name}: custom_init() failed, the module stays {self.state.value}")
@@ -304,7 +335,11 @@ class ModuleRunner:
                 command = self.interfaces.switch.get()
                 if command is None or self.quit_requested:
                     break
+                if command.name.strip().lower() in ("stop", "quit"):
+                    self.start_pending = False
                 self.switch(command.name)
+            if self.start_pending and self.robot_ready.is_set() and not self.quit_requested:
+                self.switch("start")
             now = time.monotonic()
             if now >= next_status:
                 self.interfaces.send_status()

@@ -1,0 +1,257 @@
+"""Name server, HAL and GYM modules as real processes, started in any order.
+
+The "done when" of the walkman core issue: a name server, ``walkman-hal``
+(sim and ethercat) and ``walkman-module gaze_control`` in any order; the
+pilot sends ``start`` and a gaze command with ``yarp write`` (real YARP and
+yarp-lite), the head moves in the simulator and the status changes; the same
+module works when the HAL groups joints differently; stop/quit win over a
+module that hangs or throws; bad input is refused without harm.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import List, Optional
+
+import numpy as np
+import pytest
+
+from harness import Proc, YarpWorld, missing_reference, real_implementation, wait_until
+from walkman.gym.interfaces import decode_status
+from walkman.model import MODELS_DIR
+from yarp_lite import network
+from yarp_lite.bottle import Bottle, Vocab
+from yarp_lite.buffered_port import BufferedPort
+from yarp_lite.nameclient import NameClient
+
+PYTHON = sys.executable
+GAZE_STATUSES = ["ready", "moving", "tracking", "unreachable"]
+
+
+class Pilot:
+    """Listens to a module's status and warnings, and talks to its switch and command ports."""
+
+    def __init__(self, world: YarpWorld, module: str, statuses: Optional[List[str]] = None):
+        self.world = world
+        self.module = module
+        self.statuses = statuses
+        self.status = BufferedPort(f"/test/{module}/status:i")
+        self.warnings: List[str] = []
+        self.warning_port = BufferedPort(f"/test/{module}/warning:i",
+                                         on_read=lambda b: self.warnings.append(str(b[1])))
+        client = NameClient()
+        client.subscribe(f"/{module}/status:o", self.status.name)
+        client.subscribe(f"/{module}/warning:o", self.warning_port.name)
+        # Persistent connections are made by the name server, shortly after.
+        assert self.status.wait_for_inputs(1, 20) and self.warning_port.wait_for_inputs(1, 20)
+
+    def state(self) -> Optional[str]:
+        bottle = self.status.read(timeout=2)
+        return decode_status(bottle, self.statuses)[1] if bottle is not None else None
+
+    def data(self) -> list:
+        bottle = self.status.read(timeout=2)
+        return decode_status(bottle, self.statuses)[2] if bottle is not None else []
+
+    def wait_state(self, state: str, timeout: float = 20.0) -> None:
+        wait_until(lambda: self.state() == state, timeout, message=f"{self.module} {state}")
+
+    def send(self, tool, port: str, line: str) -> None:
+        result = self.world.run_tool(tool, "write", f"/test/writer{int(time.time() * 1e6)}",
+                                     f"/{self.module}/{port}:i", input_text=line + "\n")
+        assert result.returncode == 0, result.stdout + result.stderr
+
+    def wait_warning(self, text: str, timeout: float = 15.0) -> None:
+        wait_until(lambda: any(text in w for w in self.warnings), timeout,
+                   message=f"warning containing {text!r} (got {self.warnings})")
+
+    def close(self) -> None:
+        self.status.close()
+        self.warning_port.close()
+
+
+def start_hal(world: YarpWorld, backend: str = "sim", *extra: str) -> Proc:
+    hal = world.start([PYTHON, "-m", "walkman.hal.server", "--backend", backend, *extra],
+                      f"hal-{backend}")
+    hal.wait_for("HAL for walkman", timeout=60)
+    return hal
+
+
+def start_module(world: YarpWorld, name: str, *extra: str) -> Proc:
+    return world.start([PYTHON, "-m", "walkman.gym.supervisor", name, *extra], f"module {name}")
+
+
+def neck(world_robot_probe) -> np.ndarray:
+    q = world_robot_probe.sense_position()
+    return q[[world_robot_probe.index["NeckYawj"], world_robot_probe.index["NeckPitchj"]]]
+
+
+@pytest.fixture
+def probe(lite_world):
+    from walkman.hal.robot import Robot
+
+    robots = []
+
+    def make():
+        robot = Robot("/test/probe")
+        assert robot.wait_until_ready(20)
+        robots.append(robot)
+        return robot
+    yield make
+    for robot in robots:
+        robot.close()
+
+
+@pytest.mark.parametrize("backend", ["sim", "ethercat"])
+@pytest.mark.parametrize("order", ["module-first", "hal-first"])
+@pytest.mark.parametrize("tool_name", ["yarp", "yarp_lite"])
+def test_pilot_moves_the_head_through_yarp_write(lite_world, probe, implementations, backend,
+                                                 order, tool_name):
+    tool = implementations[tool_name]
+    if tool is None:
+        missing_reference()
+    if order == "module-first":
+        module = start_module(lite_world, "gaze_control")
+        module.wait_for("ready for the pilot", timeout=60)
+        start_hal(lite_world, backend)
+    else:
+        start_hal(lite_world, backend)
+        module = start_module(lite_world, "gaze_control")
+        module.wait_for("ready for the pilot", timeout=60)
+    pilot = Pilot(lite_world, "gaze_control", GAZE_STATUSES)
+    try:
+        pilot.wait_state("initializing")
+        wait_until(lambda: "HAL not reachable" not in module.output() or
+                   "Receiving input from /walkman" in module.output(), 30)
+        pilot.send(tool, "switch", "start")
+        pilot.wait_state("ready")
+        robot = probe()
+        before = neck(robot)
+        pilot.send(tool, "command", "look_at 1.0 0.4 0.1")
+        pilot.wait_state("tracking")
+        after = neck(robot)
+        assert after[0] > before[0] + 0.25, f"head did not turn left: {before} -> {after}"
+        assert after[1] > before[1] + 0.2, f"head did not look down: {before} -> {after}"
+        pilot.send(tool, "switch", "quit")
+        assert module.wait(timeout=30) == 0
+    finally:
+        pilot.close()
+
+
+def test_regrouping_the_hal_chains_changes_nothing_for_the_module(lite_world, probe, lite):
+    start_hal(lite_world, "sim", "--config", str(MODELS_DIR / "hal_whole_body.ini"))
+    assert NameClient().query("/walkman/whole_body/command:i") is not None
+    assert NameClient().query("/walkman/head/command:i") is None
+    module = start_module(lite_world, "gaze_control")
+    module.wait_for("ready for the pilot", timeout=60)
+    pilot = Pilot(lite_world, "gaze_control", GAZE_STATUSES)
+    try:
+        pilot.send(lite, "switch", "start")
+        pilot.wait_state("ready")
+        robot = probe()
+        assert list(robot.chains) == ["whole_body"]
+        pilot.send(lite, "command", "look_at 1.0 -0.4 0.1")
+        pilot.wait_state("tracking")
+        assert neck(robot)[0] < -0.25
+    finally:
+        pilot.close()
+
+
+def test_stop_and_quit_win_over_a_hanging_or_throwing_module(lite_world, lite):
+    start_hal(lite_world, "sim")
+    module = start_module(lite_world, "tests.walkman.misbehaving:Module")
+    module.wait_for("ready for the pilot", timeout=60)
+    pilot = Pilot(lite_world, "Module", ["ok"])
+    try:
+        pilot.send(lite, "switch", "start")
+        pilot.wait_state("ok")
+        pilot.send(lite, "command", "throw")
+        pilot.wait_warning("run() raised RuntimeError: deliberate failure")
+        pilot.wait_state("stopped")
+        pilot.send(lite, "switch", "start")
+        pilot.wait_state("ok")
+        pilot.send(lite, "command", "hang")
+        time.sleep(0.5)
+        pilot.send(lite, "switch", "stop")
+        module.wait_for("starting a fresh one, stopped", timeout=30)
+        pilot.wait_state("stopped", timeout=60)
+        pilot.send(lite, "switch", "start")
+        pilot.wait_state("ok")
+        pilot.send(lite, "command", "hang")
+        time.sleep(0.5)
+        pilot.send(lite, "switch", "quit")
+        assert module.wait(timeout=30) == 0
+    finally:
+        pilot.close()
+
+
+def test_bad_input_is_refused_and_the_robot_holds(lite_world, probe, lite):
+    start_hal(lite_world, "sim")
+    module = start_module(lite_world, "tests.walkman.misbehaving:Module")
+    module.wait_for("ready for the pilot", timeout=60)
+    pilot = Pilot(lite_world, "Module", ["ok"])
+    try:
+        pilot.send(lite, "switch", "dance")
+        pilot.wait_warning("'dance' is not valid while constructor")
+        pilot.send(lite, "switch", "pause")
+        pilot.wait_warning("'pause' is not valid while constructor")
+        pilot.send(lite, "switch", "start")
+        pilot.wait_state("ok")
+        robot = probe()
+        before = robot.sense_position()
+        pilot.send(lite, "command", "not_a_number")
+        pilot.wait_warning("non-finite reference for WaistLat")
+        pilot.send(lite, "command", "short")
+        pilot.wait_warning("move needs 33 joint positions, got 2")
+        pilot.wait_state("ok")  # still running
+        pilot.send(lite, "command", "far")
+        wait_until(lambda: pilot.data() == [1.0], message="clamp reported")
+        assert np.allclose(robot.sense_position()[:3], before[:3], atol=0.02)
+        yaw = robot.sense_position()[robot.index["NeckYawj"]]
+        assert yaw == pytest.approx(0.6109, abs=0.02)  # clamped at the limit, not 5 rad
+        # A malformed message straight at the HAL is refused there too.
+        hal_port = NameClient().query("/walkman/head/command:i")
+        network.request(hal_port, [Vocab("pos"), Bottle([1.0])], timeout=5)
+        wait_until(lambda: "refused command" in lite_world.processes[1].output(), 10)
+    finally:
+        pilot.close()
+
+
+def test_a_hal_that_disappears_and_comes_back(lite_world, lite):
+    hal = start_hal(lite_world, "sim")
+    module = start_module(lite_world, "gaze_control")
+    module.wait_for("ready for the pilot", timeout=60)
+    pilot = Pilot(lite_world, "gaze_control", GAZE_STATUSES)
+    try:
+        pilot.send(lite, "switch", "start")
+        pilot.wait_state("ready")
+        hal.kill()
+        pilot.wait_warning("lost the robot (HAL silent")
+        pilot.wait_state("waiting_hal")
+        start_hal(lite_world, "sim")
+        pilot.wait_warning("the robot (HAL) is back", timeout=40)
+        pilot.send(lite, "command", "look_at 1.0 0.0 0.0")
+        pilot.wait_state("tracking", timeout=30)
+    finally:
+        pilot.close()
+
+
+def test_temperature_module_reports_round_robin_and_warns(lite_world, lite, tmp_path):
+    config = tmp_path / "temperature.ini"
+    config.write_text("thread_period 1000\nwarning_threshold 30.05\n")
+    start_hal(lite_world, "ethercat", "--thermal-speedup", "2000")
+    module = start_module(lite_world, "temperature", "--from", str(config))
+    module.wait_for("ready for the pilot", timeout=60)
+    pilot = Pilot(lite_world, "temperature", ["monitoring", "hot"])
+    try:
+        pilot.send(lite, "switch", "start")
+        wait_until(lambda: len(pilot.data()) == 14, 20, message="seven (index, temp) pairs")
+        indices = set()
+        deadline = time.time() + 15
+        while len(indices) < 33 and time.time() < deadline:
+            indices.update(pilot.data()[0::2])
+        assert indices == set(range(33))  # every joint within a few seconds
+        pilot.wait_warning("limit 30.05 C", timeout=60)
+    finally:
+        pilot.close()
