@@ -110,8 +110,10 @@ def test_hal_commands_validate():
 def test_state_round_trip():
     state = protocol.ChainState(5, 1.25, (0.1, 0.2), (0.0, 1.0), (3.0, 4.0), (30.0, 31.0))
     assert protocol.decode_state_ext(protocol.encode_state_ext(state), 2) == state
-    with pytest.raises(HalProtocolError, match="expected 3"):
+    with pytest.raises(HalProtocolError, match="expected 15 for 3 joints"):
         protocol.decode_state_ext(protocol.encode_state_ext(state), 3)
+    with pytest.raises(HalProtocolError, match="float64"):
+        protocol.decode_state_ext(Bottle([1, 2.0, 2.0, *([0.0] * 8)]), 2)
 
 
 # -- EtherCAT packets (Figure 4) ----------------------------------------------------------------------

@@ -96,6 +96,7 @@ class ControlLoop(threading.Thread):
 
     def run(self) -> None:
         runner = self.runner
+        self.realtime = make_realtime(CONTROL_PRIORITY)
         period = runner.thread.thread_period
         deadline = time.perf_counter()
         while not self.exit:
@@ -403,8 +404,33 @@ def load_config(options: argparse.Namespace) -> Dict[str, Any]:
     return config
 
 
+#: GIL hand-over interval in module and HAL processes.  Python's default (5 ms)
+#: lets a port thread hold the interpreter for 2.5 control periods at 500 Hz.
+SWITCH_INTERVAL = 0.0002
+#: Real-time priorities (SCHED_FIFO) of the periodic threads, when allowed.
+HAL_PRIORITY = 60
+CONTROL_PRIORITY = 50
+
+
+def make_realtime(priority: int) -> bool:
+    """Give the calling thread SCHED_FIFO priority (Linux, root or CAP_SYS_NICE).
+
+    The real Walk-Man ran its loops under Xenomai; here the kernel's FIFO
+    class keeps a 2 ms loop on time while port threads are busy.  Silently
+    stays normal where that is not permitted (``WALKMAN_NO_RT=1`` opts out).
+    """
+    if os.environ.get("WALKMAN_NO_RT") or not hasattr(os, "sched_setscheduler"):
+        return False
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        return True
+    except (PermissionError, OSError):
+        return False
+
+
 def run_module(argv: Optional[List[str]] = None) -> int:
     options = parse_args(argv)
+    sys.setswitchinterval(SWITCH_INTERVAL)
     logging.basicConfig(level=logging.DEBUG if options.verbose else logging.INFO,
                         format="[%(levelname)s] %(message)s", stream=sys.stderr)
     try:

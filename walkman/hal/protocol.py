@@ -3,9 +3,9 @@
 Port names follow YARP's control-board wrapper (``/<robot>/<chain>/...``):
 
 ``state:o``       positions in degrees, a float64 Vector, as YARP streams them
-``stateExt:o``    ``(stamp SEQ TIME) (q ...) (qdot ...) (tau ...) (temperature ...)``
+``stateExt:o``    one float64 vector ``SEQ TIME N q[N] qdot[N] tau[N] temperature[N]``
                   in SI units (rad, rad/s, N*m, deg C) -- what the whole-body
-                  interface reads
+                  interface reads; flat, so it costs one struct call each way
 ``command:i``     ``[pos] (q ...) [SEQ]``: stream positions (rad); ``[move] (q ...)``:
                   go there at the reference speed; ``[idle]``: motors off;
                   ``[pjnt] (i ...) (q ...) [SEQ]``: only the listed joints of the
@@ -82,26 +82,23 @@ def encode_state(q_rad: Sequence[float]) -> Bottle:
 
 
 def encode_state_ext(state: ChainState) -> Bottle:
-    return Bottle([Bottle(["stamp", state.seq, Float64(state.time)]),
-                   Bottle(["q", *map(float, state.q)]), Bottle(["qdot", *map(float, state.qdot)]),
-                   Bottle(["tau", *map(float, state.tau)]),
-                   Bottle(["temperature", *map(float, state.temperature)])])
+    return Bottle([float(state.seq), float(state.time), float(len(state.q)), *state.q,
+                   *state.qdot, *state.tau, *state.temperature])
 
 
 def decode_state_ext(bottle: Bottle, joints: int) -> ChainState:
-    try:
-        stamp = bottle.find_group("stamp")
-        groups = {key: bottle.find_group(key) for key in ("q", "qdot", "tau", "temperature")}
-        if stamp is None or any(group is None for group in groups.values()):
-            raise HalProtocolError(f"stateExt needs stamp, q, qdot, tau, temperature: {bottle}")
-        vectors = {key: tuple(float(v) for v in group[1:]) for key, group in groups.items()}
-    except (TypeError, ValueError) as exc:
-        raise HalProtocolError(f"stateExt has a non-numeric value: {exc}") from exc
-    for key, vector in vectors.items():
-        if len(vector) != joints:
-            raise HalProtocolError(f"stateExt {key} has {len(vector)} values, expected {joints}")
-    return ChainState(int(stamp[1]), float(stamp[2]), vectors["q"], vectors["qdot"],
-                      vectors["tau"], vectors["temperature"])
+    expected = 3 + 4 * joints
+    if len(bottle) != expected:
+        raise HalProtocolError(f"stateExt has {len(bottle)} values, expected {expected} "
+                               f"for {joints} joints")
+    if not all(isinstance(value, float) for value in bottle):
+        raise HalProtocolError("stateExt must be a vector of float64")
+    if int(bottle[2]) != joints:
+        raise HalProtocolError(f"stateExt is for {int(bottle[2])} joints, expected {joints}")
+    values = tuple(bottle)
+    n = joints
+    return ChainState(int(values[0]), values[1], values[3:3 + n], values[3 + n:3 + 2 * n],
+                      values[3 + 2 * n:3 + 3 * n], values[3 + 3 * n:3 + 4 * n])
 
 
 @dataclass(frozen=True)

@@ -265,8 +265,8 @@ class HalServer:
             idx = chain.indices
             state_ext = chain.ports["state_ext"]
             if state_ext.output_count:
-                state = ChainState(self.seq, backend.time, tuple(q[idx]), tuple(qdot[idx]),
-                                   tuple(tau[idx]), tuple(temperature[idx]))
+                state = ChainState(self.seq, backend.time, q[idx].tolist(), qdot[idx].tolist(),
+                                   tau[idx].tolist(), temperature[idx].tolist())
                 self.publisher.publish(state_ext, protocol.encode_state_ext(state))
             if chain.ports["state"].output_count:
                 self.publisher.publish(chain.ports["state"], protocol.encode_state(q[idx]))
@@ -282,7 +282,11 @@ class HalServer:
                 imu.rpy, imu.acceleration, imu.gyro))
 
     def run(self, duration: Optional[float] = None) -> None:
+        from walkman.gym.runner import HAL_PRIORITY, make_realtime
+
         backend = self.backend
+        if self.realtime and make_realtime(HAL_PRIORITY):
+            log.info("physics loop runs with real-time priority (SCHED_FIFO %d)", HAL_PRIORITY)
         self.publisher.start()
         self.running = True
         state_every = max(1, round(self.config.period_ms / 1000.0 / backend.dt))
@@ -366,6 +370,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--duration", type=float, help="stop after this much simulated time")
     parser.add_argument("--verbose", action="store_true")
     options = parser.parse_args(argv)
+    from walkman.gym.runner import SWITCH_INTERVAL
+
+    sys.setswitchinterval(SWITCH_INTERVAL)  # keep the physics thread on time
     logging.basicConfig(level=logging.DEBUG if options.verbose else logging.INFO,
                         format="[%(levelname)s] %(message)s", stream=sys.stderr)
     try:
