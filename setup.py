@@ -22,6 +22,8 @@ setup(
             "yarp-lite=yarp_lite.cli:main",
             "walkman-hal=walkman.hal.server:main",
             "walkman-module=walkman.gym.supervisor:main",
+            "walkman-bridge=bridge.main:main",
+            "walkman-netem=bridge.emulation:main",
         ],
     },
 )

@@ -421,11 +421,14 @@ class Port:
 
     # -- connections ---------------------------------------------------------------
 
-    def add_output(self, target: str, carrier: str = "") -> bool:
-        """Connect this port's output to ``target`` (``/name`` or ``udp://name``)."""
+    def add_output(self, target: str, carrier: str = "", quiet: bool = False) -> bool:
+        """Connect this port's output to ``target`` (``/name`` or ``udp://name``).
+
+        ``quiet`` leaves a failure unlogged, for callers that retry on their own.
+        """
         ok, message = self._add_output(f"{carrier}:/{target}" if carrier else target,
                                        only_if_needed=True)
-        if not ok:
+        if not ok and not quiet:
             log.warning("%s", message)
         return ok
 

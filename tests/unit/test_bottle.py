@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from codec_helpers import FUZZ
+from codec_helpers import FUZZ, bottles
 from yarp_lite.bottle import (Bottle, Dict, Float32, Int8, Int16, Int64, Tag, Vocab, decode,
                               decode_prefix, encode, tag_of, vocab_decode, vocab_encode)
 from yarp_lite.errors import LocalProtocolError, NeedMoreData, RemoteProtocolError
@@ -141,17 +141,6 @@ def test_deep_nesting_is_refused_not_a_crash():
 
 # -- property-based -------------------------------------------------------------------
 
-primitive = st.one_of(
-    st.integers(-(1 << 63), (1 << 63) - 1),
-    st.integers(-128, 127).map(Int8), st.integers(-(1 << 15), (1 << 15) - 1).map(Int16),
-    st.integers(-(1 << 31), (1 << 31) - 1).map(Int64),
-    st.floats(allow_nan=False), st.floats(width=32, allow_nan=False).map(Float32),
-    st.text(max_size=20), st.binary(max_size=20),
-    st.text("abcdefgh", min_size=1, max_size=4).map(Vocab),
-)
-values = st.recursive(primitive, lambda children: st.lists(children, max_size=5).map(Bottle),
-                      max_leaves=25)
-bottles = st.lists(values, max_size=8).map(Bottle)
 
 
 @FUZZ

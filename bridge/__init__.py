@@ -1,0 +1,11 @@
+"""The robot/pilot network bridge (paper section 2.6).
+
+Two processes, one per PC, make YARP ports and ROS topics on two name servers
+look like one network over a slow link that comes and goes.  Layers, bottom
+up: :mod:`wire`/:mod:`compact`/:mod:`state_codec`/:mod:`frames`/
+:mod:`datagrams`/:mod:`tiles`/:mod:`fec` (pure codecs), :mod:`journal`
+(durable reliable queues), :mod:`tcp_channel`/:mod:`udp_channel` (sockets),
+:mod:`endpoints` (YARP ports and ROS topics), :mod:`node` and :mod:`main`
+(the ``walkman-bridge`` program); :mod:`config` reads the XML and
+:mod:`emulation` builds emulated robot/pilot networks.
+"""

@@ -1,0 +1,279 @@
+"""The bridge configuration: the paper's XML, turned into the list of bridged channels.
+
+Theory of operation
+-------------------
+The file lists modules by 8-bit id (0..255, unique across every section):
+
+* ``<modules><module name="gaze_control" id="7"/>`` -- a standard GYM module
+  on the robot: its ``switch`` and ``command`` go pilot->robot (reliable:
+  never dropped, never duplicated, in order, sent at once), its ``status``
+  (latest only, batched every period) and ``warning`` (reliable) go
+  robot->pilot;
+* ``<custom_modules>`` -- explicit ``<connection port_to_open source_port
+  target_port location direction>``, names relative to ``/<module>``: the
+  source side opens ``port_to_open`` and ``source_port`` feeds it; the
+  destination side opens ``source_port``'s name and feeds ``target_port``
+  (which is how ports get renamed);
+* ``<robot_state id robot/>`` -- the HAL's joint state, compressed as Table 1
+  counts it (this project's addition);
+* ``<ros_topics><topic name type id direction channel/>`` -- ROS topics, on
+  the UDP channel only: "TCP-ROS is unsupported: ROS data would saturate the
+  channel", as the paper says.
+
+Every channel gets ``(id, kind)``: the module id and which of its flows it
+is.  The file is checked against ``bridge.xsd`` and then for what a schema
+cannot say; every error names the file, the line and the problem.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Dict, List, Optional, Tuple
+
+from lxml import etree
+
+SCHEMA_PATH = Path(__file__).with_name("bridge.xsd")
+ROBOT, PILOT = "robot", "pilot"
+DIRECTIONS = {"robot_to_pilot": (ROBOT, PILOT), "pilot_to_robot": (PILOT, ROBOT)}
+CHANNELS = ("tcp", "udp")
+DEFAULT_PERIOD = 0.5
+DEFAULT_GATHER = 0.4
+DEFAULT_STATE_RATE = 10.0
+
+# Sub-channels of a standard GYM module (the "kind" byte on the wire).
+GYM_FLOWS = (("switch", "pilot_to_robot", "switch:i", True),
+             ("command", "pilot_to_robot", "command:i", True),
+             ("status", "robot_to_pilot", "status:o", False),
+             ("warning", "robot_to_pilot", "warning:o", True))
+
+
+class ConfigError(Exception):
+    """The configuration is invalid; the message is ``file:line: problem``."""
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One bridged flow of messages."""
+
+    id: int                      # 8-bit module id
+    kind: int                    # which flow of that module
+    label: str                   # "gaze_control/status"
+    source: str                  # side where messages come from ("robot" or "pilot")
+    destination: str
+    middleware: str              # "yarp" or "ros"
+    transport: str               # "tcp" or "udp"
+    reliable: bool               # never dropped, in order, sent at once
+    # YARP: on the source side ``listen_port`` is opened and ``feed_port`` connected to it;
+    # on the destination side ``emit_port`` is opened and connected to ``deliver_port``
+    # (or, when None, left for local programs to connect to, as they would to the original).
+    listen_port: str = ""
+    feed_port: str = ""
+    emit_port: str = ""
+    deliver_port: Optional[str] = None
+    ros_type: str = ""
+    latch: bool = False
+    quality: int = 80
+    fec: float = 0.0
+    statuses: Tuple[str, ...] = ()
+    line: int = 0
+
+    @property
+    def key(self) -> Tuple[int, int]:
+        return self.id, self.kind
+
+
+@dataclass
+class BridgeConfig:
+    path: str
+    period: float = DEFAULT_PERIOD
+    gather: float = DEFAULT_GATHER
+    channels: List[Channel] = field(default_factory=list)
+    modules: Dict[str, int] = field(default_factory=dict)
+    robot_state: Optional[Tuple[int, str, str]] = None  # (id, robot name, transport)
+    state_rate: float = DEFAULT_STATE_RATE                 # Hz the robot state is sampled
+
+    def sending(self, side: str) -> List[Channel]:
+        return [c for c in self.channels if c.source == side]
+
+    def receiving(self, side: str) -> List[Channel]:
+        return [c for c in self.channels if c.destination == side]
+
+    def channel(self, key: Tuple[int, int]) -> Optional[Channel]:
+        for channel in self.channels:
+            if channel.key == key:
+                return channel
+        return None
+
+
+def _schema() -> etree.XMLSchema:
+    return etree.XMLSchema(etree.parse(str(SCHEMA_PATH)))
+
+
+def _read_tree(text: str, where: str) -> etree._Element:
+    """Parse, accepting the paper's two top-level elements (wrapped in <bridge>)."""
+    parser = etree.XMLParser(remove_comments=True)
+    try:
+        root = etree.fromstring(text.encode(), parser)
+        if root.tag == "bridge":
+            return root
+    except etree.XMLSyntaxError as exc:
+        if "Extra content at the end of the document" not in str(exc) and \
+                "junk after document element" not in str(exc):
+            raise ConfigError(f"{where}:{exc.lineno}: malformed XML: {exc.msg}") from None
+    body = text.split("?>", 1)[1] if text.lstrip().startswith("<?xml") else text
+    offset = text.count("\n", 0, len(text) - len(body))
+    try:
+        root = etree.fromstring(("\n" * offset + "<bridge>" + body + "</bridge>").encode(),
+                                parser)
+    except etree.XMLSyntaxError as exc:
+        raise ConfigError(f"{where}:{exc.lineno}: malformed XML: {exc.msg}") from None
+    return root
+
+
+def load(path: Path) -> BridgeConfig:
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
+    return parse(text, str(path))
+
+
+def parse(text: str, where: str = "<bridge config>") -> BridgeConfig:
+    root = _read_tree(text, where)
+    schema = _schema()
+    if not schema.validate(root):
+        error = schema.error_log.last_error
+        raise ConfigError(f"{where}:{error.line}: {error.message}")
+    config = BridgeConfig(path=where,
+                          period=_positive(root, "period", DEFAULT_PERIOD, where),
+                          gather=_positive(root, "gather", DEFAULT_GATHER, where))
+    ids: Dict[int, int] = {}
+    claimed: Dict[Tuple[str, str], int] = {}
+
+    def take_id(element: etree._Element) -> int:
+        value = int(element.get("id"))
+        line = element.sourceline
+        if not 0 <= value <= 255:
+            raise ConfigError(f"{where}:{line}: id {value} does not fit in 8 bits (0..255)")
+        if value in ids:
+            raise ConfigError(f"{where}:{line}: duplicate id {value} (first used on line "
+                              f"{ids[value]}); ids are shared by every section")
+        ids[value] = line
+        return value
+
+    def claim(side: str, port: str, line: int) -> None:
+        if (side, port) in claimed:
+            raise ConfigError(f"{where}:{line}: port {port} on the {side} side is claimed twice "
+                              f"(also on line {claimed[side, port]})")
+        claimed[side, port] = line
+
+    for element in root.iterfind("modules/module"):
+        name, module_id = element.get("name"), take_id(element)
+        _check_name(name, element, where)
+        config.modules[name] = module_id
+        statuses = tuple((element.get("statuses") or "").split())
+        for kind, (flow, direction, port, reliable) in enumerate(GYM_FLOWS):
+            source, destination = DIRECTIONS[direction]
+            original = f"/{name}/{port}"
+            bridge_port = f"/bridge/{source}/{name}/{flow}"
+            if direction == "pilot_to_robot":
+                listen, feed, emit, deliver = original, "", bridge_port, original
+            else:
+                listen, feed, emit, deliver = bridge_port, original, original, None
+            claim(source, listen, element.sourceline)
+            claim(destination, emit, element.sourceline)
+            config.channels.append(Channel(module_id, kind, f"{name}/{flow}", source,
+                                           destination, "yarp", "tcp", reliable, listen, feed,
+                                           emit, deliver, statuses=statuses,
+                                           line=element.sourceline))
+    for element in root.iterfind("custom_modules/module"):
+        name, module_id = element.get("name"), take_id(element)
+        _check_name(name, element, where)
+        config.modules[name] = module_id
+        for kind, connection in enumerate(element.iterfind("connection")):
+            line = connection.sourceline
+            if kind > 7:
+                raise ConfigError(f"{where}:{line}: module {name} has more than 8 connections "
+                                  f"(the kind field has 3 bits); split it into two modules")
+            direction = connection.get("direction")
+            if direction not in DIRECTIONS:
+                raise ConfigError(f"{where}:{line}: unknown direction {direction!r} "
+                                  f"(robot_to_pilot or pilot_to_robot)")
+            source, destination = DIRECTIONS[direction]
+            location = connection.get("location")
+            if location not in (ROBOT, PILOT):
+                raise ConfigError(f"{where}:{line}: unknown location {location!r} (robot or pilot)")
+            if location != source:
+                raise ConfigError(f"{where}:{line}: location {location} contradicts direction "
+                                  f"{direction}: data starts on the {source} side")
+            transport = connection.get("channel", "tcp")
+            if transport not in CHANNELS:
+                raise ConfigError(f"{where}:{line}: unknown channel {transport!r} (tcp or udp)")
+            names = {attr: _relative(name, connection.get(attr), line, where)
+                     for attr in ("port_to_open", "source_port", "target_port")}
+            # Pilot commands are kept intact unless said otherwise; robot data streams.
+            default = "false" if direction == "pilot_to_robot" else "true"
+            streaming = connection.get("streaming", default) in ("true", "1")
+            claim(source, names["port_to_open"], line)
+            claim(destination, names["source_port"], line)
+            config.channels.append(Channel(
+                module_id, kind, f"{name}{connection.get('port_to_open')}", source, destination,
+                "yarp", transport, not streaming, names["port_to_open"], names["source_port"],
+                names["source_port"], names["target_port"], line=line))
+    for element in root.iterfind("robot_state"):
+        state_id = take_id(element)
+        transport = element.get("channel", "tcp")
+        if transport not in CHANNELS:
+            raise ConfigError(f"{where}:{element.sourceline}: unknown channel {transport!r}")
+        config.robot_state = (state_id, element.get("robot"), transport)
+        config.state_rate = _positive(element, "rate", DEFAULT_STATE_RATE, where)
+    for element in root.iterfind("ros_topics/topic"):
+        line = element.sourceline
+        topic_id = take_id(element)
+        direction = element.get("direction")
+        if direction not in DIRECTIONS:
+            raise ConfigError(f"{where}:{line}: unknown direction {direction!r} "
+                              f"(robot_to_pilot or pilot_to_robot)")
+        transport = element.get("channel")
+        if transport == "tcp":
+            raise ConfigError(f"{where}:{line}: TCP-ROS is unsupported: ROS data would saturate "
+                              f"the channel (use channel=\"udp\")")
+        if transport not in CHANNELS:
+            raise ConfigError(f"{where}:{line}: unknown channel {transport!r} (udp for ROS)")
+        topic, ros_type = element.get("name"), element.get("type")
+        if not topic.startswith("/") or "/" not in ros_type:
+            raise ConfigError(f"{where}:{line}: topic needs an absolute name and a "
+                              f"package/Type, got {topic!r} {ros_type!r}")
+        source, destination = DIRECTIONS[direction]
+        claim(source, "ros:" + topic, line)
+        claim(destination, "ros:" + topic + ":publish", line)
+        fec = float(element.get("fec", "0"))
+        if not 0 <= fec <= 0.5:
+            raise ConfigError(f"{where}:{line}: fec is a repair fraction 0..0.5, got {fec}")
+        config.channels.append(Channel(
+            topic_id, 0, topic, source, destination, "ros", "udp", False, ros_type=ros_type,
+            latch=element.get("latch", "false") in ("true", "1"),
+            quality=int(element.get("quality", "80")), fec=fec, line=line))
+    return config
+
+
+def _positive(root: etree._Element, attribute: str, default: float, where: str) -> float:
+    value = float(root.get(attribute, default))
+    if value <= 0:
+        raise ConfigError(f"{where}:{root.sourceline}: {attribute} must be positive, got {value}")
+    return value
+
+
+def _check_name(name: str, element: etree._Element, where: str) -> None:
+    if not name or "/" in name or " " in name:
+        raise ConfigError(f"{where}:{element.sourceline}: module name {name!r} must be one word "
+                          f"without '/' or spaces")
+
+
+def _relative(module: str, port: Optional[str], line: int, where: str) -> str:
+    if not port or not port.startswith("/") or port.endswith("/") or " " in port:
+        raise ConfigError(f"{where}:{line}: port {port!r} must look like /name (relative to "
+                          f"/{module})")
+    return f"/{module}{port}"

@@ -1,0 +1,231 @@
+"""Emulated robot and pilot PCs: two network namespaces, one veth cable, bad-link profiles.
+
+Theory of operation
+-------------------
+``up`` creates the namespaces ``<prefix>_robot`` and ``<prefix>_pilot``, each
+with its own loopback (so each runs its own yarpserver and roscore on the
+usual ports) and one end of a veth pair, addressed 169.254.<subnet>.1 (robot)
+and .2 (pilot): link-local, so nothing ever leaves the pair.
+
+Profiles shape both directions:
+
+==========  ==========================================================
+lab         no shaping (a veth moves gigabits)
+drc         1 Mbit/s token bucket (``tc tbf``) and random loss
+            (``nftables`` ``numgen random``), 5 % unless told otherwise
+degraded    9600 bit/s, and blackouts of 1-30 s when ``blackouts`` runs
+==========  ==========================================================
+
+Loss and blackouts drop packets on *arrival* (the input hook), so senders see
+a lossy wire, not an error.  ``flap`` takes the link down and up
+(``ip link``), which senders do see.  This kernel has no ``netem``, hence no
+delay emulation.  Everything needs root; :func:`available` says why not.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import random
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from typing import List, Optional, Sequence
+
+PROFILES = {
+    "lab": {"rate": None, "loss": 0.0},
+    "drc": {"rate": "1mbit", "loss": 5.0},
+    "degraded": {"rate": "9600bit", "loss": 0.0},
+}
+SIDES = ("robot", "pilot")
+TABLE = "wmnetem"
+
+
+class EmulationError(Exception):
+    """A command building or shaping the emulated network failed; the text says which."""
+
+
+def available() -> Optional[str]:
+    """None when emulated networks can be built here, else the reason they cannot."""
+    if os.geteuid() != 0:
+        return "emulated networks need root (network namespaces, tc, nftables)"
+    for tool in ("ip", "tc", "nft"):
+        if shutil.which(tool) is None:
+            return f"emulated networks need the {tool!r} command"
+    return None
+
+
+def _run(argv: Sequence[str], check: bool = True) -> subprocess.CompletedProcess:
+    result = subprocess.run(list(argv), capture_output=True, text=True)
+    if check and result.returncode != 0:
+        raise EmulationError(f"{' '.join(argv)}: {result.stderr.strip() or result.returncode}")
+    return result
+
+
+@dataclass
+class EmulatedLink:
+    """The two hosts and the cable between them."""
+
+    prefix: str = "wm"
+    subnet: int = 10
+
+    def __post_init__(self) -> None:
+        if not self.prefix.isalnum() or len(self.prefix) > 8:
+            raise EmulationError(f"prefix {self.prefix!r} must be up to 8 letters or digits")
+        if not 0 <= self.subnet <= 255:
+            raise EmulationError(f"subnet {self.subnet} must be 0..255")
+
+    def namespace(self, side: str) -> str:
+        return f"{self.prefix}_{side}"
+
+    def device(self, side: str) -> str:
+        return f"{self.prefix}{side[0]}0"
+
+    def address(self, side: str) -> str:
+        return f"169.254.{self.subnet}.{1 if side == 'robot' else 2}"
+
+    def exec_argv(self, side: str, argv: Sequence[str]) -> List[str]:
+        return ["ip", "netns", "exec", self.namespace(side), *argv]
+
+    def _ns(self, side: str, *argv: str, check: bool = True) -> subprocess.CompletedProcess:
+        return _run(self.exec_argv(side, argv), check)
+
+    # -- building ----------------------------------------------------------------------
+
+    def exists(self) -> bool:
+        names = _run(["ip", "netns", "list"]).stdout.split()
+        return all(self.namespace(side) in names for side in SIDES)
+
+    def up(self) -> None:
+        reason = available()
+        if reason:
+            raise EmulationError(reason)
+        self.down()
+        for side in SIDES:
+            _run(["ip", "netns", "add", self.namespace(side)])
+        _run(["ip", "link", "add", self.device("robot"), "type", "veth", "peer", "name",
+              self.device("pilot")])
+        for side in SIDES:
+            _run(["ip", "link", "set", self.device(side), "netns", self.namespace(side)])
+            self._ns(side, "ip", "addr", "add", f"{self.address(side)}/24", "dev",
+                     self.device(side))
+            self._ns(side, "ip", "link", "set", "lo", "up")
+            self._ns(side, "ip", "link", "set", self.device(side), "up")
+            self._ns(side, "nft", "add", "table", "inet", TABLE)
+            self._ns(side, "nft", "add", "chain", "inet", TABLE, "input",
+                     "{ type filter hook input priority 0; policy accept; }")
+
+    def down(self) -> None:
+        for side in SIDES:
+            _run(["ip", "netns", "del", self.namespace(side)], check=False)
+
+    # -- shaping -----------------------------------------------------------------------
+
+    def apply(self, profile: str, loss: Optional[float] = None,
+              rate: Optional[str] = None) -> None:
+        if profile not in PROFILES:
+            raise EmulationError(f"unknown profile {profile!r} ({', '.join(PROFILES)})")
+        settings = PROFILES[profile]
+        self.set_rate(rate if rate is not None else settings["rate"])
+        self.set_loss(settings["loss"] if loss is None else loss)
+
+    def set_rate(self, rate: Optional[str]) -> None:
+        for side in SIDES:
+            self._ns(side, "tc", "qdisc", "del", "dev", self.device(side), "root", check=False)
+            if rate:
+                bits = _bits(rate)
+                burst = max(3000, int(bits / 8 * 0.02))
+                self._ns(side, "tc", "qdisc", "add", "dev", self.device(side), "root", "tbf",
+                         "rate", rate, "burst", str(burst), "latency", "500ms")
+
+    def set_loss(self, percent: float) -> None:
+        if not 0 <= percent <= 100:
+            raise EmulationError(f"loss {percent} % is not a percentage")
+        for side in SIDES:
+            self._ns(side, "nft", "flush", "chain", "inet", TABLE, "input")
+            if percent > 0:
+                self._ns(side, "nft", "add", "rule", "inet", TABLE, "input", "iifname",
+                         self.device(side), "numgen", "random", "mod", "10000", "<",
+                         str(int(round(percent * 100))), "drop")
+
+    def blackout(self, on: bool) -> None:
+        """Drop everything arriving on either side (the radio is gone)."""
+        self.set_loss(100.0 if on else 0.0)
+
+    def flap(self, down: bool) -> None:
+        for side in SIDES:
+            self._ns(side, "ip", "link", "set", self.device(side), "down" if down else "up")
+
+    def tx_bytes(self, side: str) -> int:
+        path = f"/sys/class/net/{self.device(side)}/statistics/tx_bytes"
+        return int(self._ns(side, "cat", path).stdout)
+
+
+def _bits(rate: str) -> float:
+    text = rate.lower().replace("bit", "").replace("ps", "")
+    scale = {"k": 1e3, "m": 1e6, "g": 1e9}.get(text[-1:], 1)
+    return float(text.rstrip("kmg")) * scale
+
+
+def run_blackouts(link: EmulatedLink, durations: Sequence[float], gap: float,
+                  loss: float = 0.0) -> None:
+    """DARPA-style schedule: ``gap`` seconds of link, then a blackout, in turn."""
+    for duration in durations:
+        time.sleep(gap)
+        print(f"blackout for {duration:g} s", flush=True)
+        link.blackout(True)
+        time.sleep(duration)
+        link.set_loss(loss)
+        print("link back", flush=True)
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    parser = argparse.ArgumentParser(prog="walkman-netem",
+                                     description="Emulated robot/pilot hosts and bad links.")
+    parser.add_argument("--prefix", default="wm", help="namespace prefix (default wm)")
+    parser.add_argument("--subnet", type=int, default=10, help="169.254.SUBNET.x (default 10)")
+    sub = parser.add_subparsers(dest="verb", required=True)
+    sub.add_parser("up", help="create the robot and pilot namespaces")
+    sub.add_parser("down", help="remove them")
+    shape = sub.add_parser("profile", help="apply lab, drc or degraded")
+    shape.add_argument("name", choices=sorted(PROFILES))
+    shape.add_argument("--loss", type=float, help="random loss in percent")
+    shape.add_argument("--rate", help="tc rate, e.g. 1mbit or 9600bit")
+    flap = sub.add_parser("flap", help="take the link down for SECONDS, then up")
+    flap.add_argument("seconds", type=float)
+    black = sub.add_parser("blackouts", help="blackouts of the given lengths")
+    black.add_argument("durations", type=float, nargs="*", help="seconds (default: 1-30 s)")
+    black.add_argument("--gap", type=float, default=10.0, help="seconds of link between")
+    black.add_argument("--count", type=int, default=5)
+    sub.add_parser("addresses", help="print the two addresses")
+    options = parser.parse_args(argv)
+    link = EmulatedLink(options.prefix, options.subnet)
+    try:
+        if options.verb == "up":
+            link.up()
+            print(f"robot {link.namespace('robot')} {link.address('robot')}; "
+                  f"pilot {link.namespace('pilot')} {link.address('pilot')}")
+        elif options.verb == "down":
+            link.down()
+        elif options.verb == "profile":
+            link.apply(options.name, options.loss, options.rate)
+        elif options.verb == "flap":
+            link.flap(True)
+            time.sleep(options.seconds)
+            link.flap(False)
+        elif options.verb == "blackouts":
+            durations = options.durations or [random.uniform(1, 30)
+                                              for _ in range(options.count)]
+            run_blackouts(link, durations, options.gap)
+        elif options.verb == "addresses":
+            print(link.address("robot"), link.address("pilot"))
+    except EmulationError as exc:
+        print(f"walkman-netem: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,346 @@
+"""YARP endpoints: ports with the original names, and the connections they need.
+
+Theory of operation
+-------------------
+On the side where data starts, a :class:`YarpSink` opens a port (the original
+``/module/switch:i`` for pilot commands, ``/bridge/robot/module/status`` fed by
+the module's ``status:o`` for robot data).  On the other side a
+:class:`YarpSource` opens the matching port (``/module/status:o`` for the
+pilot to read, ``/bridge/pilot/module/switch`` connected to the module's
+``switch:i``).
+
+:class:`ConnectionKeeper` owns every connection the bridge needs and checks
+them twice a second -- locally, on the bridge's own port, so checking costs no
+traffic -- and remakes any that is missing: after a module, a name server or
+the bridge itself restarted, connections come back without anyone asking.
+
+:class:`RobotStateSink` gathers the HAL's per-chain ``stateExt:o`` into one
+whole-robot reading; :class:`RobotStateSource` republishes it on the pilot
+side as ``/<robot>/<chain>/stateExt:o`` and ``state:o``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from dataclasses import dataclass
+from typing import Callable, Dict, List, Optional, Tuple
+
+import numpy as np
+
+from bridge import compact
+from bridge.config import Channel
+from bridge.errors import BridgeProtocolError
+from bridge.state_codec import Layout, RobotState, StateDecoder, StateEncoder, split_by_chain
+from walkman.hal import protocol
+from walkman.hal.protocol import ChainState, HalProtocolError
+from yarp_lite import network
+from yarp_lite.bottle import Bottle, Vocab
+from yarp_lite.buffered_port import BufferedPort
+from yarp_lite.errors import YarpError
+from yarp_lite.nameclient import NameClient
+from yarp_lite.port import Port
+
+log = logging.getLogger("bridge.yarp")
+
+
+@dataclass
+class _Wanted:
+    source: str
+    target: str
+    carrier: str
+    port: Port
+    ours_is_source: bool
+    announced: bool = False
+
+
+class ConnectionKeeper:
+    """Keeps the connections between the bridge's ports and the modules' ports alive."""
+
+    def __init__(self, period: float = 0.5) -> None:
+        self.period = period
+        self._wanted: List[_Wanted] = []
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: Optional[threading.Thread] = None
+
+    def want(self, source: str, target: str, port: Port, ours_is_source: bool,
+             carrier: str = "tcp") -> None:
+        with self._lock:
+            self._wanted.append(_Wanted(source, target, carrier, port, ours_is_source))
+
+    def forget(self, port: Port) -> None:
+        with self._lock:
+            self._wanted = [w for w in self._wanted if w.port is not port]
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="bridge connections",
+                                        daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=3)
+
+    def connected(self, wanted: _Wanted) -> bool:
+        if wanted.ours_is_source:
+            return any(r.target == wanted.target for r in wanted.port.output_routes())
+        return any(r.source == wanted.source for r in wanted.port.input_routes())
+
+    def check_now(self) -> None:
+        with self._lock:
+            wanted = list(self._wanted)
+        for item in wanted:
+            if not item.port.is_open or self.connected(item):
+                continue
+            try:
+                if item.ours_is_source:
+                    ok = item.port.add_output(item.target, item.carrier, quiet=True)
+                else:
+                    ok = bool(network.connect(item.source, item.target, item.carrier,
+                                              client=item.port.nameclient))
+            except YarpError:
+                ok = False
+            if ok:
+                log.info("connected %s -> %s", item.source, item.target)
+                item.announced = False
+            elif not item.announced:
+                log.info("waiting for %s to connect it to %s",
+                         item.target if item.ours_is_source else item.source,
+                         item.source if item.ours_is_source else item.target)
+                item.announced = True
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.period):
+            try:
+                self.check_now()
+            except Exception:  # noqa: BLE001 -- keep keeping
+                log.exception("connection keeper")
+
+
+class YarpSink:
+    """A port that takes messages from local programs for the link."""
+
+    def __init__(self, channel: Channel, nameclient: NameClient, keeper: ConnectionKeeper,
+                 submit: Callable[[Channel, Bottle], None]) -> None:
+        self.channel = channel
+        self.port = Port(nameclient=nameclient, reader=self._on_bottle)
+        self.port.open(channel.listen_port, wait=math.inf)
+        if channel.feed_port:
+            keeper.want(channel.feed_port, self.port.name, self.port, ours_is_source=False)
+        self._submit = submit
+
+    def _on_bottle(self, bottle: Bottle) -> None:
+        self._submit(self.channel, bottle)
+        return None
+
+    def close(self) -> None:
+        self.port.close()
+
+
+class YarpSource:
+    """A port that gives local programs what arrived from the link."""
+
+    def __init__(self, channel: Channel, nameclient: NameClient,
+                 keeper: ConnectionKeeper) -> None:
+        self.channel = channel
+        self.port = Port(nameclient=nameclient)
+        self.port.open(channel.emit_port, wait=math.inf)
+        if channel.deliver_port:
+            keeper.want(self.port.name, channel.deliver_port, self.port, ours_is_source=True)
+
+    @property
+    def ready(self) -> bool:
+        """Can a reliable message be delivered now?"""
+        return self.channel.deliver_port is None or self.port.output_count > 0
+
+    def deliver(self, bottle: Bottle) -> bool:
+        if not self.ready:
+            return False
+        return self.port.write(bottle)
+
+    def close(self) -> None:
+        self.port.close()
+
+
+# -- codecs of YARP flows on the UDP channel ---------------------------------------------
+
+
+class BottleUdpCodec:
+    tiled = False
+
+    def encode(self, value: Bottle) -> bytes:
+        return compact.encode(value)
+
+    def decode(self, data: bytes, completeness: float) -> Bottle:
+        return compact.decode(data)
+
+
+class StateUdpCodec:
+    """Every datagram-borne state is a key frame: datagrams get lost, deltas would not."""
+
+    tiled = False
+
+    def __init__(self, period: float) -> None:
+        self.period = period
+
+    def encode(self, value: "RobotState | Callable[[], RobotState]") -> bytes:
+        state = value() if callable(value) else value
+        return StateEncoder(self.period).encode(state)
+
+    def decode(self, data: bytes, completeness: float) -> RobotState:
+        return StateDecoder().decode(data)
+
+
+# -- the robot state ------------------------------------------------------------------
+
+
+class RobotStateSink:
+    """Robot side: the HAL's chains, read as one whole-robot state."""
+
+    def __init__(self, robot: str, nameclient: NameClient, keeper: ConnectionKeeper,
+                 post: Callable[[Callable[[], RobotState]], None], rate: float) -> None:
+        self.robot = robot
+        self.nameclient = nameclient
+        self.keeper = keeper
+        self.post = post
+        self.rate = rate
+        self.layout: Optional[Layout] = None
+        self._ports: List[BufferedPort] = []
+        self._offsets: Dict[str, Tuple[int, int]] = {}
+        self._lock = threading.Lock()
+        self._q = self._tau = self._temperature = np.zeros(0)
+        self._time = 0.0
+        self._updated = 0.0
+        self._posted = 0.0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="bridge robot state",
+                                        daemon=True)
+        self._thread.start()
+
+    def _ask_layout(self) -> Optional[Layout]:
+        try:
+            contact = self.nameclient.query(protocol.robot_rpc_name(self.robot))
+            if contact is None:
+                return None
+            reply = network.request(contact, [Vocab("get"), "chains"], timeout=3)
+        except YarpError:
+            return None
+        chains = [(str(group[0]), len(group) - 1) for group in reply
+                  if isinstance(group, list) and len(group) > 1]
+        return Layout(tuple(chains)) if chains else None
+
+    def _adopt(self, layout: Layout) -> None:
+        for port in self._ports:
+            self.keeper.forget(port)
+            port.close()
+        self._ports = []
+        offsets, start = {}, 0
+        for chain, count in layout.chains:
+            offsets[chain] = (start, count)
+            start += count
+        with self._lock:
+            self.layout = layout
+            self._offsets = offsets
+            self._q, self._tau = np.zeros(start), np.zeros(start)
+            self._temperature = np.zeros(start)
+        for chain, count in layout.chains:
+            port = BufferedPort(nameclient=self.nameclient,
+                                on_read=lambda b, chain=chain: self._on_state(chain, b))
+            port.open(f"/bridge/robot/state/{chain}:i")
+            self._ports.append(port)
+            self.keeper.want(protocol.port_names(self.robot, chain)["state_ext"], port.name,
+                             port, ours_is_source=False, carrier="fast_tcp")
+        log.info("robot state: %d chains, %d joints", len(layout.chains), layout.joints)
+
+    def _on_state(self, chain: str, bottle: Bottle) -> None:
+        start, count = self._offsets.get(chain, (0, 0))
+        try:
+            state = protocol.decode_state_ext(bottle, count)
+        except HalProtocolError as exc:
+            log.warning("robot state: %s: %s", chain, exc)
+            return
+        with self._lock:
+            self._q[start:start + count] = state.q
+            self._tau[start:start + count] = state.tau
+            self._temperature[start:start + count] = state.temperature
+            self._time = state.time
+            self._updated = time.monotonic()
+
+    def snapshot(self) -> RobotState:
+        with self._lock:
+            return RobotState(self.layout, self._time, self._q.copy(), self._tau.copy(),
+                              self._temperature.copy())
+
+    def _run(self) -> None:
+        asked = 0.0
+        while not self._stop.wait(1.0 / self.rate):
+            now = time.monotonic()
+            stale = now - self._updated > 2.0
+            if (self.layout is None or stale) and now - asked > 2.0:
+                asked = now
+                found = self._ask_layout()
+                if found is not None and found != self.layout:
+                    self._adopt(found)
+            if self.layout is not None and self._updated > self._posted:
+                self._posted = self._updated
+                self.post(self.snapshot)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=3)
+        for port in self._ports:
+            port.close()
+
+
+class RobotStateSource:
+    """Pilot side: the HAL's state ports, republished from what the link brings."""
+
+    def __init__(self, robot: str, nameclient: NameClient) -> None:
+        self.robot = robot
+        self.nameclient = nameclient
+        self.layout: Optional[Layout] = None
+        self._ports: Dict[str, Tuple[Port, Port]] = {}
+        self._previous: Optional[RobotState] = None
+        self._seq = 0
+        self.received = 0
+
+    def _adopt(self, layout: Layout) -> None:
+        self.close()
+        for chain, _ in layout.chains:
+            names = protocol.port_names(self.robot, chain)
+            state = Port(nameclient=self.nameclient).open(names["state"], wait=math.inf)
+            ext = Port(nameclient=self.nameclient).open(names["state_ext"], wait=math.inf)
+            self._ports[chain] = (state, ext)
+        self.layout = layout
+        self._previous = None
+
+    def deliver(self, state: RobotState) -> bool:
+        if state.layout != self.layout:
+            self._adopt(state.layout)
+        qdot = np.zeros_like(state.q)
+        previous = self._previous
+        if previous is not None and state.time > previous.time:
+            qdot = (state.q - previous.q) / (state.time - previous.time)
+        self._previous = state
+        self._seq += 1
+        self.received += 1
+        pieces = zip(split_by_chain(state.layout, state.q), split_by_chain(state.layout, qdot),
+                     split_by_chain(state.layout, state.tau),
+                     split_by_chain(state.layout, state.temperature))
+        for (chain, q), (_, dq), (_, tau), (_, temperature) in pieces:
+            state_port, ext_port = self._ports[chain]
+            state_port.write(protocol.encode_state(q.tolist()))
+            ext_port.write(protocol.encode_state_ext(ChainState(
+                self._seq, state.time, tuple(q.tolist()), tuple(dq.tolist()),
+                tuple(tau.tolist()), tuple(temperature.tolist()))))
+        return True
+
+    def close(self) -> None:
+        for state, ext in self._ports.values():
+            state.close()
+            ext.close()
+        self._ports = {}

@@ -1,0 +1,189 @@
+"""Durable queues for reliable messages: nothing lost, nothing run twice, across kills.
+
+Theory of operation
+-------------------
+A pilot command must reach its module exactly once even if either bridge is
+SIGKILLed or the link drops.  Each bridge keeps one SQLite file (WAL,
+``synchronous=FULL``: a commit is on disk before the call returns):
+
+* the **outbox** numbers every reliable message it accepts from a local port
+  (1, 2, 3... within a *session*, a random id created with the file) and keeps
+  it until the peer acknowledges that number;
+* the **inbox** remembers, per peer session, the highest number accepted, and
+  holds accepted messages until they are written to their local port.
+
+A reconnect exchanges ``(session, accepted)``; the sender resends everything
+after ``accepted``; the receiver drops any number it already has.  The local
+writer's ``write`` returns only after the outbox commit, so a command the
+bridge took cannot vanish; a message is removed from the inbox after it was
+written to the module, so a crash in between delivers it again -- GYM modules
+drop a command whose sequence number they already ran, which makes that
+window harmless.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import sqlite3
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import List, Optional, Tuple
+
+from bridge.errors import BridgeProtocolError, BridgeUsageError
+
+DEFAULT_LIMIT = 1000
+
+
+class QueueFull(BridgeUsageError):
+    """The outbox holds ``limit`` unacknowledged messages; new ones are refused."""
+
+
+@dataclass(frozen=True)
+class Queued:
+    seq: int
+    id: int
+    kind: int
+    payload: bytes
+
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value INTEGER NOT NULL);
+CREATE TABLE IF NOT EXISTS outbox (seq INTEGER PRIMARY KEY, id INTEGER NOT NULL,
+    kind INTEGER NOT NULL, payload BLOB NOT NULL, queued REAL NOT NULL);
+CREATE TABLE IF NOT EXISTS peers (session INTEGER PRIMARY KEY, accepted INTEGER NOT NULL,
+    seen REAL NOT NULL);
+CREATE TABLE IF NOT EXISTS inbox (row INTEGER PRIMARY KEY AUTOINCREMENT, id INTEGER NOT NULL,
+    kind INTEGER NOT NULL, payload BLOB NOT NULL);
+"""
+
+
+class Journal:
+    """One bridge's outbox and inbox, in ``<state_dir>/journal.sqlite``."""
+
+    def __init__(self, state_dir: Path, limit: int = DEFAULT_LIMIT) -> None:
+        state_dir = Path(state_dir)
+        state_dir.mkdir(parents=True, exist_ok=True)
+        self.path = state_dir / "journal.sqlite"
+        self.limit = limit
+        self._lock = threading.Lock()
+        self._db = sqlite3.connect(str(self.path), check_same_thread=False,
+                                   isolation_level=None)
+        self._db.execute("PRAGMA journal_mode=WAL")
+        self._db.execute("PRAGMA synchronous=FULL")
+        self._db.executescript(_SCHEMA)
+        with self._lock:
+            self.session = self._meta("session") or self._new_session()
+            self._last_seq = self._meta("last_seq") or 0
+
+    def _meta(self, key: str) -> Optional[int]:
+        row = self._db.execute("SELECT value FROM meta WHERE key = ?", (key,)).fetchone()
+        return row[0] if row else None
+
+    def _new_session(self) -> int:
+        session = random.SystemRandom().getrandbits(63) or 1
+        self._db.execute("INSERT OR REPLACE INTO meta VALUES ('session', ?)", (session,))
+        return session
+
+    def close(self) -> None:
+        with self._lock:
+            self._db.close()
+
+    # -- outbox --------------------------------------------------------------------
+
+    def append(self, ident: int, kind: int, payload: bytes) -> int:
+        """Store a message to send; its number once it is safely on disk."""
+        with self._lock:
+            waiting = self._db.execute("SELECT COUNT(*) FROM outbox").fetchone()[0]
+            if waiting >= self.limit:
+                raise QueueFull(f"{waiting} reliable messages wait for the link "
+                                f"(limit {self.limit})")
+            seq = self._last_seq + 1
+            self._db.execute("BEGIN IMMEDIATE")
+            try:
+                self._db.execute("INSERT INTO outbox VALUES (?, ?, ?, ?, ?)",
+                                 (seq, ident, kind, payload, time.time()))
+                self._db.execute("INSERT OR REPLACE INTO meta VALUES ('last_seq', ?)", (seq,))
+                self._db.execute("COMMIT")
+            except BaseException:
+                self._db.execute("ROLLBACK")
+                raise
+            self._last_seq = seq
+            return seq
+
+    def unacknowledged(self, after: int = 0, limit: int = 1 << 30) -> List[Queued]:
+        with self._lock:
+            rows = self._db.execute("SELECT seq, id, kind, payload FROM outbox WHERE seq > ? "
+                                    "ORDER BY seq LIMIT ?", (after, limit)).fetchall()
+        return [Queued(*row) for row in rows]
+
+    def acknowledge(self, upto: int) -> int:
+        """Forget messages the peer has accepted; how many were forgotten."""
+        with self._lock:
+            if upto > self._last_seq:
+                raise BridgeProtocolError(f"peer acknowledges {upto}, but only "
+                                          f"{self._last_seq} were ever sent")
+            return self._db.execute("DELETE FROM outbox WHERE seq <= ?", (upto,)).rowcount
+
+    def waiting(self) -> int:
+        with self._lock:
+            return self._db.execute("SELECT COUNT(*) FROM outbox").fetchone()[0]
+
+    def oldest_age(self) -> float:
+        with self._lock:
+            row = self._db.execute("SELECT MIN(queued) FROM outbox").fetchone()
+        return time.time() - row[0] if row and row[0] is not None else 0.0
+
+    @property
+    def last_seq(self) -> int:
+        return self._last_seq
+
+    # -- inbox ---------------------------------------------------------------------
+
+    def accepted(self, session: int) -> int:
+        with self._lock:
+            row = self._db.execute("SELECT accepted FROM peers WHERE session = ?",
+                                   (session,)).fetchone()
+        return row[0] if row else 0
+
+    def accept(self, session: int, seq: int, ident: int, kind: int, payload: bytes) -> bool:
+        """Keep a received message for delivery; False if it is a repeat."""
+        with self._lock:
+            row = self._db.execute("SELECT accepted FROM peers WHERE session = ?",
+                                   (session,)).fetchone()
+            accepted = row[0] if row else 0
+            if seq <= accepted:
+                return False
+            if row is not None and seq != accepted + 1:
+                raise BridgeProtocolError(f"reliable message {seq} arrives after {accepted}: "
+                                          f"{seq - accepted - 1} missing")
+            self._db.execute("BEGIN IMMEDIATE")
+            try:
+                self._db.execute("INSERT OR REPLACE INTO peers VALUES (?, ?, ?)",
+                                 (session, seq, time.time()))
+                self._db.execute("INSERT INTO inbox (id, kind, payload) VALUES (?, ?, ?)",
+                                 (ident, kind, payload))
+                self._db.execute("DELETE FROM peers WHERE session != ? AND seen < ?",
+                                 (session, time.time() - 30 * 86400))
+                self._db.execute("COMMIT")
+            except BaseException:
+                self._db.execute("ROLLBACK")
+                raise
+            return True
+
+    def undelivered(self) -> List[Tuple[int, int, int, bytes]]:
+        """``(row, id, kind, payload)`` of accepted messages not yet written, in order."""
+        with self._lock:
+            return self._db.execute("SELECT row, id, kind, payload FROM inbox "
+                                    "ORDER BY row").fetchall()
+
+    def delivered(self, row: int) -> None:
+        with self._lock:
+            self._db.execute("DELETE FROM inbox WHERE row = ?", (row,))
+
+
+def default_state_dir(side: str) -> Path:
+    base = os.environ.get("XDG_STATE_HOME") or str(Path.home() / ".local" / "state")
+    return Path(base) / "walkman-bridge" / side

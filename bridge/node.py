@@ -1,0 +1,321 @@
+"""One side of the bridge: the configuration's flows wired to channels and endpoints.
+
+Theory of operation
+-------------------
+The channels start first, so the link comes up whatever else is running; the
+endpoints open in a background thread that waits for the local yarpserver and
+roscore, so the bridge can start before them (and survives their restarts:
+ports re-register, the :class:`~bridge.endpoints.yarp.ConnectionKeeper` remakes
+connections, :class:`~bridge.endpoints.ros.RosNode` re-registers topics).
+
+Data flows sink -> channel -> (link) -> channel -> source.  Reliable messages
+(pilot commands, warnings) go through the journal on both sides; the delivery
+thread writes the inbox to the local ports in order, one flow at a time, and
+keeps a message until its port is connected -- a command sent while a module
+is down waits for the module, it is not lost.
+
+The bridge describes itself on ``/bridge/<side>/status:o`` (every second) and
+answers ``status`` on ``/bridge/<side>/rpc:i``, for ``yarp rpc`` and scripts.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any, Dict, List, Optional, Tuple
+
+from bridge import compact
+from bridge.config import PILOT, ROBOT, BridgeConfig, Channel
+from bridge.errors import BridgeProtocolError
+from bridge.journal import Journal, QueueFull
+from bridge.tcp_channel import BOTTLE, STATE, Route, TcpChannel
+from bridge.udp_channel import UdpChannel, UdpRoute
+from yarp_lite.bottle import Bottle
+from yarp_lite.errors import YarpError
+from yarp_lite.nameclient import NameClient
+from yarp_lite.port import Port
+from yarp_lite.rpc import RpcServer
+
+log = logging.getLogger("bridge")
+
+Key = Tuple[int, int]
+
+
+class Bridge:
+    """Everything one PC runs to reach the other."""
+
+    def __init__(self, config: BridgeConfig, config_text: str, *, side: str, peer: str,
+                 tcp_port: int, udp_port: int, peer_udp_port: Optional[int] = None,
+                 listen: Optional[bool] = None, state_dir: Path,
+                 udp_rate: Optional[float] = None, link_timeout: float = 5.0,
+                 queue_limit: int = 1000) -> None:
+        if side not in (ROBOT, PILOT):
+            raise ValueError(f"side must be robot or pilot, not {side!r}")
+        self.config = config
+        self.side = side
+        self.nameclient = NameClient()
+        self.journal = Journal(state_dir, limit=queue_limit)
+        self.refused = 0
+        self.dropped_early = 0
+        self.delivered = 0
+        self._sources: Dict[Key, Any] = {}
+        self._sinks: List[Any] = []
+        self._ros_sinks: List[Any] = []
+        self._stop = threading.Event()
+        self._deliver_wake = threading.Event()
+        self._threads: List[threading.Thread] = []
+        self._status_ports: List[Port] = []
+        self.keeper = None
+        self.ros_node = None
+        self.state_key: Optional[Key] = None
+        tcp_routes, udp_routes = self._routes()
+        self.tcp = TcpChannel(side=side, peer=peer, port=tcp_port,
+                              listen=(side == ROBOT) if listen is None else listen,
+                              config_text=config_text, journal=self.journal,
+                              routes=tcp_routes, period=config.period,
+                              on_message=self._on_message, on_reliable=self._deliver_wake.set,
+                              on_connected=self._on_link_up, link_timeout=link_timeout)
+        self.udp = UdpChannel(peer=peer, port=udp_port, peer_port=peer_udp_port or udp_port,
+                              routes=udp_routes, gather=config.gather,
+                              on_message=self._on_message, rate=udp_rate) if udp_routes else None
+
+    # -- wiring ------------------------------------------------------------------------
+
+    def _routes(self) -> Tuple[List[Route], List[UdpRoute]]:
+        from bridge.endpoints.yarp import BottleUdpCodec, StateUdpCodec
+
+        tcp, udp = [], []
+        for channel in self.config.channels:
+            if channel.middleware == "yarp" and channel.transport == "tcp":
+                tcp.append(Route(channel.key, channel.label, BOTTLE, channel.reliable))
+            elif channel.middleware == "yarp":
+                udp.append(UdpRoute(channel.key, channel.label, BottleUdpCodec(), channel.fec))
+            else:
+                from bridge.endpoints.ros import codec_for
+
+                udp.append(UdpRoute(channel.key, channel.label, codec_for(channel), channel.fec))
+        if self.config.robot_state is not None:
+            state_id, robot, transport = self.config.robot_state
+            self.state_key = (state_id, 0)
+            label = f"{robot}/state"
+            if transport == "tcp":
+                tcp.append(Route(self.state_key, label, STATE, False))
+            else:
+                udp.append(UdpRoute(self.state_key, label,
+                                    StateUdpCodec(1.0 / self.config.state_rate)))
+        return tcp, udp
+
+    def start(self) -> None:
+        self.tcp.start()
+        if self.udp is not None:
+            self.udp.start()
+        self._spawn(self._open_endpoints, "endpoints")
+        self._spawn(self._deliver_loop, "delivery")
+
+    def _spawn(self, target, name: str) -> None:
+        thread = threading.Thread(target=target, name=f"bridge {name}", daemon=True)
+        thread.start()
+        self._threads.append(thread)
+
+    def _open_endpoints(self) -> None:
+        from bridge.endpoints.yarp import (ConnectionKeeper, RobotStateSink, RobotStateSource,
+                                           YarpSink, YarpSource)
+
+        yarp_channels = [c for c in self.config.channels if c.middleware == "yarp"]
+        ros_channels = [c for c in self.config.channels if c.middleware == "ros"]
+        if ros_channels:
+            self._start_ros(ros_channels)
+        self.keeper = ConnectionKeeper()
+        try:
+            self._open_status_ports()
+            for channel in yarp_channels:
+                if self._stop.is_set():
+                    return
+                if channel.source == self.side:
+                    self._sinks.append(YarpSink(channel, self.nameclient, self.keeper,
+                                                self._submit))
+                else:
+                    self._sources[channel.key] = YarpSource(channel, self.nameclient,
+                                                            self.keeper)
+            if self.config.robot_state is not None:
+                _, robot, _ = self.config.robot_state
+                if self.side == ROBOT:
+                    self._sinks.append(RobotStateSink(robot, self.nameclient, self.keeper,
+                                                      self._post_state,
+                                                      self.config.state_rate))
+                else:
+                    self._sources[self.state_key] = RobotStateSource(robot, self.nameclient)
+        except YarpError as exc:
+            log.error("cannot open the YARP side: %s", exc)
+            return
+        self.keeper.start()
+        self._deliver_wake.set()
+        log.info("bridge %s side ready: %d flows out, %d in", self.side,
+                 len(self.config.sending(self.side)), len(self.config.receiving(self.side)))
+
+    def _start_ros(self, channels: List[Channel]) -> None:
+        from bridge.endpoints.ros import RosNode, RosSink, RosSource
+
+        self.ros_node = RosNode(f"walkman_bridge_{self.side}")
+
+        def open_topics() -> None:
+            for channel in channels:
+                if channel.source == self.side:
+                    self._ros_sinks.append(RosSink(channel, self._submit))
+                else:
+                    self._sources[channel.key] = RosSource(channel)
+
+        self.ros_node.when_ready(open_topics)
+        self.ros_node.start()
+        self._spawn(self._repeat_latched, "latched")
+
+    def _open_status_ports(self) -> None:
+        base = f"/bridge/{self.side}"
+        status = Port(nameclient=self.nameclient).open(f"{base}/status:o", wait=math.inf)
+        rpc = RpcServer(nameclient=self.nameclient, handler=self._on_rpc)
+        rpc.open(f"{base}/rpc:i", wait=math.inf)
+        self._status_ports = [status, rpc]
+        self._spawn(lambda: self._publish_status(status), "status")
+
+    # -- data paths --------------------------------------------------------------------
+
+    def _submit(self, channel: Channel, value: Any) -> None:
+        """A local message for the link (called by sinks, in their threads)."""
+        if channel.middleware == "yarp" and channel.transport == "tcp":
+            if channel.reliable:
+                try:
+                    self.tcp.send_reliable(channel.key, value)
+                except QueueFull as exc:
+                    self.refused += 1
+                    log.error("refused a message on %s: %s", channel.label, exc)
+            else:
+                self.tcp.post(channel.key, value)
+        elif self.udp is not None:
+            self.udp.post(channel.key, value)
+
+    def _post_state(self, snapshot) -> None:
+        if self.config.robot_state and self.config.robot_state[2] == "tcp":
+            self.tcp.post(self.state_key, snapshot)
+        elif self.udp is not None:
+            self.udp.post(self.state_key, snapshot)
+
+    def _on_message(self, key: Key, value: Any) -> None:
+        source = self._sources.get(key)
+        if source is None:
+            self.dropped_early += 1
+            return
+        try:
+            source.deliver(value)
+        except (YarpError, BridgeProtocolError) as exc:
+            log.warning("delivering on %s failed: %s", key, exc)
+
+    def _deliver_loop(self) -> None:
+        while not self._stop.is_set():
+            self._deliver_wake.wait(0.25)
+            self._deliver_wake.clear()
+            blocked = set()
+            for row, ident, kind, payload in self.journal.undelivered():
+                key = (ident, kind)
+                if key in blocked:
+                    continue
+                if self.config.channel(key) is None:
+                    log.warning("dropping a queued message for id %d kind %d: not in the "
+                                "configuration any more", ident, kind)
+                    self.journal.delivered(row)
+                    continue
+                source = self._sources.get(key)
+                if source is None or not source.ready:
+                    blocked.add(key)
+                    continue
+                try:
+                    ok = source.deliver(compact.decode(payload))
+                except BridgeProtocolError as exc:
+                    log.error("dropping a corrupt queued message: %s", exc)
+                    self.journal.delivered(row)
+                    continue
+                if ok:
+                    self.journal.delivered(row)
+                    self.delivered += 1
+                else:
+                    blocked.add(key)
+
+    def _on_link_up(self) -> None:
+        for sink in self._ros_sinks:
+            sink.repeat_latched(force=True)
+
+    def _repeat_latched(self) -> None:
+        while not self._stop.wait(1.0):
+            for sink in list(self._ros_sinks):
+                sink.repeat_latched()
+
+    # -- status -------------------------------------------------------------------------
+
+    def status(self) -> Dict[str, Any]:
+        stats = self.tcp.stats
+        out: Dict[str, Any] = {
+            "side": self.side,
+            "link": self.tcp.phase,
+            "link_since_s": round(time.monotonic() - self.tcp.phase_since, 1),
+            "queued_commands": self.journal.waiting(),
+            "oldest_queued_s": round(self.journal.oldest_age(), 1),
+            "undelivered": len(self.journal.undelivered()),
+            "refused": self.refused,
+            "delivered": self.delivered,
+            "dropped_before_ready": self.dropped_early,
+            "tcp": {k: v for k, v in asdict(stats).items()},
+        }
+        if self.udp is not None:
+            udp = asdict(self.udp.stats)
+            udp["flows"] = {name: {**flow, "mean_completeness": round(
+                self.udp.stats.flows[name].mean_completeness, 4)}
+                for name, flow in udp["flows"].items()}
+            out["udp"] = udp
+        return out
+
+    def _status_bottle(self) -> Bottle:
+        def convert(value: Any) -> Any:
+            if isinstance(value, dict):
+                return Bottle([Bottle([str(k), convert(v)]) for k, v in value.items()])
+            if isinstance(value, float):
+                return float(value)
+            return value
+
+        return convert(self.status())
+
+    def _on_rpc(self, request: Bottle) -> Bottle:
+        word = str(request[0]) if request else ""
+        if word == "status":
+            return self._status_bottle()
+        if word == "help":
+            return Bottle(["status: link, queues and counters of this bridge"])
+        return Bottle(["error", f"unknown command {word!r}: try status or help"])
+
+    def _publish_status(self, port: Port) -> None:
+        while not self._stop.wait(1.0):
+            try:
+                port.write(self._status_bottle())
+            except YarpError:
+                pass
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._deliver_wake.set()
+        if self.keeper is not None:
+            self.keeper.stop()
+        self.tcp.stop()
+        if self.udp is not None:
+            self.udp.stop()
+        for endpoint in [*self._sinks, *self._sources.values(), *self._ros_sinks]:
+            try:
+                endpoint.close()
+            except Exception:  # noqa: BLE001 -- closing is best effort
+                pass
+        for port in self._status_ports:
+            port.close()
+        if self.ros_node is not None:
+            self.ros_node.stop()
+        self.journal.close()

@@ -1,0 +1,521 @@
+"""The TCP channel: commands, statuses and robot state between the two bridges.
+
+Theory of operation
+-------------------
+One TCP connection joins the bridges; the robot side listens, the pilot side
+dials (either can be chosen).  The connection goes through the phases of
+:data:`PHASES`; every failure -- a reset, a CRC error, a silent peer for
+``link_timeout`` seconds -- returns it to ``down`` and the dialer tries again
+every second, forever.
+
+The sender thread writes one frame per period T holding the newest value of
+every streaming flow that changed (older ones are simply overwritten in their
+slot), and writes at once whenever a reliable message is journalled or an ack
+is owed.  Reliable messages come from the :class:`~bridge.journal.Journal`:
+after a reconnect the peer's RESUME says what it already has and the rest is
+sent again, in order.  When the kernel still holds unsent bytes (the link is
+slower than we write), the streaming part of a frame is held back rather than
+queued, so the pilot sees fresh state instead of a backlog.
+
+Streaming Bottles travel as deltas against the previous value sent on the same
+connection (:mod:`bridge.compact`), robot state in the Table 1 codec
+(:mod:`bridge.state_codec`); both restart from full values on every new
+connection, so the two ends never disagree.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import logging
+import socket
+import struct
+import termios
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Dict, List, Optional, Tuple
+
+from bridge import compact, frames
+from bridge.errors import BridgeError, BridgeProtocolError
+from bridge.frames import DataFrame, Entry, Hello, Resume
+from bridge.journal import Journal
+from bridge.state_codec import RobotState, StateDecoder, StateEncoder
+
+log = logging.getLogger("bridge.tcp")
+
+Key = Tuple[int, int]
+BOTTLE, STATE = "bottle", "state"
+
+#: Connection phases and the events that move between them.
+PHASES: Dict[str, Dict[str, str]] = {
+    "down": {"connected": "handshake"},
+    "handshake": {"hello_ok": "up", "failed": "down"},
+    "up": {"failed": "down"},
+}
+MAX_RELIABLE_PER_FRAME = 256
+KEEPALIVE = 1.0
+
+
+@dataclass(frozen=True)
+class Route:
+    """How one flow travels on the TCP channel."""
+
+    key: Key
+    label: str
+    form: str          # BOTTLE or STATE
+    reliable: bool
+
+
+@dataclass
+class LinkStats:
+    frames_out: int = 0
+    frames_in: int = 0
+    bytes_out: int = 0
+    bytes_in: int = 0
+    payload_out: int = 0
+    payload_in: int = 0
+    reliable_sent: int = 0
+    reliable_accepted: int = 0
+    duplicates: int = 0
+    bad_frames: int = 0
+    unknown_ids: int = 0
+    rejected_peers: int = 0
+    connects: int = 0
+    held_back: int = 0
+    last_error: str = ""
+
+
+def fingerprint(text: str) -> bytes:
+    return hashlib.sha256(text.encode()).digest()[:8]
+
+
+def _unsent_bytes(sock: socket.socket) -> int:
+    try:
+        raw = fcntl.ioctl(sock.fileno(), termios.TIOCOUTQ, b"\0\0\0\0")
+        return struct.unpack("i", raw)[0]
+    except OSError:
+        return 0
+
+
+@dataclass
+class _Connection:
+    sock: socket.socket
+    peer: str
+    session: int = 0
+    sent_upto: int = 0
+    ack_sent: int = -1
+    last_rx: float = field(default_factory=time.monotonic)
+    last_tx: float = 0.0
+    sent_bottles: Dict[Key, Any] = field(default_factory=dict)
+    received_bottles: Dict[Key, Any] = field(default_factory=dict)
+    state_encoders: Dict[Key, StateEncoder] = field(default_factory=dict)
+    state_decoders: Dict[Key, StateDecoder] = field(default_factory=dict)
+    closed: bool = False
+
+
+class TcpChannel:
+    """Both directions of the TCP link, with reconnection and exactly-once delivery.
+
+    ``on_message(key, value)`` receives streaming values (a Bottle or a
+    :class:`RobotState`); reliable ones land in the journal's inbox and
+    ``on_reliable()`` is called so the owner delivers them.
+    """
+
+    def __init__(self, *, side: str, peer: str, port: int, listen: bool, config_text: str,
+                 journal: Journal, routes: List[Route], period: float,
+                 on_message: Callable[[Key, Any], None], on_reliable: Callable[[], None],
+                 on_connected: Callable[[], None] = lambda: None,
+                 link_timeout: float = 5.0, bind_host: str = "") -> None:
+        self.side = side
+        self.peer_host = peer
+        self.port = port
+        self.listen = listen
+        self.bind_host = bind_host
+        self.fingerprint = fingerprint(config_text)
+        self.journal = journal
+        self.routes = {route.key: route for route in routes}
+        self.period = period
+        self.link_timeout = link_timeout
+        self.on_message = on_message
+        self.on_reliable = on_reliable
+        self.on_connected = on_connected
+        self.stats = LinkStats()
+        self.phase = "down"
+        self.phase_since = time.monotonic()
+        self._slots: Dict[Key, Any] = {}
+        self._dirty: Dict[Key, bool] = {}
+        self._lock = threading.Lock()
+        self._wake = threading.Condition(self._lock)
+        self._urgent = False
+        self._connection: Optional[_Connection] = None
+        self._stopping = threading.Event()
+        self._threads: List[threading.Thread] = []
+        self._listener: Optional[socket.socket] = None
+        self._peer_ips = self._resolve_peer()
+
+    # -- public surface ---------------------------------------------------------------
+
+    def start(self) -> None:
+        if self.listen:
+            self._listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            self._listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            self._listener.bind((self.bind_host, self.port))
+            self._listener.listen(4)
+            self._listener.settimeout(0.5)
+            log.info("TCP channel listening on port %d for %s", self.port, self.peer_host)
+        self._spawn(self._connect_loop, "tcp connect")
+        self._spawn(self._send_loop, "tcp send")
+
+    def stop(self) -> None:
+        self._stopping.set()
+        with self._wake:
+            self._wake.notify_all()
+        self._drop("bridge stopping")
+        if self._listener is not None:
+            self._listener.close()
+        for thread in self._threads:
+            thread.join(timeout=3)
+
+    def post(self, key: Key, value: Any) -> None:
+        """The newest value of a streaming flow; it leaves with the next period's frame."""
+        with self._lock:
+            self._slots[key] = value
+            self._dirty[key] = True
+
+    def send_reliable(self, key: Key, bottle: Any) -> int:
+        """Journal a reliable Bottle (raises :class:`~bridge.journal.QueueFull`); send at once."""
+        seq = self.journal.append(key[0], key[1], compact.encode(bottle))
+        self.kick()
+        return seq
+
+    def kick(self) -> None:
+        with self._wake:
+            self._urgent = True
+            self._wake.notify_all()
+
+    @property
+    def connected(self) -> bool:
+        return self.phase == "up"
+
+    # -- phases --------------------------------------------------------------------
+
+    def _move(self, event: str) -> None:
+        nxt = PHASES[self.phase].get(event)
+        if nxt is None:
+            raise BridgeError(f"TCP channel: event {event!r} is illegal in phase {self.phase}")
+        self.phase, self.phase_since = nxt, time.monotonic()
+
+    def _spawn(self, target: Callable[[], None], name: str) -> None:
+        thread = threading.Thread(target=target, name=f"bridge {name}", daemon=True)
+        thread.start()
+        self._threads = [t for t in self._threads if t.is_alive()] + [thread]
+
+    def _resolve_peer(self) -> set:
+        try:
+            return {info[4][0] for info in socket.getaddrinfo(self.peer_host, None,
+                                                               socket.AF_INET)}
+        except OSError:
+            return set()
+
+    def _connect_loop(self) -> None:
+        announced = False
+        while not self._stopping.is_set():
+            if self._connection is not None and not self._connection.closed:
+                if self.listen:
+                    self._accept_once(replace=True)
+                else:
+                    self._stopping.wait(0.5)
+                continue
+            sock = self._accept_once(replace=False) if self.listen else self._dial()
+            if sock is None:
+                if not announced and not self.listen:
+                    log.warning("TCP channel: peer %s:%d unreachable, retrying every second",
+                                self.peer_host, self.port)
+                    announced = True
+                continue
+            announced = False
+            self._run_handshake(sock)
+
+    def _dial(self) -> Optional[socket.socket]:
+        try:
+            sock = socket.create_connection((self.peer_host, self.port), timeout=3)
+        except OSError as exc:
+            self.stats.last_error = f"connect: {exc.strerror or exc}"
+            self._stopping.wait(1.0)
+            return None
+        return sock
+
+    def _accept_once(self, replace: bool) -> Optional[socket.socket]:
+        assert self._listener is not None
+        try:
+            sock, address = self._listener.accept()
+        except (socket.timeout, OSError):
+            return None
+        self._peer_ips = self._resolve_peer() or self._peer_ips
+        if self._peer_ips and address[0] not in self._peer_ips:
+            self.stats.rejected_peers += 1
+            log.warning("TCP channel: refused a connection from %s (expecting %s)",
+                        address[0], self.peer_host)
+            sock.close()
+            return None
+        if replace:
+            log.info("TCP channel: the peer reconnected from %s:%d; dropping the old "
+                     "connection", *address)
+            self._drop("replaced by a new connection")
+            self._run_handshake(sock)
+            return None
+        return sock
+
+    def _run_handshake(self, sock: socket.socket) -> None:
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1)
+        peer = "%s:%d" % sock.getpeername()[:2]
+        self.phase = "down"
+        self._move("connected")
+        try:
+            connection = self._handshake(sock, peer)
+        except (OSError, BridgeError) as exc:
+            self._move("failed")
+            message = f"handshake with {peer.rsplit(':', 1)[0]} failed: {exc}"
+            if message != self.stats.last_error:
+                log.warning("TCP channel: %s (retrying every second)", message)
+            self.stats.last_error = message
+            sock.close()
+            self._stopping.wait(1.0)
+            return
+        with self._wake:
+            self._connection = connection
+            for key in self._slots:
+                self._dirty[key] = True  # the new connection starts with full values
+            self._urgent = True
+            self._move("hello_ok")
+            self._wake.notify_all()
+        self.stats.connects += 1
+        self.stats.last_error = ""
+        log.info("TCP channel up with %s (peer session %x, resending after %d)", peer,
+                 connection.session, connection.sent_upto)
+        self._spawn(lambda: self._receive_loop(connection), "tcp receive")
+        try:
+            self.on_connected()
+        except Exception:  # noqa: BLE001 -- a hook must not take the link down
+            log.exception("TCP channel: on_connected hook failed")
+
+    def _handshake(self, sock: socket.socket, peer: str) -> _Connection:
+        sock.settimeout(5.0)
+        sock.sendall(frames.encode_hello(Hello(self.side, self.fingerprint,
+                                               self.journal.session)))
+        decoder = frames.FrameDecoder(max_frame=64)
+        pending: List[Any] = []
+
+        def next_frame() -> Any:
+            while not pending:
+                data = sock.recv(4096)
+                if not data:
+                    raise BridgeProtocolError("peer closed during the handshake")
+                pending.extend(decoder.feed(data))
+            return pending.pop(0)
+
+        hello = next_frame()
+        if not isinstance(hello, Hello):
+            raise BridgeProtocolError("peer did not start with HELLO")
+        if hello.version != frames.PROTOCOL_VERSION:
+            raise BridgeProtocolError(f"peer speaks bridge protocol {hello.version}, "
+                                      f"we speak {frames.PROTOCOL_VERSION}")
+        if hello.side == self.side:
+            raise BridgeProtocolError(f"peer is also the {self.side} side")
+        if hello.fingerprint != self.fingerprint:
+            raise BridgeProtocolError("peer runs a different bridge configuration "
+                                      "(ids would not match); use the same file on both sides")
+        accepted = self.journal.accepted(hello.session)
+        sock.sendall(frames.encode_resume(Resume(accepted)))
+        resume = next_frame()
+        if not isinstance(resume, Resume):
+            raise BridgeProtocolError("peer did not answer HELLO with RESUME")
+        self.journal.acknowledge(resume.accepted)
+        sock.settimeout(None)
+        connection = _Connection(sock, peer, hello.session, sent_upto=resume.accepted,
+                                 ack_sent=accepted)
+        if pending or decoder.pending:
+            raise BridgeProtocolError("peer sent data before the handshake ended")
+        return connection
+
+    def _drop(self, reason: str) -> None:
+        with self._wake:
+            connection = self._connection
+            if connection is None or connection.closed:
+                return
+            connection.closed = True
+            self._connection = None
+            if self.phase == "up":
+                self._move("failed")
+        try:
+            connection.sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        connection.sock.close()
+        log.warning("TCP channel down (%s): %s", connection.peer, reason)
+
+    # -- receiving ---------------------------------------------------------------------
+
+    def _receive_loop(self, connection: _Connection) -> None:
+        decoder = frames.FrameDecoder()
+        sock = connection.sock
+        sock.settimeout(0.25)
+        while not connection.closed and not self._stopping.is_set():
+            try:
+                data = sock.recv(65536)
+            except socket.timeout:
+                if time.monotonic() - connection.last_rx > self.link_timeout:
+                    self._drop(f"nothing heard for {self.link_timeout:.0f} s")
+                    return
+                continue
+            except OSError as exc:
+                self._drop(f"receive failed: {exc.strerror or exc}")
+                return
+            if not data:
+                self._drop("peer closed the connection")
+                return
+            connection.last_rx = time.monotonic()
+            self.stats.bytes_in += len(data)
+            try:
+                for frame in decoder.feed(data):
+                    self._on_frame(connection, frame)
+            except BridgeProtocolError as exc:
+                self.stats.bad_frames += 1
+                self.stats.last_error = str(exc)
+                self._drop(f"bad frame from the peer: {exc}")
+                return
+
+    def _on_frame(self, connection: _Connection, frame: Any) -> None:
+        if not isinstance(frame, DataFrame):
+            raise BridgeProtocolError(f"{type(frame).__name__} after the handshake")
+        self.stats.frames_in += 1
+        if frame.ack is not None:
+            self.journal.acknowledge(frame.ack)
+        seq = frame.seq
+        new_reliable = False
+        for entry in frame.entries:
+            self.stats.payload_in += len(entry.payload)
+            route = self.routes.get((entry.id, entry.kind))
+            if route is None:
+                self.stats.unknown_ids += 1
+                log.warning("TCP channel: dropped an entry with unknown id %d kind %d",
+                            entry.id, entry.kind)
+                continue
+            if route.reliable:
+                if seq is None or entry.delta:
+                    raise BridgeProtocolError(f"reliable entry {route.label} without a "
+                                              f"sequence number")
+                compact.decode(entry.payload)  # refuse garbage before it is journalled
+                if self.journal.accept(connection.session, seq, entry.id, entry.kind,
+                                       entry.payload):
+                    self.stats.reliable_accepted += 1
+                    new_reliable = True
+                else:
+                    self.stats.duplicates += 1
+                seq += 1
+                continue
+            try:
+                value = self._decode_streaming(connection, route, entry)
+            except BridgeProtocolError as exc:
+                raise BridgeProtocolError(f"{route.label}: {exc}") from None
+            self.on_message(route.key, value)
+        if new_reliable:
+            self.kick()  # owe an ack
+            self.on_reliable()
+
+    def _decode_streaming(self, connection: _Connection, route: Route, entry: Entry) -> Any:
+        if route.form == STATE:
+            decoder = connection.state_decoders.setdefault(route.key, StateDecoder())
+            return decoder.decode(entry.payload)
+        if entry.delta:
+            previous = connection.received_bottles.get(route.key)
+            if previous is None:
+                raise BridgeProtocolError("a delta before any full message")
+            bottle = compact.decode_delta(entry.payload, previous)
+        else:
+            bottle = compact.decode(entry.payload)
+        connection.received_bottles[route.key] = bottle
+        return bottle
+
+    # -- sending -----------------------------------------------------------------------
+
+    def _send_loop(self) -> None:
+        next_tick = time.monotonic() + self.period
+        while not self._stopping.is_set():
+            with self._wake:
+                while not self._urgent and not self._stopping.is_set():
+                    remaining = next_tick - time.monotonic()
+                    if remaining <= 0:
+                        break
+                    self._wake.wait(remaining)
+                urgent, self._urgent = self._urgent, False
+                connection = self._connection
+            now = time.monotonic()
+            tick = now >= next_tick
+            if tick:
+                next_tick = max(next_tick + self.period, now)
+            if connection is None or connection.closed:
+                continue
+            try:
+                self._send_frame(connection, with_streams=tick)
+            except OSError as exc:
+                self._drop(f"send failed: {exc.strerror or exc}")
+            except BridgeError as exc:
+                log.error("TCP channel: %s", exc)
+
+    def _streaming_entries(self, connection: _Connection) -> List[bytes]:
+        with self._lock:
+            ready = [(key, self._slots[key]) for key, dirty in self._dirty.items() if dirty]
+            for key, _ in ready:
+                self._dirty[key] = False
+        out = []
+        for key, value in ready:
+            route = self.routes[key]
+            if callable(value):  # a lazy snapshot: read the newest value only now
+                value = value()
+            if route.form == STATE:
+                encoder = connection.state_encoders.setdefault(key, StateEncoder(self.period))
+                entry = Entry(key[0], key[1], encoder.encode(value))
+            else:
+                full = compact.encode(value)
+                previous = connection.sent_bottles.get(key)
+                delta = compact.encode_delta(value, previous) if previous is not None else None
+                entry = Entry(key[0], key[1], delta, True) if delta is not None and \
+                    len(delta) < len(full) else Entry(key[0], key[1], full)
+                connection.sent_bottles[key] = value
+            self.stats.payload_out += len(entry.payload)
+            out.append(frames.entry_bytes(entry))
+        return out
+
+    def _send_frame(self, connection: _Connection, with_streams: bool) -> None:
+        encoded: List[bytes] = []
+        reliable = self.journal.unacknowledged(after=connection.sent_upto,
+                                               limit=MAX_RELIABLE_PER_FRAME)
+        seq = reliable[0].seq if reliable else None
+        for item in reliable:
+            encoded.append(frames.entry_bytes(Entry(item.id, item.kind, item.payload)))
+            self.stats.payload_out += len(item.payload)
+        if with_streams:
+            backlog = _unsent_bytes(connection.sock)
+            if backlog > 2048:
+                self.stats.held_back += 1
+            else:
+                encoded.extend(self._streaming_entries(connection))
+        accepted = self.journal.accepted(connection.session)
+        ack = accepted if accepted != connection.ack_sent else None
+        now = time.monotonic()
+        if not encoded and ack is None and now - connection.last_tx < KEEPALIVE:
+            return
+        frame = frames.encode_data(ack=ack, seq=seq, encoded=encoded)
+        connection.sock.sendall(frame)
+        connection.last_tx = now
+        connection.ack_sent = accepted
+        if reliable:
+            connection.sent_upto = reliable[-1].seq
+            self.stats.reliable_sent += len(reliable)
+            if len(reliable) == MAX_RELIABLE_PER_FRAME:
+                self.kick()
+        self.stats.frames_out += 1
+        self.stats.bytes_out += len(frame)

@@ -1,0 +1,333 @@
+"""Images and point clouds cut into standalone tiles of one datagram each.
+
+Theory of operation
+-------------------
+The paper's UDP bridge splits a point cloud or an image into sub-regions, each
+a valid small cloud or image in one 1500-byte datagram, so a lost datagram
+costs one region instead of the whole frame.  Here both are a *raster*: an
+``H x W`` grid of cells (a pixel, or an organized cloud's point as
+``point_step`` bytes; an unorganized cloud is ``1 x N``).  :func:`split`
+covers the raster with rectangles whose encoding fits :data:`BODY_BUDGET`:
+it guesses a tile size from the whole frame's compressed size, then halves
+any tile that still does not fit.
+
+Each tile body repeats what is needed to use it alone -- the raster header
+(size, cell type, codec, how to fill what is missing) and the message's
+metadata (a compact Bottle: stamp, frame, encoding, fields...) -- followed by
+its rectangle and data.  Codecs: JPEG for 8-bit images (the JPEG header,
+600 bytes that only depend on quality and channels, is rebuilt by the
+receiver instead of sent), PNG for 16-bit images, zlib for float images and
+clouds.
+
+:class:`Canvas` pastes whatever tiles arrived into a frame filled with blanks
+(zeros) or NaN (float images, the float fields of a cloud) and reports the
+fraction of cells it received.
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from bridge.datagrams import BODY_BUDGET
+from bridge.errors import BridgeProtocolError, BridgeUsageError, NeedMoreData
+from bridge.wire import Buffer, get_varint, put_varint, take
+
+JPEG, JPEG_FULL, PNG, ZLIB = 1, 2, 3, 4
+CODEC_NAMES = {"jpeg": JPEG, "png": PNG, "zlib": ZLIB}
+FILL_ZERO, FILL_NAN, FILL_NAN_AT = 0, 1, 2
+DTYPES = (np.uint8, np.uint16, np.int16, np.float32, np.float64, np.int8, np.int32, np.uint32)
+_DTYPE_CODE = {np.dtype(t).str: code for code, t in enumerate(DTYPES)}
+MAX_CELLS = 1 << 26
+
+
+@dataclass(frozen=True)
+class RasterHeader:
+    height: int
+    width: int
+    channels: int              # values per cell (bytes per point for a cloud)
+    dtype: np.dtype
+    codec: int
+    quality: int = 80
+    fill: int = FILL_ZERO
+    nan_offsets: Tuple[int, ...] = ()   # FILL_NAN_AT: byte offsets of float32s to NaN
+
+    def shape(self, height: int, width: int) -> Tuple[int, ...]:
+        return (height, width) if self.channels == 1 else (height, width, self.channels)
+
+
+@dataclass(frozen=True)
+class Tile:
+    header: RasterHeader
+    meta: bytes
+    x: int
+    y: int
+    width: int
+    height: int
+    data: bytes
+
+    @property
+    def cells(self) -> int:
+        return self.width * self.height
+
+
+def header_for(pixels: np.ndarray, codec: int, quality: int = 80,
+               nan_offsets: Sequence[int] = ()) -> RasterHeader:
+    """Describe ``pixels`` (H x W or H x W x C) and choose how blanks are filled."""
+    if pixels.ndim not in (2, 3):
+        raise BridgeUsageError(f"a raster is 2- or 3-dimensional, not {pixels.shape}")
+    dtype = pixels.dtype.newbyteorder("<") if pixels.dtype.byteorder == ">" else pixels.dtype
+    if np.dtype(dtype).str not in _DTYPE_CODE:
+        raise BridgeUsageError(f"cells of type {pixels.dtype} cannot be tiled")
+    channels = pixels.shape[2] if pixels.ndim == 3 else 1
+    if codec == JPEG and (pixels.dtype != np.uint8 or channels not in (1, 3)):
+        raise BridgeUsageError(f"JPEG takes 8-bit images of 1 or 3 channels, not "
+                               f"{pixels.dtype} x {channels}")
+    if codec == PNG and (pixels.dtype not in (np.uint8, np.uint16) or channels not in (1, 3, 4)):
+        raise BridgeUsageError(f"PNG takes 8/16-bit images of 1, 3 or 4 channels")
+    fill = FILL_NAN_AT if nan_offsets else (
+        FILL_NAN if np.issubdtype(pixels.dtype, np.floating) else FILL_ZERO)
+    return RasterHeader(pixels.shape[0], pixels.shape[1], channels, np.dtype(dtype), codec,
+                        quality, fill, tuple(nan_offsets))
+
+
+# -- JPEG without its constant header ------------------------------------------------
+
+
+def _jpeg_split(jpeg: bytes) -> Tuple[int, int]:
+    """``(offset of the SOF0 segment, end of the SOS header)`` of a baseline JPEG."""
+    pos, sof = 2, -1
+    while pos + 4 <= len(jpeg):
+        if jpeg[pos] != 0xFF:
+            break
+        marker = jpeg[pos + 1]
+        length = int.from_bytes(jpeg[pos + 2:pos + 4], "big")
+        if marker == 0xC0:
+            sof = pos
+        if marker == 0xDA:
+            return sof, pos + 2 + length
+        pos += 2 + length
+    return -1, -1
+
+
+@lru_cache(maxsize=32)
+def _jpeg_template(quality: int, channels: int) -> Optional[Tuple[bytes, int]]:
+    import cv2
+
+    blank = np.zeros((16, 16, channels) if channels == 3 else (16, 16), np.uint8)
+    ok, encoded = cv2.imencode(".jpg", blank, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    data = encoded.tobytes()
+    sof, end = _jpeg_split(data)
+    if not ok or sof < 0:
+        return None
+    return data[:end], sof
+
+
+def _jpeg_header(quality: int, channels: int, width: int, height: int) -> Optional[bytes]:
+    template = _jpeg_template(quality, channels)
+    if template is None:
+        return None
+    header, sof = template
+    patched = bytearray(header)
+    patched[sof + 5:sof + 7] = height.to_bytes(2, "big")
+    patched[sof + 7:sof + 9] = width.to_bytes(2, "big")
+    return bytes(patched)
+
+
+# -- cell codecs -----------------------------------------------------------------------
+
+
+def _encode_region(header: RasterHeader, region: np.ndarray) -> Tuple[int, bytes]:
+    if header.codec in (JPEG, PNG):
+        import cv2
+
+        if header.codec == JPEG:
+            ok, encoded = cv2.imencode(".jpg", region, [cv2.IMWRITE_JPEG_QUALITY, header.quality])
+            data = encoded.tobytes()
+            expected = _jpeg_header(header.quality, header.channels, region.shape[1],
+                                    region.shape[0])
+            if ok and expected is not None and data.startswith(expected) and \
+                    data.endswith(b"\xff\xd9"):
+                return JPEG, data[len(expected):-2]
+            return JPEG_FULL, data
+        ok, encoded = cv2.imencode(".png", region, [cv2.IMWRITE_PNG_COMPRESSION, 6])
+        return PNG, encoded.tobytes()
+    return ZLIB, zlib.compress(np.ascontiguousarray(region).astype(
+        header.dtype.newbyteorder("<"), copy=False).tobytes(), 6)
+
+
+def _decode_region(header: RasterHeader, codec: int, data: bytes, width: int,
+                   height: int) -> np.ndarray:
+    shape = header.shape(height, width)
+    if codec in (JPEG, JPEG_FULL, PNG):
+        import cv2
+
+        if codec == JPEG:
+            prefix = _jpeg_header(header.quality, header.channels, width, height)
+            if prefix is None:
+                raise BridgeProtocolError("no JPEG header template for this quality")
+            data = prefix + data + b"\xff\xd9"
+        image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        if image is None or image.shape != shape or image.dtype != header.dtype:
+            raise BridgeProtocolError(f"tile image does not decode to {shape} "
+                                      f"{header.dtype}")
+        return image
+    if codec == ZLIB:
+        expected = int(np.prod(shape)) * header.dtype.itemsize
+        inflater = zlib.decompressobj()
+        try:
+            raw = inflater.decompress(data, expected + 1)
+        except zlib.error as exc:
+            raise BridgeProtocolError(f"tile does not inflate: {exc}") from None
+        if len(raw) != expected or inflater.unconsumed_tail:
+            raise BridgeProtocolError(f"tile inflates to {len(raw)}+ bytes, expected "
+                                      f"{expected}")
+        return np.frombuffer(raw, header.dtype.newbyteorder("<")).astype(
+            header.dtype).reshape(shape)
+    raise BridgeProtocolError(f"unknown tile codec {codec}")
+
+
+# -- tile bodies -----------------------------------------------------------------------
+
+
+def _put_header(out: bytearray, header: RasterHeader) -> None:
+    put_varint(out, header.height)
+    put_varint(out, header.width)
+    put_varint(out, header.channels)
+    out.append(_DTYPE_CODE[header.dtype.str])
+    out.append(header.quality)
+    out.append(header.fill)
+    if header.fill == FILL_NAN_AT:
+        put_varint(out, len(header.nan_offsets))
+        for offset in header.nan_offsets:
+            put_varint(out, offset)
+
+
+def encode_tile(tile: Tile, codec: int) -> bytes:
+    out = bytearray()
+    _put_header(out, tile.header)
+    put_varint(out, len(tile.meta))
+    out += tile.meta
+    for value in (tile.x, tile.y, tile.width, tile.height):
+        put_varint(out, value)
+    out.append(codec)
+    out += tile.data
+    return bytes(out)
+
+
+def decode_tile(body: Buffer) -> Tuple[Tile, int]:
+    """``(tile, codec)``; :class:`BridgeProtocolError` when the body is malformed."""
+    try:
+        height, pos = get_varint(body, 0, "height")
+        width, pos = get_varint(body, pos, "width")
+        channels, pos = get_varint(body, pos, "channels")
+        raw, pos = take(body, pos, 3, "cell type")
+        dtype_code, quality, fill = raw
+        if dtype_code >= len(DTYPES) or fill > FILL_NAN_AT or not 1 <= channels <= 4096:
+            raise BridgeProtocolError(f"bad raster header: dtype {dtype_code}, fill {fill}, "
+                                      f"{channels} channels")
+        if height * width > MAX_CELLS or height * width == 0:
+            raise BridgeProtocolError(f"raster of {height} x {width} cells")
+        offsets: List[int] = []
+        if fill == FILL_NAN_AT:
+            count, pos = get_varint(body, pos, "NaN offsets")
+            if count > 64:
+                raise BridgeProtocolError(f"{count} NaN offsets")
+            for _ in range(count):
+                offset, pos = get_varint(body, pos, "NaN offset")
+                if offset + 4 > channels:
+                    raise BridgeProtocolError(f"NaN offset {offset} outside a {channels}-byte "
+                                              f"cell")
+                offsets.append(offset)
+        meta_length, pos = get_varint(body, pos, "meta length")
+        meta, pos = take(body, pos, meta_length, "meta")
+        x, pos = get_varint(body, pos, "x")
+        y, pos = get_varint(body, pos, "y")
+        tile_width, pos = get_varint(body, pos, "tile width")
+        tile_height, pos = get_varint(body, pos, "tile height")
+        codec_raw, pos = take(body, pos, 1, "codec")
+    except NeedMoreData as exc:
+        raise BridgeProtocolError(f"tile truncated: {exc}") from None
+    if not tile_width or not tile_height or x + tile_width > width or y + tile_height > height:
+        raise BridgeProtocolError(f"tile {tile_width}x{tile_height}+{x}+{y} outside the "
+                                  f"{width}x{height} raster")
+    header = RasterHeader(height, width, channels, np.dtype(DTYPES[dtype_code]),
+                          codec_raw[0], quality, fill, tuple(offsets))
+    return Tile(header, meta, x, y, tile_width, tile_height, bytes(body[pos:])), codec_raw[0]
+
+
+def split(pixels: np.ndarray, header: RasterHeader, meta: bytes,
+          budget: int = BODY_BUDGET) -> List[bytes]:
+    """Tile bodies covering ``pixels``, each at most ``budget`` bytes."""
+    height, width = pixels.shape[:2]
+    overhead = len(encode_tile(Tile(header, meta, width, height, width, height, b""), 0)) + 4
+    room = budget - overhead
+    if room < 64:
+        raise BridgeUsageError(f"message metadata of {len(meta)} bytes leaves no room for "
+                               f"data in a datagram")
+    _, whole = _encode_region(header, pixels)
+    per_cell = max(len(whole) / (height * width), 1e-3)
+    cells = max(1.0, 0.75 * room / per_cell)
+    align = 16 if header.codec == JPEG else 1
+    side = max(align, int(math.sqrt(cells)) // align * align)
+    tile_w = min(width, max(1, side if height > 1 else int(cells)))
+    tile_h = min(height, max(1, int(cells // tile_w)))
+    if header.codec == JPEG and tile_h > 16:
+        tile_h = tile_h // 16 * 16
+    bodies: List[bytes] = []
+    for y in range(0, height, tile_h):
+        for x in range(0, width, tile_w):
+            _cover(pixels, header, meta, x, y, min(tile_w, width - x), min(tile_h, height - y),
+                   room, bodies)
+    return bodies
+
+
+def _cover(pixels: np.ndarray, header: RasterHeader, meta: bytes, x: int, y: int, w: int,
+           h: int, room: int, out: List[bytes]) -> None:
+    codec, data = _encode_region(header, pixels[y:y + h, x:x + w])
+    if len(data) <= room:
+        out.append(encode_tile(Tile(header, meta, x, y, w, h, data), codec))
+        return
+    if w * h == 1:
+        raise BridgeUsageError(f"one cell encodes to {len(data)} bytes, more than a datagram")
+    if w >= h:
+        half = w // 2
+        _cover(pixels, header, meta, x, y, half, h, room, out)
+        _cover(pixels, header, meta, x + half, y, w - half, h, room, out)
+    else:
+        half = h // 2
+        _cover(pixels, header, meta, x, y, w, half, room, out)
+        _cover(pixels, header, meta, x, y + half, w, h - half, room, out)
+
+
+class Canvas:
+    """One frame being rebuilt from the tiles that arrive."""
+
+    def __init__(self, header: RasterHeader, meta: bytes) -> None:
+        self.header = header
+        self.meta = meta
+        self.pixels = np.zeros(header.shape(header.height, header.width), header.dtype)
+        if header.fill == FILL_NAN:
+            self.pixels[...] = np.nan
+        elif header.fill == FILL_NAN_AT:
+            cells = self.pixels.reshape(header.height * header.width, header.channels)
+            for offset in header.nan_offsets:
+                cells[:, offset:offset + 4] = np.frombuffer(np.float32(np.nan).tobytes(),
+                                                            np.uint8)
+        self.covered = np.zeros((header.height, header.width), bool)
+
+    def paste(self, tile: Tile, codec: int) -> None:
+        if tile.header != self.header or tile.meta != self.meta:
+            raise BridgeProtocolError("tile belongs to a different frame layout")
+        region = _decode_region(self.header, codec, tile.data, tile.width, tile.height)
+        self.pixels[tile.y:tile.y + tile.height, tile.x:tile.x + tile.width] = region
+        self.covered[tile.y:tile.y + tile.height, tile.x:tile.x + tile.width] = True
+
+    @property
+    def completeness(self) -> float:
+        return float(self.covered.mean())

@@ -1,0 +1,421 @@
+"""The UDP channel: perception and fast streams, where late data is worthless.
+
+Theory of operation
+-------------------
+Each flow keeps only its newest message waiting (latest-only, as the TCP
+channel's streams).  The sender thread turns a message into datagrams with the
+flow's codec -- standalone tiles for images and clouds, plain slices for
+anything else -- adds Reed-Solomon repair datagrams when the flow asks for a
+repair fraction, and sends them round-robin across flows, paced to ``rate``
+bits per second (IP and UDP headers included) so a slow link's shaper does not
+drop our bursts.
+
+Message numbers are millisecond timestamps (strictly increasing per flow, mod
+2**32): the receiver rebuilds by them, as the paper rebuilt by timestamp, and
+they keep increasing when the sender restarts.  The receiver accepts datagrams
+only from the peer's address, collects the parts of each message, repairs what
+it can, and publishes a message as soon as every part is there, or ``gather``
+seconds (the paper's delta-t, 0.4 s) after its first part: a tiled message
+then goes out with its missing regions blank or NaN, a sliced one is counted
+lost.  A datagram for a message older than the last one published is stale
+and dropped, which also defeats replays.
+"""
+
+from __future__ import annotations
+
+import logging
+import socket
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Callable, Deque, Dict, List, Optional, Protocol, Tuple
+
+from bridge import datagrams, fec, tiles
+from bridge.datagrams import BODY_BUDGET, Datagram
+from bridge.errors import BridgeError, BridgeProtocolError
+
+log = logging.getLogger("bridge.udp")
+
+Key = Tuple[int, int]
+IP_UDP_OVERHEAD = 28
+MAX_PARTS = 20000
+MAX_GROUP = 32
+MAX_PENDING_MESSAGES = 8
+
+
+class UdpCodec(Protocol):
+    """How one flow's messages become datagram bodies and back."""
+
+    tiled: bool
+
+    def encode(self, value: Any) -> List[bytes]:
+        """Tile bodies (tiled) or the whole message as one bytes object (sliced)."""
+
+    def decode(self, data: Any, completeness: float) -> Any:
+        """A :class:`~bridge.tiles.Canvas` (tiled) or the message bytes (sliced)."""
+
+
+@dataclass(frozen=True)
+class UdpRoute:
+    key: Key
+    label: str
+    codec: UdpCodec
+    fec: float = 0.0
+
+
+@dataclass
+class FlowStats:
+    sent: int = 0
+    complete: int = 0
+    partial: int = 0
+    lost: int = 0
+    superseded: int = 0
+    completeness_sum: float = 0.0
+    repaired: int = 0
+
+    @property
+    def mean_completeness(self) -> float:
+        published = self.complete + self.partial
+        delivered = self.completeness_sum + self.complete
+        return delivered / (published + self.lost) if published + self.lost else 0.0
+
+
+@dataclass
+class UdpStats:
+    datagrams_out: int = 0
+    datagrams_in: int = 0
+    bytes_out: int = 0
+    bytes_in: int = 0
+    bad: int = 0
+    strangers: int = 0
+    unknown_ids: int = 0
+    stale: int = 0
+    bad_tiles: int = 0
+    send_errors: int = 0
+    flows: Dict[str, FlowStats] = field(default_factory=dict)
+    last_error: str = ""
+
+
+@dataclass
+class _Partial:
+    first: float
+    parts: int
+    group: int
+    data: Dict[int, bytes] = field(default_factory=dict)
+    repairs: Dict[int, Dict[int, bytes]] = field(default_factory=dict)
+    repaired: int = 0
+
+
+def _is_newer(candidate: int, reference: Optional[int]) -> bool:
+    return reference is None or 0 < (candidate - reference) % (1 << 32) < (1 << 31)
+
+
+def message_datagrams(route: UdpRoute, message: int, bodies: List[bytes]) -> List[bytes]:
+    """The datagrams of one message: data parts, each group followed by its repairs."""
+    parts = len(bodies)
+    if parts == 0:
+        return []
+    if parts > MAX_PARTS:
+        raise BridgeError(f"{route.label}: message needs {parts} datagrams "
+                          f"(limit {MAX_PARTS})")
+    group = min(parts, MAX_GROUP)
+    out = []
+    for start in range(0, parts, group):
+        chunk = bodies[start:start + group]
+        for offset, body in enumerate(chunk):
+            out.append(datagrams.encode(Datagram(route.key[0], route.key[1], message, parts,
+                                                 group, start + offset, body)))
+        for row, repair in enumerate(fec.encode(chunk, fec.repair_count(len(chunk),
+                                                                         route.fec))):
+            out.append(datagrams.encode(Datagram(route.key[0], route.key[1], message, parts,
+                                                 group, start // group, repair, row)))
+    return out
+
+
+def slice_message(data: bytes) -> List[bytes]:
+    return [data[i:i + BODY_BUDGET] for i in range(0, max(len(data), 1), BODY_BUDGET)]
+
+
+class Reassembler:
+    """Receiving half, sans-IO: feed datagrams and the clock, get finished messages."""
+
+    def __init__(self, routes: Dict[Key, UdpRoute], gather: float, stats: UdpStats) -> None:
+        self.routes = routes
+        self.gather = gather
+        self.stats = stats
+        self._partials: Dict[Key, Dict[int, _Partial]] = {}
+        self._last: Dict[Key, int] = {}
+
+    def feed(self, raw: bytes, now: float) -> List[Tuple[Key, Any]]:
+        stats = self.stats
+        try:
+            datagram = datagrams.decode(raw)
+        except BridgeProtocolError as exc:
+            stats.bad += 1
+            stats.last_error = str(exc)
+            return []
+        key = (datagram.id, datagram.kind)
+        route = self.routes.get(key)
+        if route is None:
+            stats.unknown_ids += 1
+            return []
+        if datagram.parts > MAX_PARTS:
+            stats.bad += 1
+            return []
+        if not _is_newer(datagram.message, self._last.get(key)):
+            stats.stale += 1
+            return []
+        pending = self._partials.setdefault(key, {})
+        partial = pending.get(datagram.message)
+        if partial is None:
+            if len(pending) >= MAX_PENDING_MESSAGES:
+                oldest = min(pending, key=lambda m: pending[m].first)
+                self._finish(key, oldest, pending.pop(oldest))
+            partial = pending[datagram.message] = _Partial(now, datagram.parts, datagram.group)
+        elif (partial.parts, partial.group) != (datagram.parts, datagram.group):
+            stats.bad += 1
+            return []
+        if datagram.is_repair:
+            partial.repairs.setdefault(datagram.index, {})[datagram.repair_row] = datagram.body
+            self._repair(partial, datagram.index)
+        else:
+            partial.data[datagram.index] = datagram.body
+            self._repair(partial, datagram.index // partial.group)
+        if len(partial.data) == partial.parts:
+            del pending[datagram.message]
+            return self._finish(key, datagram.message, partial)
+        return []
+
+    def _repair(self, partial: _Partial, group_index: int) -> None:
+        repairs = partial.repairs.get(group_index)
+        if not repairs:
+            return
+        start = group_index * partial.group
+        k = min(partial.group, partial.parts - start)
+        have = {i - start: partial.data[i] for i in range(start, start + k) if i in partial.data}
+        if len(have) == k or len(have) + len(repairs) < k:
+            return
+        try:
+            recovered = fec.recover(k, have, repairs)
+        except BridgeProtocolError as exc:
+            self.stats.bad += 1
+            self.stats.last_error = f"repair: {exc}"
+            partial.repairs.pop(group_index, None)
+            return
+        for index, body in recovered.items():
+            partial.data[start + index] = body
+        partial.repaired += len(recovered)
+
+    def expire(self, now: float) -> List[Tuple[Key, Any]]:
+        """Publish or drop messages whose gathering time is over."""
+        out = []
+        for key, pending in self._partials.items():
+            for message in [m for m, p in pending.items() if now - p.first >= self.gather]:
+                out.extend(self._finish(key, message, pending.pop(message)))
+        return out
+
+    def _finish(self, key: Key, message: int, partial: _Partial) -> List[Tuple[Key, Any]]:
+        route = self.routes[key]
+        flow = self.stats.flows.setdefault(route.label, FlowStats())
+        flow.repaired += partial.repaired
+        if not _is_newer(message, self._last.get(key)):
+            flow.superseded += 1
+            return []
+        complete = len(partial.data) == partial.parts
+        if route.codec.tiled:
+            canvas = self._paint(partial)
+            if canvas is None:
+                flow.lost += 1
+                return []
+            value = route.codec.decode(canvas, canvas.completeness)
+            completeness = canvas.completeness
+        else:
+            if not complete:
+                flow.lost += 1
+                return []
+            data = b"".join(partial.data[i] for i in range(partial.parts))
+            try:
+                value = route.codec.decode(data, 1.0)
+            except BridgeProtocolError as exc:
+                self.stats.bad += 1
+                self.stats.last_error = f"{route.label}: {exc}"
+                return []
+            completeness = 1.0
+        self._last[key] = message
+        for stale in [m for m in self._partials.get(key, {}) if not _is_newer(m, message)]:
+            self._partials[key].pop(stale)
+            flow.superseded += 1
+        if completeness >= 1.0:
+            flow.complete += 1
+        else:
+            flow.partial += 1
+            flow.completeness_sum += completeness
+        return [(key, value)]
+
+    def _paint(self, partial: _Partial) -> Optional[tiles.Canvas]:
+        canvas = None
+        for index in sorted(partial.data):
+            try:
+                tile, codec = tiles.decode_tile(partial.data[index])
+                if canvas is None:
+                    canvas = tiles.Canvas(tile.header, tile.meta)
+                canvas.paste(tile, codec)
+            except BridgeProtocolError as exc:
+                self.stats.bad_tiles += 1
+                self.stats.last_error = f"tile: {exc}"
+        return canvas
+
+
+class UdpChannel:
+    """Socket, pacing and threads around :func:`message_datagrams` and :class:`Reassembler`."""
+
+    def __init__(self, *, peer: str, port: int, peer_port: int, routes: List[UdpRoute],
+                 gather: float, on_message: Callable[[Key, Any], None],
+                 rate: Optional[float] = None, bind_host: str = "") -> None:
+        self.peer = peer
+        self.port = port
+        self.peer_port = peer_port
+        self.routes = {route.key: route for route in routes}
+        self.rate = rate
+        self.on_message = on_message
+        self.stats = UdpStats()
+        self.reassembler = Reassembler(self.routes, gather, self.stats)
+        self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 << 20)
+        self._sock.bind((bind_host, port))
+        self._sock.settimeout(0.05)
+        self._slots: Dict[Key, Any] = {}
+        self._queues: Dict[Key, Deque[bytes]] = {}
+        self._last_message: Dict[Key, int] = {}
+        self._cond = threading.Condition()
+        self._stopping = threading.Event()
+        self._threads: List[threading.Thread] = []
+        self._peer_ips = self._resolve()
+        self._tokens = 0.0
+        self._token_time = time.monotonic()
+
+    def _resolve(self) -> set:
+        try:
+            return {info[4][0] for info in socket.getaddrinfo(self.peer, None, socket.AF_INET)}
+        except OSError:
+            return set()
+
+    def start(self) -> None:
+        for target, name in ((self._send_loop, "udp send"), (self._receive_loop, "udp receive")):
+            thread = threading.Thread(target=target, name=f"bridge {name}", daemon=True)
+            thread.start()
+            self._threads.append(thread)
+        log.info("UDP channel on port %d, peer %s:%d%s", self.port, self.peer, self.peer_port,
+                 f", paced at {self.rate / 1000:.0f} kbit/s" if self.rate else "")
+
+    def stop(self) -> None:
+        self._stopping.set()
+        with self._cond:
+            self._cond.notify_all()
+        for thread in self._threads:
+            thread.join(timeout=3)
+        self._sock.close()
+
+    def post(self, key: Key, value: Any) -> None:
+        """The newest message of a flow; an older one not yet started is replaced."""
+        with self._cond:
+            self._slots[key] = value
+            self._cond.notify_all()
+
+    # -- sending -----------------------------------------------------------------------
+
+    def _next_message_number(self, key: Key) -> int:
+        now_ms = int(time.time() * 1000) & 0xFFFFFFFF
+        last = self._last_message.get(key)
+        number = now_ms if last is None or _is_newer(now_ms, last) else (last + 1) & 0xFFFFFFFF
+        self._last_message[key] = number
+        return number
+
+    def _refill(self) -> None:
+        """Turn waiting messages into datagram queues for flows that are idle."""
+        with self._cond:
+            ready = [(key, self._slots.pop(key)) for key in list(self._slots)
+                     if not self._queues.get(key)]
+        for key, value in ready:
+            route = self.routes[key]
+            try:
+                encoded = route.codec.encode(value)
+                bodies = encoded if route.codec.tiled else slice_message(encoded)
+                queue = message_datagrams(route, self._next_message_number(key), bodies)
+            except BridgeError as exc:
+                self.stats.last_error = str(exc)
+                log.error("UDP channel: cannot send on %s: %s", route.label, exc)
+                continue
+            self._queues[key] = deque(queue)
+            self.stats.flows.setdefault(route.label, FlowStats()).sent += 1
+
+    def _pace(self, size: int) -> None:
+        if not self.rate:
+            return
+        bytes_per_second = self.rate / 8
+        burst = max(4 * 1500, bytes_per_second * 0.02)
+        while not self._stopping.is_set():
+            now = time.monotonic()
+            self._tokens = min(burst, self._tokens + (now - self._token_time) * bytes_per_second)
+            self._token_time = now
+            if self._tokens >= size:
+                self._tokens -= size
+                return
+            time.sleep((size - self._tokens) / bytes_per_second)
+
+    def _send_loop(self) -> None:
+        address = (self.peer, self.peer_port)
+        while not self._stopping.is_set():
+            self._refill()
+            active = [key for key, queue in self._queues.items() if queue]
+            if not active:
+                with self._cond:
+                    if not self._slots and not self._stopping.is_set():
+                        self._cond.wait(0.5)
+                continue
+            for key in active:
+                datagram = self._queues[key].popleft()
+                self._pace(len(datagram) + IP_UDP_OVERHEAD)
+                try:
+                    self._sock.sendto(datagram, address)
+                except OSError as exc:  # no route while the link is down: that datagram is lost
+                    self.stats.send_errors += 1
+                    self.stats.last_error = f"send: {exc.strerror or exc}"
+                    continue
+                self.stats.datagrams_out += 1
+                self.stats.bytes_out += len(datagram)
+
+    # -- receiving ---------------------------------------------------------------------
+
+    def _receive_loop(self) -> None:
+        next_sweep = time.monotonic()
+        while not self._stopping.is_set():
+            finished: List[Tuple[Key, Any]] = []
+            try:
+                raw, (host, _) = self._sock.recvfrom(65536)
+            except socket.timeout:
+                raw = None
+            except OSError:
+                if self._stopping.is_set():
+                    return
+                raw = None
+            now = time.monotonic()
+            if raw is not None:
+                self.stats.datagrams_in += 1
+                self.stats.bytes_in += len(raw)
+                if self._peer_ips and host not in self._peer_ips:
+                    self.stats.strangers += 1
+                    if self.stats.strangers in (1, 10, 100, 1000):
+                        log.warning("UDP channel: dropped %d datagram(s) from strangers "
+                                    "(latest from %s)", self.stats.strangers, host)
+                else:
+                    finished.extend(self.reassembler.feed(raw, now))
+            if now >= next_sweep:
+                finished.extend(self.reassembler.expire(now))
+                next_sweep = now + 0.02
+            for key, value in finished:
+                try:
+                    self.on_message(key, value)
+                except Exception:  # noqa: BLE001 -- a consumer bug must not stop the channel
+                    log.exception("UDP channel: delivering %s failed", self.routes[key].label)

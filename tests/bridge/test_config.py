@@ -1,0 +1,110 @@
+"""Bridge configuration: the paper's file, expansion of GYM modules, errors with lines."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from bridge import config
+from bridge.config import ConfigError
+from bridge.main import main as bridge_main
+
+MODELS = Path(__file__).resolve().parents[2] / "models"
+
+
+def test_the_papers_example_loads_as_printed():
+    loaded = config.load(MODELS / "bridge_paper.xml")
+    assert loaded.modules == {"walking": 0, "drc_valve": 2, "drc_drive": 4, "drc_wall": 5,
+                              "drc_door": 6, "gaze_control": 7, "temperature": 8,
+                              "drc_plug": 11, "encoder_bridge": 9, "walking_publish": 12}
+    assert loaded.period == 0.5 and loaded.gather == 0.4
+
+
+def test_a_gym_module_expands_to_its_four_flows():
+    loaded = config.load(MODELS / "bridge_paper.xml")
+    flows = {c.label: c for c in loaded.channels if c.id == 7}
+    assert set(flows) == {"gaze_control/switch", "gaze_control/command", "gaze_control/status",
+                          "gaze_control/warning"}
+    switch = flows["gaze_control/switch"]
+    assert (switch.source, switch.destination, switch.reliable) == ("pilot", "robot", True)
+    assert switch.listen_port == "/gaze_control/switch:i"        # opened on the pilot side
+    assert switch.deliver_port == "/gaze_control/switch:i"       # connected on the robot side
+    status = flows["gaze_control/status"]
+    assert (status.source, status.reliable) == ("robot", False)
+    assert status.feed_port == "/gaze_control/status:o" and status.emit_port == status.feed_port
+    assert flows["gaze_control/warning"].reliable
+
+
+def test_custom_modules_rename_ports():
+    loaded = config.load(MODELS / "bridge_paper.xml")
+    custom = [c for c in loaded.channels if c.id == 9]
+    assert [(c.source, c.feed_port, c.listen_port, c.emit_port, c.deliver_port)
+            for c in custom] == [
+        ("robot", "/encoder_bridge/command:o", "/encoder_bridge/command:i",
+         "/encoder_bridge/command:o", "/encoder_bridge/command:i"),
+        ("pilot", "/encoder_bridge/switch:o", "/encoder_bridge/switch:i",
+         "/encoder_bridge/switch:o", "/encoder_bridge/switch:i")]
+    assert not custom[0].reliable and custom[1].reliable  # robot data streams, commands do not
+
+
+def test_the_project_config_has_state_and_topics():
+    loaded = config.load(MODELS / "bridge_drc.xml")
+    assert loaded.robot_state == (20, "walkman", "tcp")
+    topics = {c.label: c for c in loaded.channels if c.middleware == "ros"}
+    assert topics["/multisense/points"].transport == "udp"
+    assert topics["/robot_description_semantic"].latch
+
+
+BAD = [
+    ('<modules><module name="a" id="1"/><module name="b" id="1"/></modules>', 1,
+     "duplicate id 1"),
+    ('<modules>\n<module name="a" id="300"/></modules>', 2, "does not fit in 8 bits"),
+    ('<modules><module name="a" id="3"/></modules>\n<custom_modules>\n<module name="c" id="3">'
+     '<connection port_to_open="/x" source_port="/y" target_port="/z" location="robot" '
+     'direction="robot_to_pilot"/></module></custom_modules>', 3, "duplicate id 3"),
+    ('<custom_modules><module name="c" id="3">\n<connection port_to_open="/x" source_port="/y"'
+     ' target_port="/z" location="robot" direction="sideways"/></module></custom_modules>', 2,
+     "unknown direction 'sideways'"),
+    ('<custom_modules><module name="c" id="3">\n<connection port_to_open="/x" source_port="/y"'
+     ' target_port="/z" location="pilot" direction="robot_to_pilot"/></module>'
+     '</custom_modules>', 2, "contradicts direction"),
+    ('<custom_modules><module name="c" id="3"><connection port_to_open="/x" source_port="/y"'
+     ' target_port="/z" location="robot" direction="robot_to_pilot"/>\n<connection '
+     'port_to_open="/x" source_port="/w" target_port="/v" location="robot" '
+     'direction="robot_to_pilot"/></module></custom_modules>', 2, "claimed twice"),
+    ('<bridge><ros_topics>\n<topic name="/points" type="sensor_msgs/PointCloud2" id="4" '
+     'direction="robot_to_pilot" channel="tcp"/></ros_topics></bridge>', 2,
+     "TCP-ROS is unsupported: ROS data would saturate the channel"),
+    ('<modules><module name="a" id="x"/></modules>', 1, "not a valid value"),
+    ('<modules><module name="a" id="1">\n</modules>', 2, "malformed XML"),
+    ('<modules><modul name="a" id="1"/></modules>', 1, "modul"),
+    ('<bridge period="-1"/>', 1, "period must be positive"),
+]
+
+
+@pytest.mark.parametrize("text, line, problem", BAD)
+def test_errors_name_the_file_line_and_problem(text, line, problem):
+    with pytest.raises(ConfigError) as caught:
+        config.parse(text, "bridge.xml")
+    assert str(caught.value).startswith(f"bridge.xml:{line}: ")
+    assert problem in str(caught.value)
+
+
+def test_the_check_command_prints_the_table_or_the_error(tmp_path, capsys):
+    assert bridge_main(["--check", str(MODELS / "bridge_paper.xml")]) == 0
+    out = capsys.readouterr().out
+    assert "gaze_control/switch" in out and "reliable" in out
+    bad = tmp_path / "bad.xml"
+    bad.write_text(BAD[0][0])
+    assert bridge_main(["--check", str(bad)]) == 1
+    assert "bad.xml:1: duplicate id 1" in capsys.readouterr().err
+
+
+def test_command_line_mistakes_are_named(capsys):
+    with pytest.raises(SystemExit):
+        bridge_main(["--side", "robot"])
+    assert "missing --config, --peer" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        bridge_main(["--side", "robot", "--config", "x", "--peer", "h", "--udp-rate", "fast"])
+    assert "'fast' is not a rate" in capsys.readouterr().err

@@ -1,0 +1,182 @@
+"""The TCP channel in-process on loopback: batching, exactly-once, reconnects, bad peers."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from typing import Any, List, Tuple
+
+import pytest
+
+from bridge import frames
+from bridge.journal import Journal
+from bridge.tcp_channel import BOTTLE, Route, TcpChannel
+from harness import free_port, wait_until
+from yarp_lite.bottle import Bottle
+
+SWITCH, STATUS = (7, 0), (7, 2)
+ROUTES = [Route(SWITCH, "gaze_control/switch", BOTTLE, True),
+          Route(STATUS, "gaze_control/status", BOTTLE, False)]
+
+
+class End:
+    """One side: a channel, its journal, and what it received."""
+
+    def __init__(self, side: str, port: int, state_dir, listen: bool, peer: str = "127.0.0.1",
+                 config_text: str = "config", period: float = 0.2) -> None:
+        self.state_dir = state_dir
+        self.journal = Journal(state_dir)
+        self.streams: List[Tuple[Any, Any]] = []
+        self.reliable: List[Bottle] = []
+        self.lock = threading.Lock()
+        self.channel = TcpChannel(side=side, peer=peer, port=port, listen=listen,
+                                  config_text=config_text, journal=self.journal, routes=ROUTES,
+                                  period=period, on_message=self._on_message,
+                                  on_reliable=self._drain, link_timeout=2.0)
+
+    def _on_message(self, key, value) -> None:
+        self.streams.append((key, value))
+
+    def _drain(self) -> None:
+        from bridge import compact
+
+        with self.lock:
+            for row, _, _, payload in self.journal.undelivered():
+                self.reliable.append(compact.decode(payload))
+                self.journal.delivered(row)
+
+    def start(self) -> "End":
+        self.channel.start()
+        return self
+
+    def stop(self) -> None:
+        self.channel.stop()
+        self.journal.close()
+
+
+@pytest.fixture
+def pair(tmp_path):
+    port = free_port()
+    ends = []
+
+    def make(**kwargs):
+        robot = End("robot", port, tmp_path / "robot", listen=True, **kwargs).start()
+        pilot = End("pilot", port, tmp_path / "pilot", listen=False, **kwargs).start()
+        ends.extend([robot, pilot])
+        wait_until(lambda: robot.channel.connected and pilot.channel.connected, 10,
+                   message="link up")
+        return robot, pilot
+
+    make.port, make.tmp = port, tmp_path
+    make.ends = ends
+    yield make
+    for end in ends:
+        end.stop()
+
+
+def test_commands_arrive_once_in_order_and_at_once(pair):
+    robot, pilot = pair(period=5.0)  # a long period: commands must not wait for it
+    started = time.monotonic()
+    for index in range(20):
+        pilot.channel.send_reliable(SWITCH, Bottle(["start", index + 2]))
+    wait_until(lambda: len(robot.reliable) == 20, 5, message="commands")
+    assert time.monotonic() - started < 2.0
+    assert [b[1] for b in robot.reliable] == list(range(2, 22))
+    wait_until(lambda: pilot.journal.waiting() == 0, 5, message="acks")
+
+
+def test_streams_keep_only_the_latest_value_per_period(pair):
+    robot, pilot = pair(period=0.3)
+    for index in range(100):
+        robot.channel.post(STATUS, Bottle([index + 2, "a"]))
+    wait_until(lambda: pilot.streams, 3, message="status")
+    time.sleep(0.5)
+    assert [value[0] for _, value in pilot.streams] == [101]
+    robot.channel.post(STATUS, Bottle([102, "b"]))
+    wait_until(lambda: len(pilot.streams) == 2, 3, message="second status")
+    assert pilot.streams[-1][1] == Bottle([102, "b"])
+    assert robot.channel.stats.payload_out < 20  # the second one went as a 3-byte delta
+
+
+def test_a_dropped_connection_loses_and_repeats_nothing(pair):
+    robot, pilot = pair(period=0.2)
+    pilot.channel.send_reliable(SWITCH, Bottle(["start", 2]))
+    wait_until(lambda: len(robot.reliable) == 1, 5)
+    # Cut the link under the channels' feet, then keep commanding while it is down.
+    robot.channel._drop("test cut")
+    for index in range(3, 8):
+        pilot.channel.send_reliable(SWITCH, Bottle(["turn", index]))
+    wait_until(lambda: robot.channel.connected and len(robot.reliable) == 6, 15,
+               message="resend after reconnect")
+    assert [b[1] for b in robot.reliable] == [2, 3, 4, 5, 6, 7]
+    assert robot.channel.stats.connects >= 2
+
+
+def test_a_restarted_sender_resends_only_what_was_not_accepted(pair):
+    robot, pilot = pair(period=0.2)
+    for index in range(2, 6):
+        pilot.channel.send_reliable(SWITCH, Bottle(["c", index]))
+    wait_until(lambda: len(robot.reliable) == 4, 5)
+    pilot.channel.stop()  # as if killed before the acks arrived: its journal still has all
+    pilot.journal.close()
+    fresh = End("pilot", pair.port, pilot.state_dir, listen=False).start()
+    pair.ends.append(fresh)
+    fresh.channel.send_reliable(SWITCH, Bottle(["c", 6]))
+    wait_until(lambda: len(robot.reliable) == 5, 10, message="the new command")
+    time.sleep(0.5)
+    assert [b[1] for b in robot.reliable] == [2, 3, 4, 5, 6]
+    wait_until(lambda: fresh.journal.waiting() == 0, 5, message="acks")
+
+
+def test_a_peer_with_another_configuration_is_refused_by_name(tmp_path):
+    port = free_port()
+    robot = End("robot", port, tmp_path / "r", listen=True, config_text="one").start()
+    pilot = End("pilot", port, tmp_path / "p", listen=False, config_text="two").start()
+    try:
+        wait_until(lambda: "different bridge configuration" in pilot.channel.stats.last_error,
+                   10, message="the refusal")
+        assert not pilot.channel.connected
+    finally:
+        pilot.stop()
+        robot.stop()
+
+
+def test_garbage_and_strangers_do_not_hurt_the_listener(tmp_path):
+    port = free_port()
+    robot = End("robot", port, tmp_path / "r", listen=True).start()
+    try:
+        with socket.create_connection(("127.0.0.1", port)) as rogue:
+            rogue.sendall(b"\xff" * 64)
+            rogue.settimeout(5)
+            try:
+                while rogue.recv(4096):
+                    pass
+            except OSError:
+                pass
+        assert robot.channel.phase == "down"
+        pilot = End("pilot", port, tmp_path / "p", listen=False).start()
+        wait_until(lambda: pilot.channel.connected, 10, message="the real peer")
+        pilot.channel.send_reliable(SWITCH, Bottle(["start", 2]))
+        wait_until(lambda: robot.reliable, 5)
+        pilot.stop()
+    finally:
+        robot.stop()
+    stranger_port = free_port()
+    picky = End("robot", stranger_port, tmp_path / "s", listen=True, peer="127.0.0.2").start()
+    try:
+        socket.create_connection(("127.0.0.1", stranger_port)).close()
+        wait_until(lambda: picky.channel.stats.rejected_peers == 1, 5, message="rejection")
+    finally:
+        picky.stop()
+
+
+def test_a_bad_frame_drops_the_connection_and_it_comes_back(pair):
+    robot, pilot = pair(period=0.2)
+    connection = pilot.channel._connection
+    connection.sock.sendall(frames.encode_data((frames.Entry(7, 2, b"\xff\xff"),)))
+    wait_until(lambda: robot.channel.stats.bad_frames == 1, 5, message="bad frame counted")
+    wait_until(lambda: robot.channel.connected and pilot.channel.connected
+               and robot.channel.stats.connects >= 2, 10, message="reconnect")
+    pilot.channel.send_reliable(SWITCH, Bottle(["after", 2]))
+    wait_until(lambda: robot.reliable, 5)

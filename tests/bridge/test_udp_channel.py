@@ -1,0 +1,166 @@
+"""UDP channel: reassembly by message number, gathering time, FEC, and bad datagrams."""
+
+from __future__ import annotations
+
+import random
+import socket
+import time
+
+import numpy as np
+import pytest
+
+from bridge import datagrams, tiles
+from bridge.endpoints.yarp import BottleUdpCodec
+from bridge.udp_channel import (Reassembler, UdpChannel, UdpRoute, UdpStats,
+                                message_datagrams, slice_message)
+from harness import free_port, wait_until
+from yarp_lite.bottle import Bottle
+
+
+class RasterCodec:
+    """Tiles of a plain numpy image, for tests without ROS."""
+
+    tiled = True
+
+    def encode(self, image):
+        return tiles.split(image, tiles.header_for(image, tiles.PNG), b"frame")
+
+    def decode(self, canvas, completeness):
+        return canvas
+
+
+IMAGE = np.random.default_rng(0).integers(0, 256, (120, 160, 3), dtype=np.uint8)
+CAMERA = UdpRoute((30, 0), "camera", RasterCodec())
+CAMERA_FEC = UdpRoute((31, 0), "camera_fec", RasterCodec(), fec=0.5)
+BLOB = UdpRoute((9, 0), "blob", BottleUdpCodec())
+ROUTES = {r.key: r for r in (CAMERA, CAMERA_FEC, BLOB)}
+
+
+def test_a_complete_message_is_published_at_once():
+    stats = UdpStats()
+    reassembler = Reassembler(ROUTES, 0.4, stats)
+    wire = message_datagrams(CAMERA, 1000, RasterCodec().encode(IMAGE))
+    out = []
+    for raw in wire:
+        out += reassembler.feed(raw, now=0.0)
+    assert len(out) == 1 and out[0][1].completeness == 1.0
+    assert np.array_equal(out[0][1].pixels, IMAGE)
+    assert all(len(raw) <= datagrams.MAX_DATAGRAM for raw in wire)
+
+
+def test_a_partial_image_is_published_after_the_gathering_time():
+    stats = UdpStats()
+    reassembler = Reassembler(ROUTES, 0.4, stats)
+    wire = message_datagrams(CAMERA, 1000, RasterCodec().encode(IMAGE))
+    kept = wire[:-3]
+    for raw in kept:
+        assert reassembler.feed(raw, now=0.0) == []
+    assert reassembler.expire(now=0.39) == []
+    (key, canvas), = reassembler.expire(now=0.41)
+    assert 0.5 < canvas.completeness < 1.0
+    assert np.array_equal(canvas.pixels[canvas.covered], IMAGE[canvas.covered])
+    assert stats.flows["camera"].partial == 1
+    # Stragglers and replays of a published message are stale.
+    assert reassembler.feed(wire[-1], now=0.5) == [] and stats.stale == 1
+    assert reassembler.feed(wire[0], now=0.5) == [] and stats.stale == 2
+
+
+def test_repair_datagrams_rebuild_lost_tiles():
+    stats = UdpStats()
+    reassembler = Reassembler(ROUTES, 0.4, stats)
+    wire = message_datagrams(CAMERA_FEC, 7, RasterCodec().encode(IMAGE))
+    data_parts = [raw for raw in wire if not datagrams.decode(raw).is_repair]
+    lost = set(random.Random(1).sample(range(len(wire)), len(data_parts) // 3))
+    out = []
+    for index, raw in enumerate(wire):
+        if index not in lost:
+            out += reassembler.feed(raw, now=0.0)
+    out += reassembler.expire(now=1.0)
+    (_, canvas), = out
+    assert canvas.completeness == 1.0 and stats.flows["camera_fec"].repaired > 0
+
+
+def test_a_sliced_message_is_whole_or_lost():
+    stats = UdpStats()
+    reassembler = Reassembler(ROUTES, 0.4, stats)
+    bottle = Bottle([bytes(5000), "tail"])
+    wire = message_datagrams(BLOB, 5, slice_message(BottleUdpCodec().encode(bottle)))
+    assert len(wire) == 4
+    for raw in wire[1:]:
+        reassembler.feed(raw, now=0.0)
+    assert reassembler.expire(now=1.0) == [] and stats.flows["blob"].lost == 1
+    out = []
+    for raw in message_datagrams(BLOB, 6, slice_message(BottleUdpCodec().encode(bottle))):
+        out += reassembler.feed(raw, now=2.0)
+    assert out == [((9, 0), bottle)]
+
+
+def test_newer_messages_supersede_older_ones_and_numbers_wrap():
+    stats = UdpStats()
+    reassembler = Reassembler(ROUTES, 0.4, stats)
+    near_wrap = (1 << 32) - 1
+    for number in (near_wrap, 0, 1):  # 0 and 1 come after the wrap
+        out = []
+        for raw in message_datagrams(BLOB, number, slice_message(b"\x01\x00\x02")):
+            out += reassembler.feed(raw, now=0.0)
+        assert len(out) == 1
+    for raw in message_datagrams(BLOB, near_wrap, slice_message(b"\x01\x00\x02")):
+        assert reassembler.feed(raw, now=0.0) == []
+    assert stats.stale == 1
+
+
+def test_garbage_and_unknown_ids_are_counted_not_fatal():
+    stats = UdpStats()
+    reassembler = Reassembler(ROUTES, 0.4, stats)
+    assert reassembler.feed(b"\x00" * 40, now=0.0) == []
+    assert reassembler.feed(datagrams.encode(datagrams.Datagram(99, 0, 1, 1, 1, 0, b"x")),
+                            now=0.0) == []
+    corrupt_tile = datagrams.encode(datagrams.Datagram(30, 0, 1, 1, 1, 0, b"\x05" * 30))
+    assert reassembler.feed(corrupt_tile, now=0.0) == []
+    assert (stats.bad, stats.unknown_ids, stats.bad_tiles) == (1, 1, 1)
+    assert stats.flows["camera"].lost == 1
+
+
+def test_channels_on_sockets_deliver_and_refuse_strangers():
+    port_a, port_b = free_port(), free_port()
+    received = []
+    a = UdpChannel(peer="127.0.0.1", port=port_a, peer_port=port_b, routes=[BLOB], gather=0.4,
+                   on_message=lambda k, v: None, rate=2e6)
+    b = UdpChannel(peer="127.0.0.1", port=port_b, peer_port=port_a, routes=[BLOB], gather=0.4,
+                   on_message=lambda k, v: received.append(v))
+    a.start()
+    b.start()
+    try:
+        a.post(BLOB.key, Bottle(["hello", bytes(3000)]))
+        wait_until(lambda: received, 5, message="the message")
+        assert received[0][0] == "hello"
+        stranger = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        stranger.bind(("127.0.0.2", 0))
+        raw = message_datagrams(BLOB, int(time.time() * 1000) & 0xFFFFFFFF,
+                                slice_message(b"\x01\x09\x03bad"))
+        stranger.sendto(raw[0], ("127.0.0.1", port_b))
+        stranger.close()
+        wait_until(lambda: b.stats.strangers == 1, 5, message="stranger counted")
+        assert len(received) == 1
+    finally:
+        a.stop()
+        b.stop()
+
+
+def test_pacing_holds_the_configured_rate():
+    port_a, port_b = free_port(), free_port()
+    a = UdpChannel(peer="127.0.0.1", port=port_a, peer_port=port_b, routes=[BLOB], gather=0.4,
+                   on_message=lambda k, v: None, rate=400e3)
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink.bind(("127.0.0.1", port_b))
+    a.start()
+    try:
+        started = time.monotonic()
+        a.post(BLOB.key, Bottle([bytes(50_000)]))  # 400 kbit of payload and headers
+        wait_until(lambda: a.stats.datagrams_out >= 35, 10, message="all datagrams")
+        elapsed = time.monotonic() - started
+        bits = (a.stats.bytes_out + 28 * a.stats.datagrams_out) * 8
+        assert bits / elapsed <= 400e3 * 1.25
+    finally:
+        a.stop()
+        sink.close()
