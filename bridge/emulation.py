@@ -145,10 +145,14 @@ class EmulatedLink:
             raise EmulationError(f"loss {percent} % is not a percentage")
         for side in SIDES:
             self._ns(side, "nft", "flush", "chain", "inet", TABLE, "input")
-            if percent > 0:
+            chance = int(round(percent * 100))
+            if chance >= 10000:
+                self._ns(side, "nft", "add", "rule", "inet", TABLE, "input", "iifname",
+                         self.device(side), "drop")
+            elif chance > 0:
                 self._ns(side, "nft", "add", "rule", "inet", TABLE, "input", "iifname",
                          self.device(side), "numgen", "random", "mod", "10000", "<",
-                         str(int(round(percent * 100))), "drop")
+                         str(chance), "drop")
 
     def blackout(self, on: bool) -> None:
         """Drop everything arriving on either side (the radio is gone)."""

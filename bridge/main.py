@@ -16,6 +16,7 @@ it; both send UDP to the peer's ``--udp-port``.  Talk to a running bridge with
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import logging
 import re
 import signal
@@ -106,6 +107,22 @@ def describe(config: bridge_config.BridgeConfig) -> str:
     return "\n".join(lines)
 
 
+def configure_logging(side: str, verbose: bool) -> None:
+    """Our loggers print to stderr through their own handler, not the root's.
+
+    rospy.init_node (in a background thread) replaces the root logger's
+    handlers with its log files; our lines must keep coming meanwhile.
+    """
+    handler = logging.StreamHandler()
+    handler.setFormatter(logging.Formatter(f"[bridge {side}] %(levelname)s %(name)s: "
+                                           f"%(message)s"))
+    for name in ("bridge", "yarp_lite", "walkman"):
+        logger = logging.getLogger(name)
+        logger.addHandler(handler)
+        logger.setLevel(logging.DEBUG if verbose else logging.INFO)
+        logger.propagate = False
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     parser = build_parser()
     options = parser.parse_args(argv)
@@ -120,10 +137,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                                         ("--peer", options.peer)) if not value]
     if missing:
         parser.error(f"missing {', '.join(missing)}")
-    logging.basicConfig(level=logging.DEBUG if options.verbose else logging.INFO,
-                        format=f"[bridge {options.side}] %(levelname)s %(name)s: %(message)s")
-    for noisy in ("rosout", "rospy"):
-        logging.getLogger(noisy).setLevel(logging.WARNING)
+    configure_logging(options.side, options.verbose)
     try:
         text = options.config.read_text()
         config = bridge_config.parse(text, str(options.config))
@@ -146,6 +160,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     except OSError as exc:
         print(f"walkman-bridge: cannot start: {exc}", file=sys.stderr)
         return 1
+    faulthandler.register(signal.SIGUSR1)  # kill -USR1 <pid>: every thread's stack to stderr
     done = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: done.set())

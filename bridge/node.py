@@ -152,6 +152,9 @@ class Bridge:
         except YarpError as exc:
             log.error("cannot open the YARP side: %s", exc)
             return
+        except Exception:
+            log.exception("opening the endpoints failed")
+            raise
         self.keeper.start()
         self._deliver_wake.set()
         log.info("bridge %s side ready: %d flows out, %d in", self.side,

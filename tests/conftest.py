@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.append(str(Path(__file__).resolve().parent))
 
 from harness import (YarpWorld, lite_implementation, missing_reference,  # noqa: E402
                      real_implementation)

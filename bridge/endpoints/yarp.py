@@ -108,9 +108,9 @@ class ConnectionKeeper:
                 log.info("connected %s -> %s", item.source, item.target)
                 item.announced = False
             elif not item.announced:
-                log.info("waiting for %s to connect it to %s",
+                log.info("waiting for %s (to connect %s -> %s)",
                          item.target if item.ours_is_source else item.source,
-                         item.source if item.ours_is_source else item.target)
+                         item.source, item.target)
                 item.announced = True
 
     def _run(self) -> None:

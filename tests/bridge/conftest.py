@@ -1,0 +1,6 @@
+"""The bridge tests' helpers (bridge_harness, counting_module, pilot_sender) import by name."""
+
+import sys
+from pathlib import Path
+
+sys.path.append(str(Path(__file__).resolve().parent))

@@ -1,0 +1,37 @@
+"""A pilot that sends numbered commands and insists until each is accepted.
+
+``python pilot_sender.py TARGET FIRST LAST [INTERVAL]`` sends ``(count N) N``
+for N in FIRST..LAST to TARGET (e.g. ``/counter/command:i``) over tcp, which
+YARP acknowledges; when a write fails it reconnects and sends the same N again,
+as a pilot GUI would.  Prints ``sent N`` after each acknowledged write.
+"""
+
+import sys
+import time
+
+from yarp_lite.bottle import Bottle
+from yarp_lite.port import Port
+
+
+def main() -> int:
+    target, first, last = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+    interval = float(sys.argv[4]) if len(sys.argv) > 4 else 0.05
+    port = Port()
+    port.open(f"/test/sender{first}", wait=60)
+    number = first
+    while number <= last:
+        if port.output_count == 0 and not port.add_output(target, quiet=True):
+            time.sleep(0.2)
+            continue
+        if port.write(Bottle([Bottle(["count", number]), number])) and port.output_count:
+            print(f"sent {number}", flush=True)
+            number += 1
+            time.sleep(interval)
+        else:
+            time.sleep(0.2)
+    port.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

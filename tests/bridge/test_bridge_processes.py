@@ -1,0 +1,190 @@
+"""Both bridges as real processes on loopback, with two name servers.
+
+A GYM module on the robot's name server and a pilot on the pilot's exchange
+switch, command and status through the bridge as they would on one name
+server; the robot state crosses in the Table 1 codec; then everything is
+killed and restarted while commands keep coming, and none is lost or run twice.
+"""
+
+from __future__ import annotations
+
+import signal
+import time
+from pathlib import Path
+
+import pytest
+
+from bridge_harness import HERE, PYTHON, TwoPCs, count_lines
+from harness import missing_reference, wait_until
+
+CONFIG = """<bridge period="0.2" gather="0.4">
+  <modules>
+    <module name="counter" id="3"/>
+    <module name="gaze_control" id="7"/>
+  </modules>
+  <robot_state id="20" robot="walkman" channel="tcp" rate="20"/>
+</bridge>
+"""
+
+
+@pytest.fixture
+def pcs(tmp_path, lite):
+    config = tmp_path / "bridge.xml"
+    config.write_text(CONFIG)
+    two = TwoPCs(tmp_path, lite, config)
+    yield two
+    two.close()
+
+
+def start_counter(pcs: TwoPCs):
+    """The counting module on the robot (it logs to $COUNTER_LOG, set by ``counter_env``)."""
+    return pcs.robot.start([PYTHON, "-m", "walkman.gym.supervisor", "counting_module:Module",
+                            "--name", "/counter"], "counter module")
+
+
+@pytest.fixture
+def counter_env(pcs, tmp_path, monkeypatch):
+    log = tmp_path / "executed.log"
+    monkeypatch.setenv("COUNTER_LOG", str(log))
+    return log
+
+
+def executed(log: Path):
+    return [int(line.split()[2]) for line in count_lines(log, r"^executed count ")]
+
+
+def send(pcs: TwoPCs, first: int, last: int, interval: float = 0.05):
+    return pcs.pilot.python(str(HERE / "pilot_sender.py"), "/counter/command:i", str(first), str(last),
+                            str(interval), name=f"sender {first}-{last}")
+
+
+def switch(pcs: TwoPCs, lite, word: str, seq: int) -> None:
+    result = pcs.pilot.world.run_tool(lite, "write", f"/test/switch{seq}", "/counter/switch:i",
+                                      input_text=f"{word} {seq}\n")
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+@pytest.mark.parametrize("order", ["bridges-first", "modules-first"])
+def test_switch_command_and_status_cross_the_bridge(pcs, lite, counter_env, order):
+    if order == "bridges-first":
+        pcs.start_bridge(pcs.robot, wait=False)
+        pcs.start_bridge(pcs.pilot, wait=False)
+        pcs.start_name_servers()
+        module = start_counter(pcs)
+    else:
+        pcs.start_name_servers()
+        module = start_counter(pcs)
+        module.wait_for("ready for the pilot", 60)
+        pcs.start_bridge(pcs.robot)
+        pcs.start_bridge(pcs.pilot)
+    pcs.wait_linked()
+    reader = pcs.pilot.world.tool(lite, "read", "/test/status", "/counter/status:o")
+    switch(pcs, lite, "start", 2)
+    sender = send(pcs, 1, 5)
+    assert sender.wait(60) == 0, sender.output()
+    wait_until(lambda: executed(counter_env) == [1, 2, 3, 4, 5], 20,
+               message=f"commands executed (got {executed(counter_env)})")
+    # The pilot reads the robot's status on its own name server, under the original name
+    # ("counting", dictionary-coded as its second state: b, with the last sequence number).
+    reader.wait_for(r"^\d+ b 5$", 20)
+
+
+def test_the_robot_state_crosses_in_the_table_1_codec(pcs, lite):
+    pcs.start_name_servers()
+    pcs.robot.python("-m", "walkman.hal.server", "--backend", "sim",
+                     name="hal").wait_for("HAL for walkman", 60)
+    pcs.start_bridge(pcs.robot)
+    pcs.start_bridge(pcs.pilot)
+    pcs.wait_linked()
+    wait_until(lambda: pcs.pilot.world.run_tool(lite, "exists", "/walkman/head/stateExt:o")
+               .returncode == 0, 30, message="the HAL's ports republished on the pilot side")
+    reader = pcs.pilot.world.tool(lite, "read", "/test/head", "/walkman/head/stateExt:o")
+    line = reader.wait_for(r"^\s*\d+(\.\d+)? [\d.]+ 2(\.0)? ", 30)
+    values = [float(v) for v in line.string.split()]
+    assert len(values) == 3 + 4 * 2       # seq time N q[2] qdot[2] tau[2] temperature[2]
+    assert 20 < values[-1] < 90            # a plausible board temperature
+    state = pcs.pilot.world.run_tool(lite, "rpc", "/bridge/pilot/rpc:i", input_text="status\n")
+    assert "(link up)" in state.stdout
+
+
+def test_no_command_lost_or_run_twice_through_kills_and_restarts(pcs, lite, counter_env):
+    pcs.start_name_servers()
+    module = start_counter(pcs)
+    pcs.start_bridge(pcs.robot)
+    pcs.start_bridge(pcs.pilot)
+    pcs.wait_linked()
+    switch(pcs, lite, "start", 2)
+
+    def progress(count: int, timeout: float = 30) -> None:
+        wait_until(lambda: len(executed(counter_env)) >= count, timeout,
+                   message=f"{count} commands executed (got {executed(counter_env)[-5:]})")
+
+    assert send(pcs, 1, 10).wait(60) == 0
+    progress(10)
+
+    # The robot's bridge dies; the pilot keeps commanding; the commands wait, then run.
+    pcs.kill_bridge(pcs.robot)
+    assert send(pcs, 11, 20).wait(60) == 0
+    time.sleep(0.5)
+    assert len(executed(counter_env)) == 10
+    pcs.start_bridge(pcs.robot)
+    progress(20)
+
+    # The pilot's bridge dies in the middle of a burst; the pilot insists until accepted.
+    sender = send(pcs, 21, 40, interval=0.05)
+    sender.wait_for("sent 25", 30)
+    pcs.kill_bridge(pcs.pilot)
+    time.sleep(1.0)
+    pcs.start_bridge(pcs.pilot)
+    assert sender.wait(90) == 0, sender.output()
+    progress(40)
+
+    # The robot's name server dies and comes back on its port: ports register again.
+    pcs.robot.world.stop_server()
+    assert send(pcs, 41, 45).wait(60) == 0
+    pcs.robot.world.start_server()
+    progress(45, timeout=60)
+
+    # The module dies; commands sent meanwhile wait in the bridge for its return.
+    module.kill(signal.SIGKILL)
+    time.sleep(0.5)
+    assert send(pcs, 46, 50).wait(60) == 0
+    start_counter(pcs).wait_for("ready for the pilot", 60)
+    switch(pcs, lite, "start", 3)
+    progress(50, timeout=60)
+
+    time.sleep(1.0)
+    assert executed(counter_env) == list(range(1, 51))
+    status = pcs.pilot.world.run_tool(lite, "rpc", "/bridge/pilot/rpc:i", input_text="status\n")
+    assert "(queued_commands 0)" in status.stdout
+
+
+def test_a_real_yarp_pilot_and_name_server_see_no_difference(tmp_path, reference, lite,
+                                                             monkeypatch):
+    """Pilot side on the reference yarpserver, typed with the reference ``yarp`` tools."""
+    config = tmp_path / "bridge.xml"
+    config.write_text(CONFIG)
+    pcs = TwoPCs(tmp_path, lite, config)
+    pcs.pilot.world.server_impl = reference
+    log = tmp_path / "executed.log"
+    monkeypatch.setenv("COUNTER_LOG", str(log))
+    try:
+        pcs.start_name_servers()
+        start_counter(pcs).wait_for("ready for the pilot", 60)
+        pcs.start_bridge(pcs.robot)
+        pcs.start_bridge(pcs.pilot)
+        pcs.wait_linked()
+        reader = pcs.pilot.world.tool(reference, "read", "/test/status", "/counter/status:o")
+        writer = pcs.pilot.world.tool(reference, "write", "/test/w", "/counter/switch:i",
+                                      stdin=True)
+        time.sleep(1.5)
+        writer.send("start 2\n")
+        commands = pcs.pilot.world.tool(reference, "write", "/test/c", "/counter/command:i",
+                                        stdin=True)
+        time.sleep(1.5)
+        commands.send("(count 1) 1\n")
+        commands.send("(count 2) 2\n")
+        wait_until(lambda: executed(log) == [1, 2], 20, message="commands via real yarp write")
+        reader.wait_for(r"^\d+ b 2$", 20)
+    finally:
+        pcs.close()
