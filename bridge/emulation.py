@@ -16,8 +16,9 @@ drc         1 Mbit/s token bucket (``tc tbf``) and random loss
 degraded    9600 bit/s, and blackouts of 1-30 s when ``blackouts`` runs
 ==========  ==========================================================
 
-Loss and blackouts drop packets on *arrival* (the input hook), so senders see
-a lossy wire, not an error.  ``flap`` takes the link down and up
+Loss and blackouts drop Ethernet frames on *arrival* (the netdev ingress hook,
+before IP reassembles fragments), so senders see a lossy wire, not an error,
+and a 60 kB datagram dies of any one of its 45 fragments, as on a radio.  ``flap`` takes the link down and up
 (``ip link``), which senders do see.  This kernel has no ``netem``, hence no
 delay emulation.  Everything needs root; :func:`available` says why not.
 """
@@ -113,9 +114,10 @@ class EmulatedLink:
                      self.device(side))
             self._ns(side, "ip", "link", "set", "lo", "up")
             self._ns(side, "ip", "link", "set", self.device(side), "up")
-            self._ns(side, "nft", "add", "table", "inet", TABLE)
-            self._ns(side, "nft", "add", "chain", "inet", TABLE, "input",
-                     "{ type filter hook input priority 0; policy accept; }")
+            self._ns(side, "nft", "add", "table", "netdev", TABLE)
+            self._ns(side, "nft", "add", "chain", "netdev", TABLE, "ingress",
+                     f"{{ type filter hook ingress device {self.device(side)} priority 0; "
+                     f"policy accept; }}")
 
     def down(self) -> None:
         for side in SIDES:
@@ -144,15 +146,13 @@ class EmulatedLink:
         if not 0 <= percent <= 100:
             raise EmulationError(f"loss {percent} % is not a percentage")
         for side in SIDES:
-            self._ns(side, "nft", "flush", "chain", "inet", TABLE, "input")
+            self._ns(side, "nft", "flush", "chain", "netdev", TABLE, "ingress")
             chance = int(round(percent * 100))
             if chance >= 10000:
-                self._ns(side, "nft", "add", "rule", "inet", TABLE, "input", "iifname",
-                         self.device(side), "drop")
+                self._ns(side, "nft", "add", "rule", "netdev", TABLE, "ingress", "drop")
             elif chance > 0:
-                self._ns(side, "nft", "add", "rule", "inet", TABLE, "input", "iifname",
-                         self.device(side), "numgen", "random", "mod", "10000", "<",
-                         str(chance), "drop")
+                self._ns(side, "nft", "add", "rule", "netdev", TABLE, "ingress", "numgen",
+                         "random", "mod", "10000", "<", str(chance), "drop")
 
     def blackout(self, on: bool) -> None:
         """Drop everything arriving on either side (the radio is gone)."""
@@ -162,9 +162,11 @@ class EmulatedLink:
         for side in SIDES:
             self._ns(side, "ip", "link", "set", self.device(side), "down" if down else "up")
 
-    def tx_bytes(self, side: str) -> int:
-        path = f"/sys/class/net/{self.device(side)}/statistics/tx_bytes"
-        return int(self._ns(side, "cat", path).stdout)
+    def tx_counters(self, side: str) -> tuple:
+        """``(bytes, packets)`` sent by ``side`` on the cable, Ethernet headers included."""
+        base = f"/sys/class/net/{self.device(side)}/statistics"
+        output = self._ns(side, "cat", f"{base}/tx_bytes", f"{base}/tx_packets").stdout.split()
+        return int(output[0]), int(output[1])
 
 
 def _bits(rate: str) -> float:

@@ -3,14 +3,18 @@
 Theory of operation
 -------------------
 A pilot command must reach its module exactly once even if either bridge is
-SIGKILLed or the link drops.  Each bridge keeps one SQLite file (WAL,
-``synchronous=FULL``: a commit is on disk before the call returns):
+SIGKILLed or the link drops.  Each bridge keeps one SQLite file (WAL):
 
 * the **outbox** numbers every reliable message it accepts from a local port
   (1, 2, 3... within a *session*, a random id created with the file) and keeps
   it until the peer acknowledges that number;
 * the **inbox** remembers, per peer session, the highest number accepted, and
   holds accepted messages until they are written to their local port.
+
+Commits reach the operating system before a call returns, so they survive
+the bridge being killed; with ``fsync=True`` they also reach the disk and
+survive a power cut, at the price of the disk's sync latency on every
+command (measured: median 2 ms -> p99 80-200 ms on a loaded ext4 VM).
 
 A reconnect exchanges ``(session, accepted)``; the sender resends everything
 after ``accepted``; the receiver drops any number it already has.  The local
@@ -63,7 +67,7 @@ CREATE TABLE IF NOT EXISTS inbox (row INTEGER PRIMARY KEY AUTOINCREMENT, id INTE
 class Journal:
     """One bridge's outbox and inbox, in ``<state_dir>/journal.sqlite``."""
 
-    def __init__(self, state_dir: Path, limit: int = DEFAULT_LIMIT) -> None:
+    def __init__(self, state_dir: Path, limit: int = DEFAULT_LIMIT, fsync: bool = False) -> None:
         state_dir = Path(state_dir)
         state_dir.mkdir(parents=True, exist_ok=True)
         self.path = state_dir / "journal.sqlite"
@@ -72,7 +76,7 @@ class Journal:
         self._db = sqlite3.connect(str(self.path), check_same_thread=False,
                                    isolation_level=None)
         self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.execute("PRAGMA synchronous=FULL")
+        self._db.execute(f"PRAGMA synchronous={'FULL' if fsync else 'NORMAL'}")
         self._db.executescript(_SCHEMA)
         with self._lock:
             self.session = self._meta("session") or self._new_session()

@@ -80,6 +80,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="seconds of silence before the link is declared down")
     parser.add_argument("--queue-limit", type=int, default=1000,
                         help="reliable messages kept while the link is down (default 1000)")
+    parser.add_argument("--fsync", action="store_true",
+                        help="sync every reliable message to disk, so queued commands also "
+                             "survive a power cut (costs the disk's sync time per command)")
     parser.add_argument("--state-dir", type=Path,
                         help="where the journal lives (default "
                              "$XDG_STATE_HOME/walkman-bridge/<side>)")
@@ -155,7 +158,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                         peer_udp_port=options.peer_udp_port, listen=options.listen,
                         state_dir=options.state_dir or default_state_dir(options.side),
                         udp_rate=options.udp_rate, link_timeout=options.link_timeout,
-                        queue_limit=options.queue_limit)
+                        queue_limit=options.queue_limit, fsync=options.fsync)
         bridge.start()
     except OSError as exc:
         print(f"walkman-bridge: cannot start: {exc}", file=sys.stderr)

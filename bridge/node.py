@@ -52,13 +52,13 @@ class Bridge:
                  tcp_port: int, udp_port: int, peer_udp_port: Optional[int] = None,
                  listen: Optional[bool] = None, state_dir: Path,
                  udp_rate: Optional[float] = None, link_timeout: float = 5.0,
-                 queue_limit: int = 1000) -> None:
+                 queue_limit: int = 1000, fsync: bool = False) -> None:
         if side not in (ROBOT, PILOT):
             raise ValueError(f"side must be robot or pilot, not {side!r}")
         self.config = config
         self.side = side
         self.nameclient = NameClient()
-        self.journal = Journal(state_dir, limit=queue_limit)
+        self.journal = Journal(state_dir, limit=queue_limit, fsync=fsync)
         self.refused = 0
         self.dropped_early = 0
         self.delivered = 0

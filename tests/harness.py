@@ -172,6 +172,8 @@ class YarpWorld:
     server: Optional[Proc] = None
     #: Prefix for every command, e.g. ``ip netns exec wm_robot`` for an emulated host.
     wrap: Sequence[str] = ()
+    #: Address the name server announces (another host's processes may use it).
+    ip: str = "127.0.0.1"
 
     def __post_init__(self) -> None:
         self.config = self.root / "config"
@@ -202,7 +204,7 @@ class YarpWorld:
 
     def start_server(self, extra: Sequence[str] = ()) -> Proc:
         argv = [*self.server_impl.server, "--socket", str(self.socket_number), "--ip",
-                "127.0.0.1", "--write", *extra]
+                self.ip, "--write", *extra]
         self.server = self.start(argv, f"{self.server_impl.name} server")
         wait_until(self._server_answers, timeout=20, message=f"{self.server_impl.name} server")
         return self.server

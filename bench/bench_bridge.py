@@ -1,0 +1,319 @@
+#!/usr/bin/env python3
+"""The bridge's three benchmarks, on emulated robot and pilot PCs (needs root).
+
+1. **Table 1 bandwidth** -- robot to pilot at T = 1 s: 33 joints (a synthetic
+   HAL streaming stateExt, standing still or moving every joint), 7
+   temperatures per second, 5 GYM module statuses (real modules).  Bits per
+   second of bridge frames (payload and framing, no TCP/IP), then on the veth
+   with TCP/IP headers.  References: the paper's 2400 bit/s, and what YARP's
+   tcp carrier would send for the same messages once a second.
+2. **Perception completeness** at delta-t = 0.4 s versus random loss, for a
+   320x240 image and an 80x60 organized cloud at 2 Hz, without and with FEC,
+   against the whole-message baseline measured through YARP's udp carrier on
+   the same link (a message counts only if every datagram arrived).
+3. **Pilot command latency** through the bridge on the lab and drc profiles
+   (median, p99), against a direct YARP connection over the same link.
+
+Usage: ``.venv/bin/python bench/bench_bridge.py [--quick] [--only 1,2,3]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Dict, List, Tuple
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(ROOT))
+sys.path.append(str(ROOT / "tests"))
+sys.path.append(str(ROOT / "tests" / "bridge"))
+
+from bridge import emulation  # noqa: E402
+from bridge.emulation import EmulatedLink  # noqa: E402
+from bridge_harness import HERE as TEST_HELPERS, PYTHON, TwoPCs  # noqa: E402
+from harness import YarpWorld, lite_implementation, wait_until  # noqa: E402
+
+ROLES = str(HERE / "bridge_roles.py")
+LITE = lite_implementation()
+PAPER_TABLE_1 = 2400
+
+
+def say(text: str) -> None:
+    print(text, flush=True)
+
+
+def status_numbers(pcs: TwoPCs, side) -> Dict[str, float]:
+    text = side.world.run_tool(LITE, "rpc", f"/bridge/{side.name}/rpc:i",
+                               input_text="status\n").stdout
+    return {key: float(value) for key, value in re.findall(r"\((\w+) (-?[\d.]+)\)", text)}
+
+
+def flows(pcs: TwoPCs, side) -> Dict[str, Dict[str, float]]:
+    text = side.world.run_tool(LITE, "rpc", f"/bridge/{side.name}/rpc:i",
+                               input_text="status\n").stdout
+    out = {}
+    for name, body in re.findall(r'\("(/[^"]+)" \(((?:\(\w+ [-\d.e+]+\) ?)+)\)\)', text):
+        out[name] = {k: float(v) for k, v in re.findall(r"\((\w+) ([-\d.e+]+)\)", body)}
+    return out
+
+
+def two_pcs(root: Path, link: EmulatedLink, config: str) -> TwoPCs:
+    path = root / "bridge.xml"
+    path.write_text(config)
+    return TwoPCs(root, LITE, path, link=link)
+
+
+# -- 1: Table 1 ----------------------------------------------------------------------------
+
+TABLE_1_CONFIG = """<bridge period="1.0" gather="0.4">
+  <modules>{modules}</modules>
+  <robot_state id="20" robot="walkman" channel="tcp" rate="10"/>
+</bridge>"""
+
+
+def direct_yarp_bits() -> float:
+    """What YARP's tcp carrier sends for one stateExt per chain and 5 statuses (one second)."""
+    from walkman.hal.config import load_config
+    from walkman.hal.protocol import ChainState, encode_state_ext
+    from yarp_lite.bottle import Bottle, encode
+    from yarp_lite.framing import encode_message
+
+    total = 0
+    for joints in load_config(ROOT / "models" / "hal_chains.ini").chains.values():
+        n = len(joints)
+        state = ChainState(1, 1.0, (0.1,) * n, (0.0,) * n, (1.0,) * n, (35.0,) * n)
+        total += len(b"".join(encode_message("D", [encode(encode_state_ext(state))])))
+    for _ in range(5):
+        total += len(b"".join(encode_message("D", [encode(Bottle([1234, "a"]))])))
+    return total * 8.0
+
+
+def table_1(link: EmulatedLink, mode: str, duration: float) -> Dict[str, float]:
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        modules = "".join(f'<module name="m{i}" id="{i}"/>' for i in range(1, 6))
+        os.environ["COUNTER_LOG"] = str(root / "executed.log")
+        pcs = two_pcs(root, link, TABLE_1_CONFIG.format(modules=modules))
+        try:
+            pcs.start_name_servers()
+            pcs.robot.python(ROLES, "hal", mode, name="synthetic hal").wait_for("ready", 30)
+            for i in range(1, 6):
+                pcs.robot.start([PYTHON, "-m", "walkman.gym.supervisor",
+                                 "counting_module:Module", "--name", f"/m{i}"], f"m{i}")
+            pcs.start_bridge(pcs.robot)
+            pcs.start_bridge(pcs.pilot)
+            pcs.wait_linked(60)
+            time.sleep(8)
+            before = status_numbers(pcs, pcs.robot)
+            wire_before = link.tx_counters("robot")
+            time.sleep(duration)
+            after = status_numbers(pcs, pcs.robot)
+            wire_after = link.tx_counters("robot")
+        finally:
+            pcs.close()
+    payload = (after["payload_out"] - before["payload_out"]) * 8 / duration
+    frames = (after["bytes_out"] - before["bytes_out"]) * 8 / duration
+    sent_bytes = wire_after[0] - wire_before[0]
+    packets = wire_after[1] - wire_before[1]
+    return {"payload": payload, "framing": frames - payload, "total": frames,
+            "with_tcp_ip": (sent_bytes - 14 * packets) * 8 / duration,
+            "packets": packets / duration}
+
+
+# -- 2: completeness -----------------------------------------------------------------------
+
+PERCEPTION_CONFIG = """<bridge period="0.5" gather="0.4">
+  <ros_topics>
+    <topic name="/multisense/left/image_color" type="sensor_msgs/Image" id="30"
+           direction="robot_to_pilot" channel="udp" quality="80" fec="{fec}"/>
+    <topic name="/multisense/points" type="sensor_msgs/PointCloud2" id="31"
+           direction="robot_to_pilot" channel="udp" fec="{fec}"/>
+  </ros_topics>
+</bridge>"""
+IMAGE_BYTES, CLOUD_BYTES = 320 * 240 * 3, 80 * 60 * 16
+
+
+def completeness(link: EmulatedLink, loss: float, fec: float, frames: int) -> Dict[str, float]:
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        pcs = two_pcs(root, link, PERCEPTION_CONFIG.format(fec=fec))
+        try:
+            pcs.start_name_servers()
+            for side in (pcs.robot, pcs.pilot):
+                pcs.start_roscore(side)
+            pcs.start_bridge(pcs.robot)
+            pcs.start_bridge(pcs.pilot)
+            pcs.wait_linked(60)
+            time.sleep(4)  # the ROS endpoints register
+            link.set_loss(loss)
+            camera = pcs.robot.python(str(TEST_HELPERS / "camera_publisher.py"), "2",
+                                      str(frames), name="camera")
+            camera.wait(frames / 2 + 60)
+            time.sleep(2)
+            link.set_loss(0)
+            sent = flows(pcs, pcs.robot)
+            got = flows(pcs, pcs.pilot)
+        finally:
+            pcs.close()
+    out = {}
+    for topic, short in (("/multisense/left/image_color", "image"),
+                         ("/multisense/points", "cloud")):
+        total = sent.get(topic, {}).get("sent", 0)
+        received = got.get(topic, {})
+        delivered = received.get("complete", 0) + received.get("completeness_sum", 0)
+        out[short] = delivered / total if total else float("nan")
+    return out
+
+
+def whole_message_baseline(link: EmulatedLink, loss: float, size: int, count: int) -> float:
+    """Fraction of messages YARP's udp carrier delivers whole over the lossy link."""
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        robot = YarpWorld(root, LITE, wrap=link.exec_argv("robot", []),
+                          ip=link.address("robot"))
+        pilot = YarpWorld(root, LITE, wrap=link.exec_argv("pilot", []))
+        try:
+            robot.start_server()
+            receiver = pilot.start([PYTHON, ROLES, "blob-receiver", "/bench/blob:i"], "blobs in")
+            receiver.wait_for("ready", 30)
+            link.set_loss(loss)
+            sender = robot.start([PYTHON, ROLES, "blob-sender", "/bench/blob:i", str(size),
+                                  str(count), "2", "udp"], "blobs out")
+            sender.wait_for("done", count + 60)
+            time.sleep(1)
+            link.set_loss(0)
+            received = len([line for line in receiver.lines if line.startswith("blob ")])
+        finally:
+            pilot.close()
+            robot.close()
+    return received / count
+
+
+# -- 3: latency ----------------------------------------------------------------------------
+
+LATENCY_CONFIG = """<bridge period="0.5" gather="0.4">
+  <modules><module name="lat" id="9"/></modules>
+</bridge>"""
+
+
+def latencies(proc) -> List[float]:
+    return [float(line.split()[1]) for line in proc.lines if line.startswith("latency_ms ")]
+
+
+def latency_bridge(link: EmulatedLink, count: int, *extra: str) -> List[float]:
+    with tempfile.TemporaryDirectory() as tmp:
+        pcs = two_pcs(Path(tmp), link, LATENCY_CONFIG)
+        try:
+            pcs.start_name_servers()
+            receiver = pcs.robot.python(ROLES, "ping-receiver", "/lat/command:i", name="pong")
+            receiver.wait_for("ready", 30)
+            pcs.start_bridge(pcs.robot, *extra)
+            pcs.start_bridge(pcs.pilot, *extra)
+            pcs.wait_linked(60)
+            time.sleep(2)
+            sender = pcs.pilot.python(ROLES, "ping-sender", "/lat/command:i", str(count), "20",
+                                      name="ping")
+            sender.wait_for("done", count / 20 + 60)
+            wait_until(lambda: len(latencies(receiver)) >= count, 30, message="pings")
+            return latencies(receiver)
+        finally:
+            pcs.close()
+
+
+def latency_direct(link: EmulatedLink, count: int) -> List[float]:
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        robot = YarpWorld(root, LITE, wrap=link.exec_argv("robot", []),
+                          ip=link.address("robot"))
+        pilot = YarpWorld(root, LITE, wrap=link.exec_argv("pilot", []))
+        try:
+            robot.start_server()
+            receiver = robot.start([PYTHON, ROLES, "ping-receiver", "/direct/command:i"], "pong")
+            receiver.wait_for("ready", 30)
+            sender = pilot.start([PYTHON, ROLES, "ping-sender", "/direct/command:i", str(count),
+                                  "20"], "ping")
+            sender.wait_for("done", count / 20 + 60)
+            wait_until(lambda: len(latencies(receiver)) >= count * 0.99, 30, message="pings")
+            return latencies(receiver)
+        finally:
+            pilot.close()
+            robot.close()
+
+
+def percentile(values: List[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(round(q * (len(ordered) - 1))))]
+
+
+# -- main ----------------------------------------------------------------------------------
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="shorter runs (noisier figures)")
+    parser.add_argument("--only", default="1,2,3", help="which benchmarks (default 1,2,3)")
+    options = parser.parse_args()
+    reason = emulation.available()
+    if reason:
+        say(f"bench_bridge: {reason}")
+        return 1
+    only = {int(x) for x in options.only.split(",")}
+    link = EmulatedLink("wb", 41)
+    link.up()
+    try:
+        if 1 in only:
+            duration = 15 if options.quick else 40
+            say(f"\n1. Table 1 workload, robot -> pilot, T = 1 s ({duration:.0f} s per run)")
+            say(f"   {'robot':<8} {'payload':>9} {'framing':>9} {'total':>9} "
+                f"{'+TCP/IP':>9} {'packets/s':>9}   (bit/s)")
+            link.apply("lab")
+            for mode in ("still", "moving"):
+                figures = table_1(link, mode, duration)
+                say(f"   {mode:<8} {figures['payload']:>9.0f} {figures['framing']:>9.0f} "
+                    f"{figures['total']:>9.0f} {figures['with_tcp_ip']:>9.0f} "
+                    f"{figures['packets']:>9.1f}")
+            say(f"   paper Table 1 (no TCP/IP): {PAPER_TABLE_1} bit/s; goal <= 1200; "
+                f"YARP tcp carrier, same messages once a second: {direct_yarp_bits():.0f} bit/s")
+        if 2 in only:
+            frames = 20 if options.quick else 40
+            say(f"\n2. Completeness at delta-t 0.4 s, 320x240 image + 80x60 cloud at 2 Hz, "
+                f"{frames} frames each")
+            say(f"   {'loss':>5} {'limit':>6} {'image':>7} {'cloud':>7} {'img+FEC':>8} "
+                f"{'cld+FEC':>8} {'YARP udp img':>13} {'YARP udp cld':>13}")
+            link.apply("lab")
+            for loss in (0, 5, 10, 20, 30):
+                plain = completeness(link, loss, 0.0, frames)
+                repaired = completeness(link, loss, 0.3, frames)
+                image_base = whole_message_baseline(link, loss, IMAGE_BYTES, frames)
+                cloud_base = whole_message_baseline(link, loss, CLOUD_BYTES, frames)
+                say(f"   {loss:>4}% {1 - loss / 100:>6.2f} {plain['image']:>7.3f} "
+                    f"{plain['cloud']:>7.3f} {repaired['image']:>8.3f} "
+                    f"{repaired['cloud']:>8.3f} {image_base:>13.3f} {cloud_base:>13.3f}")
+        if 3 in only:
+            count = 200 if options.quick else 600
+            say(f"\n3. Pilot command latency, one way ({count} commands at 20 Hz), ms")
+            say(f"   {'profile':<22} {'bridge med':>10} {'bridge p99':>10} {'direct med':>10} "
+                f"{'direct p99':>10}")
+            for profile, loss, extra in (("lab", 0.0, ()), ("lab", 0.0, ("--fsync",)),
+                                         ("drc", 0.0, ()), ("drc", 5.0, ())):
+                link.apply(profile, loss=loss)
+                through = latency_bridge(link, count, *extra)
+                direct = latency_direct(link, count)
+                label = f"{profile} ({loss:g} % loss){' --fsync' if extra else ''}"
+                say(f"   {label:<22} {statistics.median(through):>10.2f} "
+                    f"{percentile(through, 0.99):>10.2f} {statistics.median(direct):>10.2f} "
+                    f"{percentile(direct, 0.99):>10.2f}")
+    finally:
+        link.down()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,118 @@
+"""Processes the bridge benchmark runs on the emulated robot and pilot hosts.
+
+``python bridge_roles.py ROLE ARGS...``:
+
+* ``hal MODE`` -- a synthetic HAL: answers ``/walkman/rpc:i [get] chains`` with
+  the grouping of ``models/hal_chains.ini`` and streams every chain's
+  ``stateExt:o`` at 100 Hz; MODE ``still`` (a robot standing, sensor noise
+  below one encoder step) or ``moving`` (every joint swinging);
+* ``ping-sender TARGET COUNT RATE`` -- writes ``(ping <time>) seq`` over tcp;
+* ``ping-receiver PORT`` -- prints ``latency_ms <x>`` for each ping;
+* ``blob-sender TARGET SIZE COUNT RATE CARRIER`` / ``blob-receiver PORT`` -- the
+  whole-message baseline: Bottles holding SIZE bytes over YARP's udp carrier.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from walkman.hal import protocol  # noqa: E402
+from walkman.hal.config import load_config  # noqa: E402
+from walkman.hal.protocol import ChainState  # noqa: E402
+from yarp_lite.bottle import Bottle  # noqa: E402
+from yarp_lite.port import Port  # noqa: E402
+from yarp_lite.rpc import RpcServer  # noqa: E402
+
+
+def hal(mode: str) -> None:
+    config = load_config(ROOT / "models" / "hal_chains.ini")
+    chains = config.chains
+    RpcServer(protocol.robot_rpc_name("walkman"),
+              handler=lambda _: Bottle([Bottle([name, *joints]) for name, joints in chains.items()]))
+    ports = {name: Port(protocol.port_names("walkman", name)["state_ext"]) for name in chains}
+    rng = np.random.default_rng(0)
+    started, seq = time.monotonic(), 0
+    print("ready", flush=True)
+    while True:
+        t = time.monotonic() - started
+        seq += 1
+        offset = 0
+        for name, joints in chains.items():
+            n = len(joints)
+            index = np.arange(offset, offset + n)
+            if mode == "moving":
+                q = 0.8 * np.sin(0.5 * t + index)
+                qdot = 0.4 * np.cos(0.5 * t + index)
+                tau = 40 * np.sin(1.3 * t + index) + rng.normal(0, 0.5, n)
+            else:
+                q = 0.1 * np.ones(n) + rng.normal(0, 1e-5, n)
+                qdot = np.zeros(n)
+                tau = 5 * np.ones(n) + rng.normal(0, 0.01, n)
+            temperature = 35 + 0.05 * t / 60 + 0.1 * index % 3 + rng.normal(0, 0.002, n)
+            ports[name].write(protocol.encode_state_ext(ChainState(
+                seq, t, tuple(q), tuple(qdot), tuple(tau), tuple(temperature))))
+            offset += n
+        time.sleep(0.01)
+
+
+def ping_sender(target: str, count: int, rate: float) -> None:
+    port = Port("/bench/pinger")
+    while port.output_count == 0:
+        port.add_output(target, quiet=True)
+        time.sleep(0.2)
+    time.sleep(1.0)
+    for seq in range(2, count + 2):
+        port.write(Bottle([Bottle(["ping", time.time()]), seq]))
+        time.sleep(1.0 / rate)
+    print("done", flush=True)
+
+
+def ping_receiver(name: str) -> None:
+    def on_ping(bottle: Bottle) -> None:
+        now = time.time()
+        print(f"latency_ms {(now - float(bottle[0][1])) * 1000:.3f}", flush=True)
+
+    Port(name, reader=on_ping)
+    print("ready", flush=True)
+    time.sleep(3600)
+
+
+def blob_sender(target: str, size: int, count: int, rate: float, carrier: str) -> None:
+    port = Port("/bench/blobs")
+    while port.output_count == 0:
+        port.add_output(target, carrier, quiet=True)
+        time.sleep(0.2)
+    time.sleep(1.0)
+    for seq in range(count):
+        port.write(Bottle([seq, bytes(size)]))
+        time.sleep(1.0 / rate)
+    print("done", flush=True)
+
+
+def blob_receiver(name: str) -> None:
+    Port(name, reader=lambda bottle: print(f"blob {bottle[0]}", flush=True))
+    print("ready", flush=True)
+    time.sleep(3600)
+
+
+if __name__ == "__main__":
+    role, args = sys.argv[1], sys.argv[2:]
+    if role == "hal":
+        hal(args[0])
+    elif role == "ping-sender":
+        ping_sender(args[0], int(args[1]), float(args[2]))
+    elif role == "ping-receiver":
+        ping_receiver(args[0])
+    elif role == "blob-sender":
+        blob_sender(args[0], int(args[1]), int(args[2]), float(args[3]), args[4])
+    elif role == "blob-receiver":
+        blob_receiver(args[0])
+    else:
+        raise SystemExit(f"unknown role {role}")
