@@ -27,7 +27,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Dict, List, Tuple
+from contextlib import contextmanager
+from typing import Dict, Iterator, List, Tuple
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -64,10 +65,20 @@ def flows(pcs: TwoPCs, side) -> Dict[str, Dict[str, float]]:
     return out
 
 
-def two_pcs(root: Path, link: EmulatedLink, config: str) -> TwoPCs:
-    path = root / "bridge.xml"
-    path.write_text(config)
-    return TwoPCs(root, LITE, path, link=link)
+@contextmanager
+def bridged(link: EmulatedLink, config: str) -> Iterator[TwoPCs]:
+    """The bridged topology: name servers on both PCs, stopped and removed afterwards."""
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        os.environ["COUNTER_LOG"] = str(root / "executed.log")
+        path = root / "bridge.xml"
+        path.write_text(config)
+        pcs = TwoPCs(root, LITE, path, link=link)
+        try:
+            pcs.start_name_servers()
+            yield pcs
+        finally:
+            pcs.close()
 
 
 # -- 1: Table 1 ----------------------------------------------------------------------------
@@ -96,28 +107,21 @@ def direct_yarp_bits() -> float:
 
 
 def table_1(link: EmulatedLink, mode: str, duration: float) -> Dict[str, float]:
-    with tempfile.TemporaryDirectory() as tmp:
-        root = Path(tmp)
-        modules = "".join(f'<module name="m{i}" id="{i}"/>' for i in range(1, 6))
-        os.environ["COUNTER_LOG"] = str(root / "executed.log")
-        pcs = two_pcs(root, link, TABLE_1_CONFIG.format(modules=modules))
-        try:
-            pcs.start_name_servers()
-            pcs.robot.python(ROLES, "hal", mode, name="synthetic hal").wait_for("ready", 30)
-            for i in range(1, 6):
-                pcs.robot.start([PYTHON, "-m", "walkman.gym.supervisor",
-                                 "counting_module:Module", "--name", f"/m{i}"], f"m{i}")
-            pcs.start_bridge(pcs.robot)
-            pcs.start_bridge(pcs.pilot)
-            pcs.wait_linked(60)
-            time.sleep(8)
-            before = status_numbers(pcs, pcs.robot)
-            wire_before = link.tx_counters("robot")
-            time.sleep(duration)
-            after = status_numbers(pcs, pcs.robot)
-            wire_after = link.tx_counters("robot")
-        finally:
-            pcs.close()
+    modules = "".join(f'<module name="m{i}" id="{i}"/>' for i in range(1, 6))
+    with bridged(link, TABLE_1_CONFIG.format(modules=modules)) as pcs:
+        pcs.robot.python(ROLES, "hal", mode, name="synthetic hal").wait_for("ready", 30)
+        for i in range(1, 6):
+            pcs.robot.start([PYTHON, "-m", "walkman.gym.supervisor",
+                             "counting_module:Module", "--name", f"/m{i}"], f"m{i}")
+        pcs.start_bridge(pcs.robot)
+        pcs.start_bridge(pcs.pilot)
+        pcs.wait_linked(60)
+        time.sleep(8)
+        before = status_numbers(pcs, pcs.robot)
+        wire_before = link.tx_counters("robot")
+        time.sleep(duration)
+        after = status_numbers(pcs, pcs.robot)
+        wire_after = link.tx_counters("robot")
     payload = (after["payload_out"] - before["payload_out"]) * 8 / duration
     frames = (after["bytes_out"] - before["bytes_out"]) * 8 / duration
     sent_bytes = wire_after[0] - wire_before[0]
@@ -141,27 +145,21 @@ IMAGE_BYTES, CLOUD_BYTES = 320 * 240 * 3, 80 * 60 * 16
 
 
 def completeness(link: EmulatedLink, loss: float, fec: float, frames: int) -> Dict[str, float]:
-    with tempfile.TemporaryDirectory() as tmp:
-        root = Path(tmp)
-        pcs = two_pcs(root, link, PERCEPTION_CONFIG.format(fec=fec))
-        try:
-            pcs.start_name_servers()
-            for side in (pcs.robot, pcs.pilot):
-                pcs.start_roscore(side)
-            pcs.start_bridge(pcs.robot)
-            pcs.start_bridge(pcs.pilot)
-            pcs.wait_linked(60)
-            time.sleep(4)  # the ROS endpoints register
-            link.set_loss(loss)
-            camera = pcs.robot.python(str(TEST_HELPERS / "camera_publisher.py"), "2",
-                                      str(frames), name="camera")
-            camera.wait(frames / 2 + 60)
-            time.sleep(2)
-            link.set_loss(0)
-            sent = flows(pcs, pcs.robot)
-            got = flows(pcs, pcs.pilot)
-        finally:
-            pcs.close()
+    with bridged(link, PERCEPTION_CONFIG.format(fec=fec)) as pcs:
+        for side in (pcs.robot, pcs.pilot):
+            pcs.start_roscore(side)
+        pcs.start_bridge(pcs.robot)
+        pcs.start_bridge(pcs.pilot)
+        pcs.wait_linked(60)
+        time.sleep(4)  # the ROS endpoints register
+        link.set_loss(loss)
+        camera = pcs.robot.python(str(TEST_HELPERS / "camera_publisher.py"), "2",
+                                  str(frames), name="camera")
+        camera.wait(frames / 2 + 60)
+        time.sleep(2)
+        link.set_loss(0)
+        sent = flows(pcs, pcs.robot)
+        got = flows(pcs, pcs.pilot)
     out = {}
     for topic, short in (("/multisense/left/image_color", "image"),
                          ("/multisense/points", "cloud")):
@@ -172,8 +170,9 @@ def completeness(link: EmulatedLink, loss: float, fec: float, frames: int) -> Di
     return out
 
 
-def whole_message_baseline(link: EmulatedLink, loss: float, size: int, count: int) -> float:
-    """Fraction of messages YARP's udp carrier delivers whole over the lossy link."""
+@contextmanager
+def one_network(link: EmulatedLink) -> Iterator[Tuple[YarpWorld, YarpWorld]]:
+    """The original direct topology: one name server on the robot, used by both PCs."""
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         robot = YarpWorld(root, LITE, wrap=link.exec_argv("robot", []),
@@ -181,18 +180,24 @@ def whole_message_baseline(link: EmulatedLink, loss: float, size: int, count: in
         pilot = YarpWorld(root, LITE, wrap=link.exec_argv("pilot", []))
         try:
             robot.start_server()
-            receiver = pilot.start([PYTHON, ROLES, "blob-receiver", "/bench/blob:i"], "blobs in")
-            receiver.wait_for("ready", 30)
-            link.set_loss(loss)
-            sender = robot.start([PYTHON, ROLES, "blob-sender", "/bench/blob:i", str(size),
-                                  str(count), "2", "udp"], "blobs out")
-            sender.wait_for("done", count + 60)
-            time.sleep(1)
-            link.set_loss(0)
-            received = len([line for line in receiver.lines if line.startswith("blob ")])
+            yield robot, pilot
         finally:
             pilot.close()
             robot.close()
+
+
+def whole_message_baseline(link: EmulatedLink, loss: float, size: int, count: int) -> float:
+    """Fraction of messages YARP's udp carrier delivers whole over the lossy link."""
+    with one_network(link) as (robot, pilot):
+        receiver = pilot.start([PYTHON, ROLES, "blob-receiver", "/bench/blob:i"], "blobs in")
+        receiver.wait_for("ready", 30)
+        link.set_loss(loss)
+        sender = robot.start([PYTHON, ROLES, "blob-sender", "/bench/blob:i", str(size),
+                              str(count), "2", "udp"], "blobs out")
+        sender.wait_for("done", count + 60)
+        time.sleep(1)
+        link.set_loss(0)
+        received = len([line for line in receiver.lines if line.startswith("blob ")])
     return received / count
 
 
@@ -208,43 +213,29 @@ def latencies(proc) -> List[float]:
 
 
 def latency_bridge(link: EmulatedLink, count: int, *extra: str) -> List[float]:
-    with tempfile.TemporaryDirectory() as tmp:
-        pcs = two_pcs(Path(tmp), link, LATENCY_CONFIG)
-        try:
-            pcs.start_name_servers()
-            receiver = pcs.robot.python(ROLES, "ping-receiver", "/lat/command:i", name="pong")
-            receiver.wait_for("ready", 30)
-            pcs.start_bridge(pcs.robot, *extra)
-            pcs.start_bridge(pcs.pilot, *extra)
-            pcs.wait_linked(60)
-            time.sleep(2)
-            sender = pcs.pilot.python(ROLES, "ping-sender", "/lat/command:i", str(count), "20",
-                                      name="ping")
-            sender.wait_for("done", count / 20 + 60)
-            wait_until(lambda: len(latencies(receiver)) >= count, 30, message="pings")
-            return latencies(receiver)
-        finally:
-            pcs.close()
+    with bridged(link, LATENCY_CONFIG) as pcs:
+        receiver = pcs.robot.python(ROLES, "ping-receiver", "/lat/command:i", name="pong")
+        receiver.wait_for("ready", 30)
+        pcs.start_bridge(pcs.robot, *extra)
+        pcs.start_bridge(pcs.pilot, *extra)
+        pcs.wait_linked(60)
+        time.sleep(2)
+        sender = pcs.pilot.python(ROLES, "ping-sender", "/lat/command:i", str(count), "20",
+                                  name="ping")
+        sender.wait_for("done", count / 20 + 60)
+        wait_until(lambda: len(latencies(receiver)) >= count, 30, message="pings")
+        return latencies(receiver)
 
 
 def latency_direct(link: EmulatedLink, count: int) -> List[float]:
-    with tempfile.TemporaryDirectory() as tmp:
-        root = Path(tmp)
-        robot = YarpWorld(root, LITE, wrap=link.exec_argv("robot", []),
-                          ip=link.address("robot"))
-        pilot = YarpWorld(root, LITE, wrap=link.exec_argv("pilot", []))
-        try:
-            robot.start_server()
-            receiver = robot.start([PYTHON, ROLES, "ping-receiver", "/direct/command:i"], "pong")
-            receiver.wait_for("ready", 30)
-            sender = pilot.start([PYTHON, ROLES, "ping-sender", "/direct/command:i", str(count),
-                                  "20"], "ping")
-            sender.wait_for("done", count / 20 + 60)
-            wait_until(lambda: len(latencies(receiver)) >= count * 0.99, 30, message="pings")
-            return latencies(receiver)
-        finally:
-            pilot.close()
-            robot.close()
+    with one_network(link) as (robot, pilot):
+        receiver = robot.start([PYTHON, ROLES, "ping-receiver", "/direct/command:i"], "pong")
+        receiver.wait_for("ready", 30)
+        sender = pilot.start([PYTHON, ROLES, "ping-sender", "/direct/command:i", str(count),
+                              "20"], "ping")
+        sender.wait_for("done", count / 20 + 60)
+        wait_until(lambda: len(latencies(receiver)) >= count * 0.99, 30, message="pings")
+        return latencies(receiver)
 
 
 def percentile(values: List[float], q: float) -> float:

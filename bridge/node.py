@@ -262,9 +262,9 @@ class Bridge:
         out: Dict[str, Any] = {
             "side": self.side,
             "link": self.tcp.phase,
-            "link_since_s": round(time.monotonic() - self.tcp.phase_since, 1),
+            "link_since_s": int(time.monotonic() - self.tcp.phase_since),
             "queued_commands": self.journal.waiting(),
-            "oldest_queued_s": round(self.journal.oldest_age(), 1),
+            "oldest_queued_s": int(self.journal.oldest_age()),
             "undelivered": len(self.journal.undelivered()),
             "refused": self.refused,
             "delivered": self.delivered,

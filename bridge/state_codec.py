@@ -179,11 +179,10 @@ def _get_layout(buf: Buffer, pos: int) -> Tuple[Layout, int]:
 # -- the two ends ----------------------------------------------------------------------
 
 
-class StateEncoder:
-    """Robot side: one per connection (or :meth:`reset` when it is new)."""
+class _Context:
+    """What both ends remember of the previous frame on one connection."""
 
-    def __init__(self, period: float = 1.0) -> None:
-        self.temperatures_per_frame = max(1, round(TEMPERATURES_PER_SECOND * period))
+    def __init__(self) -> None:
         self.reset()
 
     def reset(self) -> None:
@@ -193,6 +192,14 @@ class StateEncoder:
         self._temperatures: Optional[np.ndarray] = None
         self._time_ms = 0
         self._next_temperature = 0
+
+
+class StateEncoder(_Context):
+    """Robot side: one per connection (or :meth:`reset` when it is new)."""
+
+    def __init__(self, period: float = 1.0) -> None:
+        self.temperatures_per_frame = max(1, round(TEMPERATURES_PER_SECOND * period))
+        super().__init__()
 
     def encode(self, state: RobotState) -> bytes:
         layout = state.layout
@@ -234,18 +241,8 @@ class StateEncoder:
         return bytes(out)
 
 
-class StateDecoder:
+class StateDecoder(_Context):
     """Pilot side: rebuilds :class:`RobotState` (the last known temperature of each joint)."""
-
-    def __init__(self) -> None:
-        self.reset()
-
-    def reset(self) -> None:
-        self._layout: Optional[Layout] = None
-        self._encoders: Optional[np.ndarray] = None
-        self._torques: Optional[np.ndarray] = None
-        self._temperatures: Optional[np.ndarray] = None
-        self._time_ms = 0
 
     def decode(self, data: Buffer) -> RobotState:
         try:
