@@ -8,7 +8,7 @@ setup(
     description="Walk-Man humanoid software architecture: yarp_lite, GYM, HAL, network bridge, "
                 "ROS pilot nodes",
     python_requires=">=3.11",
-    packages=find_packages(include=["yarp_lite*", "walkman*", "bridge*", "rosnodes*"]),
+    packages=find_packages(include=["yarp_lite*", "walkman*", "bridge*", "rosnodes*", "system*"]),
     package_data={"": ["*.xml", "*.xsd", "*.ini", "*.urdf", "*.msg", "*.srv"]},
     include_package_data=True,
     install_requires=["numpy"],
@@ -24,6 +24,9 @@ setup(
             "walkman-module=walkman.gym.supervisor:main",
             "walkman-bridge=bridge.main:main",
             "walkman-netem=bridge.emulation:main",
+            "walkman-pilot-gateway=rosnodes.gateway:main",
+            "walkman-perception=rosnodes.perception:main",
+            "walkman-joint-state=rosnodes.joint_state:main",
         ],
     },
 )

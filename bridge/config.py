@@ -90,6 +90,7 @@ class BridgeConfig:
     gather: float = DEFAULT_GATHER
     channels: List[Channel] = field(default_factory=list)
     modules: Dict[str, int] = field(default_factory=dict)
+    gym_modules: Dict[str, Tuple[str, ...]] = field(default_factory=dict)  # name -> states
     robot_state: Optional[Tuple[int, str, str]] = None  # (id, robot name, transport)
     state_rate: float = DEFAULT_STATE_RATE                 # Hz the robot state is sampled
 
@@ -174,6 +175,7 @@ def parse(text: str, where: str = "<bridge config>") -> BridgeConfig:
         _check_name(name, element, where)
         config.modules[name] = module_id
         statuses = tuple((element.get("statuses") or "").split())
+        config.gym_modules[name] = statuses
         for kind, (flow, direction, port, reliable) in enumerate(GYM_FLOWS):
             source, destination = DIRECTIONS[direction]
             original = f"/{name}/{port}"

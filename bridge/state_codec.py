@@ -11,7 +11,8 @@ serialization overhead.  We keep the same information and resolution:
 * temperatures: 16 bit centi-degrees, seven joints per second in rotation, all
   of them in the first frame of a connection;
 * no joint ids: the joint order is the HAL's chain layout, sent once per
-  connection in the key frame.
+  connection in the key frame (chain and joint names, so the pilot side can
+  describe the robot as the HAL does).
 
 Each field is then sent in the cheapest of three forms -- raw, deltas against
 the previous frame (a bitmap of changed joints and zigzag varints), or
@@ -47,13 +48,17 @@ _RAW, _DELTA, _SAME = 0, 1, 2
 
 @dataclass(frozen=True)
 class Layout:
-    """The HAL's chains in order: ``(name, joint count)``."""
+    """The HAL's chains in order: ``(chain name, (joint names...))``."""
 
-    chains: Tuple[Tuple[str, int], ...]
+    chains: Tuple[Tuple[str, Tuple[str, ...]], ...]
 
     @property
     def joints(self) -> int:
-        return sum(count for _, count in self.chains)
+        return sum(len(joints) for _, joints in self.chains)
+
+    @property
+    def counts(self) -> List[Tuple[str, int]]:
+        return [(name, len(joints)) for name, joints in self.chains]
 
 
 @dataclass
@@ -152,13 +157,27 @@ def _decode_field(buf: Buffer, pos: int, mode: int, old: Optional[np.ndarray], c
     return new, pos
 
 
+def _put_text(out: bytearray, text: str) -> None:
+    data = text.encode()
+    put_varint(out, len(data))
+    out += data
+
+
+def _get_text(buf: Buffer, pos: int, what: str) -> Tuple[str, int]:
+    length, pos = get_varint(buf, pos, f"{what} length")
+    if length > 255:
+        raise BridgeProtocolError(f"{what} of {length} bytes")
+    raw, pos = take(buf, pos, length, what)
+    return raw.decode("utf-8", "replace"), pos
+
+
 def _put_layout(out: bytearray, layout: Layout) -> None:
     put_varint(out, len(layout.chains))
-    for name, count in layout.chains:
-        data = name.encode()
-        put_varint(out, len(data))
-        out += data
-        put_varint(out, count)
+    for name, joints in layout.chains:
+        _put_text(out, name)
+        put_varint(out, len(joints))
+        for joint in joints:
+            _put_text(out, joint)
 
 
 def _get_layout(buf: Buffer, pos: int) -> Tuple[Layout, int]:
@@ -167,12 +186,15 @@ def _get_layout(buf: Buffer, pos: int) -> Tuple[Layout, int]:
         raise BridgeProtocolError(f"layout with {chains} chains")
     out = []
     for _ in range(chains):
-        length, pos = get_varint(buf, pos, "chain name length")
-        name, pos = take(buf, pos, length, "chain name")
+        name, pos = _get_text(buf, pos, "chain name")
         count, pos = get_varint(buf, pos, "joint count")
         if count > 1024:
             raise BridgeProtocolError(f"chain with {count} joints")
-        out.append((name.decode("utf-8", "replace"), count))
+        joints = []
+        for _ in range(count):
+            joint, pos = _get_text(buf, pos, "joint name")
+            joints.append(joint)
+        out.append((name, tuple(joints)))
     return Layout(tuple(out)), pos
 
 
@@ -298,7 +320,7 @@ class StateDecoder(_Context):
 def split_by_chain(layout: Layout, values: Sequence[float]) -> List[Tuple[str, np.ndarray]]:
     """Cut a whole-robot vector into the chains of ``layout``."""
     out, start = [], 0
-    for name, count in layout.chains:
+    for name, count in layout.counts:
         out.append((name, np.asarray(values[start:start + count])))
         start += count
     return out

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
+from system.processes import Proc, WaitTimeout, wait_until  # noqa: F401 (re-exported)
 from yarp_lite import freeport, nameconfig, reference
 
 REPO = Path(__file__).resolve().parents[1]
@@ -47,92 +48,6 @@ def missing_reference() -> None:
 
 def free_port(span: int = 1) -> int:
     return freeport.free_port(span)
-
-
-class Proc:
-    """A child process whose combined output is collected line by line."""
-
-    def __init__(self, argv: Sequence[str], env: Dict[str, str], name: str,
-                 stdin: bool = False, cwd: Optional[Path] = None) -> None:
-        self.name = name
-        self.argv = list(argv)
-        self.lines: List[str] = []
-        self._queue: "queue.Queue[str]" = queue.Queue()
-        self.popen = subprocess.Popen(
-            self.argv, env=env, cwd=str(cwd or REPO), stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, stdin=subprocess.PIPE if stdin else subprocess.DEVNULL,
-            text=True, bufsize=1, start_new_session=True)
-        self._reader = threading.Thread(target=self._pump, daemon=True)
-        self._reader.start()
-
-    def _pump(self) -> None:
-        assert self.popen.stdout is not None
-        for line in self.popen.stdout:
-            line = line.rstrip("\n")
-            self.lines.append(line)
-            self._queue.put(line)
-
-    def send(self, text: str) -> None:
-        assert self.popen.stdin is not None
-        self.popen.stdin.write(text)
-        self.popen.stdin.flush()
-
-    def close_stdin(self) -> None:
-        if self.popen.stdin is not None:
-            self.popen.stdin.close()
-
-    def wait_for(self, pattern: str, timeout: float = 15.0, count: int = 1) -> re.Match:
-        """Block until ``count`` output lines (so far) match ``pattern`` (searched anywhere)."""
-        regex = re.compile(pattern)
-        deadline = time.monotonic() + timeout
-        while True:
-            matches = [m for m in map(regex.search, list(self.lines)) if m]
-            if len(matches) >= count:
-                return matches[count - 1]
-            if time.monotonic() > deadline:
-                raise AssertionError(f"{self.name}: {len(matches)} of {count} line(s) matching "
-                                     f"{pattern!r} within {timeout}s; output so far:\n"
-                                     + "\n".join(self.lines))
-            if self.popen.poll() is not None and self._queue.empty():
-                self._reader.join(timeout=1)
-                if len([m for m in map(regex.search, list(self.lines)) if m]) >= count:
-                    continue
-                raise AssertionError(f"{self.name} exited ({self.popen.returncode}) "
-                                     f"before printing {pattern!r}:\n" + "\n".join(self.lines))
-            try:
-                self._queue.get(timeout=0.2)
-            except queue.Empty:
-                pass
-
-    def output(self) -> str:
-        return "\n".join(self.lines)
-
-    def wait(self, timeout: float = 15.0) -> int:
-        code = self.popen.wait(timeout=timeout)
-        self._reader.join(timeout=2)
-        return code
-
-    def kill(self, sig: int = signal.SIGKILL) -> None:
-        if self.popen.poll() is None:
-            try:
-                os.killpg(self.popen.pid, sig)
-            except ProcessLookupError:
-                pass
-        try:
-            self.popen.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            os.killpg(self.popen.pid, signal.SIGKILL)
-            self.popen.wait(timeout=5)
-
-    def interrupt(self) -> int:
-        """Ctrl-C, as a user would stop a tool; returns the exit status."""
-        if self.popen.poll() is None:
-            os.killpg(self.popen.pid, signal.SIGINT)
-        try:
-            return self.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            self.kill()
-            return -9
 
 
 @dataclass
@@ -250,15 +165,6 @@ class YarpWorld:
         for proc in reversed(self.processes):
             proc.kill()
         self.processes.clear()
-
-
-def wait_until(predicate, timeout: float = 10.0, interval: float = 0.05,
-               message: str = "condition") -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout}s waiting for {message}")
-        time.sleep(interval)
 
 
 def have_root() -> bool:

@@ -246,7 +246,7 @@ class RosNode:
     def _register_again(self) -> bool:
         import rospy
         from rospy.impl.registration import (RegManager, get_registration_listeners,
-                                             get_topic_manager)
+                                             get_service_manager, get_topic_manager)
 
         manager = next((l for l in get_registration_listeners().listeners
                         if isinstance(l, RegManager)), None)
@@ -259,6 +259,8 @@ class RosNode:
                 publishers = master.registerSubscriber(topic, type_name, uri)
                 if manager is not None:
                     manager.publisher_update(topic, publishers)
+            for service, service_uri in get_service_manager().get_services():
+                master.registerService(service, service_uri, uri)
         except Exception as exc:  # noqa: BLE001 -- try again next second
             log.warning("registering again failed: %s", exc)
             return False

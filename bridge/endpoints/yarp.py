@@ -42,6 +42,7 @@ from yarp_lite.buffered_port import BufferedPort
 from yarp_lite.errors import YarpError
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
+from yarp_lite.rpc import RpcServer
 
 log = logging.getLogger("bridge.yarp")
 
@@ -229,7 +230,7 @@ class RobotStateSink:
             reply = network.request(contact, [Vocab("get"), "chains"], timeout=3)
         except YarpError:
             return None
-        chains = [(str(group[0]), len(group) - 1) for group in reply
+        chains = [(str(group[0]), tuple(str(j) for j in group[1:])) for group in reply
                   if isinstance(group, list) and len(group) > 1]
         return Layout(tuple(chains)) if chains else None
 
@@ -239,7 +240,7 @@ class RobotStateSink:
             port.close()
         self._ports = []
         offsets, start = {}, 0
-        for chain, count in layout.chains:
+        for chain, count in layout.counts:
             offsets[chain] = (start, count)
             start += count
         with self._lock:
@@ -247,7 +248,7 @@ class RobotStateSink:
             self._offsets = offsets
             self._q, self._tau = np.zeros(start), np.zeros(start)
             self._temperature = np.zeros(start)
-        for chain, count in layout.chains:
+        for chain, _ in layout.chains:
             port = BufferedPort(nameclient=self.nameclient,
                                 on_read=lambda b, chain=chain: self._on_state(chain, b))
             port.open(f"/bridge/robot/state/{chain}:i")
@@ -304,6 +305,7 @@ class RobotStateSource:
         self.nameclient = nameclient
         self.layout: Optional[Layout] = None
         self._ports: Dict[str, Tuple[Port, Port]] = {}
+        self._rpc: Optional[RpcServer] = None
         self._previous: Optional[RobotState] = None
         self._seq = 0
         self.received = 0
@@ -315,8 +317,17 @@ class RobotStateSource:
             state = Port(nameclient=self.nameclient).open(names["state"], wait=math.inf)
             ext = Port(nameclient=self.nameclient).open(names["state_ext"], wait=math.inf)
             self._ports[chain] = (state, ext)
+        # The HAL's grouping, for whole-body readers on this side (read only: no commands).
+        self._rpc = RpcServer(nameclient=self.nameclient, handler=self._on_rpc)
+        self._rpc.open(protocol.robot_rpc_name(self.robot), wait=math.inf)
         self.layout = layout
         self._previous = None
+
+    def _on_rpc(self, request: Bottle) -> Bottle:
+        if len(request) > 1 and str(request[0]) == "get" and str(request[1]) == "chains" and \
+                self.layout is not None:
+            return Bottle([Bottle([name, *joints]) for name, joints in self.layout.chains])
+        return Bottle([Vocab("fail"), "the bridge's copy of the HAL only answers [get] chains"])
 
     def deliver(self, state: RobotState) -> bool:
         if state.layout != self.layout:
@@ -344,3 +355,6 @@ class RobotStateSource:
             state.close()
             ext.close()
         self._ports = {}
+        if self._rpc is not None:
+            self._rpc.close()
+            self._rpc = None

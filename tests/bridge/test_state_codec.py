@@ -12,8 +12,9 @@ from bridge.errors import BridgeProtocolError
 from bridge.state_codec import Layout, RobotState, StateDecoder, StateEncoder
 from codec_helpers import FUZZ
 
-LAYOUT = Layout((("torso", 3), ("head", 2), ("left_arm", 7), ("right_arm", 7),
-                 ("left_leg", 6), ("right_leg", 6), ("left_hand", 1), ("right_hand", 1)))
+LAYOUT = Layout(tuple((chain, tuple(f"{chain}_{i}" for i in range(count))) for chain, count in (
+    ("torso", 3), ("head", 2), ("left_arm", 7), ("right_arm", 7), ("left_leg", 6),
+    ("right_leg", 6), ("left_hand", 1), ("right_hand", 1))))
 JOINTS = LAYOUT.joints
 
 

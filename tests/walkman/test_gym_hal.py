@@ -130,9 +130,9 @@ def test_pilot_moves_the_head_through_yarp_write(lite_world, probe, implementati
         before = neck(robot)
         pilot.send(tool, "command", "look_at 1.0 0.4 0.1")
         pilot.wait_state("tracking")
-        after = neck(robot)
-        assert after[0] > before[0] + 0.25, f"head did not turn left: {before} -> {after}"
-        assert after[1] > before[1] + 0.2, f"head did not look down: {before} -> {after}"
+        # The reference has arrived; the joints follow within their servo lag.
+        wait_until(lambda: neck(robot)[0] > before[0] + 0.25 and neck(robot)[1] > before[1] + 0.2,
+                   5, message=f"head turned left and down from {before} (now {neck(robot)})")
         pilot.send(tool, "switch", "quit")
         assert module.wait(timeout=30) == 0
     finally:

@@ -18,6 +18,8 @@ Port names follow YARP's control-board wrapper (``/<robot>/<chain>/...``):
 ``/<robot>/<ft>/analog:o``  Fx Fy Fz Tx Ty Tz (N, N*m), like YARP's analogServer
 ``/<robot>/inertial``       roll pitch yaw (deg), acc (m/s^2), gyro (deg/s), mag (0),
                              YARP's inertial layout
+``/<robot>/sim/world:o``    simulation only: ``time qpos...`` of the whole MuJoCo scene, 30 Hz,
+                             for simulated sensors (the camera of ``walkman-perception``)
 
 Every decoder validates what it is given and raises :class:`HalProtocolError`
 naming the problem, so a malformed command is refused and logged, never
@@ -61,6 +63,21 @@ def ft_port_name(robot: str, sensor: str) -> str:
 
 def imu_port_name(robot: str) -> str:
     return f"/{robot}/inertial"
+
+
+def world_port_name(robot: str) -> str:
+    """Simulation only: the whole scene's generalized positions (for simulated sensors)."""
+    return f"/{robot}/sim/world:o"
+
+
+def encode_world(time_s: float, qpos: Sequence[float]) -> Bottle:
+    return Bottle([float(time_s), *map(float, qpos)])
+
+
+def decode_world(bottle: Bottle, size: int) -> Tuple[float, List[float]]:
+    if len(bottle) != size + 1 or not all(isinstance(v, float) for v in bottle):
+        raise HalProtocolError(f"world state has {len(bottle)} values, expected {size + 1} floats")
+    return bottle[0], list(bottle[1:])
 
 
 def _floats(values: Sequence[float]) -> Bottle:

@@ -47,6 +47,7 @@ from yarp_lite.rpc import RpcServer
 log = logging.getLogger("walkman.hal")
 
 SENSOR_PERIOD_S = 0.01
+WORLD_PERIOD_S = 1.0 / 30
 STATUS_PERIOD_S = 5.0
 
 
@@ -120,6 +121,7 @@ class HalServer:
         self.steps = 0
         self.ft_ports: Dict[str, Port] = {}
         self.imu_port: Optional[Port] = None
+        self.world_port: Optional[Port] = None
 
     # -- ports -----------------------------------------------------------------------
 
@@ -145,6 +147,9 @@ class HalServer:
                                                protocol.ft_port_name(self.robot, sensor))
         self.imu_port = self._open(Port(nameclient=self.nameclient),
                                    protocol.imu_port_name(self.robot))
+        if getattr(self.backend, "plant", None) is not None:
+            self.world_port = self._open(Port(nameclient=self.nameclient),
+                                         protocol.world_port_name(self.robot))
         log.info("HAL for %s: %d chains (%s), %s backend, state every %g ms", self.robot,
                  len(self.chains), ", ".join(self.chains), type(self.backend).__name__,
                  self.config.period_ms)
@@ -281,6 +286,12 @@ class HalServer:
             self.publisher.publish(self.imu_port, protocol.encode_inertial(
                 imu.rpy, imu.acceleration, imu.gyro))
 
+    def _publish_world(self) -> None:
+        if self.world_port is not None and self.world_port.output_count:
+            plant = self.backend.plant
+            self.publisher.publish(self.world_port,
+                                   protocol.encode_world(self.backend.time, plant.d.qpos))
+
     def run(self, duration: Optional[float] = None) -> None:
         from walkman.gym.runner import HAL_PRIORITY, make_realtime
 
@@ -291,6 +302,7 @@ class HalServer:
         self.running = True
         state_every = max(1, round(self.config.period_ms / 1000.0 / backend.dt))
         sensor_every = max(1, round(SENSOR_PERIOD_S / backend.dt))
+        world_every = max(1, round(WORLD_PERIOD_S / backend.dt))
         self.started_at = time.perf_counter()
         deadline = self.started_at
         next_status = self.started_at + STATUS_PERIOD_S
@@ -303,6 +315,8 @@ class HalServer:
                 self._publish_state()
             if self.steps % sensor_every == 0:
                 self._publish_sensors()
+            if self.steps % world_every == 0:
+                self._publish_world()
             for event in getattr(backend, "events", []):
                 log.info("%s", event)
             if getattr(backend, "events", None):

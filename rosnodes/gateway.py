@@ -1,0 +1,472 @@
+"""``walkman-pilot-gateway``: every GYM module of the bridge configuration, as ROS topics.
+
+Theory of operation
+-------------------
+For each module ``M`` the gateway opens four YARP ports on the pilot's name
+server (``/pilot_gateway/<id>/M/...``) and keeps them connected to the module's
+``/M/switch:i``, ``/M/command:i``, ``/M/status:o`` and ``/M/warning:o`` -- the
+module itself in the lab, the bridge's stand-ins in the DRC topology.  On the
+pilot roscore it offers:
+
+===========================  ==================================  ===========================
+``/M/switch``                ``walkman_msgs/Switch``             in: start pause resume stop quit
+``/M/command``               ``walkman_msgs/Command``            in (dangerous ones count down)
+``/M/status``                ``walkman_msgs/Status``             out, latched, states decoded
+``/M/warning``               ``walkman_msgs/Warning``            out
+``/M/countdown``             ``walkman_msgs/Countdown``          out, 10 Hz while one waits
+``/M/switch_and_wait``       ``walkman_msgs/SwitchModule``       service: the new state
+``/M/send_command``          ``walkman_msgs/SendCommand``        service: the sequence number
+``/M/get_status``            ``walkman_msgs/GetStatus``          service
+``/pilot/sent_commands``     ``walkman_msgs/SentCommand``        out: everything sent, for logs
+===========================  ==================================  ===========================
+
+Sequence numbers are millisecond clock values, so several gateways (the DRC
+had three pilot PCs) never reuse one and a module never mistakes two pilots'
+commands for a resend.  Statuses are decoded with the module's list of states
+(the ``statuses`` attribute in the bridge configuration, or the module's class).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import math
+import os
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+from bridge import config as bridge_config
+from bridge.endpoints.yarp import ConnectionKeeper
+from rosnodes.timed import CANCELLED, SENT, WAITING, Countdowns
+from walkman.gym.interfaces import (InterfaceError, PilotCommand, decode_command,
+                                    decode_status, encode_command)
+from yarp_lite.bottle import Bottle
+from yarp_lite.errors import YarpError
+from yarp_lite.nameclient import NameClient
+from yarp_lite.port import Port
+
+log = logging.getLogger("walkman.gateway")
+
+DEFAULT_CONFIG = Path(__file__).resolve().parents[1] / "models" / "bridge_drc.xml"
+LIFECYCLE_WORDS = {"initializing": "constructor", "waiting_hal": "constructor",
+                   "paused": "paused", "stopped": "stopped", "destructor": "destructor"}
+EXPECTED = {"start": "running", "resume": "running", "pause": "paused", "stop": "stopped",
+            "quit": "destructor"}
+
+
+class GatewayError(Exception):
+    """The gateway was started or asked wrongly; the text says how."""
+
+
+def module_statuses(name: str, declared: Sequence[str]) -> List[str]:
+    """The module's list of states: from the configuration, else from its class."""
+    if declared:
+        return list(declared)
+    try:
+        return list(getattr(importlib.import_module(f"walkman.modules.{name}"), "Module").statuses)
+    except (ImportError, AttributeError):
+        return []
+
+
+def lifecycle_of(state: str) -> str:
+    return LIFECYCLE_WORDS.get(state, "running")
+
+
+class SequenceNumbers:
+    """Millisecond stamps, strictly increasing: unique across pilots and restarts."""
+
+    def __init__(self) -> None:
+        self._last = 0
+        self._lock = threading.Lock()
+
+    def next(self) -> int:
+        with self._lock:
+            self._last = max(self._last + 1, int(time.time() * 1000) % (1 << 31))
+            return self._last
+
+
+def build_command(msg: Any, seq: int) -> PilotCommand:
+    """A ``walkman_msgs/Command`` (or SendCommand request) as the GYM command it names."""
+    text = (msg.text or "").strip()
+    if text:
+        try:
+            parsed = decode_command(Bottle.from_text(text))
+        except (InterfaceError, ValueError) as exc:
+            raise GatewayError(f"command text {text!r} is not a command: {exc}") from None
+        return PilotCommand(parsed.name, parsed.args, seq)
+    name = (msg.command or "").strip()
+    if not name or " " in name:
+        raise GatewayError(f"command name {msg.command!r} must be one word (or use text)")
+    return PilotCommand(name, (*[str(w) for w in msg.words], *[float(n) for n in msg.numbers]),
+                        seq)
+
+
+class ModuleLink:
+    """One module's four YARP ports, as the pilot sees them."""
+
+    def __init__(self, module: str, statuses: List[str], prefix: str, nameclient: NameClient,
+                 keeper: ConnectionKeeper, on_status, on_warning) -> None:
+        self.module = module
+        self.statuses = statuses
+        base = f"{prefix}/{module}"
+        self.switch = Port(nameclient=nameclient).open(f"{base}/switch:o", wait=math.inf)
+        self.command = Port(nameclient=nameclient).open(f"{base}/command:o", wait=math.inf)
+        self.status = Port(nameclient=nameclient, reader=lambda b: on_status(self, b))
+        self.status.open(f"{base}/status:i", wait=math.inf)
+        self.warning = Port(nameclient=nameclient, reader=lambda b: on_warning(self, b))
+        self.warning.open(f"{base}/warning:i", wait=math.inf)
+        keeper.want(self.switch.name, f"/{module}/switch:i", self.switch, ours_is_source=True)
+        keeper.want(self.command.name, f"/{module}/command:i", self.command,
+                    ours_is_source=True)
+        keeper.want(f"/{module}/status:o", self.status.name, self.status, ours_is_source=False)
+        keeper.want(f"/{module}/warning:o", self.warning.name, self.warning,
+                    ours_is_source=False)
+        self.last_status: Optional[Tuple[int, str, list, Bottle]] = None
+        self.changed = threading.Condition()
+        self.warnings: List[str] = []
+
+    def send(self, port: Port, bottle: Bottle) -> Tuple[bool, str]:
+        if port.output_count == 0:
+            return False, f"/{self.module} is not reachable (no connection to its port yet)"
+        if not port.write(bottle):
+            return False, f"/{self.module} did not accept the message"
+        return True, ""
+
+    @property
+    def lifecycle(self) -> str:
+        return lifecycle_of(self.last_status[1]) if self.last_status else "unknown"
+
+    def close(self) -> None:
+        for port in (self.switch, self.command, self.status, self.warning):
+            port.close()
+
+
+class Gateway:
+    """All modules' links and their ROS faces."""
+
+    def __init__(self, modules: Dict[str, List[str]], prefix: str, countdown: float,
+                 node_name: str) -> None:
+        self.modules = modules
+        self.prefix = prefix
+        self.node_name = node_name
+        self.countdowns = Countdowns(countdown)
+        self.sequence = SequenceNumbers()
+        self.links: Dict[str, ModuleLink] = {}
+        self.keeper = ConnectionKeeper()
+        self.nameclient = NameClient()
+        self._lock = threading.Lock()
+        self._ros: Dict[str, Dict[str, Any]] = {}
+        self._sent = None
+        self._stop = threading.Event()
+        self.ros_node = None
+
+    # -- YARP side ---------------------------------------------------------------------
+
+    def open_yarp(self) -> None:
+        for module, statuses in self.modules.items():
+            self.links[module] = ModuleLink(module, statuses, self.prefix, self.nameclient,
+                                            self.keeper, self._on_status, self._on_warning)
+        self.keeper.start()
+        log.info("gateway: YARP ports open for %s", ", ".join(self.modules))
+
+    def _on_status(self, link: ModuleLink, bottle: Bottle) -> None:
+        try:
+            seq, state, data = decode_status(bottle, link.statuses)
+        except InterfaceError as exc:
+            log.warning("gateway: %s sent a malformed status: %s", link.module, exc)
+            return
+        code = str(bottle[1])
+        with link.changed:
+            link.last_status = (seq, state, data, bottle)
+            link.changed.notify_all()
+        publisher = self._ros.get(link.module, {}).get("status")
+        if publisher is not None:
+            publisher.publish(self._status_msg(link.module, seq, state, code, data))
+
+    def _on_warning(self, link: ModuleLink, bottle: Bottle) -> None:
+        text = " ".join(str(v) for v in bottle[1:]) if len(bottle) > 1 else str(bottle)
+        seq = int(bottle[0]) if bottle and isinstance(bottle[0], int) else 0
+        with link.changed:
+            link.warnings.append(text)
+            link.changed.notify_all()
+        self._publish_warning(link.module, seq, text)
+
+    # -- ROS side ----------------------------------------------------------------------
+
+    def start_ros(self) -> None:
+        from bridge.endpoints.ros import RosNode
+
+        self.ros_node = RosNode(self.node_name)
+        self.ros_node.when_ready(self._open_ros)
+        self.ros_node.start()
+
+    def _open_ros(self) -> None:
+        import rospy
+        from walkman_msgs.msg import Command, Countdown, SentCommand, Status, Switch, Warning
+        from walkman_msgs.srv import GetStatus, SendCommand, SwitchModule
+
+        self._sent = rospy.Publisher("/pilot/sent_commands", SentCommand, queue_size=50)
+        for module in self.modules:
+            self._ros[module] = {
+                "status": rospy.Publisher(f"/{module}/status", Status, queue_size=10,
+                                          latch=True),
+                "warning": rospy.Publisher(f"/{module}/warning", Warning, queue_size=20),
+                "countdown": rospy.Publisher(f"/{module}/countdown", Countdown, queue_size=10),
+                "subs": [rospy.Subscriber(f"/{module}/switch", Switch,
+                                          lambda m, mod=module: self._on_switch_topic(mod, m)),
+                         rospy.Subscriber(f"/{module}/command", Command,
+                                          lambda m, mod=module: self._on_command_topic(mod, m))],
+                "services": [
+                    rospy.Service(f"/{module}/switch_and_wait", SwitchModule,
+                                  lambda r, mod=module: self._switch_and_wait(mod, r)),
+                    rospy.Service(f"/{module}/send_command", SendCommand,
+                                  lambda r, mod=module: self._send_command_srv(mod, r)),
+                    rospy.Service(f"/{module}/get_status", GetStatus,
+                                  lambda r, mod=module: self._get_status(mod))],
+            }
+            link = self.links.get(module)
+            if link is not None and link.last_status is not None:
+                seq, state, data, bottle = link.last_status
+                self._ros[module]["status"].publish(
+                    self._status_msg(module, seq, state, str(bottle[1]), data))
+        threading.Thread(target=self._countdown_loop, name="gateway countdowns",
+                         daemon=True).start()
+        log.info("gateway: ROS topics and services up for %s", ", ".join(self.modules))
+
+    def _status_msg(self, module: str, seq: int, state: str, code: str, data: list) -> Any:
+        import rospy
+        from walkman_msgs.msg import Status
+
+        msg = Status()
+        msg.header.stamp = rospy.Time.now()
+        msg.module, msg.seq, msg.state, msg.code = module, seq, state, code
+        msg.data = " ".join(str(v) for v in data)
+        msg.values = [float(v) for v in data
+                      if isinstance(v, (int, float)) and not isinstance(v, bool)]
+        return msg
+
+    def _publish_warning(self, module: str, seq: int, text: str) -> None:
+        publisher = self._ros.get(module, {}).get("warning")
+        if publisher is None:
+            return
+        import rospy
+        from walkman_msgs.msg import Warning
+
+        msg = Warning()
+        msg.header.stamp = rospy.Time.now()
+        msg.module, msg.seq, msg.text = module, seq, text
+        publisher.publish(msg)
+
+    # -- sending -----------------------------------------------------------------------
+
+    def send_switch(self, module: str, word: str, seq: int = 0) -> Tuple[bool, str, int]:
+        link = self.links[module]
+        word = word.strip().lower()
+        if word not in EXPECTED:
+            return False, f"'{word}' is not a switch command (start, pause, resume, stop, quit)", 0
+        seq = seq or self.sequence.next()
+        ok, message = link.send(link.switch, Bottle([word, seq]))
+        if ok:
+            if word in ("stop", "quit"):
+                for event in self.countdowns.cancel_all(module):
+                    self._publish_countdown(event)
+            self._log_sent(module, "switch", f"{word} {seq}", seq)
+        return ok, message, seq
+
+    def send_command(self, module: str, command: PilotCommand) -> Tuple[bool, str]:
+        link = self.links[module]
+        bottle = encode_command(command)
+        ok, message = link.send(link.command, bottle)
+        if ok:
+            self._log_sent(module, "command", bottle.to_text(), command.seq or 0)
+        return ok, message
+
+    def _log_sent(self, module: str, port: str, text: str, seq: int) -> None:
+        log.info("gateway: sent to /%s/%s:i: %s", module, port, text)
+        if self._sent is not None:
+            import rospy
+            from walkman_msgs.msg import SentCommand
+
+            msg = SentCommand()
+            msg.header.stamp = rospy.Time.now()
+            msg.module, msg.port, msg.text, msg.seq = module, port, text, seq
+            self._sent.publish(msg)
+
+    def _refuse(self, module: str, text: str) -> None:
+        log.warning("gateway: %s", text)
+        self._publish_warning(module, 0, f"gateway: {text}")
+
+    def _on_switch_topic(self, module: str, msg: Any) -> None:
+        ok, message, _ = self.send_switch(module, msg.command, msg.seq)
+        if not ok:
+            self._refuse(module, message)
+
+    def _on_command_topic(self, module: str, msg: Any) -> None:
+        try:
+            command = build_command(msg, msg.seq or 0)
+        except GatewayError as exc:
+            self._refuse(module, str(exc))
+            return
+        if msg.dangerous:
+            text = encode_command(PilotCommand(command.name, command.args)).to_text()
+            try:
+                event = self.countdowns.request(module, text, time.monotonic(), command,
+                                                float(msg.countdown))
+            except ValueError as exc:
+                self._refuse(module, str(exc))
+                return
+            log.info("gateway: %s %s: %s", module, text,
+                     "cancelled" if event.state == CANCELLED else
+                     f"waiting {event.remaining:.1f} s (send it again to cancel)")
+            self._publish_countdown(event)
+            return
+        ok, message = self.send_command(module, PilotCommand(
+            command.name, command.args, command.seq or self.sequence.next()))
+        if not ok:
+            self._refuse(module, message)
+
+    def _countdown_loop(self) -> None:
+        while not self._stop.wait(0.1):
+            for event in self.countdowns.tick(time.monotonic()):
+                if event.state == SENT:
+                    command = event.pending.payload
+                    ok, message = self.send_command(event.pending.module, PilotCommand(
+                        command.name, command.args, command.seq or self.sequence.next()))
+                    if not ok:
+                        self._refuse(event.pending.module, message)
+                self._publish_countdown(event)
+
+    def _publish_countdown(self, event) -> None:
+        publisher = self._ros.get(event.pending.module, {}).get("countdown")
+        if publisher is None:
+            return
+        import rospy
+        from walkman_msgs.msg import Countdown
+
+        msg = Countdown()
+        msg.header.stamp = rospy.Time.now()
+        msg.module, msg.command = event.pending.module, event.pending.text
+        msg.remaining, msg.state = float(event.remaining), event.state
+        publisher.publish(msg)
+
+    # -- services ----------------------------------------------------------------------
+
+    def _switch_and_wait(self, module: str, request: Any) -> Any:
+        from walkman_msgs.srv import SwitchModuleResponse
+
+        link = self.links[module]
+        word = request.command.strip().lower()
+        timeout = float(request.timeout) or 5.0
+        with link.changed:
+            warnings_before = len(link.warnings)
+        ok, message, _ = self.send_switch(module, word)
+        if not ok:
+            return SwitchModuleResponse(False, link.lifecycle, message)
+        wanted = EXPECTED[word]
+        deadline = time.monotonic() + timeout
+        with link.changed:
+            while True:
+                if link.lifecycle == wanted:
+                    return SwitchModuleResponse(True, link.last_status[1], "")
+                news = [w for w in link.warnings[warnings_before:] if word in w]
+                if news:
+                    return SwitchModuleResponse(False, link.lifecycle, news[-1])
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return SwitchModuleResponse(False, link.lifecycle,
+                                                f"no {wanted} state within {timeout:g} s")
+                link.changed.wait(remaining)
+
+    def _send_command_srv(self, module: str, request: Any) -> Any:
+        from walkman_msgs.srv import SendCommandResponse
+
+        try:
+            command = build_command(request, self.sequence.next())
+        except GatewayError as exc:
+            return SendCommandResponse(False, 0, str(exc))
+        ok, message = self.send_command(module, command)
+        return SendCommandResponse(ok, command.seq if ok else 0, message)
+
+    def _get_status(self, module: str) -> Any:
+        from walkman_msgs.msg import Status
+        from walkman_msgs.srv import GetStatusResponse
+
+        link = self.links[module]
+        if link.last_status is None:
+            return GetStatusResponse(False, "unknown", Status())
+        seq, state, data, bottle = link.last_status
+        return GetStatusResponse(True, link.lifecycle,
+                                 self._status_msg(module, seq, state, str(bottle[1]), data))
+
+    def close(self) -> None:
+        self._stop.set()
+        self.keeper.stop()
+        for link in self.links.values():
+            link.close()
+        if self.ros_node is not None:
+            self.ros_node.stop()
+
+
+def select_modules(config_path: Path, wanted: Optional[str]) -> Dict[str, List[str]]:
+    config = bridge_config.load(config_path)
+    gym = {name: module_statuses(name, statuses)
+           for name, statuses in config.gym_modules.items()}
+    if not wanted:
+        return gym
+    names = [n.strip() for n in wanted.split(",") if n.strip()]
+    unknown = [n for n in names if n not in gym]
+    if unknown:
+        raise GatewayError(f"unknown module(s) {', '.join(unknown)}; {config_path} lists "
+                           f"{', '.join(sorted(gym))}")
+    return {n: gym[n] for n in names}
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    parser = argparse.ArgumentParser(prog="walkman-pilot-gateway",
+                                     description="GYM modules as ROS topics and services.")
+    parser.add_argument("--config", type=Path, default=DEFAULT_CONFIG,
+                        help="bridge configuration listing the modules (default: %(default)s)")
+    parser.add_argument("--modules", help="only these modules (comma separated)")
+    parser.add_argument("--countdown", type=float, default=3.0,
+                        help="seconds a dangerous command waits (default 3)")
+    parser.add_argument("--name", default="", help="ROS node name (default: unique per PC)")
+    options = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="[gateway] %(levelname)s %(message)s")
+    for name in ("walkman", "yarp_lite", "bridge"):
+        logging.getLogger(name).propagate = False
+        logging.getLogger(name).addHandler(logging.getLogger().handlers[0])
+    try:
+        modules = select_modules(options.config, options.modules)
+    except (GatewayError, bridge_config.ConfigError) as exc:
+        print(f"walkman-pilot-gateway: {exc}", file=sys.stderr)
+        return 2
+    if options.countdown <= 0:
+        print("walkman-pilot-gateway: --countdown must be positive", file=sys.stderr)
+        return 2
+    from rosnodes.msgs import ensure_importable
+
+    ensure_importable()
+    unique = options.name or f"pilot_gateway_{os.uname().nodename.replace('-', '_')}_{os.getpid()}"
+    gateway = Gateway(modules, f"/pilot_gateway/{os.getpid()}", options.countdown, unique)
+    gateway.start_ros()
+    try:
+        gateway.open_yarp()
+    except YarpError as exc:
+        print(f"walkman-pilot-gateway: {exc}", file=sys.stderr)
+        return 1
+    done = threading.Event()
+    import signal
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: done.set())
+    done.wait()
+    gateway.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

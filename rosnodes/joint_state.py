@@ -1,0 +1,120 @@
+"""``walkman-joint-state``: the HAL's joints as ``sensor_msgs/JointState`` and TF.
+
+Runs on either PC: it reads the whole-body state from the local name server
+(the HAL on the robot; on the pilot, the bridge's copy of the HAL's ports, in
+the Table 1 resolution) and publishes on the local roscore:
+
+* ``/joint_states`` -- names, positions, velocities, efforts, at ``--rate`` Hz;
+* ``/tf`` -- every link of the model in the ``pelvis`` frame (forward
+  kinematics with Pinocchio on ``models/walkman.urdf``), so RViz or ``tf_echo``
+  can place the robot.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import threading
+from typing import List, Tuple
+
+import numpy as np
+
+log = logging.getLogger("walkman.joint_state")
+
+
+def link_transforms(kinematics, q: np.ndarray) -> List[Tuple[str, np.ndarray, np.ndarray]]:
+    """``(link, position, quaternion xyzw)`` of every body frame, in the pelvis frame."""
+    import pinocchio as pin
+
+    model, data = kinematics.model, kinematics.data
+    pin.framesForwardKinematics(model, data, kinematics.pin_q(q))
+    out = []
+    for frame_id, frame in enumerate(model.frames):
+        if frame.type != pin.FrameType.BODY or frame.name in ("pelvis", "universe"):
+            continue
+        placement = data.oMf[frame_id]
+        quaternion = pin.Quaternion(placement.rotation)
+        out.append((frame.name, placement.translation.copy(),
+                    np.array([quaternion.x, quaternion.y, quaternion.z, quaternion.w])))
+    return out
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="walkman-joint-state",
+                                     description="The HAL's joints as JointState and TF.")
+    parser.add_argument("--robot", default="walkman")
+    parser.add_argument("--rate", type=float, default=50.0, help="Hz (default 50)")
+    parser.add_argument("--no-tf", action="store_true", help="only /joint_states")
+    options = parser.parse_args(argv)
+    if not 0 < options.rate <= 500:
+        parser.error("--rate must be in (0, 500]")
+    from bridge.main import configure_logging
+
+    configure_logging("joint_state", False)
+    from bridge.endpoints.ros import RosNode
+    from walkman.control.kinematics import Kinematics
+    from walkman.hal.robot import Robot
+
+    kinematics = None if options.no_tf else Kinematics()
+    ros = RosNode("walkman_joint_state")
+    publishers = {}
+
+    def open_topics() -> None:
+        import rospy
+        from sensor_msgs.msg import JointState
+
+        publishers["joints"] = rospy.Publisher("/joint_states", JointState, queue_size=5)
+        if kinematics is not None:
+            from tf2_msgs.msg import TFMessage
+
+            publishers["tf"] = rospy.Publisher("/tf", TFMessage, queue_size=5)
+
+    ros.when_ready(open_topics)
+    ros.start()
+    robot = Robot("/joint_state", robot=options.robot, connect_timeout=float("inf"))
+    log.info("joint state: reading %d joints of /%s", len(robot.joint_names), options.robot)
+    stop = threading.Event()
+    import signal
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    tf_every = max(1, int(round(options.rate / 10)))  # TF at 10 Hz is plenty for display
+    tick = 0
+    while not stop.wait(1.0 / options.rate):
+        if not publishers or not robot.connected:
+            continue
+        import rospy
+        from sensor_msgs.msg import JointState
+
+        now = rospy.Time.now()
+        q = robot.sense_position()
+        msg = JointState(name=list(robot.joint_names), position=q.tolist(),
+                         velocity=robot.sense_velocity().tolist(),
+                         effort=robot.sense_torque().tolist())
+        msg.header.stamp = now
+        publishers["joints"].publish(msg)
+        tick += 1
+        if "tf" in publishers and tick % tf_every == 0:
+            from geometry_msgs.msg import TransformStamped
+            from tf2_msgs.msg import TFMessage
+
+            transforms = []
+            for link, position, quaternion in link_transforms(kinematics, q):
+                transform = TransformStamped()
+                transform.header.stamp, transform.header.frame_id = now, "pelvis"
+                transform.child_frame_id = link
+                (transform.transform.translation.x, transform.transform.translation.y,
+                 transform.transform.translation.z) = position.tolist()
+                (transform.transform.rotation.x, transform.transform.rotation.y,
+                 transform.transform.rotation.z, transform.transform.rotation.w) = \
+                    quaternion.tolist()
+                transforms.append(transform)
+            publishers["tf"].publish(TFMessage(transforms))
+    robot.close()
+    ros.stop()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,300 @@
+"""The robot and pilot PCs, their name servers and programs, in either topology.
+
+Theory of operation
+-------------------
+A :class:`Pc` is a private environment -- its own ``YARP_CONFIG_HOME``, a
+``yarp-lite server`` and a ``roscore`` on its own ports, its own state folder --
+optionally inside an emulated host (a network namespace of
+:class:`~bridge.emulation.EmulatedLink`).  A :class:`Topology` places the
+components on PCs:
+
+``lab``  one PC, one name-server pair, every program connects directly: the
+         paper's lab setting;
+``drc``  a robot PC and a pilot PC, each with its pair, and ``walkman-bridge``
+         on both: the DRC setting.
+
+The name servers start first; every other component can then start in any
+order, with delays, because each one waits for what it needs (that is the
+property :meth:`Topology.start_all` exercises).  :func:`observe` (run inside a
+PC, ``python -m system.topology observe``) lists what a process on that PC can
+see: YARP ports and their connections, ROS topics with their publishers and
+subscribers -- normalized so two runs can be compared.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import random
+import re
+import shutil
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Dict, List, Optional, Sequence, Tuple
+
+from system.processes import REPO, Proc, WaitTimeout, wait_until
+from yarp_lite.freeport import free_port
+
+PYTHON = sys.executable
+BRIDGE_CONFIG = REPO / "models" / "bridge_drc.xml"
+GENERATED = REPO / "build" / "ros" / "lib"
+
+
+@dataclass(frozen=True)
+class Component:
+    name: str
+    pc: str                  # "robot" or "pilot" (the same PC in the lab topology)
+    argv: Tuple[str, ...]
+    ready: str               # a line the program prints once it is up
+    topologies: Tuple[str, ...] = ("lab", "drc")
+
+
+def components(kind: str, perception_rate: float = 1.0) -> List[Component]:
+    """Every program of a topology besides the name servers."""
+    module = (PYTHON, "-m", "walkman.gym.supervisor")
+    table = [
+        Component("hal", "robot", (PYTHON, "-m", "walkman.hal.server", "--backend", "sim"),
+                  r"HAL for walkman"),
+        Component("gaze_control", "robot", (*module, "gaze_control"), r"ready for the pilot"),
+        Component("temperature", "robot", (*module, "temperature"), r"ready for the pilot"),
+        Component("perception", "robot", (PYTHON, "-m", "rosnodes.perception", "--rate",
+                                          str(perception_rate)), r"ROS node .* registered"),
+        Component("joint_state", "robot", (PYTHON, "-m", "rosnodes.joint_state"),
+                  r"joint state: reading"),
+        Component("bridge_robot", "robot", (), r"side ready", ("drc",)),
+        Component("bridge_pilot", "pilot", (), r"side ready", ("drc",)),
+        Component("gateway", "pilot", (PYTHON, "-m", "rosnodes.gateway"),
+                  r"ROS topics and services up"),
+        Component("joint_state_pilot", "pilot", (PYTHON, "-m", "rosnodes.joint_state",
+                                                 "--no-tf"), r"joint state: reading", ("drc",)),
+    ]
+    return [c for c in table if kind in c.topologies]
+
+
+@dataclass
+class Pc:
+    """One computer: its environment, name servers and programs."""
+
+    name: str
+    root: Path
+    wrap: Sequence[str] = ()
+    address: str = "127.0.0.1"
+    yarp_port: int = field(default_factory=lambda: free_port(span=60))
+    ros_port: int = field(default_factory=free_port)
+    processes: Dict[str, Proc] = field(default_factory=dict)
+
+    @property
+    def env(self) -> Dict[str, str]:
+        env = dict(os.environ)
+        for key in ("YARP_NAMESPACE", "YARP_PORT_PREFIX", "ROS_HOSTNAME"):
+            env.pop(key, None)
+        env.update({
+            "YARP_CONFIG_HOME": str(self.root / "yarp"), "YARP_DATA_HOME": str(self.root / "data"),
+            "ROS_MASTER_URI": f"http://127.0.0.1:{self.ros_port}", "ROS_IP": "127.0.0.1",
+            "ROS_HOME": str(self.root / "ros"), "ROS_LOG_DIR": str(self.root / "ros" / "log"),
+            "XDG_STATE_HOME": str(self.root / "state"), "MUJOCO_GL": "osmesa",
+            "PYTHONUNBUFFERED": "1",
+            "PYTHONPATH": os.pathsep.join(p for p in (str(GENERATED), str(REPO),
+                                                      os.environ.get("PYTHONPATH", "")) if p),
+            "ROS_PACKAGE_PATH": os.pathsep.join([str(REPO / "rosnodes"),
+                                                 str(REPO / "build" / "ros" / "share"),
+                                                 "/usr/share"]),
+        })
+        return env
+
+    def start(self, name: str, argv: Sequence[str]) -> Proc:
+        proc = Proc([*self.wrap, *argv], self.env, f"{self.name}:{name}")
+        self.processes[name] = proc
+        return proc
+
+    def run(self, argv: Sequence[str], timeout: float = 30.0) -> Proc:
+        """Run a tool to completion (raises :class:`WaitTimeout` if it hangs)."""
+        proc = Proc([*self.wrap, *argv], self.env, f"{self.name}:{argv[0]}")
+        try:
+            proc.wait(timeout)
+        except Exception:
+            proc.kill()
+            raise WaitTimeout(f"{' '.join(argv)} did not finish in {timeout} s:\n"
+                              + proc.output())
+        return proc
+
+    def start_name_servers(self) -> None:
+        (self.root / "yarp").mkdir(parents=True, exist_ok=True)
+        server = self.start("yarp-server", [PYTHON, "-m", "yarp_lite", "server", "--socket",
+                                            str(self.yarp_port), "--ip", "127.0.0.1", "--write"])
+        roscore = self.start("roscore", ["roscore", "-p", str(self.ros_port)])
+        server.wait_for(r"Ready", 30)
+        roscore.wait_for(r"started core service|process\[master\]", 60)
+
+    def kill(self, name: str) -> None:
+        proc = self.processes.pop(name, None)
+        if proc is not None:
+            proc.kill()
+
+    def close(self) -> None:
+        for name in reversed(list(self.processes)):
+            self.processes[name].kill()
+        self.processes.clear()
+
+
+class Topology:
+    """The PCs of ``lab`` or ``drc`` and the programs on them."""
+
+    def __init__(self, kind: str, root: Path, link=None, profile: str = "lab",
+                 loss: Optional[float] = None, perception_rate: float = 1.0,
+                 bridge_config: Path = BRIDGE_CONFIG) -> None:
+        if kind not in ("lab", "drc"):
+            raise ValueError(f"topology must be lab or drc, not {kind!r}")
+        self.kind = kind
+        self.root = root
+        self.link = link
+        self.profile, self.loss = profile, loss
+        self.bridge_config = bridge_config
+        self.table = {c.name: c for c in components(kind, perception_rate)}
+        if kind == "lab":
+            lab = Pc("lab", root / "lab", link.exec_argv("robot", []) if link else ())
+            self.pcs = {"robot": lab, "pilot": lab}
+        else:
+            self.pcs = {side: Pc(side, root / side, link.exec_argv(side, []) if link else (),
+                                 link.address(side) if link else "127.0.0.1")
+                        for side in ("robot", "pilot")}
+        self.tcp_port = free_port()
+        self.udp_ports = {"robot": free_port(), "pilot": free_port()}
+
+    @property
+    def robot(self) -> Pc:
+        return self.pcs["robot"]
+
+    @property
+    def pilot(self) -> Pc:
+        return self.pcs["pilot"]
+
+    def unique_pcs(self) -> List[Pc]:
+        return list({id(pc): pc for pc in self.pcs.values()}.values())
+
+    def start_name_servers(self) -> None:
+        if self.link is not None:
+            self.link.apply(self.profile, loss=self.loss)
+        for pc in self.unique_pcs():
+            pc.start_name_servers()
+
+    def _argv(self, component: Component) -> List[str]:
+        if component.name.startswith("bridge_"):
+            side = component.pc
+            other = "pilot" if side == "robot" else "robot"
+            return [PYTHON, "-m", "bridge.main", "--side", side, "--config",
+                    str(self.bridge_config), "--peer", self.pcs[other].address,
+                    "--port", str(self.tcp_port), "--udp-port", str(self.udp_ports[side]),
+                    "--peer-udp-port", str(self.udp_ports[other]), "--udp-rate", "600k",
+                    "--link-timeout", "5"]
+        return list(component.argv)
+
+    def start(self, name: str) -> Proc:
+        component = self.table[name]
+        return self.pcs[component.pc].start(name, self._argv(component))
+
+    def start_all(self, order: Optional[Sequence[str]] = None, delay: float = 0.0,
+                  rng: Optional[random.Random] = None) -> List[str]:
+        """Start every component (in ``order``, or shuffled by ``rng``), ``delay`` s apart."""
+        names = list(order) if order is not None else list(self.table)
+        if order is None and rng is not None:
+            rng.shuffle(names)
+        for index, name in enumerate(names):
+            if index and delay:
+                time.sleep(delay * (rng.random() if rng else 1.0))
+            self.start(name)
+        return names
+
+    def wait_ready(self, timeout: float = 120.0) -> None:
+        deadline = time.monotonic() + timeout
+        for name, component in self.table.items():
+            proc = self.pcs[component.pc].processes[name]
+            proc.wait_for(component.ready, max(1.0, deadline - time.monotonic()))
+
+    def process(self, name: str) -> Proc:
+        return self.pcs[self.table[name].pc].processes[name]
+
+    def observe(self, pc: Pc) -> dict:
+        proc = pc.run([PYTHON, "-m", "system.topology", "observe"], timeout=60)
+        lines = [line for line in proc.lines if line.startswith("{")]
+        if not lines:
+            raise WaitTimeout(f"observe on {pc.name} printed nothing:\n{proc.output()}")
+        return json.loads(lines[-1])
+
+    def close(self) -> None:
+        for pc in self.unique_pcs():
+            pc.close()
+
+
+# -- what a process can see -----------------------------------------------------------------
+
+_VOLATILE = [(re.compile(r"/pilot_gateway/\d+"), "/pilot_gateway/N"),
+             (re.compile(r"pilot_gateway_[\w]+_\d+"), "pilot_gateway"),
+             (re.compile(r"/rostopic_\d+_\d+"), "/rostopic"),
+             (re.compile(r"/rosservice_\d+_\d+"), "/rosservice"),
+             (re.compile(r"/observer\d*"), "/observer")]
+
+
+def normalize(name: str) -> str:
+    for pattern, replacement in _VOLATILE:
+        name = pattern.sub(replacement, name)
+    return name
+
+
+def observe_here() -> dict:
+    """YARP ports with their outputs, ROS topics with their ends, as seen from this PC."""
+    from yarp_lite import network
+    from yarp_lite.bottle import Vocab
+    from yarp_lite.errors import YarpError
+    from yarp_lite.nameclient import NameClient
+
+    client = NameClient()
+    ports: Dict[str, List[str]] = {}
+    for line in client.text("list"):
+        match = re.search(r"registration name (\S+) ip", line)
+        if not match or match.group(1) in ("/root",) or match.group(1).startswith("fallback"):
+            continue
+        name = match.group(1)
+        contact = client.query(name)
+        outputs: List[str] = []
+        if contact is not None:
+            try:
+                reply = network.request(contact, [Vocab("list"), Vocab("out")], admin=True,
+                                        timeout=3)
+                outputs = sorted(normalize(str(v)) for v in reply if isinstance(v, str))
+            except YarpError:
+                outputs = ["<no answer>"]
+        ports[normalize(name)] = outputs
+    topics: Dict[str, dict] = {}
+    try:
+        import rosgraph
+
+        master = rosgraph.Master("/observer")
+        publishers, subscribers, services = master.getSystemState()
+        types = dict(master.getTopicTypes())
+        for topic, nodes in publishers:
+            entry = topics.setdefault(topic, {"type": types.get(topic, ""), "pub": [], "sub": []})
+            entry["pub"] = sorted({normalize(n) for n in nodes})
+        for topic, nodes in subscribers:
+            entry = topics.setdefault(topic, {"type": types.get(topic, ""), "pub": [], "sub": []})
+            entry["sub"] = sorted({normalize(n) for n in nodes})
+        service_names = sorted(normalize(name) for name, _ in services)
+    except Exception as exc:  # noqa: BLE001 -- report it, the caller compares
+        topics = {"<error>": {"type": str(exc), "pub": [], "sub": []}}
+        service_names = []
+    return {"ports": ports, "topics": topics, "services": service_names}
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m system.topology")
+    parser.add_argument("verb", choices=["observe"])
+    parser.parse_args(argv)
+    print(json.dumps(observe_here(), sort_keys=True), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
