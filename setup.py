@@ -27,6 +27,7 @@ setup(
             "walkman-pilot-gateway=rosnodes.gateway:main",
             "walkman-perception=rosnodes.perception:main",
             "walkman-joint-state=rosnodes.joint_state:main",
+            "walkman-compare=system.compare:main",
         ],
     },
 )

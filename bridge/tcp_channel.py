@@ -84,6 +84,8 @@ class LinkStats:
     connects: int = 0
     held_back: int = 0
     last_error: str = ""
+    #: payload plus entry header bytes sent, per 8-bit id (frame headers not included)
+    bytes_by_id: Dict[int, int] = field(default_factory=dict)
 
 
 def fingerprint(text: str) -> bytes:
@@ -487,7 +489,11 @@ class TcpChannel:
                 connection.sent_bottles[key] = value
             self.stats.payload_out += len(entry.payload)
             out.append(frames.entry_bytes(entry))
+            self._count(entry.id, len(out[-1]))
         return out
+
+    def _count(self, ident: int, size: int) -> None:
+        self.stats.bytes_by_id[ident] = self.stats.bytes_by_id.get(ident, 0) + size
 
     def _send_frame(self, connection: _Connection, with_streams: bool) -> None:
         encoded: List[bytes] = []
@@ -497,6 +503,7 @@ class TcpChannel:
         for item in reliable:
             encoded.append(frames.entry_bytes(Entry(item.id, item.kind, item.payload)))
             self.stats.payload_out += len(item.payload)
+            self._count(item.id, len(encoded[-1]))
         if with_streams:
             backlog = _unsent_bytes(connection.sock)
             if backlog > 2048:

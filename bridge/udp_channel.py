@@ -93,6 +93,8 @@ class UdpStats:
     stale: int = 0
     bad_tiles: int = 0
     send_errors: int = 0
+    #: datagram bytes sent per 8-bit id (IP/UDP headers not included)
+    bytes_by_id: Dict[int, int] = field(default_factory=dict)
     flows: Dict[str, FlowStats] = field(default_factory=dict)
     last_error: str = ""
 
@@ -385,6 +387,8 @@ class UdpChannel:
                     continue
                 self.stats.datagrams_out += 1
                 self.stats.bytes_out += len(datagram)
+                self.stats.bytes_by_id[key[0]] = self.stats.bytes_by_id.get(key[0], 0) + \
+                    len(datagram)
 
     # -- receiving ---------------------------------------------------------------------
 

@@ -4,7 +4,9 @@ Runs on either PC: it reads the whole-body state from the local name server
 (the HAL on the robot; on the pilot, the bridge's copy of the HAL's ports, in
 the Table 1 resolution) and publishes on the local roscore:
 
-* ``/joint_states`` -- names, positions, velocities, efforts, at ``--rate`` Hz;
+* ``/joint_states`` -- names, positions, velocities, efforts: each new reading,
+  at most ``--rate`` Hz (50 on the robot; on the pilot, as often as the bridge
+  brings the state: every period T);
 * ``/tf`` -- every link of the model in the ``pelvis`` frame (forward
   kinematics with Pinocchio on ``models/walkman.urdf``), so RViz or ``tf_echo``
   can place the robot.
@@ -80,10 +82,11 @@ def main(argv=None) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     tf_every = max(1, int(round(options.rate / 10)))  # TF at 10 Hz is plenty for display
-    tick = 0
+    tick, published_seq = 0, 0
     while not stop.wait(1.0 / options.rate):
-        if not publishers or not robot.connected:
+        if not publishers or robot.last_seq == published_seq:
             continue
+        published_seq = robot.last_seq
         import rospy
         from sensor_msgs.msg import JointState
 

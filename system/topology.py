@@ -68,8 +68,8 @@ def components(kind: str, perception_rate: float = 1.0) -> List[Component]:
         Component("bridge_pilot", "pilot", (), r"side ready", ("drc",)),
         Component("gateway", "pilot", (PYTHON, "-m", "rosnodes.gateway"),
                   r"ROS topics and services up"),
-        Component("joint_state_pilot", "pilot", (PYTHON, "-m", "rosnodes.joint_state",
-                                                 "--no-tf"), r"joint state: reading", ("drc",)),
+        Component("joint_state_pilot", "pilot", (PYTHON, "-m", "rosnodes.joint_state"),
+                  r"joint state: reading", ("drc",)),
     ]
     return [c for c in table if kind in c.topologies]
 

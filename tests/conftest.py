@@ -34,8 +34,26 @@ def implementations(lite):
     return {"yarp_lite": lite, "yarp": real}
 
 
+@pytest.hookimpl(wrapper=True, tryfirst=True)
+def pytest_runtest_makereport(item, call):
+    """Remember each phase's outcome so fixtures can explain a failure."""
+    report = yield
+    setattr(item, f"report_{report.when}", report)
+    return report
+
+
+def dump_outputs_if_failed(request, processes) -> None:
+    """Show what the child processes printed when the test failed (their logs explain it)."""
+    report = getattr(request.node, "report_call", None)
+    if report is None or not report.failed:
+        return
+    for proc in processes:
+        tail = "\n".join(proc.output().splitlines()[-40:])
+        print(f"\n----- output of {proc.name} (last 40 lines) -----\n{tail}")
+
+
 @pytest.fixture
-def make_world(tmp_path):
+def make_world(tmp_path, request):
     worlds = []
 
     def factory(server_impl, name: str = "world", start: bool = True) -> YarpWorld:
@@ -47,6 +65,7 @@ def make_world(tmp_path):
 
     yield factory
     for world in worlds:
+        dump_outputs_if_failed(request, world.processes)
         world.close()
 
 

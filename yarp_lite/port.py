@@ -125,7 +125,14 @@ class _InputUnit:
         chunks: List = []
         keep_going = True
         if command in ("d", "D"):
-            reply = port._deliver(message, self)
+            try:
+                reply = port._deliver(message, self)
+            except YarpError:
+                raise
+            except Exception:  # the owner's callback failed: its bug, not the peer's
+                log.exception("%s: reader failed on a message from %s; message dropped, "
+                              "connection kept", port.name, self.route.source)
+                reply = None
             if message.wants_reply:
                 if not isinstance(reply, Payload):
                     reply = BottlePayload(reply if reply is not None else Bottle())

@@ -53,7 +53,8 @@ def test_the_project_config_has_state_and_topics():
     assert loaded.robot_state == (20, "walkman", "tcp")
     topics = {c.label: c for c in loaded.channels if c.middleware == "ros"}
     assert topics["/multisense/points"].transport == "udp"
-    assert topics["/robot_description_semantic"].latch
+    assert topics["/multisense/left/camera_info"].fec == 0.5
+    assert not topics["/multisense/points"].latch
 
 
 BAD = [

@@ -103,6 +103,23 @@ def test_rpc_to_a_port_that_never_replies_gets_an_empty_reply(lite_world, ports)
     assert client.call(["anyone?"], timeout=5) == []
 
 
+def test_a_reader_that_raises_loses_one_message_not_the_connection(lite_world, ports):
+    received = []
+
+    def fragile(bottle):
+        if bottle[0] == "boom":
+            raise RuntimeError("owner bug")
+        received.append(bottle[0])
+
+    ports(Port, "/fragile", reader=fragile)
+    out = ports(Port, "/fragile/out")
+    assert network.connect("/fragile/out", "/fragile").ok
+    for word in ("one", "boom", "two"):
+        out.write([word])
+    wait_until(lambda: received == ["one", "two"], message=f"both good messages (got {received})")
+    assert network.is_connected("/fragile/out", "/fragile")
+
+
 def test_rpc_port_accepts_one_output(lite_world, ports):
     ports(Port, "/x1", reader=lambda b: None)
     ports(Port, "/x2", reader=lambda b: None)

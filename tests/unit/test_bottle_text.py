@@ -85,8 +85,17 @@ def test_parsing_is_total(text):
 
 simple = st.one_of(st.integers(-(1 << 31), (1 << 31) - 1),
                    st.floats(allow_nan=False, allow_infinity=False),
+                   # YARP prints the strings "nan" and "inf" bare (StoreString::quotedString)
+                   # and reads them back as floats: an ambiguity of the format itself,
+                   # pinned in test_strings_nan_and_inf_are_ambiguous_as_in_yarp.
                    st.text(alphabet=st.characters(min_codepoint=32, max_codepoint=126),
-                           max_size=10))
+                           max_size=10).filter(lambda text: text not in ("nan", "inf")))
+
+
+def test_strings_nan_and_inf_are_ambiguous_as_in_yarp():
+    assert format_bottle(Bottle(["nan", "inf", "-inf"])) == 'nan inf "-inf"'
+    again = parse('nan inf "-inf"')
+    assert math.isnan(again[0]) and again[1] == math.inf and again[2] == "-inf"
 
 
 @FUZZ

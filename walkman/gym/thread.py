@@ -38,7 +38,11 @@ class _CommandView:
 
     def get_command(self) -> Optional[PilotCommand]:
         """The oldest command not yet handled, or None (never blocks)."""
-        return self._interfaces.commands.get()
+        command = self._interfaces.commands.get()
+        if command is not None:  # a pilot's command: rare, worth a line in the log
+            log.info("%s: command %s%s (seq %s)", self._interfaces.prefix.lstrip("/"),
+                     command.name, "".join(f" {a}" for a in command.args), command.seq)
+        return command
 
 
 class _StatusView:

@@ -49,6 +49,7 @@ log = logging.getLogger("walkman.hal")
 SENSOR_PERIOD_S = 0.01
 WORLD_PERIOD_S = 1.0 / 30
 STATUS_PERIOD_S = 5.0
+PUBLISHED_HISTORY = 2048  # state publications remembered for latency (2 s at 1 kHz)
 
 
 @dataclass
@@ -113,7 +114,9 @@ class HalServer:
         self.publisher = Publisher()
         self.running = False
         self.seq = 0
-        self.published_at: Deque[Tuple[int, float]] = deque(maxlen=2000)
+        # When each state seq went out, as a ring indexed by seq (written by the loop,
+        # read by command readers without a lock: one float store, no iteration).
+        self.published_at = np.zeros(PUBLISHED_HISTORY)
         self.latencies: Deque[float] = deque(maxlen=5000)
         self.overruns = 0
         self.max_step_s = 0.0
@@ -180,11 +183,8 @@ class HalServer:
         with self.lock:
             chain.pending = command
             chain.commands += 1
-            if command.seq is not None:
-                for seq, stamp in reversed(self.published_at):
-                    if seq == command.seq:
-                        self.latencies.append(now - stamp)
-                        break
+            if command.seq is not None and 0 <= self.seq - command.seq < PUBLISHED_HISTORY:
+                self.latencies.append(now - self.published_at[command.seq % PUBLISHED_HISTORY])
 
     def _chain_rpc(self, chain: _Chain, request: Bottle) -> Bottle:
         verb = str(request[0]) if request else ""
@@ -275,7 +275,7 @@ class HalServer:
                 self.publisher.publish(state_ext, protocol.encode_state_ext(state))
             if chain.ports["state"].output_count:
                 self.publisher.publish(chain.ports["state"], protocol.encode_state(q[idx]))
-        self.published_at.append((self.seq, now))
+        self.published_at[self.seq % PUBLISHED_HISTORY] = now
 
     def _publish_sensors(self) -> None:
         for sensor, port in self.ft_ports.items():

@@ -1,0 +1,364 @@
+"""``walkman-compare``: one pilot session in the lab topology and in the DRC topology, compared.
+
+Theory of operation
+-------------------
+The same scripted session (:mod:`system.session`) runs twice: ``lab`` (one
+name-server pair, direct connections) and ``drc`` (two pairs and the bridge,
+on the emulated network with a link profile when run as root, else on
+loopback).  For each run we keep what the pilot side could observe (ports,
+topics, services: :func:`system.topology.observe_here`), what it received and
+when, and what the robot's modules executed.  The analysis is pure functions
+over those records; the report is Markdown with PNG plots.
+
+The verdict is about what processes can observe.  The pilot's *contract* --
+the ports and topics the pilot-side programs use (:data:`CONTRACT_TOPICS`,
+:data:`CONTRACT_PORTS`) -- must exist with the same types in both topologies,
+every session step must have its effect, and the robot must execute the same
+commands in the same order.  Latency, rates and completeness are measured and
+reported as degradation, not as failure.  Names that only one topology shows
+(robot internals not bridged by the configuration, the bridge's own ports,
+stand-ins for modules that are not running) are listed as expected.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import tempfile
+import time
+from dataclasses import asdict
+from pathlib import Path
+from typing import Dict, List, Optional, Tuple
+
+from system.session import MODULES, SessionRecord
+from system.session import run as run_session
+from system.topology import REPO, Topology
+
+CONTRACT_TOPICS = {
+    "/gaze_control/status": "walkman_msgs/Status", "/gaze_control/switch": "walkman_msgs/Switch",
+    "/gaze_control/command": "walkman_msgs/Command",
+    "/gaze_control/warning": "walkman_msgs/Warning",
+    "/gaze_control/countdown": "walkman_msgs/Countdown",
+    "/temperature/status": "walkman_msgs/Status", "/temperature/switch": "walkman_msgs/Switch",
+    "/pilot/sent_commands": "walkman_msgs/SentCommand",
+    "/joint_states": "sensor_msgs/JointState", "/tf": "tf2_msgs/TFMessage",
+    "/multisense/left/image_color": "sensor_msgs/Image",
+    "/multisense/points": "sensor_msgs/PointCloud2",
+    "/multisense/left/camera_info": "sensor_msgs/CameraInfo",
+}
+CONTRACT_PORTS = [f"/{m}/{p}" for m in MODULES
+                  for p in ("switch:i", "command:i", "status:o", "warning:o")] + \
+    ["/walkman/rpc:i"] + [f"/walkman/{chain}/stateExt:o" for chain in
+                          ("torso", "head", "left_arm", "right_arm", "left_leg", "right_leg",
+                           "left_hand", "right_hand")]
+CONTRACT_SERVICES = [f"/{m}/{s}" for m in MODULES
+                     for s in ("switch_and_wait", "send_command", "get_status")]
+PAPER_TABLE_1_BITS = 2400
+
+
+# -- analysis (pure) ------------------------------------------------------------------------
+
+
+def contract(observed: dict) -> Dict[str, str]:
+    """For each contract name: its type (topics), "present", or "missing"."""
+    out = {}
+    for topic, kind in CONTRACT_TOPICS.items():
+        entry = observed["topics"].get(topic)
+        if entry is None or not entry["pub"] and not entry["sub"]:
+            out[topic] = "missing"
+        elif entry["type"] != kind:
+            out[topic] = f"type {entry['type']}"
+        elif topic.endswith(("/switch", "/command")):
+            out[topic] = kind if entry["sub"] else "nobody listens"
+        else:
+            out[topic] = kind if entry["pub"] else "nobody publishes"
+    for port in CONTRACT_PORTS:
+        out[port] = "present" if port in observed["ports"] else "missing"
+    for service in CONTRACT_SERVICES:
+        out[service] = "present" if service in observed["services"] else "missing"
+    return out
+
+
+def extras(lab: dict, drc: dict) -> Dict[str, List[str]]:
+    names = lambda o: set(o["ports"]) | set(o["topics"]) | set(o["services"])  # noqa: E731
+    contract_names = set(CONTRACT_TOPICS) | set(CONTRACT_PORTS) | set(CONTRACT_SERVICES)
+    return {"lab only": sorted(names(lab) - names(drc) - contract_names),
+            "drc only": sorted(names(drc) - names(lab) - contract_names)}
+
+
+def window(record: SessionRecord) -> Tuple[float, float]:
+    if not record.steps:
+        return record.started, record.ended
+    return record.steps[0]["start"], record.steps[-1]["end"]
+
+
+def rates(record: SessionRecord) -> Dict[str, float]:
+    start, end = window(record)
+    span = max(end - start, 1e-6)
+    counts: Dict[str, int] = {}
+    for r in record.records:
+        if start <= r["t"] <= end:
+            counts[r["topic"]] = counts.get(r["topic"], 0) + 1
+    return {topic: count / span for topic, count in sorted(counts.items())}
+
+
+def command_latencies(record: SessionRecord) -> List[Tuple[str, float]]:
+    """For each command the gateway sent: time until the module's status next changed."""
+    out = []
+    records = sorted(record.records, key=lambda r: r["t"])
+    for sent in [r for r in records if r["topic"] == "/pilot/sent_commands"]:
+        status_topic = f"/{sent['module']}/status"
+        before = [r for r in records if r["topic"] == status_topic and r["t"] <= sent["t"]]
+        previous = before[-1]["state"] if before else None
+        after = next((r for r in records if r["topic"] == status_topic and r["t"] > sent["t"]
+                      and r["state"] != previous), None)
+        if after is not None:
+            out.append((f"{sent['module']} {sent['text']}", after["t"] - sent["t"]))
+    return out
+
+
+def cloud_completeness(record: SessionRecord, baseline_nan: float) -> List[Tuple[float, float]]:
+    """(time, fraction of the scene's valid points that arrived) per cloud."""
+    valid = max(1e-6, 1.0 - baseline_nan)
+    return [(r["t"], min(1.0, (1.0 - r["nan"]) / valid)) for r in record.records
+            if r["topic"] == "/multisense/points"]
+
+
+def state_sequence(record: SessionRecord, module: str) -> List[str]:
+    states = [r["state"] for r in record.records if r["topic"] == f"/{module}/status"]
+    return [s for i, s in enumerate(states) if i == 0 or s != states[i - 1]]
+
+
+def bandwidth_by_id(record: SessionRecord) -> Dict[int, List[Tuple[float, float]]]:
+    """Bits per second per 8-bit id, between consecutive bridge samples (TCP and UDP)."""
+    out: Dict[int, List[Tuple[float, float]]] = {}
+    samples = record.bridge_samples
+    for a, b in zip(samples, samples[1:]):
+        dt = max(b["t"] - a["t"], 1e-3)
+        for table in ("tcp_by_id", "udp_by_id"):
+            for ident, total in b[table].items():
+                rate = (total - a[table].get(ident, 0)) * 8 / dt
+                out.setdefault(ident, []).append((b["t"] - samples[0]["t"], rate))
+    return out
+
+
+def verdict(lab: dict, drc: dict, lab_record: SessionRecord,
+            drc_record: SessionRecord) -> List[str]:
+    """Every difference a process could observe; empty when the topologies agree."""
+    problems = []
+    lab_contract, drc_contract = contract(lab), contract(drc)
+    for name in lab_contract:
+        if lab_contract[name] != drc_contract[name]:
+            problems.append(f"{name}: lab {lab_contract[name]}, drc {drc_contract[name]}")
+        elif lab_contract[name] in ("missing", "nobody publishes", "nobody listens"):
+            problems.append(f"{name}: {lab_contract[name]} in both topologies")
+    for record in (lab_record, drc_record):
+        for step in record.steps:
+            if not step["ok"]:
+                problems.append(f"{record.topology}: step '{step['label']}' had no effect")
+    for module in MODULES:
+        if lab_record.executed.get(module) != drc_record.executed.get(module):
+            problems.append(f"{module} executed {lab_record.executed.get(module)} in the lab, "
+                            f"{drc_record.executed.get(module)} through the bridge")
+    return problems
+
+
+# -- running and reporting ------------------------------------------------------------------
+
+
+def run_one(kind: str, root: Path, link, profile: str, loss: Optional[float],
+            progress) -> Tuple[SessionRecord, dict]:
+    topology = Topology(kind, root / kind, link=link if kind == "drc" else None,
+                        profile=profile, loss=loss)
+    try:
+        started = time.monotonic()
+        progress(f"{kind}: starting the name servers"
+                 f"{' on the emulated robot and pilot hosts' if topology.link else ''}")
+        topology.start_name_servers()
+        progress(f"{kind}: starting {', '.join(topology.table)}")
+        topology.start_all()
+        topology.wait_ready(240)
+        progress(f"{kind}: everything up in {time.monotonic() - started:.0f} s; the pilot "
+                 f"session begins")
+        record = run_session(topology, progress=lambda text: progress(f"{kind}: {text}"))
+        observed = topology.observe(topology.pilot)
+        return record, observed
+    finally:
+        topology.close()
+
+
+def _plots(out: Path, lab_record: SessionRecord, drc_record: SessionRecord,
+           baseline_nan: float) -> List[str]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    files = []
+    bandwidth = bandwidth_by_id(drc_record)
+    if bandwidth:
+        figure, axes = plt.subplots(figsize=(8, 4))
+        for ident, series in sorted(bandwidth.items()):
+            axes.plot([t for t, _ in series], [r / 1000 for _, r in series], label=f"id {ident}")
+        axes.set_xlabel("session time (s)")
+        axes.set_ylabel("kbit/s (robot to pilot, no IP headers)")
+        axes.set_title("Bridge bandwidth per 8-bit id")
+        axes.legend(fontsize=7, ncol=3)
+        figure.tight_layout()
+        figure.savefig(out / "bandwidth_by_id.png", dpi=110)
+        plt.close(figure)
+        files.append("bandwidth_by_id.png")
+    figure, axes = plt.subplots(figsize=(8, 4))
+    for record, color in ((lab_record, "tab:blue"), (drc_record, "tab:orange")):
+        values = [1000 * v for _, v in command_latencies(record)]
+        if values:
+            axes.hist(values, bins=20, alpha=0.6, color=color,
+                      label=f"{record.topology} (median {statistics.median(values):.0f} ms)")
+    axes.set_xlabel("command sent -> status changed (ms)")
+    axes.set_ylabel("commands")
+    axes.set_title("Command latency seen by the pilot")
+    axes.legend()
+    figure.tight_layout()
+    figure.savefig(out / "command_latency.png", dpi=110)
+    plt.close(figure)
+    files.append("command_latency.png")
+    figure, axes = plt.subplots(figsize=(8, 4))
+    for record, color in ((lab_record, "tab:blue"), (drc_record, "tab:orange")):
+        series = cloud_completeness(record, baseline_nan)
+        if series:
+            t0 = series[0][0]
+            axes.plot([t - t0 for t, _ in series], [c for _, c in series], ".-", color=color,
+                      label=record.topology)
+    axes.set_ylim(0, 1.05)
+    axes.set_xlabel("session time (s)")
+    axes.set_ylabel("fraction of the cloud received")
+    axes.set_title("Point cloud completeness at the pilot")
+    axes.legend()
+    figure.tight_layout()
+    figure.savefig(out / "cloud_completeness.png", dpi=110)
+    plt.close(figure)
+    files.append("cloud_completeness.png")
+    return files
+
+
+def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
+           drc_record: SessionRecord, profile: str, loss: Optional[float],
+           emulated: bool) -> Tuple[str, List[str]]:
+    out.mkdir(parents=True, exist_ok=True)
+    problems = verdict(lab, drc, lab_record, drc_record)
+    lab_nan = [r["nan"] for r in lab_record.records if r["topic"] == "/multisense/points"]
+    baseline_nan = statistics.mean(lab_nan) if lab_nan else 0.0
+    plots = _plots(out, lab_record, drc_record, baseline_nan)
+    link = f"{profile} profile{f', {loss:g} % loss' if loss is not None else ''}" \
+        if emulated else "loopback (no emulated network: needs root)"
+    lines = [f"# Lab versus DRC topology", "",
+             f"Generated {time.strftime('%Y-%m-%d %H:%M:%S')}; DRC link: {link}.", "",
+             "**Verdict: " + ("no observable difference**" if not problems else
+                              f"{len(problems)} observable difference(s)**"), ""]
+    lines += [f"* {p}" for p in problems]
+    lines += ["", "## What the pilot can observe", "", "| name | lab | drc |", "|---|---|---|"]
+    lab_contract, drc_contract = contract(lab), contract(drc)
+    lines += [f"| `{name}` | {lab_contract[name]} | {drc_contract[name]} |"
+              for name in lab_contract]
+    for title, names in extras(lab, drc).items():
+        lines += ["", f"Expected differences, {title} ({len(names)}): " +
+                  (", ".join(f"`{n}`" for n in names[:60]) or "none") +
+                  (" ..." if len(names) > 60 else "")]
+    lines += ["", "## The session", "", "| step | lab (s) | drc (s) |", "|---|---|---|"]
+    for a, b in zip(lab_record.steps, drc_record.steps):
+        mark = lambda s: f"{s['end'] - s['start']:.1f}" + ("" if s["ok"] else " FAILED")  # noqa
+        lines.append(f"| {a['label']} | {mark(a)} | {mark(b)} |")
+    lines += ["", "## Commands executed on the robot, in order", ""]
+    for module in MODULES:
+        same = lab_record.executed.get(module) == drc_record.executed.get(module)
+        lines.append(f"* `{module}` ({'same' if same else 'DIFFERENT'}): " +
+                     "; ".join(drc_record.executed.get(module, [])))
+    lines += ["", "## Streams at the pilot (messages per second during the session)", "",
+              "| topic | lab | drc | designed (drc) |", "|---|---|---|---|"]
+    lab_rates, drc_rates = rates(lab_record), rates(drc_record)
+    designed = {"/joint_states": "1/T = 2 (bridge period 0.5 s)",
+                "/gaze_control/status": "<= 2 (GYM 2 Hz, latest per T)",
+                "/temperature/status": "<= 2", "/multisense/points": "1 (camera rate)",
+                "/multisense/left/image_color": "1", "/tf": "TF at 10 Hz on new state"}
+    for topic in sorted(set(lab_rates) | set(drc_rates)):
+        lines.append(f"| `{topic}` | {lab_rates.get(topic, 0):.2f} | "
+                     f"{drc_rates.get(topic, 0):.2f} | {designed.get(topic, '')} |")
+    lines += ["", "## Command latency (sent by the gateway -> the module's status changed)", "",
+              "| command | lab (ms) | drc (ms) |", "|---|---|---|"]
+    lab_lat, drc_lat = command_latencies(lab_record), command_latencies(drc_record)
+    for (name, a), (_, b) in zip(lab_lat, drc_lat):
+        lines.append(f"| {name} | {a * 1000:.0f} | {b * 1000:.0f} |")
+    bandwidth = bandwidth_by_id(drc_record)
+    if bandwidth:
+        lines += ["", "## Bridge bandwidth, robot to pilot (no IP headers)", "",
+                  "| id | mean bit/s |", "|---|---|"]
+        for ident, series in sorted(bandwidth.items()):
+            lines.append(f"| {ident} | {statistics.mean(r for _, r in series):.0f} |")
+        tcp_ids = {i for s in drc_record.bridge_samples for i in s["tcp_by_id"]}
+        tcp_total = sum(statistics.mean(r for _, r in bandwidth[i]) for i in tcp_ids
+                        if i in bandwidth)
+        lines += ["", f"TCP channel (commands, statuses, robot state at T = 0.5 s): "
+                      f"{tcp_total:.0f} bit/s of entries; the paper's Table 1 counts "
+                      f"{PAPER_TABLE_1_BITS} bit/s at T = 1 s."]
+    completeness = [c for _, c in cloud_completeness(drc_record, baseline_nan)]
+    if completeness:
+        lines += ["", f"Point clouds at the pilot (drc): {len(completeness)}, mean completeness "
+                      f"{statistics.mean(completeness):.3f} of the lab's valid points."]
+    lines += ["", "## Plots", ""] + [f"![{p}]({p})" for p in plots]
+    (out / "report.md").write_text("\n".join(lines) + "\n")
+    (out / "sessions.json").write_text(json.dumps(
+        {"lab": asdict(lab_record), "drc": asdict(drc_record), "observed_lab": lab,
+         "observed_drc": drc}, default=str))
+    summary = [f"verdict: {'no observable difference' if not problems else 'DIFFERENT'}"]
+    summary += [f"  - {p}" for p in problems]
+    if lab_lat and drc_lat:
+        summary.append(f"command -> status latency, median: lab "
+                       f"{statistics.median(v for _, v in lab_lat) * 1000:.0f} ms, drc "
+                       f"{statistics.median(v for _, v in drc_lat) * 1000:.0f} ms")
+    if completeness:
+        summary.append(f"cloud completeness through the bridge: "
+                       f"{statistics.mean(completeness):.3f}")
+    summary.append(f"joint states at the pilot: lab {lab_rates.get('/joint_states', 0):.1f} Hz,"
+                   f" drc {drc_rates.get('/joint_states', 0):.1f} Hz")
+    return "\n".join(summary), problems
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    parser = argparse.ArgumentParser(prog="walkman-compare", description=__doc__.split("\n")[0])
+    parser.add_argument("--profile", default="lab", choices=["lab", "drc", "degraded"],
+                        help="link profile of the DRC run on emulated hosts (default lab)")
+    parser.add_argument("--loss", type=float, help="random loss in percent on the DRC link")
+    parser.add_argument("--loopback", action="store_true",
+                        help="run the DRC topology on loopback even when root")
+    parser.add_argument("--out", type=Path, help="report folder (default out/compare-<time>)")
+    options = parser.parse_args(argv)
+    out = options.out or REPO / "out" / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
+    from bridge import emulation
+    from rosnodes.msgs import generate
+
+    generate()
+    link = None
+    if not options.loopback and emulation.available() is None:
+        link = emulation.EmulatedLink("wc", 60)
+        link.up()
+    progress = lambda text: print(f"[compare] {text}", flush=True)  # noqa: E731
+    try:
+        with tempfile.TemporaryDirectory(prefix="walkman-compare-") as tmp:
+            lab_record, lab = run_one("lab", Path(tmp), None, "lab", None, progress)
+            drc_record, drc = run_one("drc", Path(tmp), link, options.profile, options.loss,
+                                      progress)
+    finally:
+        if link is not None:
+            link.down()
+    summary, problems = report(out, lab, drc, lab_record, drc_record, options.profile,
+                               options.loss, link is not None)
+    print(summary)
+    print(f"[compare] full report: {out / 'report.md'}")
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

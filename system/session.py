@@ -1,0 +1,247 @@
+"""A scripted pilot session through the ROS command-line tools, and what it saw.
+
+Theory of operation
+-------------------
+The session is what a pilot types (:data:`STEPS`): ``rostopic pub`` to switch
+modules, ``rosservice call`` to send commands, a dangerous command counted
+down and cancelled, temperatures watched.  Each step waits for its visible
+effect (a status, a countdown state) before the next one.
+
+Everything the pilot side observes is written down by the recorder, a small
+ROS node run on the pilot PC (``python -m system.session record``): one JSON
+line per message with its arrival time -- statuses, warnings, countdowns,
+commands the gateway sent, joint states (neck only), images, clouds (with the
+fraction of NaN points) and TF.  The robot side's view comes from the
+modules' own logs (``gaze_control: command look_at ...``).  :mod:`system.compare`
+turns two such records into the report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Dict, List, Optional
+
+from system.processes import WaitTimeout, wait_until
+
+PYTHON_EXECUTABLE = sys.executable
+
+MODULES = ("gaze_control", "temperature")
+VALVE_IN_PELVIS = (0.66, 0.25, 0.08)  # the valve wheel, seen from the pelvis (models/walkman_drc.xml)
+
+
+@dataclass
+class Step:
+    label: str
+    argv: List[str]
+    done: Callable[[List[dict]], bool]
+    timeout: float = 30.0
+
+
+def _status_is(module: str, state: str) -> Callable[[List[dict]], bool]:
+    def check(records: List[dict]) -> bool:
+        statuses = [r for r in records if r["topic"] == f"/{module}/status"]
+        return bool(statuses) and statuses[-1]["state"] == state
+    return check
+
+
+def _countdown_is(state: str, after: int = 0) -> Callable[[List[dict]], bool]:
+    def check(records: List[dict]) -> bool:
+        found = [r for r in records if r["topic"] == "/gaze_control/countdown"]
+        return len([r for r in found if r["state"] == state]) > after
+    return check
+
+
+def _temperatures_seen(count: int) -> Callable[[List[dict]], bool]:
+    def check(records: List[dict]) -> bool:
+        return len([r for r in records if r["topic"] == "/temperature/status"
+                    and r["state"] in ("monitoring", "hot") and r["values"]]) >= count
+    return check
+
+
+def _pub(module: str, word: str) -> List[str]:
+    return ["rostopic", "pub", "-1", f"/{module}/switch", "walkman_msgs/Switch",
+            f"command: {word}"]
+
+
+def _call(module: str, request: str) -> List[str]:
+    return ["rosservice", "call", f"/{module}/send_command", request]
+
+
+def _dangerous(request: str) -> List[str]:
+    return ["rostopic", "pub", "-1", "/gaze_control/command", "walkman_msgs/Command", request]
+
+
+x, y, z = VALVE_IN_PELVIS
+STEPS = [
+    Step("start gaze_control", _pub("gaze_control", "start"),
+         _status_is("gaze_control", "ready"), 60),
+    Step("start temperature", _pub("temperature", "start"),
+         _status_is("temperature", "monitoring"), 60),
+    Step("look at the valve", _call("gaze_control",
+                                    f"{{command: look_at, numbers: [{x}, {y}, {z}]}}"),
+         _status_is("gaze_control", "tracking")),
+    Step("watch temperatures", ["sleep", "1"], _temperatures_seen(6)),
+    Step("pause gaze_control", _pub("gaze_control", "pause"), _status_is("gaze_control", "paused")),
+    Step("resume gaze_control", _pub("gaze_control", "resume"),
+         _status_is("gaze_control", "tracking")),
+    Step("dangerous: home (then cancel)", _dangerous("{command: home, dangerous: true}"),
+         _countdown_is("waiting")),
+    Step("cancel it (press again)", _dangerous("{command: home, dangerous: true}"),
+         _countdown_is("cancelled")),
+    Step("dangerous: look at the valve, let it go",
+         _dangerous(f"{{command: look_at, numbers: [{x}, {y}, {z}], dangerous: true, "
+                    f"countdown: 2.0}}"),
+         _countdown_is("sent"), 40),
+    Step("stop gaze_control", _pub("gaze_control", "stop"), _status_is("gaze_control", "stopped")),
+]
+
+
+@dataclass
+class SessionRecord:
+    topology: str
+    records: List[dict] = field(default_factory=list)
+    steps: List[dict] = field(default_factory=list)           # label, start, end, ok
+    executed: Dict[str, List[str]] = field(default_factory=dict)  # module -> commands run
+    bridge_samples: List[dict] = field(default_factory=list)   # robot bridge status over time
+    started: float = 0.0
+    ended: float = 0.0
+
+
+def run(topology, progress: Callable[[str], None] = print) -> SessionRecord:
+    """Play :data:`STEPS` on a started topology; what the pilot saw, step by step."""
+    pilot = topology.pilot
+    record = SessionRecord(topology.kind, started=time.time())
+    recorder = pilot.start("recorder", [PYTHON_EXECUTABLE, "-m", "system.session", "record"])
+    recorder.wait_for(r"^recording", 60)
+    sampler = None
+    if topology.kind == "drc":
+        sampler = topology.robot.start("bridge-sampler", [PYTHON_EXECUTABLE, "-m", "yarp_lite",
+                                                          "read", "/session/bridge",
+                                                          "/bridge/robot/status:o"])
+
+    def records() -> List[dict]:
+        return [json.loads(line) for line in list(recorder.lines) if line.startswith("{")]
+
+    wait_until(lambda: _status_is("gaze_control", "initializing")(records()) or
+               _status_is("gaze_control", "ready")(records()), 60,
+               message="the gaze_control status on the pilot side")
+    for number, step in enumerate(STEPS, 1):
+        progress(f"[{number}/{len(STEPS)}] {step.label}: {' '.join(step.argv)}")
+        begin = time.time()
+        tool = pilot.run(step.argv, timeout=step.timeout)
+        ok = True
+        try:
+            wait_until(lambda: step.done(records()), step.timeout,
+                       message=f"the effect of '{step.label}'")
+        except WaitTimeout as exc:
+            ok = False
+            progress(f"      did not happen: {str(exc).splitlines()[0]}\n      "
+                     f"tool said: {tool.output()[-300:]}")
+        record.steps.append({"label": step.label, "start": begin, "end": time.time(), "ok": ok,
+                             "tool": " ".join(step.argv)})
+        progress(f"      {'done' if ok else 'FAILED'} in {time.time() - begin:.1f} s")
+    time.sleep(2.0)  # the last statuses and samples
+    recorder.interrupt()
+    record.records = records()
+    record.ended = time.time()
+    for module in MODULES:
+        pattern = re.compile(rf"{module}: (command .*) \(seq|{module}: (\w+ -> \w+)$")
+        matches = [pattern.search(line) for line in topology.process(module).lines]
+        record.executed[module] = [m.group(1) or m.group(2) for m in matches if m]
+    if sampler is not None:
+        for line in list(sampler.lines):
+            sample = _parse_bridge_status(line)
+            if sample:
+                record.bridge_samples.append(sample)
+        sampler.kill()
+    return record
+
+
+def _parse_bridge_status(line: str) -> Optional[dict]:
+    tcp = re.search(r"\(tcp \(\((.*?)\(bytes_by_id \((.*?)\)\)\)\)", line)
+    if not tcp:
+        return None
+    out: Dict[str, Any] = {"t": time.time()}
+    for key, value in re.findall(r"\((bytes_out|payload_out|frames_out) (\d+)\)", tcp.group(1)):
+        out[key] = int(value)
+    out["tcp_by_id"] = {int(k): int(v) for k, v in re.findall(r'\("(\d+)" (\d+)\)',
+                                                              tcp.group(2))}
+    udp = re.search(r"\(udp \(.*\(bytes_by_id \((.*?)\)\)", line)
+    out["udp_by_id"] = {int(k): int(v) for k, v in re.findall(r'\("(\d+)" (\d+)\)',
+                                                              udp.group(1))} if udp else {}
+    return out
+
+
+# -- the recorder (runs on the pilot PC) ----------------------------------------------------
+
+
+def record_main() -> int:
+    import numpy as np
+    import rospy
+    from sensor_msgs.msg import Image, JointState, PointCloud2
+    from tf2_msgs.msg import TFMessage
+
+    from rosnodes.msgs import ensure_importable
+
+    ensure_importable()
+    from walkman_msgs.msg import Countdown, SentCommand, Status, Warning
+
+    lock = threading.Lock()
+
+    def emit(topic: str, **fields: Any) -> None:
+        line = json.dumps({"t": time.time(), "topic": topic, **fields}) + "\n"
+        with lock:  # rospy calls back from one thread per topic
+            sys.stdout.write(line)
+            sys.stdout.flush()
+
+    rospy.init_node("session_recorder", anonymous=True, disable_signals=True)
+    for module in MODULES:
+        rospy.Subscriber(f"/{module}/status", Status, lambda m, mod=module: emit(
+            f"/{mod}/status", seq=m.seq, state=m.state, values=list(m.values)))
+        rospy.Subscriber(f"/{module}/warning", Warning, lambda m, mod=module: emit(
+            f"/{mod}/warning", seq=m.seq, text=m.text))
+    rospy.Subscriber("/gaze_control/countdown", Countdown, lambda m: emit(
+        "/gaze_control/countdown", command=m.command, state=m.state, remaining=m.remaining))
+    rospy.Subscriber("/pilot/sent_commands", SentCommand, lambda m: emit(
+        "/pilot/sent_commands", module=m.module, port=m.port, text=m.text))
+
+    def on_joints(msg: Any) -> None:
+        names = list(msg.name)
+        neck = [msg.position[names.index(n)] for n in ("NeckYawj", "NeckPitchj") if n in names]
+        emit("/joint_states", neck=neck)
+
+    def on_cloud(msg: Any) -> None:
+        points = np.frombuffer(msg.data, np.float32).reshape(-1, msg.point_step // 4)
+        emit("/multisense/points", nan=float(np.isnan(points[:, 0]).mean()),
+             stamp=msg.header.stamp.to_sec())
+
+    rospy.Subscriber("/joint_states", JointState, on_joints, queue_size=50)
+    rospy.Subscriber("/multisense/points", PointCloud2, on_cloud, queue_size=5)
+    rospy.Subscriber("/multisense/left/image_color", Image, lambda m: emit(
+        "/multisense/left/image_color", stamp=m.header.stamp.to_sec()), queue_size=5)
+    rospy.Subscriber("/tf", TFMessage, lambda m: emit("/tf", frames=len(m.transforms)),
+                     queue_size=50)
+    print("recording", flush=True)
+    try:
+        while not rospy.is_shutdown():
+            time.sleep(0.2)
+    except KeyboardInterrupt:
+        pass
+    return 0
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m system.session")
+    parser.add_argument("verb", choices=["record"])
+    parser.parse_args(argv)
+    return record_main()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
