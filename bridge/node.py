@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any, Dict, List, Optional, Tuple
 
 from bridge import compact
+from bridge import status as status_codec
 from bridge.config import PILOT, ROBOT, BridgeConfig, Channel
 from bridge.errors import BridgeProtocolError
 from bridge.journal import Journal, QueueFull
@@ -261,6 +262,7 @@ class Bridge:
         stats = self.tcp.stats
         out: Dict[str, Any] = {
             "side": self.side,
+            "time": round(time.time(), 3),  # wall clock, so samples read later keep their time
             "link": self.tcp.phase,
             "link_since_s": int(time.monotonic() - self.tcp.phase_since),
             "queued_commands": self.journal.waiting(),
@@ -280,14 +282,7 @@ class Bridge:
         return out
 
     def _status_bottle(self) -> Bottle:
-        def convert(value: Any) -> Any:
-            if isinstance(value, dict):
-                return Bottle([Bottle([str(k), convert(v)]) for k, v in value.items()])
-            if isinstance(value, float):
-                return float(value)
-            return value
-
-        return convert(self.status())
+        return status_codec.to_bottle(self.status())
 
     def _on_rpc(self, request: Bottle) -> Bottle:
         word = str(request[0]) if request else ""

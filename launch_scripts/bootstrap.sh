@@ -12,6 +12,7 @@ DEBIAN_PACKAGES=(
   ros-core python3-rospy python3-std-msgs python3-sensor-msgs python3-geometry-msgs
   python3-genpy python3-genmsg python3-rosbag python3-rosmsg python3-rostopic
   python3-rosservice python3-roslaunch
+  ros-std-msgs ros-sensor-msgs ros-geometry-msgs python3-tf2-msgs
   libosmesa6 nftables iproute2 python3-venv python3-dev g++ cmake make curl
   ycm-cmake-modules libsqlite3-dev
 )
@@ -52,4 +53,6 @@ if [[ ! -f $stamp || "$(cat "$stamp")" != "$want" ]]; then
 else
   say "Python packages already installed in .venv"
 fi
-say "ready: source .venv/bin/activate (or call .venv/bin/<tool>)"
+say "generating the walkman_msgs ROS messages (skipped when up to date)"
+"$VENV/bin/python" -m rosnodes.msgs
+say "ready: source launch_scripts/walkman_env.sh (ROS tools, messages and .venv/bin on PATH)"

@@ -33,9 +33,9 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Dict, List, Optional, Tuple
 
-from system.session import MODULES, SessionRecord
+from system.session import CANCELLED_COMMAND, MODULES, SessionRecord
 from system.session import run as run_session
-from system.topology import REPO, Topology
+from system.topology import BRIDGE_CONFIG, REPO, Topology
 
 CONTRACT_TOPICS = {
     "/gaze_control/status": "walkman_msgs/Status", "/gaze_control/switch": "walkman_msgs/Switch",
@@ -106,25 +106,33 @@ def rates(record: SessionRecord) -> Dict[str, float]:
 
 
 def command_latencies(record: SessionRecord) -> List[Tuple[str, float]]:
-    """For each command the gateway sent: time until the module's status next changed."""
+    """For each command the gateway sent: time until the module's status next changed.
+
+    Timed from the gateway's own stamp, not from when the recorder heard of the
+    command: ROS does not order messages across topics.
+    """
     out = []
     records = sorted(record.records, key=lambda r: r["t"])
     for sent in [r for r in records if r["topic"] == "/pilot/sent_commands"]:
         status_topic = f"/{sent['module']}/status"
-        before = [r for r in records if r["topic"] == status_topic and r["t"] <= sent["t"]]
+        at = sent.get("stamp") or sent["t"]
+        before = [r for r in records if r["topic"] == status_topic and r["t"] <= at]
         previous = before[-1]["state"] if before else None
-        after = next((r for r in records if r["topic"] == status_topic and r["t"] > sent["t"]
+        after = next((r for r in records if r["topic"] == status_topic and r["t"] > at
                       and r["state"] != previous), None)
         if after is not None:
-            out.append((f"{sent['module']} {sent['text']}", after["t"] - sent["t"]))
+            out.append((f"{sent['module']} {sent['text']}", after["t"] - at))
     return out
 
 
-def cloud_completeness(record: SessionRecord, baseline_nan: float) -> List[Tuple[float, float]]:
-    """(time, fraction of the scene's valid points that arrived) per cloud."""
-    valid = max(1e-6, 1.0 - baseline_nan)
-    return [(r["t"], min(1.0, (1.0 - r["nan"]) / valid)) for r in record.records
-            if r["topic"] == "/multisense/points"]
+def valid_points(record: SessionRecord) -> List[Tuple[float, float]]:
+    """(time, share of the cloud's points that are valid) per cloud the pilot received.
+
+    The scene itself leaves some points invalid (sky, out of range), so this is
+    plotted next to the lab's series; the bridge's own count of what arrived is
+    :attr:`SessionRecord.completeness`.
+    """
+    return [(r["t"], 1.0 - r["nan"]) for r in record.records if r["topic"] == "/multisense/points"]
 
 
 def state_sequence(record: SessionRecord, module: str) -> List[str]:
@@ -132,17 +140,58 @@ def state_sequence(record: SessionRecord, module: str) -> List[str]:
     return [s for i, s in enumerate(states) if i == 0 or s != states[i - 1]]
 
 
-def bandwidth_by_id(record: SessionRecord) -> Dict[int, List[Tuple[float, float]]]:
-    """Bits per second per 8-bit id, between consecutive bridge samples (TCP and UDP)."""
+def bandwidth_by_id(record: SessionRecord, window_s: float = 5.0
+                    ) -> Dict[int, List[Tuple[float, float]]]:
+    """Bits per second per 8-bit id (TCP and UDP), averaged over ``window_s``.
+
+    Perception frames come about once a second, so a shorter window shows the
+    frames rather than the bandwidth.
+    """
     out: Dict[int, List[Tuple[float, float]]] = {}
     samples = record.bridge_samples
-    for a, b in zip(samples, samples[1:]):
+    first = 0
+    for b in samples[1:]:
+        while first < len(samples) - 1 and b["t"] - samples[first + 1]["t"] >= window_s:
+            first += 1
+        a = samples[first]
+        if a is b:
+            continue
         dt = max(b["t"] - a["t"], 1e-3)
         for table in ("tcp_by_id", "udp_by_id"):
             for ident, total in b[table].items():
                 rate = (total - a[table].get(ident, 0)) * 8 / dt
                 out.setdefault(ident, []).append((b["t"] - samples[0]["t"], rate))
     return out
+
+
+def mean_bandwidth(record: SessionRecord) -> Dict[Tuple[str, int], float]:
+    """(channel, id) -> bits per second over the whole session."""
+    samples = record.bridge_samples
+    if len(samples) < 2:
+        return {}
+    first, last = samples[0], samples[-1]
+    span = max(last["t"] - first["t"], 1e-3)
+    out = {}
+    for channel in ("tcp", "udp"):
+        table = f"{channel}_by_id"
+        for ident, total in last[table].items():
+            out[(channel, int(ident))] = (total - first[table].get(ident, 0)) * 8 / span
+    return out
+
+
+def id_names(config: Path = BRIDGE_CONFIG) -> Dict[int, str]:
+    """What each 8-bit id carries, from the bridge configuration."""
+    from bridge.config import load
+
+    names: Dict[int, List[str]] = {}
+    loaded = load(config)
+    if loaded.robot_state is not None:
+        names[loaded.robot_state[0]] = [f"robot state ({loaded.robot_state[1]})"]
+    for channel in loaded.channels:
+        labels = names.setdefault(channel.id, [])
+        if channel.label not in labels:
+            labels.append(channel.label)
+    return {ident: ", ".join(labels) for ident, labels in names.items()}
 
 
 def verdict(lab: dict, drc: dict, lab_record: SessionRecord,
@@ -159,6 +208,10 @@ def verdict(lab: dict, drc: dict, lab_record: SessionRecord,
         for step in record.steps:
             if not step["ok"]:
                 problems.append(f"{record.topology}: step '{step['label']}' had no effect")
+    module, cancelled = CANCELLED_COMMAND
+    for record in (lab_record, drc_record):
+        if cancelled in record.executed.get(module, []):
+            problems.append(f"{record.topology}: the cancelled '{cancelled}' reached {module}")
     for module in MODULES:
         if lab_record.executed.get(module) != drc_record.executed.get(module):
             problems.append(f"{module} executed {lab_record.executed.get(module)} in the lab, "
@@ -190,8 +243,7 @@ def run_one(kind: str, root: Path, link, profile: str, loss: Optional[float],
         topology.close()
 
 
-def _plots(out: Path, lab_record: SessionRecord, drc_record: SessionRecord,
-           baseline_nan: float) -> List[str]:
+def _plots(out: Path, lab_record: SessionRecord, drc_record: SessionRecord) -> List[str]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -204,7 +256,8 @@ def _plots(out: Path, lab_record: SessionRecord, drc_record: SessionRecord,
         for ident, series in sorted(bandwidth.items()):
             axes.plot([t for t, _ in series], [r / 1000 for _, r in series], label=f"id {ident}")
         axes.set_xlabel("session time (s)")
-        axes.set_ylabel("kbit/s (robot to pilot, no IP headers)")
+        axes.set_yscale("log")
+        axes.set_ylabel("kbit/s over 5 s (robot to pilot, no IP headers)")
         axes.set_title("Bridge bandwidth per 8-bit id")
         axes.legend(fontsize=7, ncol=3)
         figure.tight_layout()
@@ -227,15 +280,15 @@ def _plots(out: Path, lab_record: SessionRecord, drc_record: SessionRecord,
     files.append("command_latency.png")
     figure, axes = plt.subplots(figsize=(8, 4))
     for record, color in ((lab_record, "tab:blue"), (drc_record, "tab:orange")):
-        series = cloud_completeness(record, baseline_nan)
+        series = valid_points(record)
         if series:
             t0 = series[0][0]
             axes.plot([t - t0 for t, _ in series], [c for _, c in series], ".-", color=color,
                       label=record.topology)
     axes.set_ylim(0, 1.05)
     axes.set_xlabel("session time (s)")
-    axes.set_ylabel("fraction of the cloud received")
-    axes.set_title("Point cloud completeness at the pilot")
+    axes.set_ylabel("valid points in the cloud")
+    axes.set_title("Point clouds at the pilot (missing regions arrive as NaN)")
     axes.legend()
     figure.tight_layout()
     figure.savefig(out / "cloud_completeness.png", dpi=110)
@@ -249,9 +302,7 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
            emulated: bool) -> Tuple[str, List[str]]:
     out.mkdir(parents=True, exist_ok=True)
     problems = verdict(lab, drc, lab_record, drc_record)
-    lab_nan = [r["nan"] for r in lab_record.records if r["topic"] == "/multisense/points"]
-    baseline_nan = statistics.mean(lab_nan) if lab_nan else 0.0
-    plots = _plots(out, lab_record, drc_record, baseline_nan)
+    plots = _plots(out, lab_record, drc_record)
     link = f"{profile} profile{f', {loss:g} % loss' if loss is not None else ''}" \
         if emulated else "loopback (no emulated network: needs root)"
     lines = [f"# Lab versus DRC topology", "",
@@ -293,20 +344,22 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
         lines.append(f"| {name} | {a * 1000:.0f} | {b * 1000:.0f} |")
     bandwidth = bandwidth_by_id(drc_record)
     if bandwidth:
+        means = mean_bandwidth(drc_record)
+        names = id_names()
         lines += ["", "## Bridge bandwidth, robot to pilot (no IP headers)", "",
-                  "| id | mean bit/s |", "|---|---|"]
-        for ident, series in sorted(bandwidth.items()):
-            lines.append(f"| {ident} | {statistics.mean(r for _, r in series):.0f} |")
-        tcp_ids = {i for s in drc_record.bridge_samples for i in s["tcp_by_id"]}
-        tcp_total = sum(statistics.mean(r for _, r in bandwidth[i]) for i in tcp_ids
-                        if i in bandwidth)
+                  "| id | carries | channel | mean bit/s |", "|---|---|---|---|"]
+        for (channel, ident), rate in sorted(means.items(), key=lambda item: item[0][1]):
+            lines.append(f"| {ident} | {names.get(ident, '')} | {channel} | {rate:.0f} |")
+        tcp_total = sum(rate for (channel, _), rate in means.items() if channel == "tcp")
         lines += ["", f"TCP channel (commands, statuses, robot state at T = 0.5 s): "
                       f"{tcp_total:.0f} bit/s of entries; the paper's Table 1 counts "
                       f"{PAPER_TABLE_1_BITS} bit/s at T = 1 s."]
-    completeness = [c for _, c in cloud_completeness(drc_record, baseline_nan)]
-    if completeness:
-        lines += ["", f"Point clouds at the pilot (drc): {len(completeness)}, mean completeness "
-                      f"{statistics.mean(completeness):.3f} of the lab's valid points."]
+    if drc_record.completeness:
+        lines += ["", "## Perception through the UDP channel (pilot side, share of each frame "
+                      "that arrived, lost frames count 0)", "", "| flow | completeness |",
+                  "|---|---|"]
+        lines += [f"| {name} | {value:.3f} |" for name, value in
+                  sorted(drc_record.completeness.items())]
     lines += ["", "## Plots", ""] + [f"![{p}]({p})" for p in plots]
     (out / "report.md").write_text("\n".join(lines) + "\n")
     (out / "sessions.json").write_text(json.dumps(
@@ -318,9 +371,8 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
         summary.append(f"command -> status latency, median: lab "
                        f"{statistics.median(v for _, v in lab_lat) * 1000:.0f} ms, drc "
                        f"{statistics.median(v for _, v in drc_lat) * 1000:.0f} ms")
-    if completeness:
-        summary.append(f"cloud completeness through the bridge: "
-                       f"{statistics.mean(completeness):.3f}")
+    for name, value in sorted(drc_record.completeness.items()):
+        summary.append(f"through the bridge, {name}: {value:.3f} of each frame arrived")
     summary.append(f"joint states at the pilot: lab {lab_rates.get('/joint_states', 0):.1f} Hz,"
                    f" drc {drc_rates.get('/joint_states', 0):.1f} Hz")
     return "\n".join(summary), problems

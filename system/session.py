@@ -27,7 +27,9 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional
 
+from bridge import status as status_codec
 from system.processes import WaitTimeout, wait_until
+from yarp_lite.bottle_text import parse
 
 PYTHON_EXECUTABLE = sys.executable
 
@@ -90,7 +92,9 @@ STEPS = [
     Step("pause gaze_control", _pub("gaze_control", "pause"), _status_is("gaze_control", "paused")),
     Step("resume gaze_control", _pub("gaze_control", "resume"),
          _status_is("gaze_control", "tracking")),
-    Step("dangerous: home (then cancel)", _dangerous("{command: home, dangerous: true}"),
+    # ``rostopic pub -1`` holds its latched message 3 s, so the countdown to cancel is long.
+    Step("dangerous: home (then cancel)",
+         _dangerous("{command: home, dangerous: true, countdown: 20.0}"),
          _countdown_is("waiting")),
     Step("cancel it (press again)", _dangerous("{command: home, dangerous: true}"),
          _countdown_is("cancelled")),
@@ -102,6 +106,10 @@ STEPS = [
 ]
 
 
+#: What the cancelled dangerous command would look like in a module's log: never there.
+CANCELLED_COMMAND = ("gaze_control", "command home")
+
+
 @dataclass
 class SessionRecord:
     topology: str
@@ -109,6 +117,7 @@ class SessionRecord:
     steps: List[dict] = field(default_factory=list)           # label, start, end, ok
     executed: Dict[str, List[str]] = field(default_factory=dict)  # module -> commands run
     bridge_samples: List[dict] = field(default_factory=list)   # robot bridge status over time
+    completeness: Dict[str, float] = field(default_factory=dict)  # topic -> share received
     started: float = 0.0
     ended: float = 0.0
 
@@ -119,11 +128,13 @@ def run(topology, progress: Callable[[str], None] = print) -> SessionRecord:
     record = SessionRecord(topology.kind, started=time.time())
     recorder = pilot.start("recorder", [PYTHON_EXECUTABLE, "-m", "system.session", "record"])
     recorder.wait_for(r"^recording", 60)
-    sampler = None
+    samplers = {}
     if topology.kind == "drc":
-        sampler = topology.robot.start("bridge-sampler", [PYTHON_EXECUTABLE, "-m", "yarp_lite",
-                                                          "read", "/session/bridge",
-                                                          "/bridge/robot/status:o"])
+        for side in ("robot", "pilot"):
+            samplers[side] = topology.pcs[side].start(
+                f"bridge-sampler-{side}", [PYTHON_EXECUTABLE, "-m", "yarp_lite", "read",
+                                           f"/session/bridge/{side}",
+                                           f"/bridge/{side}/status:o"])
 
     def records() -> List[dict]:
         return [json.loads(line) for line in list(recorder.lines) if line.startswith("{")]
@@ -154,28 +165,28 @@ def run(topology, progress: Callable[[str], None] = print) -> SessionRecord:
         pattern = re.compile(rf"{module}: (command .*) \(seq|{module}: (\w+ -> \w+)$")
         matches = [pattern.search(line) for line in topology.process(module).lines]
         record.executed[module] = [m.group(1) or m.group(2) for m in matches if m]
-    if sampler is not None:
-        for line in list(sampler.lines):
-            sample = _parse_bridge_status(line)
-            if sample:
-                record.bridge_samples.append(sample)
+    for side, sampler in samplers.items():
+        samples = [s for s in map(_parse_bridge_status, list(sampler.lines)) if s]
         sampler.kill()
+        if side == "robot":
+            record.bridge_samples = samples
+        elif samples:
+            record.completeness = samples[-1]["completeness"]
     return record
 
 
 def _parse_bridge_status(line: str) -> Optional[dict]:
-    tcp = re.search(r"\(tcp \(\((.*?)\(bytes_by_id \((.*?)\)\)\)\)", line)
-    if not tcp:
-        return None
-    out: Dict[str, Any] = {"t": time.time()}
-    for key, value in re.findall(r"\((bytes_out|payload_out|frames_out) (\d+)\)", tcp.group(1)):
-        out[key] = int(value)
-    out["tcp_by_id"] = {int(k): int(v) for k, v in re.findall(r'\("(\d+)" (\d+)\)',
-                                                              tcp.group(2))}
-    udp = re.search(r"\(udp \(.*\(bytes_by_id \((.*?)\)\)", line)
-    out["udp_by_id"] = {int(k): int(v) for k, v in re.findall(r'\("(\d+)" (\d+)\)',
-                                                              udp.group(1))} if udp else {}
-    return out
+    """One ``yarp read`` line of ``/bridge/robot/status:o``: time and bytes per id."""
+    try:
+        status = status_codec.from_bottle(parse(line))
+        tcp, udp = status["tcp"], status.get("udp", {})
+        return {"t": float(status["time"]), "bytes_out": int(tcp["bytes_out"]),
+                "tcp_by_id": {int(k): int(v) for k, v in tcp["bytes_by_id"].items()},
+                "udp_by_id": {int(k): int(v) for k, v in udp.get("bytes_by_id", {}).items()},
+                "completeness": {name: float(flow["mean_completeness"])
+                                 for name, flow in udp.get("flows", {}).items()}}
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return None  # not a status line (the tool's own messages)
 
 
 # -- the recorder (runs on the pilot PC) ----------------------------------------------------
@@ -209,7 +220,8 @@ def record_main() -> int:
     rospy.Subscriber("/gaze_control/countdown", Countdown, lambda m: emit(
         "/gaze_control/countdown", command=m.command, state=m.state, remaining=m.remaining))
     rospy.Subscriber("/pilot/sent_commands", SentCommand, lambda m: emit(
-        "/pilot/sent_commands", module=m.module, port=m.port, text=m.text))
+        "/pilot/sent_commands", module=m.module, port=m.port, text=m.text,
+        stamp=m.header.stamp.to_sec()))
 
     def on_joints(msg: Any) -> None:
         names = list(msg.name)

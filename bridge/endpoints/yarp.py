@@ -317,11 +317,11 @@ class RobotStateSource:
             state = Port(nameclient=self.nameclient).open(names["state"], wait=math.inf)
             ext = Port(nameclient=self.nameclient).open(names["state_ext"], wait=math.inf)
             self._ports[chain] = (state, ext)
+        self.layout = layout  # before the rpc port opens: its first caller gets the answer
+        self._previous = None
         # The HAL's grouping, for whole-body readers on this side (read only: no commands).
         self._rpc = RpcServer(nameclient=self.nameclient, handler=self._on_rpc)
         self._rpc.open(protocol.robot_rpc_name(self.robot), wait=math.inf)
-        self.layout = layout
-        self._previous = None
 
     def _on_rpc(self, request: Bottle) -> Bottle:
         if len(request) > 1 and str(request[0]) == "get" and str(request[1]) == "chains" and \

@@ -153,7 +153,12 @@ def test_regrouping_the_hal_chains_changes_nothing_for_the_module(lite_world, pr
         assert list(robot.chains) == ["whole_body"]
         pilot.send(lite, "command", "look_at 1.0 -0.4 0.1")
         pilot.wait_state("tracking")
-        assert neck(robot)[0] < -0.25
+        wait_until(lambda: neck(robot)[0] < -0.25, 5, message="head turned right")
+        # Paused, the module says so; resumed, it says again what it was doing.
+        pilot.send(lite, "switch", "pause")
+        pilot.wait_state("paused")
+        pilot.send(lite, "switch", "resume")
+        pilot.wait_state("tracking")
     finally:
         pilot.close()
 

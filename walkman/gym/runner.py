@@ -33,7 +33,7 @@ import sys
 import threading
 import time
 import traceback
-from typing import Any, Dict, List, Optional, Type
+from typing import Any, Dict, List, Optional, Tuple, Type
 
 from walkman.gym import inifile
 from walkman.gym.interfaces import PilotInterfaces
@@ -161,6 +161,7 @@ class ModuleRunner:
         self._robot_alive = True
         self._status_before_loss = ""
         self.start_pending = False
+        self._status_at_pause: Optional[Tuple[str, list]] = None
 
     def _make_thread(self) -> GenericThread:
         if issubclass(self.module_class, ControlThread):
@@ -297,6 +298,8 @@ class ModuleRunner:
             self.state = target
         elif word == "pause":
             self.state = State.PAUSED  # the loop stops calling run() right away
+            # What the module was saying, told again on resume (run() may not repeat it).
+            self._status_at_pause = (self.interfaces.state, list(self.interfaces.data))
             if self.loop.ask("pause") is None:
                 self.warn(f"{self.name}: custom_pause() did not return")
             self._set_lifecycle_status()
@@ -304,6 +307,8 @@ class ModuleRunner:
             ok = self.loop.ask("resume")
             if ok:
                 self.state = target
+                if self.interfaces.state == State.PAUSED.value and self._status_at_pause:
+                    self.interfaces.set_status(*self._status_at_pause)
             else:
                 self.warn(f"{self.name}: custom_resume() failed, staying paused")
         elif word in ("stop", "quit"):

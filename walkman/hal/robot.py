@@ -112,21 +112,26 @@ class Robot:
     def _ask_grouping(self, timeout: float) -> Dict[str, List[str]]:
         deadline = time.monotonic() + timeout
         said = 0.0
+        answer = ""
         rpc_name = protocol.robot_rpc_name(self.robot)
         while True:
             try:
                 contact = self.nameclient.query(rpc_name)
                 if contact is not None:
                     reply = network.request(contact, [Vocab("get"), "chains"], timeout=5)
-                    return {str(group[0]): [str(j) for j in group[1:]] for group in reply
-                            if isinstance(group, list) and group}
+                    grouping = {str(group[0]): [str(j) for j in group[1:]] for group in reply
+                                if isinstance(group, list) and group}
+                    if grouping:
+                        return grouping
+                    # A HAL (or a bridge's copy of it) that is not ready yet: ask again.
+                    answer = f"; it answered {str(reply)[:120]}"
             except YarpError:
                 pass
             now = time.monotonic()
             if now > deadline:
                 raise NetworkError(f"no HAL answered at {rpc_name} within {timeout:g} s")
             if now - said > 5:
-                log.info("%s: waiting for the HAL (%s)", self.owner, rpc_name)
+                log.info("%s: waiting for the HAL (%s)%s", self.owner, rpc_name, answer)
                 said = now
             time.sleep(0.3)
 
