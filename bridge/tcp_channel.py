@@ -40,7 +40,7 @@ from bridge import compact, frames
 from bridge.errors import BridgeError, BridgeProtocolError
 from bridge.frames import DataFrame, Entry, Hello, Resume
 from bridge.journal import Journal
-from bridge.state_codec import RobotState, StateDecoder, StateEncoder
+from bridge.state_codec import StateDecoder, StateEncoder
 
 log = logging.getLogger("bridge.tcp")
 
@@ -452,7 +452,7 @@ class TcpChannel:
                     if remaining <= 0:
                         break
                     self._wake.wait(remaining)
-                urgent, self._urgent = self._urgent, False
+                self._urgent = False
                 connection = self._connection
             now = time.monotonic()
             tick = now >= next_tick

@@ -89,7 +89,7 @@ def header_for(pixels: np.ndarray, codec: int, quality: int = 80,
         raise BridgeUsageError(f"JPEG takes 8-bit images of 1 or 3 channels, not "
                                f"{pixels.dtype} x {channels}")
     if codec == PNG and (pixels.dtype not in (np.uint8, np.uint16) or channels not in (1, 3, 4)):
-        raise BridgeUsageError(f"PNG takes 8/16-bit images of 1, 3 or 4 channels")
+        raise BridgeUsageError("PNG takes 8/16-bit images of 1, 3 or 4 channels")
     fill = FILL_NAN_AT if nan_offsets else (
         FILL_NAN if np.issubdtype(pixels.dtype, np.floating) else FILL_ZERO)
     return RasterHeader(pixels.shape[0], pixels.shape[1], channels, np.dtype(dtype), codec,

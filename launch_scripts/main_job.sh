@@ -3,4 +3,4 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 launch_scripts/bootstrap.sh
-exec .venv/bin/python -m walkman.mainjob "$@"
+exec .venv/bin/python -m system.mainjob "$@"

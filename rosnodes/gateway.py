@@ -41,7 +41,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from bridge import config as bridge_config
 from bridge.endpoints.yarp import ConnectionKeeper
-from rosnodes.timed import CANCELLED, SENT, WAITING, Countdowns
+from rosnodes.timed import CANCELLED, SENT, Countdowns
 from walkman.gym.interfaces import (InterfaceError, PilotCommand, decode_command,
                                     decode_status, encode_command)
 from yarp_lite.bottle import Bottle

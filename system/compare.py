@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
+import shutil
 import statistics
 import sys
 import tempfile
@@ -223,7 +223,8 @@ def verdict(lab: dict, drc: dict, lab_record: SessionRecord,
 
 
 def run_one(kind: str, root: Path, link, profile: str, loss: Optional[float],
-            progress) -> Tuple[SessionRecord, dict]:
+            progress, bag: Optional[Path] = None) -> Tuple[SessionRecord, dict]:
+    """One topology up, the session played, what the pilot saw; its rosbag kept at ``bag``."""
     topology = Topology(kind, root / kind, link=link if kind == "drc" else None,
                         profile=profile, loss=loss)
     try:
@@ -241,6 +242,9 @@ def run_one(kind: str, root: Path, link, profile: str, loss: Optional[float],
         return record, observed
     finally:
         topology.close()
+        if bag is not None and topology.bag_path.exists():
+            bag.parent.mkdir(parents=True, exist_ok=True)
+            shutil.move(str(topology.bag_path), bag)
 
 
 def _plots(out: Path, lab_record: SessionRecord, drc_record: SessionRecord) -> List[str]:
@@ -305,7 +309,7 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
     plots = _plots(out, lab_record, drc_record)
     link = f"{profile} profile{f', {loss:g} % loss' if loss is not None else ''}" \
         if emulated else "loopback (no emulated network: needs root)"
-    lines = [f"# Lab versus DRC topology", "",
+    lines = ["# Lab versus DRC topology", "",
              f"Generated {time.strftime('%Y-%m-%d %H:%M:%S')}; DRC link: {link}.", "",
              "**Verdict: " + ("no observable difference**" if not problems else
                               f"{len(problems)} observable difference(s)**"), ""]
@@ -360,6 +364,10 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
                   "|---|---|"]
         lines += [f"| {name} | {value:.3f} |" for name, value in
                   sorted(drc_record.completeness.items())]
+    bags = [name for name in ("lab.bag", "drc.bag") if (out / name).exists()]
+    if bags:
+        lines += ["", "## Recordings", "", "What the pilot's roscore carried, for `rosbag info` "
+                  "and `rosbag play`: " + ", ".join(f"`{name}`" for name in bags) + "."]
     lines += ["", "## Plots", ""] + [f"![{p}]({p})" for p in plots]
     (out / "report.md").write_text("\n".join(lines) + "\n")
     (out / "sessions.json").write_text(json.dumps(
@@ -378,6 +386,21 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
     return "\n".join(summary), problems
 
 
+def open_link(loopback: bool, progress, prefix: str = "wc", subnet: int = 60):
+    """The emulated robot/pilot hosts when this machine can build them, else None (loopback)."""
+    from bridge import emulation
+
+    if loopback:
+        return None
+    reason = emulation.available()
+    if reason is not None:
+        progress(f"no emulated network ({reason}); the two PCs share loopback")
+        return None
+    link = emulation.EmulatedLink(prefix, subnet)
+    link.up()  # clears the leftovers of an interrupted run first
+    return link
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="walkman-compare", description=__doc__.split("\n")[0])
     parser.add_argument("--profile", default="lab", choices=["lab", "drc", "degraded"],
@@ -388,20 +411,17 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--out", type=Path, help="report folder (default out/compare-<time>)")
     options = parser.parse_args(argv)
     out = options.out or REPO / "out" / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
-    from bridge import emulation
     from rosnodes.msgs import generate
 
     generate()
-    link = None
-    if not options.loopback and emulation.available() is None:
-        link = emulation.EmulatedLink("wc", 60)
-        link.up()
     progress = lambda text: print(f"[compare] {text}", flush=True)  # noqa: E731
+    link = open_link(options.loopback, progress)
     try:
         with tempfile.TemporaryDirectory(prefix="walkman-compare-") as tmp:
-            lab_record, lab = run_one("lab", Path(tmp), None, "lab", None, progress)
+            lab_record, lab = run_one("lab", Path(tmp), None, "lab", None, progress,
+                                      out / "lab.bag")
             drc_record, drc = run_one("drc", Path(tmp), link, options.profile, options.loss,
-                                      progress)
+                                      progress, out / "drc.bag")
     finally:
         if link is not None:
             link.down()

@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import shlex
 import sys
 import threading
 import time
@@ -143,7 +144,7 @@ def run(topology, progress: Callable[[str], None] = print) -> SessionRecord:
                _status_is("gaze_control", "ready")(records()), 60,
                message="the gaze_control status on the pilot side")
     for number, step in enumerate(STEPS, 1):
-        progress(f"[{number}/{len(STEPS)}] {step.label}: {' '.join(step.argv)}")
+        progress(f"[{number}/{len(STEPS)}] {step.label}: {shlex.join(step.argv)}")
         begin = time.time()
         tool = pilot.run(step.argv, timeout=step.timeout)
         ok = True

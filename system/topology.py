@@ -28,14 +28,14 @@ import json
 import os
 import random
 import re
-import shutil
+import shlex
 import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Tuple
 
-from system.processes import REPO, Proc, WaitTimeout, wait_until
+from system.processes import REPO, Proc, WaitTimeout
 from yarp_lite.freeport import free_port
 
 PYTHON = sys.executable
@@ -73,6 +73,11 @@ def components(kind: str, perception_rate: float = 1.0) -> List[Component]:
                   r"ROS topics and services up"),
         Component("joint_state_pilot", "pilot", (PYTHON, "-m", "rosnodes.joint_state"),
                   r"joint state: reading", ("drc",)),
+        # The session's log: every topic of the pilot's roscore (commands sent, statuses,
+        # warnings, countdowns, robot state, perception), replayable with `rosbag play`.
+        Component("rosbag", "pilot", ("rosbag", "record", "--all", "--exclude",
+                                      "/rosout(_agg)?", "--lz4", "--output-name", "{bag}"),
+                  r"Recording to|Subscribing to"),
     ]
     return [c for c in table if kind in c.topologies]
 
@@ -107,6 +112,21 @@ class Pc:
                                                  "/usr/share"]),
         })
         return env
+
+    #: What a shell needs to act as a program of this PC (see :meth:`write_env_file`).
+    SHELL_KEYS = ("YARP_CONFIG_HOME", "YARP_DATA_HOME", "ROS_MASTER_URI", "ROS_IP", "ROS_HOME",
+                  "ROS_LOG_DIR", "PYTHONPATH", "ROS_PACKAGE_PATH")
+
+    def write_env_file(self) -> Path:
+        """A file to ``source`` in a shell so its yarp/ros tools use this PC's name servers."""
+        env = self.env
+        lines = [f"# {self.name} PC: source me, then use rostopic, rosservice, yarp-lite ..."]
+        lines += [f"export {key}={shlex.quote(env[key])}" for key in self.SHELL_KEYS]
+        lines.append(f"export PATH={shlex.quote(str(REPO / '.venv' / 'bin'))}:\"$PATH\"")
+        path = self.root / f"{self.name}.env"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("\n".join(lines) + "\n")
+        return path
 
     def start(self, name: str, argv: Sequence[str]) -> Proc:
         proc = Proc([*self.wrap, *argv], self.env, f"{self.name}:{name}")
@@ -193,7 +213,11 @@ class Topology:
                     "--port", str(self.tcp_port), "--udp-port", str(self.udp_ports[side]),
                     "--peer-udp-port", str(self.udp_ports[other]), "--udp-rate", "600k",
                     "--link-timeout", "5"]
-        return list(component.argv)
+        return [arg.replace("{bag}", str(self.bag_path)) for arg in component.argv]
+
+    @property
+    def bag_path(self) -> Path:
+        return self.pilot.root / "pilot.bag"
 
     def start(self, name: str) -> Proc:
         component = self.table[name]
@@ -228,6 +252,9 @@ class Topology:
         return json.loads(lines[-1])
 
     def close(self) -> None:
+        recorder = self.pilot.processes.get("rosbag")
+        if recorder is not None:
+            recorder.interrupt()  # Ctrl-C: rosbag closes the bag properly
         for pc in self.unique_pcs():
             pc.close()
 
@@ -238,7 +265,8 @@ _VOLATILE = [(re.compile(r"/pilot_gateway/\d+"), "/pilot_gateway/N"),
              (re.compile(r"pilot_gateway_[\w]+_\d+"), "pilot_gateway"),
              (re.compile(r"/rostopic_\d+_\d+"), "/rostopic"),
              (re.compile(r"/rosservice_\d+_\d+"), "/rosservice"),
-             (re.compile(r"/observer\d*"), "/observer")]
+             (re.compile(r"/observer\d*"), "/observer"),
+             (re.compile(r"/record_\d+"), "/record")]
 
 
 def normalize(name: str) -> str:

@@ -7,6 +7,11 @@ import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+# Two busy cores: a generated case may take longer than hypothesis' 200 ms default.
+settings.register_profile("walkman", deadline=None)
+settings.load_profile("walkman")
 
 sys.path.append(str(Path(__file__).resolve().parent))
 

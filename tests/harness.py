@@ -10,20 +10,16 @@ killed with their whole group when the test ends, pass or fail.
 from __future__ import annotations
 
 import os
-import queue
-import re
 import shutil
 import signal
 import socket
 import subprocess
 import sys
-import threading
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
-from system.processes import Proc, WaitTimeout, wait_until  # noqa: F401 (re-exported)
+from system.processes import Proc, wait_until  # noqa: F401 (re-exported)
 from yarp_lite import freeport, nameconfig, reference
 
 REPO = Path(__file__).resolve().parents[1]

@@ -15,7 +15,6 @@ import logging
 import os
 import sys
 import threading
-import time
 from typing import Callable, Dict, List, Optional, Sequence
 
 from yarp_lite import __version__, nameconfig, network

@@ -34,8 +34,7 @@ import logging
 import socket
 import threading
 import time
-from collections import deque
-from typing import Callable, Deque, Dict, List, Optional, Sequence, Tuple, Union
+from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 from yarp_lite import admin
 from yarp_lite.admin import Route

@@ -32,7 +32,6 @@ import numpy as np
 
 from bridge import compact
 from bridge.config import Channel
-from bridge.errors import BridgeProtocolError
 from bridge.state_codec import Layout, RobotState, StateDecoder, StateEncoder, split_by_chain
 from walkman.hal import protocol
 from walkman.hal.protocol import ChainState, HalProtocolError

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from bridge_harness import HERE, PYTHON, TwoPCs, count_lines
-from harness import missing_reference, wait_until
+from harness import wait_until
 
 CONFIG = """<bridge period="0.2" gather="0.4">
   <modules>

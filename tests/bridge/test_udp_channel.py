@@ -7,7 +7,6 @@ import socket
 import time
 
 import numpy as np
-import pytest
 
 from bridge import datagrams, tiles
 from bridge.endpoints.yarp import BottleUdpCodec

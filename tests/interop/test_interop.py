@@ -15,7 +15,7 @@ import re
 import pytest
 
 from harness import missing_reference, wait_until
-from yarp_lite.bottle import (Bottle, Dict, Float32, Int8, Int16, Int64, Vocab, decode, encode)
+from yarp_lite.bottle import (Bottle, Dict, Float32, Int8, Int16, Int64, Vocab, encode)
 
 IMPLS = ["yarp", "yarp_lite"]
 PAIRS = list(itertools.product(IMPLS, IMPLS))

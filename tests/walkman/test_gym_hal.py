@@ -17,7 +17,7 @@ from typing import List, Optional
 import numpy as np
 import pytest
 
-from harness import Proc, YarpWorld, missing_reference, real_implementation, wait_until
+from harness import Proc, YarpWorld, missing_reference, wait_until
 from walkman.gym.interfaces import decode_status
 from walkman.model import MODELS_DIR
 from yarp_lite import network

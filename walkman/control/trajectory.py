@@ -8,9 +8,7 @@ circular ones rotate about an axis by ``s * angle``.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-from typing import Optional, Sequence, Tuple
 
 import numpy as np
 

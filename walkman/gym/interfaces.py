@@ -30,7 +30,7 @@ import itertools
 import queue
 import threading
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Deque, List, Optional, Sequence, Tuple
 
 from yarp_lite.bottle import Bottle, Vocab

@@ -32,7 +32,7 @@ import math
 from dataclasses import dataclass
 from typing import List, Optional, Sequence, Tuple
 
-from yarp_lite.bottle import Bottle, Float64, Vocab
+from yarp_lite.bottle import Bottle, Vocab
 
 
 class HalError(Exception):

@@ -24,13 +24,12 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from walkman.hal import protocol
-from walkman.hal.protocol import ChainState, Command, HalProtocolError, HalUsageError
+from walkman.hal.protocol import Command, HalProtocolError, HalUsageError
 from walkman.model.description import Robot as RobotModel
 from walkman.model.description import walkman
 from yarp_lite import network
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.buffered_port import BufferedPort
-from yarp_lite.contact import Contact
 from yarp_lite.errors import NetworkError, YarpError
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port

@@ -39,7 +39,6 @@ from walkman.hal.backend import DEFAULT_REF_SPEED, Backend
 from walkman.hal.config import HalConfig, load_config
 from walkman.hal.protocol import ChainState, Command, HalProtocolError
 from yarp_lite.bottle import Bottle, Vocab
-from yarp_lite.buffered_port import BufferedPort
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
 from yarp_lite.rpc import RpcServer

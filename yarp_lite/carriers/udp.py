@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import socket
 import time
-from typing import List, Optional, Tuple, Union
+from typing import List, Union
 
 from yarp_lite.bottle import Bottle
 from yarp_lite.carriers.base import Incoming, MessageSource

@@ -1,0 +1,117 @@
+"""The comparison's analysis: pure functions over what each topology recorded."""
+
+import copy
+
+import pytest
+
+from bridge import status as status_codec
+from system import compare
+from system.session import CANCELLED_COMMAND, MODULES, SessionRecord, _parse_bridge_status
+from system.topology import normalize
+from yarp_lite.bottle_text import format_bottle
+
+
+def observed_everything() -> dict:
+    """What the pilot PC shows when the whole contract is there."""
+    topics = {}
+    for topic, kind in compare.CONTRACT_TOPICS.items():
+        inbound = topic.endswith(("/switch", "/command"))
+        topics[topic] = {"type": kind, "pub": [] if inbound else ["/node"],
+                         "sub": ["/gateway"] if inbound else []}
+    return {"ports": {port: [] for port in compare.CONTRACT_PORTS}, "topics": topics,
+            "services": list(compare.CONTRACT_SERVICES)}
+
+
+def session(kind: str, executed=None, ok=True) -> SessionRecord:
+    record = SessionRecord(kind)
+    record.steps = [{"label": "start gaze_control", "start": 0.0, "end": 1.0, "ok": ok}]
+    record.executed = executed or {module: ["start -> running"] for module in MODULES}
+    return record
+
+
+def test_identical_observations_have_no_difference():
+    seen = observed_everything()
+    assert compare.verdict(seen, copy.deepcopy(seen), session("lab"), session("drc")) == []
+
+
+def test_a_topic_missing_or_of_another_type_in_one_topology_is_a_difference():
+    lab, drc = observed_everything(), observed_everything()
+    del drc["topics"]["/multisense/points"]
+    drc["topics"]["/joint_states"]["type"] = "std_msgs/String"
+    problems = compare.verdict(lab, drc, session("lab"), session("drc"))
+    assert "/multisense/points: lab sensor_msgs/PointCloud2, drc missing" in problems
+    assert "/joint_states: lab sensor_msgs/JointState, drc type std_msgs/String" in problems
+
+
+def test_a_switch_topic_nobody_listens_to_is_a_difference():
+    lab, drc = observed_everything(), observed_everything()
+    drc["topics"]["/gaze_control/switch"].update(sub=[], pub=["/rostopic"])
+    assert compare.verdict(lab, drc, session("lab"), session("drc")) == [
+        "/gaze_control/switch: lab walkman_msgs/Switch, drc nobody listens"]
+
+
+def test_missing_in_both_is_still_reported():
+    lab, drc = observed_everything(), observed_everything()
+    for seen in (lab, drc):
+        seen["services"].remove("/gaze_control/send_command")
+    assert compare.verdict(lab, drc, session("lab"), session("drc")) == [
+        "/gaze_control/send_command: missing in both topologies"]
+
+
+def test_commands_executed_differently_or_a_step_without_effect_are_differences():
+    seen = observed_everything()
+    drc = session("drc", executed={"gaze_control": ["start -> running", "command home"],
+                                   "temperature": ["start -> running"]}, ok=False)
+    problems = compare.verdict(seen, seen, session("lab"), drc)
+    module, cancelled = CANCELLED_COMMAND
+    assert "drc: step 'start gaze_control' had no effect" in problems
+    assert f"drc: the cancelled '{cancelled}' reached {module}" in problems
+    assert any(p.startswith("gaze_control executed") for p in problems)
+
+
+def test_expected_extras_are_listed_not_judged():
+    lab, drc = observed_everything(), observed_everything()
+    drc["ports"]["/bridge/pilot/status:o"] = []
+    lab["topics"]["/rosout"] = {"type": "rosgraph_msgs/Log", "pub": [], "sub": []}
+    assert compare.extras(lab, drc) == {"lab only": ["/rosout"],
+                                        "drc only": ["/bridge/pilot/status:o"]}
+    assert compare.verdict(lab, drc, session("lab"), session("drc")) == []
+
+
+def test_command_latency_is_timed_from_the_gateways_stamp():
+    record = session("drc")
+    record.records = [
+        {"t": 0.0, "topic": "/gaze_control/status", "state": "ready"},
+        {"t": 10.3, "topic": "/gaze_control/status", "state": "ready"},
+        {"t": 10.4, "topic": "/gaze_control/status", "state": "moving"},
+        # the recorder heard of the command after the status changed
+        {"t": 10.5, "topic": "/pilot/sent_commands", "module": "gaze_control",
+         "text": "look_at", "stamp": 10.0},
+    ]
+    [(name, latency)] = compare.command_latencies(record)
+    assert name == "gaze_control look_at" and latency == pytest.approx(0.4)
+
+
+def bridge_line(t: float, tcp: dict, udp: dict) -> str:
+    value = {"side": "robot", "time": t, "tcp": {"bytes_out": sum(tcp.values()),
+                                                 "bytes_by_id": tcp},
+             "udp": {"bytes_by_id": udp, "flows": {"/multisense/points": {
+                 "mean_completeness": 0.75}}}}
+    return format_bottle(status_codec.to_bottle(value))
+
+
+def test_bridge_samples_give_bandwidth_per_id():
+    lines = [bridge_line(100.0 + i, {7: 10 * i, 20: 100 * i}, {31: 1000 * i}) for i in range(11)]
+    record = session("drc")
+    record.bridge_samples = [_parse_bridge_status(line) for line in lines]
+    assert record.bridge_samples[3]["completeness"] == {"/multisense/points": 0.75}
+    assert compare.mean_bandwidth(record) == {("tcp", 7): 80.0, ("tcp", 20): 800.0,
+                                              ("udp", 31): 8000.0}
+    series = compare.bandwidth_by_id(record, window_s=5.0)
+    assert series[31][-1] == (10.0, pytest.approx(8000.0))
+    assert _parse_bridge_status("yarp: Receiving input from /bridge/robot/status:o") is None
+
+
+def test_volatile_names_are_normalized():
+    assert normalize("/pilot_gateway/4242/status") == "/pilot_gateway/N/status"
+    assert normalize("/rostopic_1234_1700000000000") == "/rostopic"
