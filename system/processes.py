@@ -23,6 +23,26 @@ from typing import Dict, List, Optional, Sequence
 REPO = Path(__file__).resolve().parents[1]
 
 
+def descendants(pid: int) -> List[int]:
+    """Every living process below ``pid`` (children, grandchildren ...), from /proc."""
+    children: Dict[int, List[int]] = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat") as stat:
+                parent = int(stat.read().rsplit(")", 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
+            continue
+        children.setdefault(parent, []).append(int(entry))
+    found, todo = [], [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            found.append(child)
+            todo.append(child)
+    return found
+
+
 class WaitTimeout(AssertionError):
     """Something awaited did not happen in time; the text says what and shows the output."""
 
@@ -91,9 +111,20 @@ class Proc:
         return code
 
     def kill(self, sig: int = signal.SIGKILL) -> None:
+        """Signal the process, its group and every descendant.
+
+        The descendants matter: ``roscore`` starts ``rosmaster`` and ``rosout``
+        in sessions of their own, which a signal to the group never reaches.
+        """
+        family = descendants(self.popen.pid) if self.popen.poll() is None else []
         if self.popen.poll() is None:
             try:
                 os.killpg(self.popen.pid, sig)
+            except ProcessLookupError:
+                pass
+        for pid in family:
+            try:
+                os.kill(pid, sig)
             except ProcessLookupError:
                 pass
         try:

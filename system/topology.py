@@ -75,7 +75,8 @@ def components(kind: str, perception_rate: float = 1.0) -> List[Component]:
                   r"joint state: reading", ("drc",)),
         # The session's log: every topic of the pilot's roscore (commands sent, statuses,
         # warnings, countdowns, robot state, perception), replayable with `rosbag play`.
-        Component("rosbag", "pilot", ("rosbag", "record", "--all", "--exclude",
+        Component("rosbag", "pilot", ("stdbuf", "-oL",  # its log lines as they come
+                                      "rosbag", "record", "--all", "--exclude",
                                       "/rosout(_agg)?", "--lz4", "--output-name", "{bag}"),
                   r"Recording to|Subscribing to"),
     ]

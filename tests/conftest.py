@@ -15,8 +15,8 @@ settings.load_profile("walkman")
 
 sys.path.append(str(Path(__file__).resolve().parent))
 
-from harness import (YarpWorld, lite_implementation, missing_reference,  # noqa: E402
-                     real_implementation)
+from harness import (YarpWorld, dump_outputs_if_failed, lite_implementation,  # noqa: E402
+                     missing_reference, real_implementation)
 
 
 @pytest.fixture
@@ -45,16 +45,6 @@ def pytest_runtest_makereport(item, call):
     report = yield
     setattr(item, f"report_{report.when}", report)
     return report
-
-
-def dump_outputs_if_failed(request, processes) -> None:
-    """Show what the child processes printed when the test failed (their logs explain it)."""
-    report = getattr(request.node, "report_call", None)
-    if report is None or not report.failed:
-        return
-    for proc in processes:
-        tail = "\n".join(proc.output().splitlines()[-40:])
-        print(f"\n----- output of {proc.name} (last 40 lines) -----\n{tail}")
 
 
 @pytest.fixture

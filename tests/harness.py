@@ -163,5 +163,18 @@ class YarpWorld:
         self.processes.clear()
 
 
+def dump_outputs_if_failed(request, processes) -> None:
+    """Show what the child processes printed when the test failed (their logs explain it).
+
+    Needs the ``report_call`` attribute set by ``pytest_runtest_makereport`` in conftest.
+    """
+    report = getattr(request.node, "report_call", None)
+    if report is None or not report.failed:
+        return
+    for proc in processes:
+        tail = "\n".join(proc.output().splitlines()[-40:])
+        print(f"\n----- output of {proc.name} (last 40 lines) -----\n{tail}")
+
+
 def have_root() -> bool:
     return os.geteuid() == 0 and shutil.which("ip") is not None

@@ -1,0 +1,99 @@
+"""The pilot gateway, driven with the real ROS command-line tools against a real module."""
+
+import re
+import sys
+
+import pytest
+
+from system.processes import wait_until
+from system.topology import REPO
+
+PYTHON = sys.executable
+CONFIG = """<bridge>
+  <modules><module name="counter" id="1" statuses="idle counting"/></modules>
+</bridge>
+"""
+
+
+def start_counter(pc):
+    return pc.start("counter", [PYTHON, "-m", "walkman.gym.supervisor", "counting_module:Module",
+                                "--name", "/counter"])
+
+
+def rosservice(pc, *args: str) -> str:
+    return pc.run(["rosservice", "call", *args], timeout=60).output()
+
+
+def executed(log) -> list:
+    return log.read_text().splitlines() if log.exists() else []
+
+
+@pytest.fixture
+def config(tmp_path):
+    path = tmp_path / "bridge.xml"
+    path.write_text(CONFIG)
+    return path
+
+
+def test_unknown_modules_and_bad_options_are_refused_by_name(make_pc, config):
+    pc = make_pc()
+    tool = pc.run([PYTHON, "-m", "rosnodes.gateway", "--config", str(config),
+                   "--modules", "counter,walking"])
+    assert tool.popen.returncode == 2
+    assert f"unknown module(s) walking; {config} lists counter" in tool.output()
+    tool = pc.run([PYTHON, "-m", "rosnodes.gateway", "--config", str(config), "--countdown", "0"])
+    assert tool.popen.returncode == 2 and "--countdown must be positive" in tool.output()
+    broken = config.with_name("broken.xml")
+    broken.write_text(CONFIG.replace('id="1"', 'id="300"'))
+    tool = pc.run([PYTHON, "-m", "rosnodes.gateway", "--config", str(broken)])
+    assert tool.popen.returncode == 2 and "broken.xml" in tool.output()
+
+
+def test_a_gateway_started_before_roscore_waits_serves_and_survives_a_roscore_restart(
+        make_pc, config, counter):
+    pc = make_pc()
+    gateway = pc.start("gateway", [PYTHON, "-m", "rosnodes.gateway", "--config", str(config)])
+    gateway.wait_for(r"waiting for the ROS master", 30)
+    pc.start_name_servers()
+    start_counter(pc).wait_for("ready for the pilot", 60)
+    gateway.wait_for(r"ROS topics and services up", 60)
+
+    # A plain shell: the env file, then the ROS tools.
+    shell = pc.run(["bash", "-c", f"source {REPO}/launch_scripts/walkman_env.sh && "
+                    f"source {pc.write_env_file()} && rosmsg show walkman_msgs/Command && "
+                    "rostopic pub -1 /counter/switch walkman_msgs/Switch 'command: start'"],
+                   timeout=60)
+    assert "bool dangerous" in shell.output()
+    wait_until(lambda: "state: \"idle\"" in rosservice(pc, "/counter/get_status"), 30,
+               message="the counter idle after start")
+    reply = rosservice(pc, "/counter/send_command", "{command: count}")
+    seq = int(re.search(r"seq: (\d+)", reply).group(1))
+    wait_until(lambda: executed(counter) == [f"executed count {seq}"], 20,
+               message=f"count {seq} executed once")
+
+    # Malformed pilot messages: refused with the reason, nothing reaches the module.
+    assert "'dance' is not a switch command" in rosservice(
+        pc, "/counter/switch_and_wait", "{command: dance}")
+    assert "must be one word" in rosservice(pc, "/counter/send_command",
+                                            "{command: 'two words'}")
+    assert "is not a command" in rosservice(pc, "/counter/send_command", "{text: '(('}")
+    warnings = pc.start("warnings", ["rostopic", "echo", "/counter/warning/text"])
+
+    def refused_on_the_warning_topic() -> bool:  # (again until `rostopic echo` has subscribed)
+        pc.run(["rostopic", "pub", "-1", "/counter/switch", "walkman_msgs/Switch",
+                "command: fly"], timeout=60)
+        return "gateway: 'fly' is not a switch command" in warnings.output()
+
+    wait_until(refused_on_the_warning_topic, 60, message="the refusal on /counter/warning")
+    assert executed(counter) == [f"executed count {seq}"]
+
+    # roscore dies and comes back: the gateway registers again, the tools work again.
+    pc.kill("roscore")
+    roscore = pc.start("roscore", ["roscore", "-p", str(pc.ros_port)])
+    roscore.wait_for(r"started core service", 60)
+    gateway.wait_for(r"the ROS master restarted", 60)
+    wait_until(lambda: "ok: True" in rosservice(pc, "/counter/send_command",
+                                                     "{command: again}"), 60,
+               message="the gateway's services back after the roscore restart")
+    wait_until(lambda: len(executed(counter)) == 2 and "again" in executed(counter)[1], 20,
+               message="the second command executed")
