@@ -28,6 +28,8 @@ setup(
             "walkman-perception=rosnodes.perception:main",
             "walkman-joint-state=rosnodes.joint_state:main",
             "walkman-compare=system.compare:main",
+            "walkman-pc=system.pc:main",
+            "walkman-main-job=system.mainjob:main",
         ],
     },
 )

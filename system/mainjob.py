@@ -65,19 +65,21 @@ The robot is up. Pilot it from another shell on this machine:
     yarp-lite name list                       # the pilot PC's YARP ports
 
 Logs of every program: {root}/<pc>/... ; Ctrl-C here stops everything.""", flush=True)
-        stop = []
-        signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
+        stop: List[str] = []
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, lambda number, _: stop.append(signal.Signals(number).name))
         while not stop:
             for pc in topology.unique_pcs():
                 for name, proc in pc.processes.items():
                     if proc.popen.poll() is not None and name in topology.table:
                         say(f"{pc.name}:{name} exited ({proc.popen.returncode}); last lines:\n"
                             + "\n".join(proc.output().splitlines()[-10:]))
-                        stop.append(True)
+                        stop.append(f"{name} exited")
             time.sleep(1.0)
-        return 1
-    except KeyboardInterrupt:
-        say("stopping")
+        say(f"stopping ({stop[0]})")
+        return 0 if stop[0] in ("SIGINT", "SIGTERM") else 1
+    except KeyboardInterrupt:  # Ctrl-C while still starting up
+        say("stopping (SIGINT)")
         return 0
     finally:
         topology.close()

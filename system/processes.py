@@ -51,8 +51,13 @@ class Proc:
     """A child process whose combined output is collected line by line."""
 
     def __init__(self, argv: Sequence[str], env: Dict[str, str], name: str,
-                 stdin: bool = False, cwd: Optional[Path] = None) -> None:
+                 stdin: bool = False, cwd: Optional[Path] = None,
+                 log: Optional[Path] = None) -> None:
         self.name = name
+        self.log = None
+        if log is not None:
+            log.parent.mkdir(parents=True, exist_ok=True)
+            self.log = open(log, "a", buffering=1)
         self.argv = list(argv)
         self.lines: List[str] = []
         self._queue: "queue.Queue[str]" = queue.Queue()
@@ -69,6 +74,8 @@ class Proc:
             line = line.rstrip("\n")
             self.lines.append(line)
             self._queue.put(line)
+            if self.log is not None:
+                self.log.write(line + "\n")
 
     def send(self, text: str) -> None:
         assert self.popen.stdin is not None

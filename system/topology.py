@@ -83,6 +83,15 @@ def components(kind: str, perception_rate: float = 1.0) -> List[Component]:
     return [c for c in table if kind in c.topologies]
 
 
+def bridge_argv(side: str, config: Path, peer: str, tcp_port: int, udp_port: int,
+                peer_udp_port: int, udp_rate: str = "600k") -> List[str]:
+    """``walkman-bridge`` for one side: 0.6 Mbit/s of perception leaves room on a 1 Mbit/s link."""
+    return [PYTHON, "-m", "bridge.main", "--side", side, "--config", str(config),
+            "--peer", peer, "--port", str(tcp_port), "--udp-port", str(udp_port),
+            "--peer-udp-port", str(peer_udp_port), "--udp-rate", udp_rate,
+            "--link-timeout", "5"]
+
+
 @dataclass
 class Pc:
     """One computer: its environment, name servers and programs."""
@@ -94,6 +103,7 @@ class Pc:
     yarp_port: int = field(default_factory=lambda: free_port(span=60))
     ros_port: int = field(default_factory=free_port)
     processes: Dict[str, Proc] = field(default_factory=dict)
+    log_dir: Optional[Path] = None   # when set, each program's output also goes to a file
 
     @property
     def env(self) -> Dict[str, str]:
@@ -130,7 +140,8 @@ class Pc:
         return path
 
     def start(self, name: str, argv: Sequence[str]) -> Proc:
-        proc = Proc([*self.wrap, *argv], self.env, f"{self.name}:{name}")
+        log = self.log_dir / f"{name}.log" if self.log_dir else None
+        proc = Proc([*self.wrap, *argv], self.env, f"{self.name}:{name}", log=log)
         self.processes[name] = proc
         return proc
 
@@ -209,11 +220,8 @@ class Topology:
         if component.name.startswith("bridge_"):
             side = component.pc
             other = "pilot" if side == "robot" else "robot"
-            return [PYTHON, "-m", "bridge.main", "--side", side, "--config",
-                    str(self.bridge_config), "--peer", self.pcs[other].address,
-                    "--port", str(self.tcp_port), "--udp-port", str(self.udp_ports[side]),
-                    "--peer-udp-port", str(self.udp_ports[other]), "--udp-rate", "600k",
-                    "--link-timeout", "5"]
+            return bridge_argv(side, self.bridge_config, self.pcs[other].address,
+                               self.tcp_port, self.udp_ports[side], self.udp_ports[other])
         return [arg.replace("{bag}", str(self.bag_path)) for arg in component.argv]
 
     @property

@@ -97,3 +97,17 @@ def test_a_gateway_started_before_roscore_waits_serves_and_survives_a_roscore_re
                message="the gateway's services back after the roscore restart")
     wait_until(lambda: len(executed(counter)) == 2 and "again" in executed(counter)[1], 20,
                message="the second command executed")
+
+
+def test_roslaunch_starts_the_pilot_nodes(make_pc, config, tmp_path):
+    pc = make_pc()
+    pc.start_name_servers()
+    launch = pc.start("roslaunch", ["roslaunch", "walkman_launch", "pilot.launch",
+                                    f"config:={config}", f"bag:={tmp_path / 'session.bag'}"])
+    launch.wait_for(r"ROS topics and services up", 90)
+    wait_until(lambda: "/counter/get_status" in pc.run(["rosservice", "list"]).output(), 30,
+               message="the gateway's services")
+    nodes = pc.run(["rosnode", "list"]).output()
+    assert "/pilot_gateway" in nodes and "/session_record" in nodes, nodes
+    launch.interrupt()
+    assert (tmp_path / "session.bag").exists()

@@ -1,0 +1,149 @@
+"""``walkman-pc robot|pilot|lab``: bring up one PC of the system, as on the robot or the desk.
+
+Theory of operation
+-------------------
+The same component table as :mod:`system.topology`, for one real computer:
+first its name servers (``yarp-lite server`` and ``roscore`` on this PC's
+ports), then every program of that PC, each waiting for what it needs, so
+they may start in any order (``--shuffle`` proves it).  The robot and pilot
+PCs are linked only by ``walkman-bridge``; give each the other's address with
+``--peer``.  ``lab`` is the paper's lab setting: one PC, one name-server pair,
+everything connected directly.
+
+The launcher stays in the foreground, says when each program is up, reports a
+program that exits (with its last lines) and stops everything on Ctrl-C.
+Logs go to ``--dir`` (one file per program).
+"""
+
+from __future__ import annotations
+
+import argparse
+import random
+import re
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Dict, List, Optional
+
+from system.topology import BRIDGE_CONFIG, Pc, bridge_argv, components
+
+DEFAULT_DIR = Path.home() / ".local" / "state" / "walkman"
+
+
+def say(text: str) -> None:
+    print(f"[walkman-pc] {text}", flush=True)
+
+
+def kind_of(side: str) -> str:
+    return "lab" if side == "lab" else "drc"
+
+
+def plan(side: str, options: argparse.Namespace) -> Dict[str, List[str]]:
+    """The programs of this PC and their command lines."""
+    out = {}
+    bag = options.dir / f"{side}-{time.strftime('%Y%m%d-%H%M%S')}.bag"
+    for component in components(kind_of(side)):
+        if side != "lab" and component.pc != side:
+            continue
+        if component.name in options.skip:
+            continue
+        if component.name.startswith("bridge_"):
+            argv = bridge_argv(side, options.config, options.peer, options.bridge_port,
+                               options.udp_port, options.peer_udp_port or options.udp_port,
+                               options.udp_rate)
+        else:
+            argv = [arg.replace("{bag}", str(bag)) for arg in component.argv]
+        out[component.name] = argv
+    return out
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    parser = argparse.ArgumentParser(prog="walkman-pc", description=__doc__.split("\n")[0])
+    parser.add_argument("side", choices=["robot", "pilot", "lab"])
+    parser.add_argument("--peer", help="the other PC's address (robot and pilot sides)")
+    parser.add_argument("--yarp-port", type=int, default=10000,
+                        help="this PC's yarp-lite server port (default 10000, as yarpserver)")
+    parser.add_argument("--ros-port", type=int, default=11311,
+                        help="this PC's roscore port (default 11311)")
+    parser.add_argument("--bridge-port", type=int, default=7000,
+                        help="the bridge's TCP port (the same on both PCs; default 7000)")
+    parser.add_argument("--udp-port", type=int, default=7001,
+                        help="this bridge's UDP port (default 7001)")
+    parser.add_argument("--peer-udp-port", type=int, help="the peer's UDP port (default: ours)")
+    parser.add_argument("--udp-rate", default="600k",
+                        help="perception budget on the link, bit/s (default 600k)")
+    parser.add_argument("--config", type=Path, default=BRIDGE_CONFIG,
+                        help="bridge configuration (same file on both PCs)")
+    parser.add_argument("--dir", type=Path, default=None,
+                        help=f"logs, name-server state and rosbags (default {DEFAULT_DIR}/<side>)")
+    parser.add_argument("--skip", default="", help="programs not to start (comma separated)")
+    parser.add_argument("--shuffle", action="store_true",
+                        help="start the programs in a random order, 0-2 s apart")
+    options = parser.parse_args(argv)
+    options.skip = {name.strip() for name in options.skip.split(",") if name.strip()}
+    if options.side != "lab" and not options.peer:
+        parser.error(f"the {options.side} PC needs --peer (the other PC's address)")
+    for name in ("yarp_port", "ros_port", "bridge_port", "udp_port"):
+        if not 0 < getattr(options, name) < 65536:
+            parser.error(f"--{name.replace('_', '-')} must be a port number (1-65535)")
+    known = {c.name for c in components("lab") + components("drc")}
+    unknown = options.skip - known
+    if unknown:
+        parser.error(f"--skip: unknown program(s) {', '.join(sorted(unknown))}; the programs "
+                     f"are {', '.join(sorted(known))}")
+    if not options.config.is_file():
+        parser.error(f"--config: no such file {options.config}")
+    options.dir = (options.dir or DEFAULT_DIR / options.side).resolve()
+    from rosnodes.msgs import generate
+
+    generate()
+    pc = Pc(options.side, options.dir, yarp_port=options.yarp_port, ros_port=options.ros_port,
+            log_dir=options.dir / "logs")
+    programs = plan(options.side, options)
+    names = list(programs)
+    if options.shuffle:
+        random.shuffle(names)
+    stop: List[str] = []  # why we stop: a signal, or a program that exited
+    for sig in (signal.SIGINT, signal.SIGTERM):  # handled even where a shell ignores SIGINT
+        signal.signal(sig, lambda number, _: stop.append(signal.Signals(number).name))
+    try:
+        say(f"{options.side} PC: name servers (yarp-lite :{options.yarp_port}, "
+            f"roscore :{options.ros_port}), state in {options.dir}")
+        pc.start_name_servers()
+        for name in names:
+            say(f"starting {name}: {' '.join(programs[name])}")
+            pc.start(name, programs[name])
+            if options.shuffle:
+                time.sleep(random.uniform(0, 2))
+        ready_marks = {c.name: re.compile(c.ready) for c in components(kind_of(options.side))}
+        env_file = pc.write_env_file()
+        up: set = set()
+        while not stop:
+            for name in names:
+                proc = pc.processes[name]
+                if name not in up and any(ready_marks[name].search(line) for line in proc.lines):
+                    up.add(name)
+                    say(f"{name} is up ({len(up)}/{len(names)})")
+                    if len(up) == len(names):
+                        say(f"all up. In another shell: source {env_file} (then rostopic, "
+                            f"rosservice, yarp-lite ...); Ctrl-C here stops this PC")
+                if proc.popen.poll() is not None:
+                    say(f"{name} exited ({proc.popen.returncode}); its last lines:\n    " +
+                        "\n    ".join(proc.lines[-10:]))
+                    stop.append(f"{name} exited")
+            time.sleep(0.5)
+        say(f"stopping ({stop[0]})")
+        return 0 if stop[0] in ("SIGINT", "SIGTERM") else 1
+    except KeyboardInterrupt:  # Ctrl-C while still starting up
+        say("stopping (SIGINT)")
+        return 0
+    finally:
+        recorder = pc.processes.get("rosbag")
+        if recorder is not None:
+            recorder.interrupt()
+        pc.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

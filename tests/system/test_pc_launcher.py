@@ -1,0 +1,64 @@
+"""The robot and pilot PC launchers, used as a user would, with a plain shell to pilot."""
+
+import os
+import signal
+import subprocess
+
+import pytest
+
+from harness import dump_outputs_if_failed
+from system.processes import Proc, descendants, wait_until
+from system.topology import REPO
+from yarp_lite.freeport import free_port
+
+
+def processes_mentioning(text: str) -> list:
+    found = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/cmdline", "rb") as cmdline:
+                    if text.encode() in cmdline.read():
+                        found.append(int(entry))
+            except OSError:
+                pass
+    return found
+
+
+def test_launchers_bring_up_both_pcs_and_a_plain_shell_pilots_the_robot(tmp_path, request):
+    bridge, udp = free_port(), {"robot": free_port(), "pilot": free_port()}
+    launchers = {}
+    try:
+        for side, other in (("robot", "pilot"), ("pilot", "robot")):
+            launchers[side] = Proc(
+                [str(REPO / "launch_scripts" / f"{side}_pc.sh"), "--peer", "127.0.0.1",
+                 "--yarp-port", str(free_port()), "--ros-port", str(free_port()),
+                 "--bridge-port", str(bridge), "--udp-port", str(udp[side]),
+                 "--peer-udp-port", str(udp[other]), "--dir", str(tmp_path / side),
+                 "--shuffle"], dict(os.environ), f"{side} PC")
+        for proc in launchers.values():
+            proc.wait_for(r"all up", 240)
+        shell = subprocess.run(
+            ["bash", "-c", f"source {tmp_path / 'pilot' / 'pilot.env'} && "
+             "rostopic pub -1 /gaze_control/switch walkman_msgs/Switch 'command: start'"],
+            capture_output=True, text=True, timeout=60, env={"PATH": os.environ["PATH"],
+                                                              "HOME": str(tmp_path)})
+        assert shell.returncode == 0, shell.stderr
+        robot_log = tmp_path / "robot" / "logs" / "gaze_control.log"
+        wait_until(lambda: "gaze_control: start -> running" in robot_log.read_text(), 30,
+                   message="gaze_control started on the robot PC")
+    finally:
+        dump_outputs_if_failed(request, launchers.values())
+        family = {side: [proc.popen.pid, *descendants(proc.popen.pid)]
+                  for side, proc in launchers.items()}
+        for proc in launchers.values():
+            if proc.popen.poll() is None:
+                os.kill(proc.popen.pid, signal.SIGINT)  # what Ctrl-C does
+        codes = {side: proc.wait(60) for side, proc in launchers.items()}
+    assert codes == {"robot": 0, "pilot": 0}
+    assert "stopping (SIGINT)" in launchers["pilot"].output()
+    assert list((tmp_path / "pilot").glob("pilot-*.bag")), "the rosbag was not closed"
+    leftovers = [pid for pids in family.values() for pid in pids
+                 if os.path.exists(f"/proc/{pid}") and
+                 open(f"/proc/{pid}/stat").read().split(")")[1].split()[0] != "Z"]
+    assert leftovers == [] and processes_mentioning(str(tmp_path)) == []
