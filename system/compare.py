@@ -247,6 +247,15 @@ def run_one(kind: str, root: Path, link, profile: str, loss: Optional[float],
             shutil.move(str(topology.bag_path), bag)
 
 
+def _save(figure, path: Path) -> str:
+    import matplotlib.pyplot as plt
+
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+    return path.name
+
+
 def _plots(out: Path, lab_record: SessionRecord, drc_record: SessionRecord) -> List[str]:
     import matplotlib
 
@@ -264,10 +273,7 @@ def _plots(out: Path, lab_record: SessionRecord, drc_record: SessionRecord) -> L
         axes.set_ylabel("kbit/s over 5 s (robot to pilot, no IP headers)")
         axes.set_title("Bridge bandwidth per 8-bit id")
         axes.legend(fontsize=7, ncol=3)
-        figure.tight_layout()
-        figure.savefig(out / "bandwidth_by_id.png", dpi=110)
-        plt.close(figure)
-        files.append("bandwidth_by_id.png")
+        files.append(_save(figure, out / "bandwidth_by_id.png"))
     figure, axes = plt.subplots(figsize=(8, 4))
     for record, color in ((lab_record, "tab:blue"), (drc_record, "tab:orange")):
         values = [1000 * v for _, v in command_latencies(record)]
@@ -278,10 +284,7 @@ def _plots(out: Path, lab_record: SessionRecord, drc_record: SessionRecord) -> L
     axes.set_ylabel("commands")
     axes.set_title("Command latency seen by the pilot")
     axes.legend()
-    figure.tight_layout()
-    figure.savefig(out / "command_latency.png", dpi=110)
-    plt.close(figure)
-    files.append("command_latency.png")
+    files.append(_save(figure, out / "command_latency.png"))
     figure, axes = plt.subplots(figsize=(8, 4))
     for record, color in ((lab_record, "tab:blue"), (drc_record, "tab:orange")):
         series = valid_points(record)
@@ -294,10 +297,7 @@ def _plots(out: Path, lab_record: SessionRecord, drc_record: SessionRecord) -> L
     axes.set_ylabel("valid points in the cloud")
     axes.set_title("Point clouds at the pilot (missing regions arrive as NaN)")
     axes.legend()
-    figure.tight_layout()
-    figure.savefig(out / "cloud_completeness.png", dpi=110)
-    plt.close(figure)
-    files.append("cloud_completeness.png")
+    files.append(_save(figure, out / "cloud_completeness.png"))
     return files
 
 

@@ -20,14 +20,13 @@ from __future__ import annotations
 
 import argparse
 import shlex
-import signal
 import sys
 import tempfile
-import time
 from pathlib import Path
 from typing import List, Optional
 
 from system import compare
+from system.pc import serve
 from system.session import STEPS
 from system.topology import REPO, Topology
 
@@ -43,6 +42,8 @@ def interactive(options: argparse.Namespace) -> int:
     try:
         where = f"emulated hosts ({options.profile} link)" if link else "loopback"
         say(f"starting the robot PC and the pilot PC on {where}")
+        for pc in topology.unique_pcs():
+            pc.log_dir = pc.root / "logs"
         topology.start_name_servers()
         say(f"starting {', '.join(topology.table)}")
         topology.start_all()
@@ -64,20 +65,11 @@ The robot is up. Pilot it from another shell on this machine:
     rosrun rviz rviz  (if installed)          # /multisense/points, /tf
     yarp-lite name list                       # the pilot PC's YARP ports
 
-Logs of every program: {root}/<pc>/... ; Ctrl-C here stops everything.""", flush=True)
-        stop: List[str] = []
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, lambda number, _: stop.append(signal.Signals(number).name))
-        while not stop:
-            for pc in topology.unique_pcs():
-                for name, proc in pc.processes.items():
-                    if proc.popen.poll() is not None and name in topology.table:
-                        say(f"{pc.name}:{name} exited ({proc.popen.returncode}); last lines:\n"
-                            + "\n".join(proc.output().splitlines()[-10:]))
-                        stop.append(f"{name} exited")
-            time.sleep(1.0)
-        say(f"stopping ({stop[0]})")
-        return 0 if stop[0] in ("SIGINT", "SIGTERM") else 1
+Logs of every program: {root}/<pc>/logs/ ; Ctrl-C here stops everything.""", flush=True)
+        programs = {name: topology.process(name) for name in topology.table}
+        ready = {name: component.ready for name, component in topology.table.items()}
+        quiet = lambda text: None if " is up (" in text else say(text)  # noqa: E731 (said above)
+        return serve(programs, ready, lambda: None, report=quiet)
     except KeyboardInterrupt:  # Ctrl-C while still starting up
         say("stopping (SIGINT)")
         return 0

@@ -24,8 +24,9 @@ import signal
 import sys
 import time
 from pathlib import Path
-from typing import Dict, List, Optional
+from typing import Callable, Dict, List, Optional
 
+from system.processes import Proc
 from system.topology import BRIDGE_CONFIG, Pc, bridge_argv, components
 
 DEFAULT_DIR = Path.home() / ".local" / "state" / "walkman"
@@ -33,6 +34,34 @@ DEFAULT_DIR = Path.home() / ".local" / "state" / "walkman"
 
 def say(text: str) -> None:
     print(f"[walkman-pc] {text}", flush=True)
+
+
+def serve(programs: Dict[str, Proc], ready: Dict[str, str], when_up: Callable[[], None],
+          report: Callable[[str], None] = say) -> int:
+    """Watch running programs until Ctrl-C/SIGTERM (exit 0) or until one exits (exit 1).
+
+    Says when each program is up (its ``ready`` line), calls ``when_up`` once all
+    are, and shows the last lines of a program that exits.
+    """
+    stop: List[str] = []  # why we stop: a signal, or a program that exited
+    for sig in (signal.SIGINT, signal.SIGTERM):  # handled even where a shell ignores SIGINT
+        signal.signal(sig, lambda number, _: stop.append(signal.Signals(number).name))
+    marks = {name: re.compile(ready[name]) for name in programs}
+    up: set = set()
+    while not stop:
+        for name, proc in programs.items():
+            if name not in up and any(marks[name].search(line) for line in proc.lines):
+                up.add(name)
+                report(f"{name} is up ({len(up)}/{len(programs)})")
+                if len(up) == len(programs):
+                    when_up()
+            if proc.popen.poll() is not None:
+                report(f"{name} exited ({proc.popen.returncode}); its last lines:\n    " +
+                       "\n    ".join(proc.lines[-10:]))
+                stop.append(f"{name} exited")
+        time.sleep(0.5)
+    report(f"stopping ({stop[0]})")
+    return 0 if stop[0] in ("SIGINT", "SIGTERM") else 1
 
 
 def kind_of(side: str) -> str:
@@ -104,9 +133,6 @@ def main(argv: Optional[List[str]] = None) -> int:
     names = list(programs)
     if options.shuffle:
         random.shuffle(names)
-    stop: List[str] = []  # why we stop: a signal, or a program that exited
-    for sig in (signal.SIGINT, signal.SIGTERM):  # handled even where a shell ignores SIGINT
-        signal.signal(sig, lambda number, _: stop.append(signal.Signals(number).name))
     try:
         say(f"{options.side} PC: name servers (yarp-lite :{options.yarp_port}, "
             f"roscore :{options.ros_port}), state in {options.dir}")
@@ -116,25 +142,11 @@ def main(argv: Optional[List[str]] = None) -> int:
             pc.start(name, programs[name])
             if options.shuffle:
                 time.sleep(random.uniform(0, 2))
-        ready_marks = {c.name: re.compile(c.ready) for c in components(kind_of(options.side))}
         env_file = pc.write_env_file()
-        up: set = set()
-        while not stop:
-            for name in names:
-                proc = pc.processes[name]
-                if name not in up and any(ready_marks[name].search(line) for line in proc.lines):
-                    up.add(name)
-                    say(f"{name} is up ({len(up)}/{len(names)})")
-                    if len(up) == len(names):
-                        say(f"all up. In another shell: source {env_file} (then rostopic, "
-                            f"rosservice, yarp-lite ...); Ctrl-C here stops this PC")
-                if proc.popen.poll() is not None:
-                    say(f"{name} exited ({proc.popen.returncode}); its last lines:\n    " +
-                        "\n    ".join(proc.lines[-10:]))
-                    stop.append(f"{name} exited")
-            time.sleep(0.5)
-        say(f"stopping ({stop[0]})")
-        return 0 if stop[0] in ("SIGINT", "SIGTERM") else 1
+        ready = {c.name: c.ready for c in components(kind_of(options.side))}
+        return serve({name: pc.processes[name] for name in names}, ready, lambda: say(
+            f"all up. In another shell: source {env_file} (then rostopic, rosservice, "
+            f"yarp-lite ...); Ctrl-C here stops this PC"))
     except KeyboardInterrupt:  # Ctrl-C while still starting up
         say("stopping (SIGINT)")
         return 0
