@@ -36,7 +36,7 @@ from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from system.processes import REPO, Proc, WaitTimeout
-from yarp_lite.freeport import free_port
+from yarp_lite.freeport import free_port, release
 
 PYTHON = sys.executable
 BRIDGE_CONFIG = REPO / "models" / "bridge_drc.xml"
@@ -100,7 +100,8 @@ class Pc:
     root: Path
     wrap: Sequence[str] = ()
     address: str = "127.0.0.1"
-    yarp_port: int = field(default_factory=lambda: free_port(span=60))
+    # the server hands out the numbers after its own to every port registered: room for 400
+    yarp_port: int = field(default_factory=lambda: free_port(span=400))
     ros_port: int = field(default_factory=free_port)
     processes: Dict[str, Proc] = field(default_factory=dict)
     log_dir: Optional[Path] = None   # when set, each program's output also goes to a file
@@ -173,6 +174,7 @@ class Pc:
         for name in reversed(list(self.processes)):
             self.processes[name].kill()
         self.processes.clear()
+        release(self.yarp_port)
 
 
 class Topology:

@@ -92,7 +92,8 @@ class YarpWorld:
         self.config.mkdir(parents=True, exist_ok=True)
         self.data.mkdir(parents=True, exist_ok=True)
         if not self.socket_number:
-            self.socket_number = free_port(span=60)
+            # the server hands out the numbers after its own: room for a robot's ports
+            self.socket_number = free_port(span=400)
 
     @property
     def env(self) -> Dict[str, str]:
@@ -161,6 +162,7 @@ class YarpWorld:
         for proc in reversed(self.processes):
             proc.kill()
         self.processes.clear()
+        freeport.release(self.socket_number)
 
 
 def dump_outputs_if_failed(request, processes) -> None:

@@ -3,12 +3,22 @@
 Numbers come from below the kernel's ephemeral range (32768 and up on Linux):
 there, an outgoing connection can take a number between the check and the
 moment a server (or the ports it hands numbers to) binds it.
+
+A name server hands out the numbers after its own (``socket + 2`` upward, as
+yarpserver does) without checking them, and the programs that will bind them
+may start much later.  So a run given out here is remembered for the life of
+this process and never given out again, even while it still looks free.
 """
 
 from __future__ import annotations
 
 import random
 import socket
+import threading
+from typing import List
+
+_given: List[range] = []
+_lock = threading.Lock()
 
 
 def is_free(port: int, host: str = "127.0.0.1") -> bool:
@@ -21,9 +31,19 @@ def is_free(port: int, host: str = "127.0.0.1") -> bool:
 
 
 def free_port(span: int = 1, start: int = 11000, end: int = 32000) -> int:
-    """A port such that ``port .. port + span - 1`` are all free right now."""
-    for _ in range(500):
-        base = random.randrange(start, end - span)
-        if all(is_free(base + offset) for offset in range(span)):
-            return base
+    """A port such that ``port .. port + span - 1`` are free and not given out before."""
+    with _lock:
+        for _ in range(500):
+            base = random.randrange(start, end - span)
+            if any(base < taken.stop and taken.start < base + span for taken in _given):
+                continue
+            if all(is_free(base + offset) for offset in range(span)):
+                _given.append(range(base, base + span))
+                return base
     raise RuntimeError(f"no run of {span} free TCP ports between {start} and {end}")
+
+
+def release(base: int) -> None:
+    """The run starting at ``base`` may be given out again (its server has stopped)."""
+    with _lock:
+        _given[:] = [taken for taken in _given if taken.start != base]

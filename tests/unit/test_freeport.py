@@ -1,0 +1,17 @@
+"""Port numbers for servers: free, below the ephemeral range, never handed out twice."""
+
+import pytest
+
+from yarp_lite import freeport
+
+
+def test_a_run_given_out_is_not_given_again_until_released():
+    # A window with room for exactly one run of 400.
+    window = {"span": 400, "start": 31500, "end": 31901}
+    first = freeport.free_port(**window)
+    assert first == 31500
+    with pytest.raises(RuntimeError, match="no run of 400 free TCP ports"):
+        freeport.free_port(**window)
+    freeport.release(first)
+    assert freeport.free_port(**window) == first
+    freeport.release(first)
