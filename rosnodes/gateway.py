@@ -21,8 +21,10 @@ pilot roscore it offers:
 ===========================  ==================================  ===========================
 
 Sequence numbers are millisecond clock values, so several gateways (the DRC
-had three pilot PCs) never reuse one and a module never mistakes two pilots'
-commands for a resend.  Statuses are decoded with the module's list of states
+had three pilot PCs: one roscore and one gateway each, all on the pilot YARP
+name server) never reuse one and a module never mistakes two pilots' commands
+for a resend.  One roscore has one gateway: a second would forward every topic
+command again, so it refuses to start.  Statuses are decoded with the module's list of states
 (the ``statuses`` attribute in the bridge configuration, or the module's class).
 """
 
@@ -33,6 +35,7 @@ import importlib
 import logging
 import math
 import os
+import socket
 import sys
 import threading
 import time
@@ -162,6 +165,9 @@ class Gateway:
         self._ros: Dict[str, Dict[str, Any]] = {}
         self._sent = None
         self._stop = threading.Event()
+        #: set when the gateway must end: a signal, or ``error`` (another gateway is here)
+        self.finished = threading.Event()
+        self.error = ""
         self.ros_node = None
 
     # -- YARP side ---------------------------------------------------------------------
@@ -204,10 +210,40 @@ class Gateway:
         self.ros_node.when_ready(self._open_ros)
         self.ros_node.start()
 
+    def _other_gateway(self) -> Optional[str]:
+        """The URI of a live gateway already serving our modules on this roscore, if any."""
+        import rosgraph
+        import rospy
+
+        master = rosgraph.Master(rospy.get_name())
+        for module in self.modules:
+            try:
+                uri = master.lookupService(f"/{module}/send_command")
+            except (rosgraph.MasterError, OSError):
+                continue
+            host_port = uri.split("://", 1)[-1].rstrip("/")
+            host, _, port = host_port.rpartition(":")
+            try:
+                socket.create_connection((host, int(port)), timeout=2).close()
+            except (OSError, ValueError):
+                continue  # left behind by a gateway that died: ours replaces it
+            return uri  # asked before we register anything: it is not ours
+        return None
+
     def _open_ros(self) -> None:
         import rospy
         from walkman_msgs.msg import Command, Countdown, SentCommand, Status, Switch, Warning
         from walkman_msgs.srv import GetStatus, SendCommand, SwitchModule
+
+        if not self._ros:  # first registration (not a roscore restart)
+            other = self._other_gateway()
+            if other is not None:
+                self.error = (f"another pilot gateway already serves these modules on this "
+                              f"roscore ({other}); a second one would forward every topic "
+                              f"command twice.  Run one gateway per roscore (several pilots: "
+                              f"one roscore each, all on the pilot YARP name server)")
+                self.finished.set()
+                return
 
         self._sent = rospy.Publisher("/pilot/sent_commands", SentCommand, queue_size=50)
         for module in self.modules:
@@ -458,13 +494,15 @@ def main(argv: Optional[List[str]] = None) -> int:
     except YarpError as exc:
         print(f"walkman-pilot-gateway: {exc}", file=sys.stderr)
         return 1
-    done = threading.Event()
     import signal
 
     for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: done.set())
-    done.wait()
+        signal.signal(sig, lambda *_: gateway.finished.set())
+    gateway.finished.wait()
     gateway.close()
+    if gateway.error:
+        print(f"walkman-pilot-gateway: {gateway.error}", file=sys.stderr)
+        return 2
     return 0
 
 

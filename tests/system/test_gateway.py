@@ -111,3 +111,22 @@ def test_roslaunch_starts_the_pilot_nodes(make_pc, config, tmp_path):
     assert "/pilot_gateway" in nodes and "/session_record" in nodes, nodes
     launch.interrupt()
     assert (tmp_path / "session.bag").exists()
+
+
+def test_a_second_gateway_on_the_same_roscore_refuses_instead_of_doubling_commands(
+        make_pc, config, counter):
+    pc = make_pc()
+    pc.start_name_servers()
+    first = pc.start("gateway", [PYTHON, "-m", "rosnodes.gateway", "--config", str(config)])
+    first.wait_for(r"ROS topics and services up", 60)
+    second = pc.run([PYTHON, "-m", "rosnodes.gateway", "--config", str(config)], timeout=60)
+    assert second.popen.returncode == 2
+    assert "another pilot gateway already serves these modules on this roscore" in \
+        second.output()
+    start_counter(pc).wait_for("ready for the pilot", 60)
+    pc.run(["rostopic", "pub", "-1", "/counter/switch", "walkman_msgs/Switch",
+            "command: start"], timeout=60)
+    reply = rosservice(pc, "/counter/send_command", "{command: once}")
+    seq = int(re.search(r"seq: (\d+)", reply).group(1))
+    wait_until(lambda: executed(counter) == [f"executed once {seq}"], 20,
+               message="the command executed exactly once")
