@@ -25,6 +25,7 @@ from walkman.control.kinematics import Kinematics
 
 POSITION_TOLERANCE = 1e-3  # m
 ROTATION_TOLERANCE = 1e-2  # rad
+REST_GAIN = 0.1            # share of the way back to the rest posture per iteration
 
 
 class IkError(Exception):
@@ -46,6 +47,7 @@ class InverseKinematics:
         self.kinematics = kinematics
         self.damping = damping
         self.max_iterations = max_iterations
+        self._rest: Optional[np.ndarray] = None
         model = kinematics.model
         order = kinematics.to_pin
         self.lower = model.lowerPositionLimit[order].copy()
@@ -61,15 +63,22 @@ class InverseKinematics:
     def solve(self, frame: str, position: Sequence[float], rotation: Optional[np.ndarray],
               q0: Sequence[float], joints: Optional[Sequence[str]] = None,
               position_tolerance: float = POSITION_TOLERANCE,
-              rotation_tolerance: float = ROTATION_TOLERANCE, restarts: int = 4) -> IkResult:
+              rotation_tolerance: float = ROTATION_TOLERANCE, restarts: int = 4,
+              offset: Optional[Sequence[float]] = None,
+              rest: Optional[Sequence[float]] = None) -> IkResult:
         """Joint positions putting ``frame`` at the target (``rotation`` None: position only).
 
         Starts from ``q0`` (a control loop's current posture: a few iterations);
         when that ends in a local minimum, tries again from ``restarts`` seeded
-        random postures of the free joints and keeps the best.
+        random postures of the free joints and keeps the best.  ``offset`` (in the
+        frame) moves the controlled point, e.g. from the hand link to its grip.
+        ``rest`` is a posture the redundant joints drift back to (null space), so
+        a hand tracked for a long time does not wander into the joint limits.
         """
+        self._rest = None if rest is None else np.asarray(rest, dtype=float)
+        point = np.zeros(3) if offset is None else np.asarray(offset, dtype=float)
         best = self._descend(frame, position, rotation, q0, joints, position_tolerance,
-                             rotation_tolerance)
+                             rotation_tolerance, point)
         rng = np.random.default_rng(0)
         free = self.joints_of(joints) if joints is not None else np.arange(len(self.lower))
         for _ in range(restarts):
@@ -78,7 +87,7 @@ class InverseKinematics:
             seed = np.array(q0, dtype=float)
             seed[free] = rng.uniform(self.lower[free], self.upper[free])
             attempt = self._descend(frame, position, rotation, seed, joints,
-                                    position_tolerance, rotation_tolerance)
+                                    position_tolerance, rotation_tolerance, point)
             attempt.iterations += best.iterations
             if attempt.reached or attempt.position_error + attempt.rotation_error < \
                     best.position_error + best.rotation_error:
@@ -89,7 +98,8 @@ class InverseKinematics:
 
     def _descend(self, frame: str, position: Sequence[float], rotation: Optional[np.ndarray],
                  q0: Sequence[float], joints: Optional[Sequence[str]],
-                 position_tolerance: float, rotation_tolerance: float) -> IkResult:
+                 position_tolerance: float, rotation_tolerance: float,
+                 point: np.ndarray) -> IkResult:
         try:
             self.kinematics.frame_id(frame)
         except KeyError as exc:
@@ -108,18 +118,27 @@ class InverseKinematics:
         error = np.zeros(6)
         for iteration in range(1, self.max_iterations + 1):
             p, r = self.kinematics.pose(q, frame)
-            error[:3] = target_p - p
+            lever = r @ point
+            error[:3] = target_p - (p + lever)
             error[3:] = r @ pin.log3(r.T @ rotation) if rotation is not None else 0.0
             if np.linalg.norm(error[:3]) < position_tolerance and \
                     np.linalg.norm(error[3:]) < rotation_tolerance:
                 return IkResult(q, float(np.linalg.norm(error[:3])),
                                 float(np.linalg.norm(error[3:])), iteration, True)
-            jacobian = self.kinematics.jacobian(q, frame)[rows]
+            jacobian = self.kinematics.jacobian(q, frame)
+            if point.any():  # the point's velocity: v + w x lever
+                jacobian = jacobian.copy()
+                jacobian[:3] -= pin.skew(lever) @ jacobian[3:]
+            jacobian = jacobian[rows]
             at_limit = ((q <= self.lower + 1e-9) | (q >= self.upper - 1e-9))
             active = free
             j = jacobian[:, active]
             e = error[rows]
-            step = j.T @ np.linalg.solve(j @ j.T + self.damping ** 2 * np.eye(len(e)), e)
+            inverse = j.T @ np.linalg.inv(j @ j.T + self.damping ** 2 * np.eye(len(e)))
+            step = inverse @ e
+            if self._rest is not None:  # second task, in the first one's null space
+                null = np.eye(len(active)) - inverse @ j
+                step += null @ (REST_GAIN * (self._rest[active] - q[active]))
             # A joint at its limit that the step pushes further stays there.
             pushing = at_limit[active] & (((q[active] <= self.lower[active] + 1e-9) & (step < 0)) |
                                           ((q[active] >= self.upper[active] - 1e-9) & (step > 0)))
@@ -134,8 +153,9 @@ class InverseKinematics:
 
     def solve_or_raise(self, frame: str, position: Sequence[float],
                        rotation: Optional[np.ndarray], q0: Sequence[float],
-                       joints: Optional[Sequence[str]] = None) -> np.ndarray:
-        result = self.solve(frame, position, rotation, q0, joints)
+                       joints: Optional[Sequence[str]] = None,
+                       offset: Optional[Sequence[float]] = None) -> np.ndarray:
+        result = self.solve(frame, position, rotation, q0, joints, offset=offset)
         if not result.reached:
             raise IkError(f"{frame} cannot reach {np.round(position, 3).tolist()}: best pose is "
                           f"{result.position_error * 1000:.1f} mm and "
