@@ -57,6 +57,7 @@ def test_a_gateway_started_before_roscore_waits_serves_and_survives_a_roscore_re
     pc.start_name_servers()
     start_counter(pc).wait_for("ready for the pilot", 60)
     gateway.wait_for(r"ROS topics and services up", 60)
+    gateway.wait_for(r"connected .*/counter/command:o -> /counter/command:i", 30)
 
     # A plain shell: the env file, then the ROS tools.
     shell = pc.run(["bash", "-c", f"source {REPO}/launch_scripts/walkman_env.sh && "
@@ -124,8 +125,11 @@ def test_a_second_gateway_on_the_same_roscore_refuses_instead_of_doubling_comman
     assert "another pilot gateway already serves these modules on this roscore" in \
         second.output()
     start_counter(pc).wait_for("ready for the pilot", 60)
+    first.wait_for(r"connected .*/counter/command:o -> /counter/command:i", 30)
     pc.run(["rostopic", "pub", "-1", "/counter/switch", "walkman_msgs/Switch",
             "command: start"], timeout=60)
+    wait_until(lambda: "state: \"idle\"" in rosservice(pc, "/counter/get_status"), 30,
+               message="the counter idle after start")
     reply = rosservice(pc, "/counter/send_command", "{command: once}")
     seq = int(re.search(r"seq: (\d+)", reply).group(1))
     wait_until(lambda: executed(counter) == [f"executed once {seq}"], 20,
