@@ -79,6 +79,8 @@ def test_illegal_commands_and_bad_poses_are_refused_and_nothing_moves(valve_task
     pilot, world, send = valve_task
     send("command", "grasp")
     pilot.wait_warning("'grasp' is not accepted in state idle")
+    send("command", "action_done")  # the module's own event, not the pilot's
+    pilot.wait_warning("unknown command 'action_done'")
     send("command", "valvedatasent 0.66 0.25")
     pilot.wait_warning("takes 7 numbers (X Y Z ROLL PITCH YAW RADIUS), got 2")
     send("command", "valvedatasent 2.5 0.25 0.08 0 0 0 0.15")

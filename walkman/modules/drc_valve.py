@@ -51,6 +51,8 @@ OVERDUE_S = 2.0                       # s after a trajectory's end before saying
 SPEED = 0.15                          # m/s, peak Cartesian speed
 TURN_SPEED = 0.6                      # rad/s, peak wheel speed
 
+COMMANDS = ("valvedatasent", "reach", "approach", "grasp", "turn", "ungrasp", "move_away",
+            "home")  # the pilot's; action_done and hand_done are the module's own events
 TABLE = {
     "idle": {"valvedatasent": "ready"},
     "ready": {"valvedatasent": "ready", "reach": "reaching", "home": "homing"},
@@ -102,6 +104,10 @@ class Module(ControlThread):
         self.track()
 
     def handle(self, name: str, args: Sequence) -> None:
+        if name not in COMMANDS:
+            self.warning_interface.warn(f"drc_valve: unknown command '{name}' (commands: "
+                                        f"{', '.join(COMMANDS)})")
+            return
         if not self.fsm.accepts(name):
             step = self.fsm.fire(name)  # refused: the state stays, the pilot hears why
             self.warning_interface.warn(step.reason)
