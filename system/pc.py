@@ -82,7 +82,7 @@ def plan(side: str, options: argparse.Namespace) -> Dict[str, List[str]]:
                                options.udp_port, options.peer_udp_port or options.udp_port,
                                options.udp_rate)
         else:
-            argv = [arg.replace("{bag}", str(bag)) for arg in component.argv]
+            argv = component.command(bag)
         out[component.name] = argv
     return out
 

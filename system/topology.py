@@ -51,6 +51,10 @@ class Component:
     ready: str               # a line the program prints once it is up
     topologies: Tuple[str, ...] = ("lab", "drc")
 
+    def command(self, bag: Path) -> List[str]:
+        """The command line, with ``{bag}`` (the session recording's path) filled in."""
+        return [arg.replace("{bag}", str(bag)) for arg in self.argv]
+
 
 def components(kind: str, perception_rate: float = 1.0) -> List[Component]:
     """Every program of a topology besides the name servers."""
@@ -224,7 +228,7 @@ class Topology:
             other = "pilot" if side == "robot" else "robot"
             return bridge_argv(side, self.bridge_config, self.pcs[other].address,
                                self.tcp_port, self.udp_ports[side], self.udp_ports[other])
-        return [arg.replace("{bag}", str(self.bag_path)) for arg in component.argv]
+        return component.command(self.bag_path)
 
     @property
     def bag_path(self) -> Path:
