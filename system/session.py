@@ -30,9 +30,8 @@ from typing import Any, Callable, Dict, List, Optional
 
 from bridge import status as status_codec
 from system.processes import WaitTimeout, wait_until
+from system.topology import PYTHON
 from yarp_lite.bottle_text import parse
-
-PYTHON_EXECUTABLE = sys.executable
 
 MODULES = ("gaze_control", "temperature")
 VALVE_IN_PELVIS = (0.66, 0.25, 0.08)  # the valve wheel, seen from the pelvis (models/walkman_drc.xml)
@@ -127,13 +126,13 @@ def run(topology, progress: Callable[[str], None] = print) -> SessionRecord:
     """Play :data:`STEPS` on a started topology; what the pilot saw, step by step."""
     pilot = topology.pilot
     record = SessionRecord(topology.kind, started=time.time())
-    recorder = pilot.start("recorder", [PYTHON_EXECUTABLE, "-m", "system.session", "record"])
+    recorder = pilot.start("recorder", [PYTHON, "-m", "system.session", "record"])
     recorder.wait_for(r"^recording", 60)
     samplers = {}
     if topology.kind == "drc":
         for side in ("robot", "pilot"):
             samplers[side] = topology.pcs[side].start(
-                f"bridge-sampler-{side}", [PYTHON_EXECUTABLE, "-m", "yarp_lite", "read",
+                f"bridge-sampler-{side}", [PYTHON, "-m", "yarp_lite", "read",
                                            f"/session/bridge/{side}",
                                            f"/bridge/{side}/status:o"])
 
