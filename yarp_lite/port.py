@@ -272,17 +272,19 @@ class _Handoff:
 class Port:
     """A YARP port: open it under a name, connect it, write and read Bottles.
 
-    ``reader``, if given, is called in the receiving thread with each Bottle;
-    what it returns is the reply sent back when the sender asked for one.
-    Without it, :meth:`read` blocks until a message arrives.
+    ``reader``, if given, is called in the receiving thread with each Bottle
+    (and, with ``reader_wants_source``, the sending port's name as second
+    argument); what it returns is the reply sent back when the sender asked
+    for one.  Without it, :meth:`read` blocks until a message arrives.
     """
 
     def __init__(self, name: Optional[str] = None, *, reader: Optional[Reader] = None,
                  nameclient: Optional[NameClient] = None, timeout: Optional[float] = None,
                  max_message: int = DEFAULT_MAX_MESSAGE, rpc: bool = False,
-                 register: bool = True) -> None:
+                 register: bool = True, reader_wants_source: bool = False) -> None:
         self.nameclient = nameclient or NameClient()
         self.reader = reader
+        self.reader_wants_source = reader_wants_source
         self.admin_reader: Optional[Callable[[Bottle], Reply]] = None
         self.timeout = timeout
         self.max_message = max_message
@@ -609,7 +611,8 @@ class Port:
         if message.envelope:
             self.envelope = message.envelope
         if self.reader is not None:
-            reply = self.reader(message.bottle())
+            reply = self.reader(message.bottle(), route.source) if self.reader_wants_source \
+                else self.reader(message.bottle())
             if reply is None:
                 return None
             return reply if isinstance(reply, Bottle) else Bottle(reply)

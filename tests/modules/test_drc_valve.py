@@ -84,7 +84,7 @@ def test_illegal_commands_and_bad_poses_are_refused_and_nothing_moves(valve_task
     send("command", "valvedatasent 0.66 0.25")
     pilot.wait_warning("takes 7 numbers (X Y Z ROLL PITCH YAW RADIUS), got 2")
     send("command", "valvedatasent 2.5 0.25 0.08 0 0 0 0.15")
-    pilot.wait_warning("the hand cannot reach the valve's reach point")
+    pilot.wait_warning("cannot reach the valve's reach point")
     assert pilot.state() in ("refused", "idle")
     send("command", VALVE)
     pilot.wait_state("ready")

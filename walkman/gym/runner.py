@@ -337,6 +337,9 @@ class ModuleRunner:
             for problem in self.interfaces.switch.take_rejections() + \
                     self.interfaces.commands.take_rejections():
                 self.warn(f"{self.name}: {problem}")
+            if self.robot is not None:  # the HAL refused some of our joints: tell the pilot
+                for text in self.robot.take_hal_warnings():
+                    self.warn(f"{self.name}: {text}")
             while True:
                 command = self.interfaces.switch.get()
                 if command is None or self.quit_requested:

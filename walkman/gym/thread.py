@@ -25,7 +25,8 @@ A minimal module::
 from __future__ import annotations
 
 import logging
-from typing import Any, Dict, List, Optional
+import time
+from typing import Any, Callable, Dict, List, Optional
 
 from walkman.gym.interfaces import PilotCommand, PilotInterfaces
 
@@ -78,10 +79,16 @@ class GenericThread:
                  on_status_change=lambda: None) -> None:
         self.name = name
         self.config = config
+        #: Where modules read time: wall clock under the runner, simulated time offline.
+        self.clock: Callable[[], float] = time.monotonic
         self.thread_period = float(config.get("thread_period", 10)) / 1000.0
         self.command_interface = _CommandView(interfaces)
         self.status_interface = _StatusView(interfaces, on_status_change)
         self.warning_interface = _WarningView(interfaces)
+
+    def now(self) -> float:
+        """Seconds on the module's clock (use it, not time.monotonic, for trajectories)."""
+        return self.clock()
 
     # -- to override ----------------------------------------------------------------------
 

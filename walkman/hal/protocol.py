@@ -15,6 +15,8 @@ Port names follow YARP's control-board wrapper (``/<robot>/<chain>/...``):
 ``/<robot>/rpc:i`` ``[get] chains`` -> ``((chain name...) ...)``: the grouping;
                   ``[get] stats``; ``[set] harness on|off``  (vocabs hold 4 letters,
                   so longer words are plain strings)
+``/<robot>/warning:o``      ``SEQ TEXT OWNER HOLDER ACTION`` when two modules command one
+                             joint (:mod:`walkman.hal.arbitration`)
 ``/<robot>/<ft>/analog:o``  Fx Fy Fz Tx Ty Tz (N, N*m), like YARP's analogServer
 ``/<robot>/inertial``       roll pitch yaw (deg), acc (m/s^2), gyro (deg/s), mag (0),
                              YARP's inertial layout
@@ -55,6 +57,11 @@ def port_names(robot: str, chain: str) -> dict:
 
 def robot_rpc_name(robot: str) -> str:
     return f"/{robot}/rpc:i"
+
+
+def hal_warning_port_name(robot: str) -> str:
+    """``seq text owner holder action``: a module's command refused or overridden."""
+    return f"/{robot}/warning:o"
 
 
 def ft_port_name(robot: str, sensor: str) -> str:

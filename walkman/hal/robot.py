@@ -40,6 +40,19 @@ log = logging.getLogger("walkman.robot")
 STALE_AFTER = 0.5
 
 
+def check_reference(q: Sequence[float], names: Sequence[str], lower: np.ndarray,
+                    upper: np.ndarray) -> np.ndarray:
+    """A whole-body reference, validated (HalUsageError) and clamped to the limits."""
+    values = np.asarray(q, dtype=float)
+    if values.shape != (len(names),):
+        raise HalUsageError(f"move needs {len(names)} joint positions, "
+                            f"got {values.shape[0] if values.ndim else 'a scalar'}")
+    if not np.all(np.isfinite(values)):
+        bad = [names[i] for i in np.flatnonzero(~np.isfinite(values))]
+        raise HalUsageError(f"move refused: non-finite reference for {', '.join(bad)}")
+    return np.clip(values, lower, upper)
+
+
 class Robot:
     """Whole-body access to a HAL, for one module (``owner`` prefixes its ports)."""
 
@@ -71,6 +84,7 @@ class Robot:
         self._command_ports: Dict[str, Port] = {}
         self.clamped = 0
         self.last_seq = 0
+        self._hal_warnings: List[str] = []
         self._connect(connect_timeout)
 
     # -- connecting ----------------------------------------------------------------------
@@ -103,6 +117,11 @@ class Robot:
             port.open(f"{self.owner}/robot/{sensor}:i")
             self._ports.append(port)
             self._persist(protocol.ft_port_name(self.robot, sensor), port.name)
+        warnings = BufferedPort(nameclient=self.nameclient, strict=True,
+                                on_read=self._on_hal_warning)
+        warnings.open(f"{self.owner}/robot/warning:i")
+        self._ports.append(warnings)
+        self._persist(protocol.hal_warning_port_name(self.robot), warnings.name)
         imu = BufferedPort(nameclient=self.nameclient, on_read=self._on_imu)
         imu.open(f"{self.owner}/robot/inertial:i")
         self._ports.append(imu)
@@ -187,6 +206,19 @@ class Robot:
         if len(bottle) >= 6:
             self._ft[sensor] = np.array([float(v) for v in bottle[:6]])
 
+    def _on_hal_warning(self, bottle: Bottle) -> None:
+        """Keep what the HAL says about this module's own commands (arbitration)."""
+        if len(bottle) >= 3 and str(bottle[2]) == self.owner:
+            with self._lock:
+                self._hal_warnings.append(str(bottle[1]))
+                del self._hal_warnings[:-20]
+
+    def take_hal_warnings(self) -> List[str]:
+        """What the HAL refused or overrode of this module's commands since last asked."""
+        with self._lock:
+            warnings, self._hal_warnings = self._hal_warnings, []
+        return warnings
+
     def _on_imu(self, bottle: Bottle) -> None:
         try:
             self._imu = protocol.decode_inertial(bottle)
@@ -233,17 +265,10 @@ class Robot:
 
     def check(self, q: Sequence[float]) -> np.ndarray:
         """Validate a whole-body reference; clamp it to the limits."""
-        values = np.asarray(q, dtype=float)
-        if values.shape != (len(self.joint_names),):
-            raise HalUsageError(f"move needs {len(self.joint_names)} joint positions, "
-                                f"got {values.shape[0] if values.ndim else 'a scalar'}")
-        if not np.all(np.isfinite(values)):
-            bad = [self.joint_names[i] for i in np.flatnonzero(~np.isfinite(values))]
-            raise HalUsageError(f"move refused: non-finite reference for {', '.join(bad)}")
-        clamped = np.clip(values, self.lower, self.upper)
-        if not np.array_equal(clamped, values):
+        values = check_reference(q, self.joint_names, self.lower, self.upper)
+        if not np.array_equal(values, np.asarray(q, dtype=float)):
             self.clamped += 1
-        return clamped
+        return values
 
     def move(self, q: Sequence[float], mode: str = "pos",
              joints: Optional[Sequence[str]] = None) -> bool:

@@ -35,6 +35,7 @@ from typing import Deque, Dict, List, Optional, Tuple
 import numpy as np
 
 from walkman.hal import protocol
+from walkman.hal.arbitration import Conflict, JointArbiter, owner_of
 from walkman.hal.backend import DEFAULT_REF_SPEED, Backend
 from walkman.hal.config import HalConfig, load_config
 from walkman.hal.protocol import ChainState, Command, HalProtocolError
@@ -57,7 +58,7 @@ class _Chain:
     joints: List[str]
     indices: np.ndarray
     ports: Dict[str, Port] = field(default_factory=dict)
-    pending: Optional[Command] = None
+    pending: List[Command] = field(default_factory=list)  # since the last step, in order
     targets: Optional[np.ndarray] = None     # [move] goals, reached at the reference speed
     ref_speed: Optional[np.ndarray] = None
     commands: int = 0
@@ -110,6 +111,10 @@ class HalServer:
             name: _Chain(name, joints, np.array([backend.index[j] for j in joints]))
             for name, joints in config.chains.items()}
         self.ports: List[Port] = []
+        self.arbiter = JointArbiter(backend.joint_names, config.policy, config.priorities,
+                                    config.release_after)
+        self.warning_port: Optional[Port] = None
+        self._warning_seq = 1
         self.publisher = Publisher()
         self.running = False
         self.seq = 0
@@ -131,14 +136,17 @@ class HalServer:
         robot_rpc = RpcServer(nameclient=self.nameclient, handler=self._robot_rpc)
         robot_rpc.open(protocol.robot_rpc_name(self.robot), wait=wait)
         self.ports.append(robot_rpc)
+        self.warning_port = self._open(Port(nameclient=self.nameclient),
+                                       protocol.hal_warning_port_name(self.robot))
         for chain in self.chains.values():
             names = protocol.port_names(self.robot, chain.name)
             chain.ports["state"] = self._open(Port(nameclient=self.nameclient), names["state"])
             chain.ports["state_ext"] = self._open(Port(nameclient=self.nameclient),
                                                   names["state_ext"])
             chain.ports["command"] = self._open(
-                Port(nameclient=self.nameclient,
-                     reader=lambda bottle, chain=chain: self._on_command(chain, bottle)),
+                Port(nameclient=self.nameclient, reader_wants_source=True,
+                     reader=lambda bottle, source, chain=chain: self._on_command(chain, bottle,
+                                                                                 source)),
                 names["command"])
             chain.ports["rpc"] = self._open(
                 RpcServer(nameclient=self.nameclient,
@@ -170,20 +178,54 @@ class HalServer:
 
     # -- incoming ----------------------------------------------------------------------
 
-    def _on_command(self, chain: _Chain, bottle: Bottle) -> None:
+    def _on_command(self, chain: _Chain, bottle: Bottle, source: str = "") -> None:
         try:
             command = protocol.decode_command(bottle, len(chain.joints))
         except HalProtocolError as exc:
             chain.refused += 1
             if chain.refused in (1, 10, 100) or chain.refused % 1000 == 0:
-                log.warning("%s: refused command #%d: %s", chain.name, chain.refused, exc)
+                log.warning("%s: refused command #%d from %s: %s", chain.name, chain.refused,
+                            source or "?", exc)
+            return
+        command = self._arbitrate(chain, command, owner_of(source) if source else "?")
+        if command is None:
             return
         now = time.perf_counter()
         with self.lock:
-            chain.pending = command
+            if command.mode in ("pjnt", "pos") and chain.pending and \
+                    chain.pending[-1].mode in ("pjnt", "pos"):
+                # Partial commands of several modules in one step all count.
+                chain.pending = chain.pending[-7:] + [command] if command.mode == "pjnt" \
+                    else [command]
+            else:
+                chain.pending = [command]
             chain.commands += 1
             if command.seq is not None and 0 <= self.seq - command.seq < PUBLISHED_HISTORY:
                 self.latencies.append(now - self.published_at[command.seq % PUBLISHED_HISTORY])
+
+    def _arbitrate(self, chain: _Chain, command: Command, owner: str) -> Optional[Command]:
+        """The part of ``command`` its owner may apply (see :mod:`walkman.hal.arbitration`)."""
+        local = list(command.joints) if command.mode == "pjnt" else list(range(len(chain.joints)))
+        decision = self.arbiter.filter(owner, [int(chain.indices[k]) for k in local],
+                                       time.monotonic())
+        for conflict in decision.conflicts:
+            self._report(conflict)
+        if len(decision.allowed) == len(local):
+            return command
+        if not decision.allowed or command.mode in ("move", "idle"):
+            return None  # whole-chain modes are all or nothing
+        allowed = set(decision.allowed)
+        keep = [k for k, joint in enumerate(local) if int(chain.indices[joint]) in allowed]
+        return Command("pjnt", tuple(command.values[k] for k in keep), command.seq,
+                       tuple(local[k] for k in keep))
+
+    def _report(self, conflict: Conflict) -> None:
+        text = conflict.text()
+        log.warning("%s", text)
+        if self.warning_port is not None:
+            self._warning_seq += 1
+            self.warning_port.write(Bottle([self._warning_seq, text, conflict.owner,
+                                            conflict.holder, conflict.action]))
 
     def _chain_rpc(self, chain: _Chain, request: Bottle) -> Bottle:
         verb = str(request[0]) if request else ""
@@ -209,8 +251,8 @@ class HalServer:
             if mode not in ("pos", "idle"):
                 return Bottle([Vocab("fail"), "mode must be [pos] or [idle]"])
             with self.lock:
-                chain.pending = Command("idle") if mode == "idle" else \
-                    Command("pos", tuple(self.backend.positions()[chain.indices]))
+                chain.pending = [Command("idle") if mode == "idle" else
+                                 Command("pos", tuple(self.backend.positions()[chain.indices]))]
             return Bottle([Vocab("ok")])
         return Bottle([Vocab("fail"), "unknown request; try [get] [jnts]|[names]|[lims], "
                                       "[set] [vels] (...), [set] [mode] [pos]|[idle]"])
@@ -237,19 +279,9 @@ class HalServer:
         backend = self.backend
         with self.lock:
             for chain in self.chains.values():
-                command, chain.pending = chain.pending, None
-                if command is None:
-                    continue
-                if command.mode == "idle":
-                    backend.set_idle(chain.indices)
-                    chain.targets = None
-                elif command.mode == "pos":
-                    backend.set_references(chain.indices, command.values)
-                    chain.targets = None
-                elif command.mode == "pjnt":
-                    backend.set_references(chain.indices[list(command.joints)], command.values)
-                else:
-                    chain.targets = np.array(command.values)
+                commands, chain.pending = chain.pending, []
+                for command in commands:
+                    self._apply(chain, command)
             moving = [chain for chain in self.chains.values() if chain.targets is not None]
         for chain in moving:
             current = backend.reference[chain.indices]
@@ -258,6 +290,19 @@ class HalServer:
             backend.set_references(chain.indices, current + step)
             if np.allclose(current + step, chain.targets):
                 chain.targets = None
+
+    def _apply(self, chain: _Chain, command: Command) -> None:
+        backend = self.backend
+        if command.mode == "idle":
+            backend.set_idle(chain.indices)
+            chain.targets = None
+        elif command.mode == "pos":
+            backend.set_references(chain.indices, command.values)
+            chain.targets = None
+        elif command.mode == "pjnt":
+            backend.set_references(chain.indices[list(command.joints)], command.values)
+        else:
+            chain.targets = np.array(command.values)
 
     def _publish_state(self) -> None:
         backend = self.backend

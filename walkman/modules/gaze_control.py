@@ -10,7 +10,6 @@ point outside the neck's range is refused with a warning; the head stays.
 from __future__ import annotations
 
 import math
-import time
 from typing import Optional, Tuple
 
 import numpy as np
@@ -62,7 +61,7 @@ class Module(ControlThread):
 
     def custom_resume(self) -> bool:
         if self.trajectory is not None:  # finish the interrupted motion from where we are
-            now = time.monotonic()
+            now = self.now()
             remaining = max(0.3, self.trajectory.duration - (now - self.trajectory.t0))
             self.trajectory = JointTrajectory(self.robot.sense_position()[self.neck],
                                               self.trajectory.goal, remaining, now)
@@ -109,7 +108,7 @@ class Module(ControlThread):
     def go(self, goal: np.ndarray) -> None:
         start = self.reference[self.neck]
         self.trajectory = JointTrajectory(start, np.clip(goal, self.lower, self.upper),
-                                          self.duration, time.monotonic())
+                                          self.duration, self.now())
         self.status_interface.set_status("moving", *map(float, goal))
 
     def run(self) -> None:
@@ -118,7 +117,7 @@ class Module(ControlThread):
             self.handle(command)
         if self.trajectory is None:
             return
-        now = time.monotonic()
+        now = self.now()
         self.reference[self.neck] = self.trajectory.at(now)
         self.robot.move(self.reference, joints=NECK)
         if self.trajectory.done(now):

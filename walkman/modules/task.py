@@ -1,0 +1,272 @@
+"""What every DRC manipulation module shares: FSM-driven motions tracked by IK.
+
+Theory of operation
+-------------------
+A task module is the paper's hybrid controller (section 2.5): a table-driven
+state machine (:mod:`walkman.control.fsm`) whose transitions start motions,
+and a control loop that tracks the current motion every tick.
+
+* A pilot command is checked in this order, and a refusal changes nothing:
+  is it one of the module's commands, does the current state accept it, are
+  its arguments the right count of finite numbers, does ``_start_<command>``
+  accept them (it raises ``ValueError`` saying why, e.g. an unreachable
+  target).  Only then does the state machine move.
+* A motion is a Cartesian trajectory of one end-effector point
+  (:class:`CartesianTrajectory`, quintic law) solved by damped-least-squares
+  IK every tick over the module's joints, or a joint-space trajectory.  It
+  fires ``action_done`` when it has ended and the sensed point is within
+  1 cm of its goal (FACTS.md); a hand closing or opening fires ``hand_done``.
+* The module streams its reference for all its joints every tick, so it holds
+  the robot where it is between motions -- and the HAL knows which joints
+  are this module's (see :mod:`walkman.hal.arbitration`).
+* Pause holds the sensed posture; resume finishes a straight motion from
+  where the robot is.
+
+Subclasses give the table, the command arguments, the joints, and a
+``_start_<command>`` method per pilot command.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Dict, List, Mapping, Optional, Sequence, Tuple
+
+import numpy as np
+
+from walkman.control.fsm import StateMachine
+from walkman.control.ik import InverseKinematics
+from walkman.control.trajectory import CartesianTrajectory, JointTrajectory, duration_for
+from walkman.gym.thread import ControlThread
+
+ACTION_TOLERANCE = 0.01   # m, FACTS.md: action_done under 1 cm
+HAND_TOLERANCE = 0.3      # rad: a hand within this of its goal is done
+OVERDUE_S = 2.0           # s after a trajectory's end before saying it is stuck
+HAND_CLOSED, HAND_OPEN = 1.2, 0.0
+
+
+@dataclass
+class Effector:
+    """A point the module moves: a frame of the model plus an offset in it (the grip)."""
+
+    frame: str
+    offset: np.ndarray
+    joints: Sequence[str]     # the joints IK may use to move it
+
+
+def task_statuses(table: Mapping[str, Mapping[str, str]]) -> List[str]:
+    """A task's status list: its states, in table order, then ``refused``."""
+    return list(table) + ["refused"]
+
+
+def finite_numbers(args: Sequence) -> List[float]:
+    values = []
+    for value in args:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+                not math.isfinite(value):
+            raise ValueError(f"'{value}' is not a finite number")
+        values.append(float(value))
+    return values
+
+
+class TaskModule(ControlThread):
+    #: state -> {event -> next state}; events are the commands and action_done/hand_done.
+    table: Mapping[str, Mapping[str, str]] = {}
+    initial = "idle"
+    #: command -> (fewest numbers, most numbers, usage shown when the count is wrong).
+    arguments: Mapping[str, Tuple[int, int, str]] = {}
+    #: every joint the module commands (and so holds while it runs).
+    joints: Sequence[str] = ()
+
+    @property
+    def commands(self) -> List[str]:
+        """The pilot's commands: every event of the table but the module's own."""
+        events = {event for moves in self.table.values() for event in moves}
+        return sorted(events - {"action_done", "hand_done"})
+
+    # -- set-up ------------------------------------------------------------------------
+
+    def custom_init(self) -> bool:
+        self.fsm = StateMachine(self.table, self.initial, self.name)
+        self.ik = InverseKinematics(self.kinematics)
+        self.rest = self.robot.sense_position()
+        self.reference = self.rest.copy()
+        self.trajectory = CartesianTrajectory()
+        self.effector: Optional[Effector] = None
+        self.joint_motion: Optional[Tuple[np.ndarray, JointTrajectory]] = None
+        self.full_pose = False
+        self.goal: Optional[np.ndarray] = None
+        self.hand_goals: Dict[int, float] = {}
+        self._said_overdue = False
+        self.setup()
+        self.report()
+        return True
+
+    def setup(self) -> None:
+        """Module-specific initialisation (after the robot is known)."""
+
+    # -- the pilot's commands -------------------------------------------------------------
+
+    def run(self) -> None:
+        command = self.command_interface.get_command()
+        if command is not None:
+            self.handle(command.name, command.args)
+        self.track()
+        self.robot.move(self.reference, joints=self.joints)
+
+    def handle(self, name: str, args: Sequence) -> None:
+        if name not in self.commands:
+            self.warn(f"unknown command '{name}' (commands: {', '.join(self.commands)})")
+            return
+        if not self.fsm.accepts(name):
+            self.warning_interface.warn(self.fsm.fire(name).reason)  # refused: state stays
+            return
+        try:
+            values = finite_numbers(args)
+            fewest, most, usage = self.arguments.get(name, (0, 0, ""))
+            if not fewest <= len(values) <= most:
+                wanted = f"{fewest}" if fewest == most else f"{fewest}..{most}"
+                raise ValueError(f"takes {wanted} numbers{f' ({usage})' if usage else ''}, "
+                                 f"got {len(values)}")
+            getattr(self, f"_start_{name}")(*values)
+        except ValueError as exc:
+            self.warn(f"{name} refused: {exc}")
+            return
+        self.fsm.fire(name)
+        self.report()
+
+    def warn(self, text: str) -> None:
+        self.warning_interface.warn(f"{self.name}: {text}")
+
+    def refuse(self, reason: str, *data: float) -> None:
+        """Say ``refused`` (with data) and raise: the command changes nothing."""
+        self.status_interface.set_status("refused", *map(float, data))
+        raise ValueError(reason)
+
+    def report(self) -> None:
+        self.status_interface.set_status(self.fsm.state, *self.status_data())
+
+    def status_data(self) -> List[float]:
+        return []
+
+    # -- starting motions -------------------------------------------------------------------
+
+    def pose(self, effector: Effector) -> Tuple[np.ndarray, np.ndarray]:
+        """Where the effector's point is now (sensed), and the frame's rotation."""
+        position, rotation = self.kinematics.pose(self.robot.sense_position(), effector.frame)
+        return position + rotation @ effector.offset, rotation
+
+    def reachable(self, effector: Effector, position: np.ndarray,
+                  rotation: Optional[np.ndarray] = None, what: str = "target") -> np.ndarray:
+        """The posture reaching ``position``; refuses (ValueError) with the miss distance."""
+        result = self.ik.solve(effector.frame, position, rotation, self.robot.sense_position(),
+                               effector.joints, offset=effector.offset, restarts=6,
+                               rest=self.rest)
+        if not result.reached:
+            self.refuse(f"the {effector.frame} cannot reach the {what} "
+                        f"{np.round(position, 3).tolist()} (misses by "
+                        f"{result.position_error * 100:.1f} cm)", *position)
+        return result.q
+
+    def line_to(self, effector: Effector, goal: np.ndarray, speed: float,
+                rotation: Optional[np.ndarray] = None) -> None:
+        """Move the effector's point straight to ``goal`` (and the frame to ``rotation``)."""
+        start, start_rotation = self.pose(effector)
+        goal_rotation = start_rotation if rotation is None else rotation
+        distance = float(np.linalg.norm(goal - start))
+        self.trajectory.set_linear((start, start_rotation), (goal, goal_rotation),
+                                   duration_for(distance, speed, 1.0), self.now())
+        self._begin(effector, goal, full_pose=rotation is not None)
+
+    def arc(self, effector: Effector, center: np.ndarray, axis: np.ndarray, angle: float,
+            angular_speed: float) -> None:
+        """Turn the effector about ``axis`` through ``center`` by ``angle`` (rad)."""
+        self.trajectory.set_circular(self.pose(effector), center, axis, angle,
+                                     duration_for(angle, angular_speed, 1.0), self.now())
+        self._begin(effector, self.trajectory.goal()[0], full_pose=True)
+
+    def _begin(self, effector: Effector, goal: np.ndarray, full_pose: bool) -> None:
+        self.effector, self.goal, self.full_pose = effector, goal, full_pose
+        self.joint_motion = None
+        self._said_overdue = False
+
+    def joints_to(self, names: Sequence[str], goal: Sequence[float], speed: float,
+                  minimum: float = 1.0) -> None:
+        """Move ``names`` to ``goal`` (rad) in joint space, quintic in time."""
+        self.trajectory.reset()
+        index = np.array([self.robot.index[name] for name in names])
+        now = self.robot.sense_position()[index]
+        goal = np.asarray(goal, dtype=float)
+        distance = float(np.max(np.abs(goal - now))) if len(index) else 0.0
+        self.joint_motion = (index, JointTrajectory(now, goal, duration_for(distance, speed,
+                                                                            minimum),
+                                                    self.now()))
+
+    def home(self, names: Sequence[str], speed: float = 0.5) -> None:
+        """Back to the posture the module started in."""
+        index = [self.robot.index[name] for name in names]
+        self.joints_to(names, self.rest[index], speed)
+
+    def set_hand(self, hand: str, value: float) -> None:
+        self.hand_goals[self.robot.index[hand]] = value
+
+    # -- every tick ---------------------------------------------------------------------------
+
+    def track(self) -> None:
+        now = self.now()
+        if self.trajectory.active and self.effector is not None:
+            effector = self.effector
+            position, rotation = self.trajectory.at(now)
+            result = self.ik.solve(effector.frame, position, rotation if self.full_pose else None,
+                                   self.reference, effector.joints, offset=effector.offset,
+                                   restarts=0, rest=self.rest)
+            moved = self.ik.joints_of(effector.joints)
+            self.reference[moved] = result.q[moved]
+            if self.trajectory.done(now):
+                error = float(np.linalg.norm(self.pose(effector)[0] - self.goal))
+                if error < ACTION_TOLERANCE:
+                    self.trajectory.reset()
+                    self.event("action_done")
+                elif now - self.trajectory.t0 > self.trajectory.duration + OVERDUE_S and \
+                        not self._said_overdue:
+                    self._said_overdue = True
+                    self.warn(f"{self.fsm.state}: the {effector.frame} stays "
+                              f"{error * 100:.1f} cm from its goal (IK "
+                              f"{result.position_error * 100:.1f} cm); still trying")
+        elif self.joint_motion is not None:
+            index, motion = self.joint_motion
+            self.reference[index] = motion.at(now)
+            if motion.done(now):
+                self.joint_motion = None
+                self.event("action_done")
+        for hand, goal in list(self.hand_goals.items()):
+            self.reference[hand] = goal
+            if abs(self.robot.sense_position()[hand] - goal) < HAND_TOLERANCE:
+                del self.hand_goals[hand]
+                self.event("hand_done")
+
+    def event(self, event: str) -> None:
+        self.fsm.fire(event)
+        self.report()
+
+    # -- lifecycle -------------------------------------------------------------------------------
+
+    def custom_pause(self) -> bool:
+        self.reference = self.robot.sense_position()  # hold where we are
+        return True
+
+    def custom_resume(self) -> bool:
+        if self.trajectory.active and self.effector is not None:
+            if self.full_pose:  # an arc paused halfway: the pilot decides what next
+                self.warn("a turn paused halfway ends here; send it again for the rest")
+                self.trajectory.reset()
+                self.event("action_done")
+            else:  # finish the straight motion from where the effector is now
+                self.line_to(self.effector, self.goal, self.speed_after_resume)
+        elif self.joint_motion is not None:
+            index, motion = self.joint_motion
+            names = [self.robot.joint_names[i] for i in index]
+            self.joints_to(names, motion.goal, 0.5)
+        return True
+
+    speed_after_resume = 0.1  # m/s
