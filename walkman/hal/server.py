@@ -39,6 +39,7 @@ from walkman.hal.arbitration import Conflict, JointArbiter, owner_of
 from walkman.hal.backend import DEFAULT_REF_SPEED, Backend
 from walkman.hal.config import HalConfig, load_config
 from walkman.hal.protocol import ChainState, Command, HalProtocolError
+from walkman.model.mjcf import STATIONS
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
@@ -268,10 +269,16 @@ class HalServer:
             plant = getattr(self.backend, "plant", None)
             if plant is None:
                 return Bottle([Vocab("fail"), "this backend has no harness"])
-            plant.set_harness(str(request[2]) in ("on", "true", "1"))
+            mode = {"on": "locked", "true": "locked", "1": "locked", "false": "off",
+                    "0": "off"}.get(str(request[2]), str(request[2]))
+            try:
+                with self.lock:
+                    plant.set_harness(mode)
+            except ValueError as exc:
+                return Bottle([Vocab("fail"), str(exc)])
             return Bottle([Vocab("ok")])
         return Bottle([Vocab("fail"), "unknown request; try [get] chains, [get] stats, "
-                                      "[set] harness on|off"])
+                                      "[set] harness locked|trolley|off"])
 
     # -- the loop ----------------------------------------------------------------------------
 
@@ -403,15 +410,18 @@ class HalServer:
                  {k: v for k, v in extra.items() if k not in ("time",)})
 
 
-def make_backend(name: str, scene: bool, harness: bool, thermal_speedup: float) -> Backend:
+def make_backend(name: str, scene: bool, harness: str, thermal_speedup: float,
+                 station: str = "valve") -> Backend:
     if name == "sim":
         from walkman.hal.sim import SimBackend
 
-        return SimBackend(scene=scene, harness=harness, thermal_speedup=thermal_speedup)
+        return SimBackend(scene=scene, harness=harness, thermal_speedup=thermal_speedup,
+                          station=station)
     if name == "ethercat":
         from walkman.hal.ethercat.master import EthercatBackend
 
-        return EthercatBackend(scene=scene, harness=harness, thermal_speedup=thermal_speedup)
+        return EthercatBackend(scene=scene, harness=harness, thermal_speedup=thermal_speedup,
+                               station=station)
     raise ValueError(f"unknown backend {name!r}: choose sim or ethercat")
 
 
@@ -422,7 +432,13 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--config", type=Path, help="chain grouping (models/hal_*.ini)")
     parser.add_argument("--scene", choices=["drc", "robot"], default="drc",
                         help="drc: with valve, car and door; robot: the robot alone")
-    parser.add_argument("--no-harness", action="store_true", help="let the pelvis go free")
+    parser.add_argument("--harness", choices=["locked", "trolley", "off"], default="locked",
+                        help="the scene's support harness: locked (hang still, default), "
+                             "trolley (brake off: the robot walks, the harness keeps it up), off")
+    parser.add_argument("--no-harness", action="store_const", const="off", dest="harness",
+                        help="same as --harness off")
+    parser.add_argument("--station", choices=sorted(STATIONS), default="valve",
+                        help="where the robot starts in the drc scene (default: at the valve)")
     parser.add_argument("--thermal-speedup", type=float, default=1.0,
                         help="heat the motors faster than real time (demos, tests)")
     parser.add_argument("--duration", type=float, help="stop after this much simulated time")
@@ -438,8 +454,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     except Exception as exc:  # noqa: BLE001 - configuration errors are user errors
         log.error("%s", exc)
         return 2
-    backend = make_backend(options.backend, options.scene == "drc", not options.no_harness,
-                           options.thermal_speedup)
+    backend = make_backend(options.backend, options.scene == "drc", options.harness,
+                           options.thermal_speedup, options.station)
     server = HalServer(backend, config)
     signal.signal(signal.SIGTERM, lambda *_: setattr(server, "running", False))
     try:

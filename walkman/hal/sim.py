@@ -9,8 +9,15 @@ Grasping is modelled, not simulated finger by finger: when a hand closes
 (``l_handj`` above 0.8 rad) with its grip point within 6 cm of a graspable
 part (valve rim, steering wheel, door handle), a weld between hand and part
 is switched on at their current relative pose; opening the hand (below 0.4
-rad) releases it.  The pelvis hangs from a ``harness`` weld (on by default)
-that walking can loosen.
+rad) releases it.  The door's latch (a joint equality holding the door shut)
+lets go while the handle is turned down past ``LATCH_RELEASE`` and catches
+again when the door is back in its frame.
+
+The pelvis hangs from the scene's support harness (``walkman/model/mjcf.py``)
+in one of three modes: ``locked`` (trolley braked: the robot hangs still, the
+default), ``trolley`` (brake off: the harness keeps the pelvis level and
+carries part of the weight, the feet must walk to move the robot) or ``off``.
+:meth:`MujocoPlant.place` puts the robot at a station.
 """
 
 from __future__ import annotations
@@ -25,18 +32,20 @@ from walkman.hal.backend import Backend, Imu, quat_to_rpy
 from walkman.hal.thermal import ThermalModel
 from walkman.model import MJCF_PATH, SCENE_PATH
 from walkman.model.description import Robot, walkman
-from walkman.model.mjcf import GRASPABLE, HANDS
+from walkman.model.mjcf import GRASPABLE, HANDS, STATIONS
 
 GRASP_CLOSED = 0.8
 GRASP_OPEN = 0.4
 GRASP_DISTANCE = 0.06
+LATCH_RELEASE = -0.5   # rad of the door handle (down) that frees the latch
+HARNESS_MODES = ("locked", "trolley", "off")
 
 
 class MujocoPlant:
     """The MuJoCo model and data, with whole-body index maps (shared by both backends)."""
 
-    def __init__(self, model: Robot, scene: bool = True, harness: bool = True,
-                 path: Optional[Path] = None) -> None:
+    def __init__(self, model: Robot, scene: bool = True, harness: str = "locked",
+                 path: Optional[Path] = None, station: str = "valve") -> None:
         self.robot = model
         self.m = mujoco.MjModel.from_xml_path(str(path or (SCENE_PATH if scene else MJCF_PATH)))
         self.d = mujoco.MjData(self.m)
@@ -49,7 +58,16 @@ class MujocoPlant:
         self.position_range = self.m.actuator_ctrlrange[self.actuator].copy()
         self.effort = np.array([model.joint(n).effort for n in names])
         self.harness_id = self.m.equality("harness").id
-        self.d.eq_active[self.harness_id] = 1 if harness else 0
+        self.brake_id = self.m.equality("harness_brake").id
+        self.trolley = [self.m.joint(f"harness_{axis}").qposadr[0] for axis in "xyz"] + \
+            [self.m.joint("harness_yaw").qposadr[0]]
+        self.base = self.m.joint("base").qposadr[0]
+        try:
+            self.latch_id: Optional[int] = self.m.equality("door_latch").id
+            self.door, self.door_handle = (self.m.joint(n).qposadr[0]
+                                           for n in ("door", "door_handle"))
+        except KeyError:
+            self.latch_id = None
         self.sensor_adr: Dict[str, Tuple[int, int]] = {}
         for index in range(self.m.nsensor):
             sensor = self.m.sensor(index)
@@ -65,7 +83,53 @@ class MujocoPlant:
                 self.grasps[f"{hand}_{part}"] = eq_id
                 self.grasp_sites[f"{hand}_{part}"] = (self.m.site(f"{hand}_hand_grip").id,
                                                       self.m.site(site).id)
+        self.place(station)
+        self.set_harness(harness)
+
+    def place(self, station: str) -> None:
+        """Put the robot (pelvis and trolley) at a station of the scene, standing still."""
+        if station not in STATIONS:
+            raise ValueError(f"unknown station {station!r}: choose {', '.join(STATIONS)}")
+        x, y, yaw = STATIONS[station]
+        qpos = self.d.qpos
+        qpos[self.trolley] = (x, y, 0.0, yaw)
+        height = qpos[self.base + 2]
+        qpos[self.base:self.base + 7] = (x, y, height, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2))
+        self.d.qvel[:] = 0.0
         mujoco.mj_forward(self.m, self.d)
+        self._weld_here(self.harness_id)
+        self._weld_here(self.brake_id)
+
+    def set_harness(self, mode: str) -> None:
+        """``locked`` (hang still), ``trolley`` (brake off: walk) or ``off``."""
+        if mode not in HARNESS_MODES:
+            raise ValueError(f"harness mode must be one of {', '.join(HARNESS_MODES)}, "
+                             f"got {mode!r}")
+        if mode == "locked":  # brake where the trolley is now
+            mujoco.mj_forward(self.m, self.d)
+            self._weld_here(self.brake_id)
+        self.d.eq_active[self.harness_id] = 0 if mode == "off" else 1
+        self.d.eq_active[self.brake_id] = 1 if mode == "locked" else 0
+        self.harness_mode = mode
+
+    def base_pose(self) -> Tuple[float, float, float, float]:
+        """x, y, z and yaw of the pelvis in the world (ground truth, for tests and benches)."""
+        x, y, z, w, _, _, qz = (float(v) for v in self.d.qpos[self.base:self.base + 7])
+        return x, y, z, 2.0 * np.arctan2(qz, w)
+
+    def update_latch(self) -> List[str]:
+        """The latch frees the door while the handle is down, catches it when shut."""
+        if self.latch_id is None:
+            return []
+        latched = bool(self.d.eq_active[self.latch_id])
+        handle, door = self.d.qpos[self.door_handle], self.d.qpos[self.door]
+        if latched and handle < LATCH_RELEASE:
+            self.d.eq_active[self.latch_id] = 0
+            return ["door unlatched"]
+        if not latched and handle > LATCH_RELEASE / 2 and abs(door) < 0.01:
+            self.d.eq_active[self.latch_id] = 1
+            return ["door latched"]
+        return []
 
     def sensor(self, name: str) -> np.ndarray:
         adr, dim = self.sensor_adr[name]
@@ -126,9 +190,6 @@ class MujocoPlant:
     def grasped(self) -> List[str]:
         return [key for key, eq_id in self.grasps.items() if self.d.eq_active[eq_id]]
 
-    def set_harness(self, on: bool) -> None:
-        self.d.eq_active[self.harness_id] = 1 if on else 0
-
     def prop_position(self, joint: str) -> float:
         return float(self.d.qpos[self.m.joint(joint).qposadr[0]])
 
@@ -136,10 +197,10 @@ class MujocoPlant:
 class SimBackend(Backend):
     """MuJoCo at 1 kHz with compliant position servos."""
 
-    def __init__(self, model: Optional[Robot] = None, scene: bool = True, harness: bool = True,
-                 thermal_speedup: float = 1.0) -> None:
+    def __init__(self, model: Optional[Robot] = None, scene: bool = True, harness: str = "locked",
+                 thermal_speedup: float = 1.0, station: str = "valve") -> None:
         super().__init__(model or walkman())
-        self.plant = MujocoPlant(self.model, scene=scene, harness=harness)
+        self.plant = MujocoPlant(self.model, scene=scene, harness=harness, station=station)
         self.dt = float(self.plant.m.opt.timestep)
         self.thermal = ThermalModel(len(self.joint_names), speedup=thermal_speedup)
         self._torque_mode = np.zeros(len(self.joint_names), dtype=bool)
@@ -160,6 +221,7 @@ class SimBackend(Backend):
         if self._steps % 10 == 0 and plant.grasps:
             q = self.positions()
             self.events += plant.update_grasps({"l": q[self._hands[0]], "r": q[self._hands[1]]})
+            self.events += plant.update_latch()
 
     def positions(self) -> np.ndarray:
         return self.plant.d.qpos[self.plant.qpos_adr].copy()
@@ -183,4 +245,5 @@ class SimBackend(Backend):
                    tuple(self.plant.sensor("imu_gyro")))
 
     def status(self) -> Dict[str, object]:
-        return {"backend": "sim", "time": round(self.time, 3), "grasped": self.plant.grasped()}
+        return {"backend": "sim", "time": round(self.time, 3), "grasped": self.plant.grasped(),
+                "harness": self.plant.harness_mode}

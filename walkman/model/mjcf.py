@@ -12,11 +12,21 @@ boards close their own PID loops.
 The scene (``drc=True``) adds what the DRC modules act on, all articulated:
 
 * a valve (hand wheel, radius 0.15 m) on a wall in front of the robot;
-* a car seat with a steering wheel and a throttle pedal (to the robot's right);
-* a door with a lever handle (to the robot's left);
-* a ``harness``: a weld from the pelvis to the world, on by default, that
-  holds the robot up while it manipulates (the support harness is part of the
-  scene and named as such; walking loosens it);
+* a driving rig (to the robot's right): a steering wheel at hand height and a
+  throttle pedal in front of the right foot -- the robot drives standing;
+* a door with a lever handle and a latch (to the robot's left): it opens
+  away from the robot only while the handle is turned down;
+* a **support harness**: the pelvis is welded (``harness``) to a trolley
+  (``harness_trolley``) that rides on x/y rails and turns about z, its height
+  on a spring that carries part of the weight.  The trolley's brake
+  (``harness_brake``, a weld to the world) is on by default: the robot hangs
+  still while it manipulates.  With the brake off the robot's feet carry the
+  rest of its weight and must walk to move it (see ``walkman/hal/sim.py``);
+* grasp welds between each hand and each graspable part, off until the HAL
+  closes a hand next to the part (see ``walkman/hal/sim.py``).
+
+Stations (:data:`STATIONS`) are where the robot starts: in front of the
+valve, at the driving rig, before the door.
 * grasp welds between each hand and each graspable part, off until the HAL
   closes a hand next to the part (see ``walkman/hal/sim.py``).
 """
@@ -33,6 +43,13 @@ GRASPABLE = (("valve", "valve_wheel", "valve_grip"),
              ("steering_wheel", "steering_wheel", "steering_grip"),
              ("door_handle", "door_handle", "door_handle_grip"))
 HANDS = ("l", "r")
+#: Where the robot can start: station -> (x, y, yaw) of the pelvis in the world.
+STATIONS = {"valve": (0.0, 0.0, 0.0), "car": (0.0, -2.5, 0.0), "door": (0.34, 2.25, 0.0),
+            "door_far": (-0.16, 2.25, 0.0)}
+#: Vertical stiffness (N/m) of the harness spring and its share of the robot's weight when
+#: the feet touch the floor (trolley mode).
+HARNESS_STIFFNESS = 20000.0
+HARNESS_SHARE = 0.6
 
 
 def _v(values) -> str:
@@ -63,7 +80,10 @@ def _body(robot: Robot, link_name: str, pos, indent: int, out: List[str], free: 
     out.append(f'{pad}  <inertial pos="{_v(link.com)}" mass="{link.mass:g}" '
                f'diaginertia="{ixx:.6g} {iyy:.6g} {izz:.6g}"/>')
     for index, geom in enumerate(link.geoms):
-        out.append(f"{pad}  {_geom(geom, f'{link_name}_geom{index}')}")
+        text = _geom(geom, f"{link_name}_geom{index}")
+        if link_name.endswith("_fingers"):  # grasps are welds (walkman/hal/sim.py): no contact
+            text = text.replace("<geom ", '<geom contype="0" conaffinity="0" ', 1)
+        out.append(f"{pad}  {text}")
     for sensor in robot.sensors:
         if sensor.link == link_name:
             out.append(f'{pad}  <site name="{sensor.name}" pos="{_v(sensor.pos)}" size="0.01"/>')
@@ -123,36 +143,37 @@ def scene_bodies() -> List[str]:
       <geom name="valve_wall" type="box" size="0.05 0.8 1.0" rgba="0.8 0.8 0.75 1"/>
       <body name="valve_wheel" pos="-0.12 0.25 0.2">
         <joint name="valve" type="hinge" axis="1 0 0" damping="0.5" frictionloss="0.5"/>
-        <geom name="valve_rim" type="cylinder" size="0.15 0.012" euler="0 90 0" rgba="0.8 0.1 0.1 1"/>
-        <geom name="valve_hub" type="cylinder" size="0.025 0.06" euler="0 90 0" pos="0.06 0 0" rgba="0.3 0.3 0.3 1"/>
+        <geom name="valve_rim" type="cylinder" size="0.15 0.012" euler="0 1.5708 0" rgba="0.8 0.1 0.1 1"/>
+        <geom name="valve_hub" type="cylinder" size="0.025 0.06" euler="0 1.5708 0" pos="0.06 0 0" rgba="0.3 0.3 0.3 1"/>
         <site name="valve_grip" pos="0 0 0.15" size="0.015" rgba="1 1 0 0.6"/>
       </body>
     </body>
-    <!-- car: seat, steering wheel and throttle pedal, to the robot's right -->
+    <!-- driving rig: steering wheel at hand height, throttle pedal before the right foot -->
     <body name="car" pos="0 -2.5 0">
-      <geom name="car_floor" type="box" size="0.8 0.6 0.02" pos="0.3 0 0.25" rgba="0.4 0.4 0.45 1"/>
-      <geom name="car_seat" type="box" size="0.25 0.3 0.06" pos="0 0 0.55" rgba="0.2 0.2 0.6 1"/>
-      <body name="steering_column" pos="0.55 0.1 1.05" euler="0 -60 0">
+      <geom name="car_floor" type="box" size="0.6 0.5 0.005" pos="0.3 0 0.005" rgba="0.4 0.4 0.45 1"/>
+      <geom name="car_dash" type="box" size="0.05 0.4 0.35" pos="0.85 0 0.85" rgba="0.3 0.3 0.35 1"/>
+      <body name="steering_column" pos="0.55 0.1 1.15" euler="0 -1.0472 0">
+        <geom name="steering_shaft" type="cylinder" size="0.02 0.15" pos="0 0 -0.15" rgba="0.2 0.2 0.2 1"/>
         <body name="steering_wheel">
           <joint name="steering" type="hinge" axis="0 0 1" range="-6.28 6.28" damping="0.8"/>
           <geom name="steering_rim" type="cylinder" size="0.18 0.015" rgba="0.1 0.1 0.1 1"/>
           <site name="steering_grip" pos="0 0.18 0" size="0.015" rgba="1 1 0 0.6"/>
         </body>
       </body>
-      <body name="throttle_pedal" pos="0.8 -0.12 0.35">
-        <joint name="throttle" type="hinge" axis="0 1 0" range="0 0.5" stiffness="30" damping="1"/>
-        <geom name="throttle_pad" type="box" size="0.06 0.04 0.01" pos="0 0 0.06" euler="0 -30 0" rgba="0.1 0.1 0.1 1"/>
+      <body name="throttle_pedal" pos="0.28 -0.11 0.03">
+        <joint name="throttle" type="hinge" axis="0 1 0" range="0 0.35" stiffness="60" springref="0" damping="2"/>
+        <geom name="throttle_pad" type="box" size="0.09 0.06 0.008" pos="0.09 0 0" euler="0 -0.349 0" rgba="0.1 0.1 0.1 1"/>
       </body>
     </body>
-    <!-- door with a lever handle, to the robot's left -->
+    <!-- door with a latched lever handle, to the robot's left; it opens away from the robot -->
     <body name="door_frame" pos="0.9 2.5 1.1">
-      <geom name="door_post_a" type="box" size="0.05 0.05 1.1" pos="0 -0.5 0" rgba="0.6 0.5 0.4 1"/>
-      <geom name="door_post_b" type="box" size="0.05 0.05 1.1" pos="0 0.5 0" rgba="0.6 0.5 0.4 1"/>
-      <body name="door" pos="0 0.45 0">
-        <joint name="door" type="hinge" axis="0 0 1" range="-1.7 0.05" damping="3" frictionloss="1"/>
-        <geom name="door_panel" type="box" size="0.02 0.44 1.0" pos="0 -0.44 0" rgba="0.7 0.55 0.35 1"/>
-        <body name="door_handle" pos="-0.06 -0.8 0">
-          <joint name="door_handle" type="hinge" axis="1 0 0" range="-0.05 0.9" stiffness="8" damping="0.2"/>
+      <geom name="door_post_a" type="box" size="0.05 0.05 1.1" pos="0 -0.4 0" rgba="0.6 0.5 0.4 1"/>
+      <geom name="door_post_b" type="box" size="0.05 0.05 1.1" pos="0 0.4 0" rgba="0.6 0.5 0.4 1"/>
+      <body name="door" pos="0 0.36 0">
+        <joint name="door" type="hinge" axis="0 0 1" range="-0.02 1.7" damping="3" frictionloss="1"/>
+        <geom name="door_panel" type="box" size="0.02 0.35 1.0" pos="0 -0.35 0" rgba="0.7 0.55 0.35 1"/>
+        <body name="door_handle" pos="-0.06 -0.6 0.05">
+          <joint name="door_handle" type="hinge" axis="1 0 0" range="-0.9 0.02" stiffness="8" springref="0" damping="0.2"/>
           <geom name="door_handle_lever" type="capsule" size="0.015" fromto="0 0 0 0 0.12 0" rgba="0.8 0.8 0.2 1"/>
           <site name="door_handle_grip" pos="0 0.09 0" size="0.015" rgba="1 1 0 0.6"/>
         </body>
@@ -160,10 +181,27 @@ def scene_bodies() -> List[str]:
     </body>""".splitlines()
 
 
+def harness_body(robot: Robot) -> List[str]:
+    """The trolley the pelvis hangs from (see the module docstring)."""
+    weight = robot.total_mass * 9.81
+    springref = HARNESS_SHARE * weight / HARNESS_STIFFNESS
+    return [f'    <body name="harness_trolley" pos="0 0 {STANDING_PELVIS_HEIGHT:g}">',
+            '      <joint name="harness_x" type="slide" axis="1 0 0" damping="150"/>',
+            '      <joint name="harness_y" type="slide" axis="0 1 0" damping="150"/>',
+            f'      <joint name="harness_z" type="slide" axis="0 0 1" range="-0.15 0.05" '
+            f'stiffness="{HARNESS_STIFFNESS:g}" springref="{springref:.4f}" damping="800"/>',
+            '      <joint name="harness_yaw" type="hinge" axis="0 0 1" damping="100"/>',
+            '      <inertial pos="0 0 0" mass="1" diaginertia="0.01 0.01 0.01"/>',
+            '    </body>']
+
+
 def equalities(drc: bool) -> List[str]:
     out = ["  <equality>",
-           '    <weld name="harness" body1="pelvis" solref="0.02 1" active="true"/>']
+           '    <weld name="harness" body1="pelvis" body2="harness_trolley" solref="0.02 1" '
+           'active="true"/>',
+           '    <weld name="harness_brake" body1="harness_trolley" solref="0.02 1" active="true"/>']
     if drc:
+        out.append('    <joint name="door_latch" joint1="door" active="true"/>')
         for hand in HANDS:
             for part, body, _ in GRASPABLE:
                 out.append(f'    <weld name="grasp_{hand}_{part}" body1="{hand}_hand" body2="{body}" '
@@ -210,6 +248,7 @@ def to_mjcf(robot: Robot, drc: bool = True, timestep: float = 0.001) -> str:
     lines += robot_body(robot)
     if drc:
         lines += scene_bodies()
+    lines += harness_body(robot)
     lines.append("  </worldbody>")
     lines += actuators(robot)
     lines += sensors(robot)

@@ -16,6 +16,11 @@ and a control loop that tracks the current motion every tick.
   IK every tick over the module's joints, or a joint-space trajectory.  It
   fires ``action_done`` when it has ended and the sensed point is within
   1 cm of its goal (FACTS.md); a hand closing or opening fires ``hand_done``.
+  The joints are compliant (series-elastic), so a loaded limb sags a little
+  below its reference: once the trajectory has ended, the IK target creeps by
+  the remaining error (an integral term) until the sensed point arrives.
+  A command may chain several motions (:meth:`TaskModule.then`, e.g. press,
+  hold, release): ``action_done`` fires after the last.
 * The module streams its reference for all its joints every tick, so it holds
   the robot where it is between motions -- and the HAL knows which joints
   are this module's (see :mod:`walkman.hal.arbitration`).
@@ -30,7 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Dict, List, Mapping, Optional, Sequence, Tuple
+from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -42,6 +47,7 @@ from walkman.gym.thread import ControlThread
 ACTION_TOLERANCE = 0.01   # m, FACTS.md: action_done under 1 cm
 HAND_TOLERANCE = 0.3      # rad: a hand within this of its goal is done
 OVERDUE_S = 2.0           # s after a trajectory's end before saying it is stuck
+SETTLE_GAIN = 0.02        # share of the remaining error added to the IK target per tick
 HAND_CLOSED, HAND_OPEN = 1.2, 0.0
 
 
@@ -95,8 +101,13 @@ class TaskModule(ControlThread):
         self.effector: Optional[Effector] = None
         self.joint_motion: Optional[Tuple[np.ndarray, JointTrajectory]] = None
         self.full_pose = False
+        self.arcing = self.contact = False
         self.goal: Optional[np.ndarray] = None
+        self.goal_rotation = np.eye(3)
+        self.correction = np.zeros(3)
         self.hand_goals: Dict[int, float] = {}
+        self.phases: List[Callable[[], None]] = []
+        self.waiting_until: Optional[float] = None
         self._said_overdue = False
         self.setup()
         self.report()
@@ -169,14 +180,19 @@ class TaskModule(ControlThread):
         return result.q
 
     def line_to(self, effector: Effector, goal: np.ndarray, speed: float,
-                rotation: Optional[np.ndarray] = None) -> None:
-        """Move the effector's point straight to ``goal`` (and the frame to ``rotation``)."""
+                rotation: Optional[np.ndarray] = None, contact: bool = False) -> None:
+        """Move the effector's point straight to ``goal`` (and the frame to ``rotation``).
+
+        ``contact``: the goal is inside something the effector pushes (a pedal),
+        so the motion ends with its trajectory, wherever the push stopped.
+        """
         start, start_rotation = self.pose(effector)
         goal_rotation = start_rotation if rotation is None else rotation
         distance = float(np.linalg.norm(goal - start))
         self.trajectory.set_linear((start, start_rotation), (goal, goal_rotation),
                                    duration_for(distance, speed, 1.0), self.now())
         self._begin(effector, goal, full_pose=rotation is not None)
+        self.arcing, self.contact = False, contact
 
     def arc(self, effector: Effector, center: np.ndarray, axis: np.ndarray, angle: float,
             angular_speed: float) -> None:
@@ -184,9 +200,12 @@ class TaskModule(ControlThread):
         self.trajectory.set_circular(self.pose(effector), center, axis, angle,
                                      duration_for(angle, angular_speed, 1.0), self.now())
         self._begin(effector, self.trajectory.goal()[0], full_pose=True)
+        self.arcing, self.contact = True, False
 
     def _begin(self, effector: Effector, goal: np.ndarray, full_pose: bool) -> None:
         self.effector, self.goal, self.full_pose = effector, goal, full_pose
+        self.correction = np.zeros(3)
+        self.goal_rotation = self.trajectory.goal()[1]
         self.joint_motion = None
         self._said_overdue = False
 
@@ -207,6 +226,22 @@ class TaskModule(ControlThread):
         index = [self.robot.index[name] for name in names]
         self.joints_to(names, self.rest[index], speed)
 
+    def then(self, *steps: Callable[[], None]) -> None:
+        """Motions to start, in order, when the current one ends (before ``action_done``)."""
+        self.phases.extend(steps)
+
+    def hold_for(self, seconds: float) -> None:
+        """A motion that keeps the reference for ``seconds``."""
+        self.trajectory.reset()
+        self.joint_motion = None
+        self.waiting_until = self.now() + seconds
+
+    def _finished(self) -> None:
+        if self.phases:
+            self.phases.pop(0)()
+        else:
+            self.event("action_done")
+
     def set_hand(self, hand: str, value: float) -> None:
         self.hand_goals[self.robot.index[hand]] = value
 
@@ -214,19 +249,29 @@ class TaskModule(ControlThread):
 
     def track(self) -> None:
         now = self.now()
-        if self.trajectory.active and self.effector is not None:
+        if self.waiting_until is not None:
+            if now >= self.waiting_until:
+                self.waiting_until = None
+                self._finished()
+        elif self.trajectory.active and self.effector is not None:
             effector = self.effector
             position, rotation = self.trajectory.at(now)
-            result = self.ik.solve(effector.frame, position, rotation if self.full_pose else None,
+            result = self.ik.solve(effector.frame, position + self.correction,
+                                   rotation if self.full_pose else None,
                                    self.reference, effector.joints, offset=effector.offset,
                                    restarts=0, rest=self.rest)
             moved = self.ik.joints_of(effector.joints)
             self.reference[moved] = result.q[moved]
-            if self.trajectory.done(now):
-                error = float(np.linalg.norm(self.pose(effector)[0] - self.goal))
+            if self.trajectory.done(now) and self.contact:
+                self.trajectory.reset()
+                self._finished()
+            elif self.trajectory.done(now):
+                remaining = self.goal - self.pose(effector)[0]
+                error = float(np.linalg.norm(remaining))
+                self.correction = np.clip(self.correction + SETTLE_GAIN * remaining, -0.05, 0.05)
                 if error < ACTION_TOLERANCE:
                     self.trajectory.reset()
-                    self.event("action_done")
+                    self._finished()
                 elif now - self.trajectory.t0 > self.trajectory.duration + OVERDUE_S and \
                         not self._said_overdue:
                     self._said_overdue = True
@@ -238,7 +283,7 @@ class TaskModule(ControlThread):
             self.reference[index] = motion.at(now)
             if motion.done(now):
                 self.joint_motion = None
-                self.event("action_done")
+                self._finished()
         for hand, goal in list(self.hand_goals.items()):
             self.reference[hand] = goal
             if abs(self.robot.sense_position()[hand] - goal) < HAND_TOLERANCE:
@@ -257,12 +302,16 @@ class TaskModule(ControlThread):
 
     def custom_resume(self) -> bool:
         if self.trajectory.active and self.effector is not None:
-            if self.full_pose:  # an arc paused halfway: the pilot decides what next
+            if self.arcing:  # an arc paused halfway: the pilot decides what next
                 self.warn("a turn paused halfway ends here; send it again for the rest")
                 self.trajectory.reset()
+                self.phases.clear()
                 self.event("action_done")
             else:  # finish the straight motion from where the effector is now
-                self.line_to(self.effector, self.goal, self.speed_after_resume)
+                self.line_to(self.effector, self.goal, self.speed_after_resume,
+                             self.goal_rotation if self.full_pose else None)
+        elif self.waiting_until is not None:
+            self.waiting_until = self.now() + 0.2
         elif self.joint_motion is not None:
             index, motion = self.joint_motion
             names = [self.robot.joint_names[i] for i in index]

@@ -43,10 +43,10 @@ def _gains(name: str) -> tuple:
 
 
 class EthercatBackend(Backend):
-    def __init__(self, model: Optional[Robot] = None, scene: bool = True, harness: bool = True,
-                 thermal_speedup: float = 1.0) -> None:
+    def __init__(self, model: Optional[Robot] = None, scene: bool = True, harness: str = "locked",
+                 thermal_speedup: float = 1.0, station: str = "valve") -> None:
         super().__init__(model or walkman())
-        self.plant = MujocoPlant(self.model, scene=scene, harness=harness)
+        self.plant = MujocoPlant(self.model, scene=scene, harness=harness, station=station)
         self.dt = float(self.plant.m.opt.timestep)
         self.plant.set_servo(np.arange(len(self.joint_names)),
                              np.ones(len(self.joint_names), dtype=bool), self.idle)

@@ -1,0 +1,140 @@
+"""drc_drive: steer the wheel with the left hand, press the throttle with the right foot.
+
+Theory of operation
+-------------------
+The original drive module's state machine (FACTS.md, paper Figure 10), kept
+as it was (:data:`walkman.control.fsm.DRIVE_TABLE`).  The pilot first says
+where the wheel is (``steeringwheeldatasent X Y Z ROLL PITCH YAW RADIUS
+[PX PY PZ]``: the wheel's centre in the pelvis frame, its orientation -- the
+wheel turns about its local z axis, which points at the driver -- its radius,
+and optionally where the throttle pad is), then ``reach``, ``approach``,
+``grasp`` (the left hand takes the rim's left side) and ``drive``.
+
+While driving:
+
+* ``turn_left [A]`` / ``turn_right [A]``: the hand follows the rim about the
+  wheel's axis by A rad (default 0.5), counter-clockwise / clockwise as the
+  driver sees it; the wheel turns with it;
+* ``rotate_foot``: the right foot's sole goes over the throttle pad;
+* ``accelerate [T]``: the foot presses the pad 4 cm down, holds it T seconds
+  (default 1), and lets it up -- refused until the foot is on the pedal;
+* ``move_away_foot``: the foot back to the floor;
+* ``ungrasp``, then ``move_away_hand`` (the arm back to where it started).
+
+The hand moves by IK over the left arm and the waist, the foot by IK over the
+right leg with the sole kept flat.  The harness holds the robot while it
+drives standing (the rig has no seat: see ``walkman/model/mjcf.py``).
+"""
+
+from __future__ import annotations
+
+from typing import List, Optional
+
+import numpy as np
+
+from walkman.control.fsm import DRIVE_TABLE
+from walkman.modules.drc_valve import rpy_matrix
+from walkman.modules.task import HAND_CLOSED, HAND_OPEN, Effector, TaskModule, task_statuses
+
+ARM = ["LShSag", "LShLat", "LShYaw", "LElbj", "LForearmPlate", "LWrj1", "LWrj2"]
+WAIST = ["WaistLat", "WaistSag", "WaistYaw"]
+RIGHT_LEG = ["RHipLat", "RHipYaw", "RHipSag", "RKneeSag", "RAnkSag", "RAnkLat"]
+HAND = "l_handj"
+GRIP = np.array([0.0, 0.0, -0.1])    # the hand's grip point (models: l_hand_grip)
+SOLE = np.array([0.10, 0.0, -0.10])  # the ball of the right foot, under the sole
+#: Where the throttle pad is in the pelvis frame at the car station, unless the pilot says.
+PEDAL = np.array([0.36, -0.11, -1.05])
+PEDAL_CLEARANCE = 0.03               # m above the pad when the foot is on the pedal
+PRESS_DEPTH = 0.04                   # m the foot pushes the pad down
+APPROACH_GAP, REACH_GAP = 0.04, 0.15
+SPEED, TURN_SPEED, FOOT_SPEED = 0.15, 0.6, 0.1
+
+
+class Module(TaskModule):
+    statuses = task_statuses(DRIVE_TABLE)
+    table = DRIVE_TABLE
+    arguments = {"steeringwheeldatasent": (7, 10, "X Y Z ROLL PITCH YAW RADIUS [PX PY PZ]"),
+                 "turn_left": (0, 1, "ANGLE rad"), "turn_right": (0, 1, "ANGLE rad"),
+                 "accelerate": (0, 1, "SECONDS")}
+    joints = ARM + WAIST + [HAND] + RIGHT_LEG
+
+    def setup(self) -> None:
+        self.hand = Effector("l_hand", GRIP, ARM + WAIST)
+        self.foot = Effector("r_foot", SOLE, RIGHT_LEG)
+        self.wheel: Optional[dict] = None
+        self.foot_on_pedal = False
+
+    def status_data(self) -> List[float]:
+        if self.wheel is None:
+            return []
+        steered = float(self.wheel.get("steered", 0.0))
+        return [*map(float, self.wheel["center"]), steered]
+
+    def _start_steeringwheeldatasent(self, x, y, z, roll, pitch, yaw, radius,
+                                     *pedal: float) -> None:
+        if len(pedal) not in (0, 3):
+            raise ValueError(f"the pedal is 3 numbers (PX PY PZ), got {len(pedal)}")
+        if not 0.1 <= radius <= 0.3:
+            raise ValueError(f"radius {radius} m is not a steering wheel's (0.1..0.3)")
+        rotation = rpy_matrix(roll, pitch, yaw)
+        center, axis = np.array([x, y, z]), rotation[:, 2]
+        grip = center + radius * rotation[:, 1]
+        wheel = {"center": center, "axis": axis, "grip": grip,
+                 "approach": grip + APPROACH_GAP * axis, "reach": grip + REACH_GAP * axis,
+                 "pedal": np.array(pedal) if pedal else PEDAL.copy(), "steered": 0.0}
+        for point in ("reach", "approach"):
+            self.reachable(self.hand, wheel[point], what=f"wheel's {point} point")
+        above = wheel["pedal"] + [0.0, 0.0, PEDAL_CLEARANCE]
+        self.reachable(self.foot, above, np.eye(3), what="throttle pedal")
+        self.wheel = wheel
+
+    def _start_reach(self) -> None:
+        self.line_to(self.hand, self.wheel["reach"], SPEED)
+
+    def _start_approach(self) -> None:
+        self.line_to(self.hand, self.wheel["approach"], SPEED)
+
+    def _start_grasp(self) -> None:
+        self.set_hand(HAND, HAND_CLOSED)
+
+    def _start_drive(self) -> None:
+        """Grasped: from now on the pilot steers and accelerates."""
+
+    def _start_turn_left(self, angle: float = 0.5) -> None:
+        self._steer(abs(angle))
+
+    def _start_turn_right(self, angle: float = 0.5) -> None:
+        self._steer(-abs(angle))
+
+    def _steer(self, angle: float) -> None:
+        if not 0.01 <= abs(angle) <= 3.2:
+            raise ValueError(f"steer by 0.01..3.2 rad at a time, got {abs(angle)}")
+        self.arc(self.hand, self.wheel["center"], self.wheel["axis"], angle, TURN_SPEED)
+        self.wheel["steered"] += angle
+
+    def _start_rotate_foot(self) -> None:
+        self.line_to(self.foot, self.wheel["pedal"] + [0.0, 0.0, PEDAL_CLEARANCE], FOOT_SPEED,
+                     np.eye(3))
+        self.foot_on_pedal = True
+
+    def _start_accelerate(self, seconds: float = 1.0) -> None:
+        if not self.foot_on_pedal:
+            raise ValueError("the foot is not on the pedal (rotate_foot first)")
+        if not 0.1 <= seconds <= 10:
+            raise ValueError(f"accelerate for 0.1..10 s, got {seconds}")
+        above = self.wheel["pedal"] + [0.0, 0.0, PEDAL_CLEARANCE]
+        pressed = self.wheel["pedal"] - [0.0, 0.0, PRESS_DEPTH]
+        self.line_to(self.foot, pressed, FOOT_SPEED, np.eye(3), contact=True)
+        # The pad pushes back: hold the commanded depth, then let it up.
+        self.then(lambda: self.hold_for(seconds),
+                  lambda: self.line_to(self.foot, above, FOOT_SPEED, np.eye(3)))
+
+    def _start_move_away_foot(self) -> None:
+        self.home(RIGHT_LEG)
+        self.foot_on_pedal = False
+
+    def _start_ungrasp(self) -> None:
+        self.set_hand(HAND, HAND_OPEN)
+
+    def _start_move_away_hand(self) -> None:
+        self.home(ARM + WAIST)
