@@ -144,6 +144,16 @@ class OfflineModule:
         for problem in self.interfaces.commands.take_rejections():
             self.interfaces.warn(f"{self.name}: {problem}")
 
+    def do(self, command: str, until: str, timeout: float = 30.0) -> float:
+        """Send ``command`` and step until the status says ``until``; simulated seconds taken."""
+        start = self.world.time
+        self.command(command)
+        self.world.step(0.02)
+        self.world.run_until(lambda: self.state == until, timeout,
+                             f"{self.name}: '{until}' after '{command}' (state {self.state}, "
+                             f"warnings {self.warnings[-2:]})")
+        return self.world.time - start
+
     def tick(self) -> None:
         if self.lifecycle != State.RUNNING or self.world.time + 1e-9 < self.next_tick:
             return

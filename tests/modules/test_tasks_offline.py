@@ -1,0 +1,148 @@
+"""The task modules in one process on simulated time (walkman.gym.offline): outcomes in the
+MuJoCo scene, refusals that leave the robot still, and joint arbitration between modules.
+
+The same modules run as processes over YARP in test_drc_*.py; these are the fast,
+deterministic checks of what the modules decide.
+"""
+
+import numpy as np
+import pytest
+
+from walkman.gym.offline import OfflineWorld
+from walkman.hal.sim import SimBackend
+from walkman.modules import drc_door, drc_drive, drc_valve
+
+WHEEL = "steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18"
+DOOR = "doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6"
+VALVE = "valvedatasent 0.66 0.25 0.08 0 0 0 0.15"
+
+
+def started(station: str, module_class, name: str):
+    world = OfflineWorld(SimBackend(station=station))
+    module = world.add(module_class, name)
+    assert module.switch("start")
+    world.step(0.05)
+    assert module.state == "idle"
+    return world, module
+
+
+@pytest.fixture(scope="module")
+def driving():
+    world, module = started("car", drc_drive.Module, "drc_drive")
+    module.do(WHEEL, "ready", 1)
+    for command, state in (("reach", "reached"), ("approach", "approached"),
+                           ("grasp", "grasped"), ("drive", "drive")):
+        module.do(command, state)
+    return world, module
+
+
+def test_the_wheel_turns_as_commanded(driving):
+    world, module = driving
+    for command, angle in (("turn_left 0.5", 0.5), ("turn_right 1.0", -1.0)):
+        before = world.prop("steering")
+        module.do(command, "drive")
+        assert world.prop("steering") - before == pytest.approx(angle, rel=0.1), command
+
+
+def test_accelerate_presses_the_throttle_for_the_time_asked(driving):
+    world, module = driving
+    module.command("accelerate 1")
+    world.step(0.05)
+    assert "the foot is not on the pedal (rotate_foot first)" in module.warnings[-1]
+    module.do("rotate_foot", "drive")
+    module.command("accelerate 2")
+    pressed = 0.0
+    while True:
+        world.step(0.01)
+        pressed += 0.01 if world.prop("throttle") > 0.08 else 0.0
+        if module.state == "drive":
+            break
+    assert 0.9 * 2 <= pressed <= 2 + 1.5, pressed  # the hold, plus part of press and release
+    module.do("move_away_foot", "drive")
+    assert world.prop("throttle") < 0.02
+    module.do("ungrasp", "ungrasped")
+    module.do("move_away_hand", "moved_away_hand")
+
+
+def test_the_door_opens_past_30_degrees():
+    world, module = started("door", drc_door.Module, "drc_door")
+    module.do(DOOR, "ready", 1)
+    for command, state in (("reach", "reached"), ("approach", "approached"),
+                           ("grasp", "grasped"), ("turn", "turned")):
+        module.do(command, state)
+    assert "door unlatched" in world.backend.events
+    module.do("open", "opened")
+    for command, state in (("ungrasp", "ungrasped"), ("move_away", "moved_away"),
+                           ("home", "idle")):
+        module.do(command, state)
+    world.step(0.5)
+    assert np.degrees(world.prop("door")) > 30
+
+
+def test_a_latched_door_does_not_open_without_turning_the_handle():
+    world, module = started("door", drc_door.Module, "drc_door")
+    module.do(DOOR, "ready", 1)
+    for command, state in (("reach", "reached"), ("approach", "approached"),
+                           ("grasp", "grasped")):
+        module.do(command, state)
+    module.command("open")
+    world.step(0.05)
+    assert "'open' is not accepted in state grasped (accepted: turn, ungrasp)" in \
+        module.warnings[-1]
+    assert abs(world.prop("door")) < 0.02
+
+
+@pytest.mark.parametrize("station, module_class, name, commands, warning", [
+    ("car", drc_drive.Module, "drc_drive", ["turn_left 0.5"],
+     "'turn_left' is not accepted in state idle"),
+    ("car", drc_drive.Module, "drc_drive", [WHEEL + " 0.3"],
+     "the pedal is 3 numbers (PX PY PZ), got 1"),
+    ("car", drc_drive.Module, "drc_drive",
+     ["steeringwheeldatasent 1.6 0.1 0.03 0 -1.0472 0 0.18"],
+     "cannot reach the wheel's reach point"),
+    ("car", drc_drive.Module, "drc_drive", ["steeringwheeldatasent 0.55 0.1 nan 0 0 0 0.18"],
+     "'nan' is not a finite number"),
+    ("door", drc_door.Module, "drc_door", ["doordatasent 0.5 0.01 0.03 0 0 0 0.09 0"],
+     "door width 0.0 m is not a door's"),
+    ("door", drc_door.Module, "drc_door", ["doordatasent 0.5 0.01 0.03 0 0 0 0.09"],
+     "takes 8 numbers (X Y Z ROLL PITCH YAW HANDLE_LENGTH DOOR_WIDTH), got 7"),
+    ("door", drc_door.Module, "drc_door", ["doordatasent 0.5 0.01 0.03 0 0 zero 0.09 0.6"],
+     "'zero' is not a finite number"),
+    ("door", drc_door.Module, "drc_door", ["fly"], "unknown command 'fly'"),
+    ("door", drc_door.Module, "drc_door", [DOOR, "hand_done"], "unknown command 'hand_done'"),
+    ("valve", drc_valve.Module, "drc_valve", [VALVE, "turn 9"],
+     "'turn' is not accepted in state ready"),
+])
+def test_bad_commands_are_refused_and_the_robot_holds(station, module_class, name, commands,
+                                                      warning):
+    world, module = started(station, module_class, name)
+    world.step(0.5)
+    before = world.backend.positions()
+    state_before = None
+    for command in commands:
+        state_before = module.state
+        module.command(command)
+        world.step(0.3)
+    assert warning in module.warnings[-1]
+    assert module.state in (state_before, "refused")
+    moved = np.abs(world.backend.positions() - before)
+    assert moved.max() < 0.01, (world.backend.joint_names[int(moved.argmax())], moved.max())
+
+
+def test_two_modules_on_the_same_joints_the_second_is_refused_until_the_first_pauses():
+    world = OfflineWorld(SimBackend(station="door"))
+    valve = world.add(drc_valve.Module, "drc_valve")
+    door = world.add(drc_door.Module, "drc_door")
+    valve.switch("start")
+    world.step(0.2)
+    door.switch("start")
+    world.step(0.2)
+    assert any("may not command" in text and "held by /drc_valve" in text
+               for text in door.warnings), door.warnings
+    door.command(DOOR)
+    door.command("reach")
+    world.step(1.0)
+    waist = [world.backend.index[name] for name in drc_door.WAIST + drc_door.ARM]
+    assert np.abs(world.backend.reference[waist] - valve.thread.reference[waist]).max() < 1e-9
+    valve.switch("pause")  # silent: its joints are free after release_after
+    world.run_until(lambda: door.state == "reached", 20, "the door module's reach")
