@@ -65,7 +65,8 @@ class InverseKinematics:
               position_tolerance: float = POSITION_TOLERANCE,
               rotation_tolerance: float = ROTATION_TOLERANCE, restarts: int = 4,
               offset: Optional[Sequence[float]] = None,
-              rest: Optional[Sequence[float]] = None) -> IkResult:
+              rest: Optional[Sequence[float]] = None,
+              max_iterations: Optional[int] = None) -> IkResult:
         """Joint positions putting ``frame`` at the target (``rotation`` None: position only).
 
         Starts from ``q0`` (a control loop's current posture: a few iterations);
@@ -74,11 +75,14 @@ class InverseKinematics:
         frame) moves the controlled point, e.g. from the hand link to its grip.
         ``rest`` is a posture the redundant joints drift back to (null space), so
         a hand tracked for a long time does not wander into the joint limits.
+        ``max_iterations`` bounds the work per descent: a control tick passes a
+        few, so a target it cannot reach costs a bounded time, not a whole tick.
         """
+        iterations = max_iterations or self.max_iterations
         self._rest = None if rest is None else np.asarray(rest, dtype=float)
         point = np.zeros(3) if offset is None else np.asarray(offset, dtype=float)
         best = self._descend(frame, position, rotation, q0, joints, position_tolerance,
-                             rotation_tolerance, point)
+                             rotation_tolerance, point, iterations)
         rng = np.random.default_rng(0)
         free = self.joints_of(joints) if joints is not None else np.arange(len(self.lower))
         for _ in range(restarts):
@@ -87,7 +91,7 @@ class InverseKinematics:
             seed = np.array(q0, dtype=float)
             seed[free] = rng.uniform(self.lower[free], self.upper[free])
             attempt = self._descend(frame, position, rotation, seed, joints,
-                                    position_tolerance, rotation_tolerance, point)
+                                    position_tolerance, rotation_tolerance, point, iterations)
             attempt.iterations += best.iterations
             if attempt.reached or attempt.position_error + attempt.rotation_error < \
                     best.position_error + best.rotation_error:
@@ -99,7 +103,7 @@ class InverseKinematics:
     def _descend(self, frame: str, position: Sequence[float], rotation: Optional[np.ndarray],
                  q0: Sequence[float], joints: Optional[Sequence[str]],
                  position_tolerance: float, rotation_tolerance: float,
-                 point: np.ndarray) -> IkResult:
+                 point: np.ndarray, max_iterations: int) -> IkResult:
         try:
             self.kinematics.frame_id(frame)
         except KeyError as exc:
@@ -116,7 +120,7 @@ class InverseKinematics:
         free = self.joints_of(joints) if joints is not None else np.arange(len(q))
         rows = slice(0, 6) if rotation is not None else slice(0, 3)
         error = np.zeros(6)
-        for iteration in range(1, self.max_iterations + 1):
+        for iteration in range(1, max_iterations + 1):
             p, r = self.kinematics.pose(q, frame)
             lever = r @ point
             error[:3] = target_p - (p + lever)
@@ -149,7 +153,7 @@ class InverseKinematics:
             q = q.copy()
             q[active] = np.clip(q[active] + step, self.lower[active], self.upper[active])
         return IkResult(q, float(np.linalg.norm(error[:3])), float(np.linalg.norm(error[3:])),
-                        self.max_iterations, False)
+                        max_iterations, False)
 
     def solve_or_raise(self, frame: str, position: Sequence[float],
                        rotation: Optional[np.ndarray], q0: Sequence[float],

@@ -46,6 +46,7 @@ from walkman.gym.thread import ControlThread
 
 ACTION_TOLERANCE = 0.01   # m, FACTS.md: action_done under 1 cm
 HAND_TOLERANCE = 0.3      # rad: a hand within this of its goal is done
+TICK_IK_ITERATIONS = 20  # per control tick: the target moved a little since the last one
 OVERDUE_S = 2.0           # s after a trajectory's end before saying it is stuck
 SETTLE_GAIN = 0.02        # share of the remaining error added to the IK target per tick
 HAND_CLOSED, HAND_OPEN = 1.2, 0.0
@@ -259,7 +260,8 @@ class TaskModule(ControlThread):
             result = self.ik.solve(effector.frame, position + self.correction,
                                    rotation if self.full_pose else None,
                                    self.reference, effector.joints, offset=effector.offset,
-                                   restarts=0, rest=self.rest)
+                                   restarts=0, rest=self.rest,
+                                   max_iterations=TICK_IK_ITERATIONS)
             moved = self.ik.joints_of(effector.joints)
             self.reference[moved] = result.q[moved]
             if self.trajectory.done(now) and self.contact:
@@ -275,8 +277,10 @@ class TaskModule(ControlThread):
                 elif now - self.trajectory.t0 > self.trajectory.duration + OVERDUE_S and \
                         not self._said_overdue:
                     self._said_overdue = True
+                    sensed = np.round(self.goal - remaining, 3).tolist()
                     self.warn(f"{self.fsm.state}: the {effector.frame} stays "
-                              f"{error * 100:.1f} cm from its goal (IK "
+                              f"{error * 100:.1f} cm from its goal "
+                              f"{np.round(self.goal, 3).tolist()} (at {sensed}, IK "
                               f"{result.position_error * 100:.1f} cm); still trying")
         elif self.joint_motion is not None:
             index, motion = self.joint_motion

@@ -1,0 +1,43 @@
+"""drc_drive end to end: HAL at the driving rig, the module as a process, yarp-lite write.
+
+Done when turn_left/turn_right turn the sim steering wheel by the angle and accelerate
+presses the sim throttle for the time asked.
+"""
+
+import time
+
+import pytest
+
+from harness import wait_until
+
+WHEEL = "steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18"  # models/walkman_drc.xml
+
+
+def test_steer_and_accelerate(task_at):
+    drive = task_at("car", "drc_drive")
+    drive.command(WHEEL, "ready")
+    for command, state in (("reach", "reached"), ("approach", "approached"),
+                           ("grasp", "grasped"), ("drive", "drive")):
+        drive.command(command, state)
+    for command, angle in (("turn_left 0.5", 0.5), ("turn_right 1.0", -1.0)):
+        before = drive.scene.prop("steering")
+        drive.send("command", command)
+        wait_until(lambda: drive.pilot.state() != "drive", 10, message=command)
+        drive.pilot.wait_state("drive", 40)
+        assert drive.scene.prop("steering") - before == pytest.approx(angle, rel=0.1), command
+    drive.send("command", "accelerate 1")
+    drive.pilot.wait_warning("the foot is not on the pedal (rotate_foot first)")
+    drive.command("rotate_foot", "drive")
+    drive.send("command", "accelerate 2")
+    pressed, last = 0.0, time.monotonic()
+    wait_until(lambda: drive.pilot.state() == "accelerating", 10, message="accelerating")
+    while drive.pilot.state() != "drive":
+        now = time.monotonic()
+        if drive.scene.prop("throttle") > 0.08:
+            pressed += now - last
+        last = now
+    assert 0.8 * 2 <= pressed <= 2 + 2.0, pressed
+    for command, state in (("move_away_foot", "drive"), ("ungrasp", "ungrasped"),
+                           ("move_away_hand", "moved_away_hand")):
+        drive.command(command, state)
+    assert drive.scene.prop("throttle") < 0.02
