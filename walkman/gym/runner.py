@@ -51,6 +51,11 @@ STATUS_PERIOD = 0.5
 DEFAULTS = {"thread_period": 10, "robot_name": "walkman", "urdf_path": ""}
 
 
+def module_name(spec: str) -> str:
+    """The name a module's ports and config go by: ``my_wave:Module`` -> ``my_wave``."""
+    return spec.split(":")[0].split(".")[-1]
+
+
 def load_module_class(name: str) -> Type[GenericThread]:
     """``walkman.modules.<name>.Module``, or ``package.module:Class`` for your own."""
     if ":" in name:
@@ -396,8 +401,8 @@ def parse_args(argv: Optional[List[str]] = None) -> argparse.Namespace:
 
 
 def load_config(options: argparse.Namespace) -> Dict[str, Any]:
-    name = options.config_file or f"{options.module.split(':')[-1]}.ini"
-    context = options.context or options.module
+    name = options.config_file or f"{module_name(options.module)}.ini"
+    context = options.context or module_name(options.module)
     try:
         config = inifile.load(name, context, DEFAULTS)
     except inifile.IniError:
@@ -447,7 +452,7 @@ def run_module(argv: Optional[List[str]] = None) -> int:
         log.error("%s", exc)
         return 2
     module_class = load_module_class(options.module)
-    name = options.module.split(":")[-1].split(".")[-1]
+    name = module_name(options.module)
     runner = ModuleRunner(name, module_class, config, prefix=options.name,
                           initial=State(options.initial), heartbeat_fd=options.heartbeat_fd)
     import signal

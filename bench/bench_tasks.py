@@ -1,0 +1,88 @@
+"""DRC task modules: completion time in simulated seconds, and the control tick's cost.
+
+    .venv/bin/python bench/bench_tasks.py
+
+Each task runs in the MuJoCo scene through walkman.gym.offline (the module's own
+code, on simulated time, one process), step by step as a pilot sends it.  Per step:
+the simulated seconds from the command to the status the pilot waits for.  Per
+module: the wall time of one control tick (run(): command, trajectory, IK, move)
+against the 2 ms budget of a 500 Hz loop, and the task's outcome in the scene.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable, Dict, List, Tuple
+
+import numpy as np
+
+from walkman.gym.offline import OfflineModule, OfflineWorld
+from walkman.hal.sim import SimBackend
+from walkman.modules import drc_door, drc_drive, drc_valve
+
+Step = Tuple[str, str]
+TASKS: Dict[str, Tuple[str, type, List[Step], Callable[[OfflineWorld], str]]] = {
+    "drc_valve": ("valve", drc_valve.Module, [
+        ("valvedatasent 0.66 0.25 0.08 0 0 0 0.15", "ready"), ("reach", "reached"),
+        ("approach", "approached"), ("grasp", "grasped"), ("turn 1.5708", "grasped"),
+        ("ungrasp", "ungrasped"), ("move_away", "moved_away"), ("home", "idle")],
+        lambda world: f"valve turned {world.prop('valve'):.3f} rad for 1.571"),
+    "drc_drive": ("car", drc_drive.Module, [
+        ("steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18", "ready"),
+        ("reach", "reached"), ("approach", "approached"), ("grasp", "grasped"),
+        ("drive", "drive"), ("turn_left 0.5", "drive"), ("turn_right 1.0", "drive"),
+        ("rotate_foot", "drive"), ("accelerate 1.5", "drive"), ("move_away_foot", "drive"),
+        ("ungrasp", "ungrasped"), ("move_away_hand", "moved_away_hand")],
+        lambda world: f"steering at {world.prop('steering'):.3f} rad (net -0.5 asked)"),
+    "drc_door": ("door", drc_door.Module, [
+        ("doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6", "ready"), ("reach", "reached"),
+        ("approach", "approached"), ("grasp", "grasped"), ("turn", "turned"),
+        ("open", "opened"), ("ungrasp", "ungrasped"), ("move_away", "moved_away"),
+        ("home", "idle")],
+        lambda world: f"door open {np.degrees(world.prop('door')):.1f} deg (goal > 30)"),
+}
+
+
+def timed_ticks(module: OfflineModule) -> List[float]:
+    """Wrap the module's run() to record its wall time per call."""
+    costs: List[float] = []
+    run = module.thread.run
+
+    def timed() -> None:
+        start = time.perf_counter()
+        run()
+        costs.append(time.perf_counter() - start)
+    module.thread.run = timed
+    return costs
+
+
+def main() -> int:
+    print(f"{'task':10s} {'step':54s} {'sim s':>7s}")
+    summary = []
+    for name, (station, module_class, steps, outcome) in TASKS.items():
+        world = OfflineWorld(SimBackend(station=station))
+        module = world.add(module_class, name)
+        costs = timed_ticks(module)
+        module.switch("start")
+        world.step(0.05)
+        wall, total = time.perf_counter(), 0.0
+        for command, state in steps:
+            seconds = module.do(command, state, timeout=60)
+            total += seconds
+            print(f"{name:10s} {command:54s} {seconds:7.2f}")
+        wall = time.perf_counter() - wall
+        ms = np.array(costs) * 1e3
+        summary.append((name, total, wall, float(np.median(ms)), float(np.percentile(ms, 99)),
+                        float(ms.max()), outcome(world)))
+    print()
+    print(f"{'task':10s} {'sim s':>7s} {'wall s':>7s} {'tick median ms':>15s} "
+          f"{'p99 ms':>7s} {'max ms':>7s}  outcome")
+    for name, total, wall, median, p99, worst, result in summary:
+        print(f"{name:10s} {total:7.2f} {wall:7.2f} {median:15.3f} {p99:7.3f} {worst:7.3f}  "
+              f"{result}")
+    print("budget: 2 ms per tick at 500 Hz (the modules run at 100 Hz: 10 ms)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
