@@ -125,6 +125,11 @@ class OfflineModule:
         except IllegalTransition as exc:
             self.interfaces.warn(str(exc))
             return False
+        if command == "pause":  # as the runner: run() goes on until a safe pause
+            self.thread.pause_requested = True
+            self.world.run_until(self.thread.ready_to_pause, 5.0, f"{self.name}: a safe pause")
+        elif command == "resume":
+            self.thread.pause_requested = False
         hook = {"start": self.thread.custom_init, "pause": self.thread.custom_pause,
                 "resume": self.thread.custom_resume}.get(command)
         if command in ("stop", "quit"):

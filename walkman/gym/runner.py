@@ -47,6 +47,7 @@ log = logging.getLogger("walkman.gym")
 EXIT_QUIT = 0
 EXIT_ESCALATED = 3
 HOOK_TIMEOUT = 2.0
+PAUSE_GRACE = 5.0  # s a module may take to reach a safe pause (finish a step)
 STATUS_PERIOD = 0.5
 DEFAULTS = {"thread_period": 10, "robot_name": "walkman", "urdf_path": ""}
 
@@ -302,6 +303,7 @@ class ModuleRunner:
                 return
             self.state = target
         elif word == "pause":
+            self._reach_safe_pause()
             self.state = State.PAUSED  # the loop stops calling run() right away
             # What the module was saying, told again on resume (run() may not repeat it).
             self._status_at_pause = (self.interfaces.state, list(self.interfaces.data))
@@ -309,6 +311,7 @@ class ModuleRunner:
                 self.warn(f"{self.name}: custom_pause() did not return")
             self._set_lifecycle_status()
         elif word == "resume":
+            self.thread.pause_requested = False
             ok = self.loop.ask("resume")
             if ok:
                 self.state = target
@@ -332,6 +335,17 @@ class ModuleRunner:
             self._set_lifecycle_status()
         log.info("%s: %s -> %s", self.name, word, self.state.value)
         self.interfaces.send_status()
+
+    def _reach_safe_pause(self) -> None:
+        """Let run() go on until the module says it can pause (paper: finish the step)."""
+        thread = self.thread
+        thread.pause_requested = True
+        deadline = time.monotonic() + PAUSE_GRACE
+        while not thread.ready_to_pause():
+            if time.monotonic() > deadline:
+                self.warn(f"{self.name}: no safe pause within {PAUSE_GRACE:g} s; pausing now")
+                return
+            time.sleep(0.01)
 
     def watchdog(self) -> int:
         """Serve the pilot until ``quit``; returns the process exit code."""

@@ -98,6 +98,17 @@ class GenericThread:
     def run(self) -> None:
         """One control step, called every ``thread_period`` while running."""
 
+    #: Set while the pilot asked to pause and the module has not paused yet.
+    pause_requested: bool = False
+
+    def ready_to_pause(self) -> bool:
+        """False while the module must go on to reach a safe pause (walking: feet down).
+
+        The runner keeps calling ``run()`` (with ``pause_requested`` set) until
+        this is True, then calls ``custom_pause``.
+        """
+        return True
+
     def custom_pause(self) -> bool:
         return True
 

@@ -45,11 +45,11 @@ GRASPABLE = (("valve", "valve_wheel", "valve_grip"),
 HANDS = ("l", "r")
 #: Where the robot can start: station -> (x, y, yaw) of the pelvis in the world.
 STATIONS = {"valve": (0.0, 0.0, 0.0), "car": (0.0, -2.5, 0.0), "door": (0.34, 2.25, 0.0),
-            "door_far": (-0.16, 2.25, 0.0)}
+            "door_far": (-0.16, 2.25, 0.0), "yard": (-3.0, 0.0, 0.0)}
 #: Vertical stiffness (N/m) of the harness spring and its share of the robot's weight when
 #: the feet touch the floor (trolley mode).
-HARNESS_STIFFNESS = 20000.0
-HARNESS_SHARE = 0.6
+HARNESS_STIFFNESS = 3000.0
+HARNESS_SHARE = 0.3
 
 
 def _v(values) -> str:
@@ -190,14 +190,14 @@ def harness_body(robot: Robot) -> List[str]:
             '      <joint name="harness_y" type="slide" axis="0 1 0" damping="150"/>',
             f'      <joint name="harness_z" type="slide" axis="0 0 1" range="-0.15 0.05" '
             f'stiffness="{HARNESS_STIFFNESS:g}" springref="{springref:.4f}" damping="800"/>',
-            '      <joint name="harness_yaw" type="hinge" axis="0 0 1" damping="100"/>',
+            '      <joint name="harness_yaw" type="hinge" axis="0 0 1" damping="20"/>',
             '      <inertial pos="0 0 0" mass="1" diaginertia="0.01 0.01 0.01"/>',
             '    </body>']
 
 
 def equalities(drc: bool) -> List[str]:
     out = ["  <equality>",
-           '    <weld name="harness" body1="pelvis" body2="harness_trolley" solref="0.02 1" '
+           '    <weld name="harness" body1="pelvis" body2="harness_trolley" solref="0.004 1" '
            'active="true"/>',
            '    <weld name="harness_brake" body1="harness_trolley" solref="0.02 1" active="true"/>']
     if drc:
