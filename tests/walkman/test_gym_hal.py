@@ -167,7 +167,7 @@ def test_stop_and_quit_win_over_a_hanging_or_throwing_module(lite_world, lite):
     start_hal(lite_world, "sim")
     module = start_module(lite_world, "tests.walkman.misbehaving:Module")
     module.wait_for("ready for the pilot", timeout=60)
-    pilot = Pilot(lite_world, "Module", ["ok"])
+    pilot = Pilot(lite_world, "misbehaving", ["ok"])  # named after its file
     try:
         pilot.send(lite, "switch", "start")
         pilot.wait_state("ok")
@@ -195,7 +195,7 @@ def test_bad_input_is_refused_and_the_robot_holds(lite_world, probe, lite):
     start_hal(lite_world, "sim")
     module = start_module(lite_world, "tests.walkman.misbehaving:Module")
     module.wait_for("ready for the pilot", timeout=60)
-    pilot = Pilot(lite_world, "Module", ["ok"])
+    pilot = Pilot(lite_world, "misbehaving", ["ok"])  # named after its file
     try:
         pilot.send(lite, "switch", "dance")
         pilot.wait_warning("'dance' is not valid while constructor")

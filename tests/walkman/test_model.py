@@ -60,7 +60,9 @@ def test_pinocchio_and_mujoco_agree_on_names_order_and_limits(robot):
     pin_names = [model.names[i] for i in range(1, model.njoints)]
     mj = mujoco.MjModel.from_xml_path(str(MJCF_PATH))
     mj_names = [mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_JOINT, i) for i in range(1, mj.njnt)]
-    assert pin_names == mj_names == mjcf_joint_order(robot)
+    # After the robot's joints come the support harness's (its trolley), not the robot's.
+    assert mj_names[len(pin_names):] == ["harness_x", "harness_y", "harness_z", "harness_yaw"]
+    assert pin_names == mj_names[:len(pin_names)] == mjcf_joint_order(robot)
     for index, name in enumerate(pin_names):
         joint = mj.joint(name)
         assert tuple(joint.range) == pytest.approx((robot.joint(name).lower, robot.joint(name).upper))
@@ -80,7 +82,7 @@ def test_same_kinematics_in_both(robot):
     order = mjcf_joint_order(robot)
     q = [posture[name] for name in order]
     pin.framesForwardKinematics(model, data, pin.utils.np.array(q))
-    mjd.qpos[7:] = q
+    mjd.qpos[7:7 + len(q)] = q  # then the harness trolley's joints
     mjd.qpos[:7] = [0, 0, 0, 1, 0, 0, 0]
     mujoco.mj_forward(mj, mjd)
     for frame, site in (("multisense_frame", "multisense"), ("l_arm_ft_frame", "l_arm_ft"),
