@@ -1,5 +1,7 @@
 """Task modules as processes: the HAL (MuJoCo) at a station, the module, a pilot, the scene."""
 
+import math
+
 import mujoco
 import pytest
 
@@ -25,6 +27,14 @@ class World:
         bottle = self.port.read(timeout=5)
         values = protocol.decode_world(bottle, self.model.nq)[1]
         return values[self.model.joint(joint).qposadr[0]]
+
+    def base(self) -> list:
+        """The pelvis in the world: x, y, z, yaw (ground truth)."""
+        bottle = self.port.read(timeout=5)
+        values = protocol.decode_world(bottle, self.model.nq)[1]
+        adr = self.model.joint("base").qposadr[0]
+        x, y, z, w, _, _, qz = values[adr:adr + 7]
+        return [x, y, z, 2.0 * math.atan2(qz, w)]
 
     def close(self) -> None:
         self.port.close()

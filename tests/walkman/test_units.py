@@ -66,6 +66,20 @@ def test_command_decoding(bottle, command):
     assert decode_command(encode_command(command)) == command
 
 
+def test_cmd_n_is_an_argument_for_commands_that_need_numbers():
+    """``go_straight 10`` typed by a pilot is a distance, ``reach 10`` a sequence number."""
+    from walkman.gym.interfaces import decoder_for
+    from walkman.modules.drc_valve import Module as Valve
+    from walkman.modules.walking import Module as Walking
+
+    walking, valve = decoder_for(Walking), decoder_for(Valve)
+    assert walking(Bottle(["go_straight", 10])) == PilotCommand("go_straight", (10,))
+    assert walking(Bottle([["go_straight", 10], 5])) == PilotCommand("go_straight", (10,), 5)
+    assert valve(Bottle(["reach", 10])) == PilotCommand("reach", (), 10)
+    # turn's angle is optional for the valve: "turn SEQ" stays a sequence number.
+    assert valve(Bottle(["turn", 12])) == PilotCommand("turn", (), 12)
+
+
 @pytest.mark.parametrize("bottle", [[], [5], [[]], [[1, 2]], [["x"], "y"], [["x"], 1, 2]])
 def test_malformed_commands(bottle):
     with pytest.raises(InterfaceError):

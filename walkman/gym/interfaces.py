@@ -31,7 +31,7 @@ import queue
 import threading
 from collections import deque
 from dataclasses import dataclass
-from typing import Callable, Deque, List, Optional, Sequence, Tuple
+from typing import Callable, Collection, Deque, List, Optional, Sequence, Tuple
 
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.nameclient import NameClient
@@ -53,8 +53,13 @@ def _is_int(value: object) -> bool:
     return isinstance(value, int) and not isinstance(value, (bool, Vocab))
 
 
-def decode_command(bottle: Bottle) -> PilotCommand:
-    """``cmd seq`` | ``(cmd args...) seq`` | ``cmd args...`` -> :class:`PilotCommand`."""
+def decode_command(bottle: Bottle, needs_numbers: Collection[str] = ()) -> PilotCommand:
+    """``cmd seq`` | ``(cmd args...) seq`` | ``cmd args...`` -> :class:`PilotCommand`.
+
+    ``cmd N`` is ambiguous: a bare command with its sequence number, or a command
+    with one argument (``go_straight 10``, as a pilot types it).  For the commands
+    in ``needs_numbers`` -- which are never valid bare -- N is the argument.
+    """
     if not bottle:
         raise InterfaceError("empty command")
     head = bottle[0]
@@ -67,9 +72,16 @@ def decode_command(bottle: Bottle) -> PilotCommand:
         return PilotCommand(str(head[0]), tuple(head[1:]), seq)
     if not isinstance(head, str):
         raise InterfaceError(f"a command starts with its name, not {head!r}")
-    if seq is not None:
+    if seq is not None and str(head) not in needs_numbers:
         return PilotCommand(str(head), (), seq)
     return PilotCommand(str(head), tuple(bottle[1:]), None)
+
+
+def decoder_for(module_class: object) -> Callable[[Bottle], PilotCommand]:
+    """The command decoder of a module whose ``arguments`` say which commands need numbers."""
+    needs = frozenset(name for name, (fewest, *_) in
+                      getattr(module_class, "arguments", {}).items() if fewest >= 1)
+    return lambda bottle: decode_command(bottle, needs)
 
 
 def encode_command(command: PilotCommand) -> Bottle:

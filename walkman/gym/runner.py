@@ -36,7 +36,7 @@ import traceback
 from typing import Any, Dict, List, Optional, Tuple, Type
 
 from walkman.gym import inifile
-from walkman.gym.interfaces import PilotInterfaces
+from walkman.gym.interfaces import PilotInterfaces, decoder_for
 from walkman.gym.lifecycle import IllegalTransition, State, next_state
 from walkman.gym.thread import ControlThread, GenericThread
 from walkman.hal.protocol import HalUsageError
@@ -151,7 +151,8 @@ class ModuleRunner:
         self.module_class = module_class
         self.nameclient = nameclient or NameClient()
         self.interfaces = PilotInterfaces(self.prefix, self.nameclient,
-                                          statuses=module_class.statuses or None)
+                                          statuses=module_class.statuses or None,
+                                          command_decoder=decoder_for(module_class))
         self.state = initial
         self.heartbeat_fd = heartbeat_fd
         self.wake = threading.Event()
