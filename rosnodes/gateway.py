@@ -40,12 +40,12 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 from bridge import config as bridge_config
 from bridge.endpoints.yarp import ConnectionKeeper
 from rosnodes.timed import CANCELLED, SENT, Countdowns
-from walkman.gym.interfaces import (InterfaceError, PilotCommand, decode_command,
+from walkman.gym.interfaces import (InterfaceError, PilotCommand, decode_command, decoder_for,
                                     decode_status, encode_command)
 from yarp_lite.bottle import Bottle
 from yarp_lite.errors import YarpError
@@ -65,14 +65,25 @@ class GatewayError(Exception):
     """The gateway was started or asked wrongly; the text says how."""
 
 
+def module_class(name: str) -> Optional[type]:
+    """The GYM module class behind a configured name, when it is one of ours."""
+    try:
+        return getattr(importlib.import_module(f"walkman.modules.{name}"), "Module")
+    except (ImportError, AttributeError):
+        return None
+
+
 def module_statuses(name: str, declared: Sequence[str]) -> List[str]:
     """The module's list of states: from the configuration, else from its class."""
     if declared:
         return list(declared)
-    try:
-        return list(getattr(importlib.import_module(f"walkman.modules.{name}"), "Module").statuses)
-    except (ImportError, AttributeError):
-        return []
+    return list(getattr(module_class(name), "statuses", []) or [])
+
+
+def command_decoder(name: str) -> Callable[[Bottle], PilotCommand]:
+    """How the module reads ``cmd N`` (an argument for commands that need numbers)."""
+    found = module_class(name)
+    return decoder_for(found) if found is not None else decode_command
 
 
 def lifecycle_of(state: str) -> str:
@@ -92,12 +103,13 @@ class SequenceNumbers:
             return self._last
 
 
-def build_command(msg: Any, seq: int) -> PilotCommand:
+def build_command(msg: Any, seq: int,
+                  decode: Callable[[Bottle], PilotCommand] = decode_command) -> PilotCommand:
     """A ``walkman_msgs/Command`` (or SendCommand request) as the GYM command it names."""
     text = (msg.text or "").strip()
     if text:
         try:
-            parsed = decode_command(Bottle.from_text(text))
+            parsed = decode(Bottle.from_text(text))
         except (InterfaceError, ValueError) as exc:
             raise GatewayError(f"command text {text!r} is not a command: {exc}") from None
         return PilotCommand(parsed.name, parsed.args, seq)
@@ -343,7 +355,7 @@ class Gateway:
 
     def _on_command_topic(self, module: str, msg: Any) -> None:
         try:
-            command = build_command(msg, msg.seq or 0)
+            command = build_command(msg, msg.seq or 0, command_decoder(module))
         except GatewayError as exc:
             self._refuse(module, str(exc))
             return
@@ -421,7 +433,7 @@ class Gateway:
         from walkman_msgs.srv import SendCommandResponse
 
         try:
-            command = build_command(request, self.sequence.next())
+            command = build_command(request, self.sequence.next(), command_decoder(module))
         except GatewayError as exc:
             return SendCommandResponse(False, 0, str(exc))
         ok, message = self.send_command(module, command)
