@@ -18,7 +18,7 @@ import numpy as np
 
 from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import SimBackend
-from walkman.modules import drc_door, drc_drive, drc_valve
+from walkman.modules import drc_door, drc_drive, drc_valve, walking
 
 Step = Tuple[str, str]
 TASKS: Dict[str, Tuple[str, type, List[Step], Callable[[OfflineWorld], str]]] = {
@@ -40,7 +40,13 @@ TASKS: Dict[str, Tuple[str, type, List[Step], Callable[[OfflineWorld], str]]] = 
         ("open", "opened"), ("ungrasp", "ungrasped"), ("move_away", "moved_away"),
         ("home", "idle")],
         lambda world: f"door open {np.degrees(world.prop('door')):.1f} deg (goal > 30)"),
+    "walking": ("yard", walking.Module, [
+        ("go_straight 1.0", "idle"), ("turn 0.8", "idle"), ("step_side 0.3", "idle"),
+        ("go_straight -0.5", "idle")],
+        lambda world: "base moved x %.3f y %.3f m, yaw %.3f rad from the start" % tuple(
+            np.subtract(world.backend.plant.base_pose(), START[0])[[0, 1, 3]])),
 }
+START: List[Tuple[float, ...]] = []
 
 
 def timed_ticks(module: OfflineModule) -> List[float]:
@@ -60,14 +66,23 @@ def main() -> int:
     print(f"{'task':10s} {'step':54s} {'sim s':>7s}")
     summary = []
     for name, (station, module_class, steps, outcome) in TASKS.items():
-        world = OfflineWorld(SimBackend(station=station))
+        harness = "trolley" if name == "walking" else "locked"
+        world = OfflineWorld(SimBackend(station=station, harness=harness))
+        START[:] = [world.backend.plant.base_pose()]
         module = world.add(module_class, name)
         costs = timed_ticks(module)
         module.switch("start")
-        world.step(0.05)
+        world.step(walking.CROUCH_TIME + 0.1 if name == "walking" else 0.05)
         wall, total = time.perf_counter(), 0.0
         for command, state in steps:
-            seconds = module.do(command, state, timeout=60)
+            if name == "walking":  # idle before and after: wait for it to start walking
+                began = world.time
+                module.command(command)
+                world.run_until(lambda: module.state != "idle", 2, command)
+                world.run_until(lambda: module.state == state, 60, command)
+                seconds = world.time - began
+            else:
+                seconds = module.do(command, state, timeout=60)
             total += seconds
             print(f"{name:10s} {command:54s} {seconds:7.2f}")
         wall = time.perf_counter() - wall
