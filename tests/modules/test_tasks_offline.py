@@ -10,7 +10,7 @@ import pytest
 
 from walkman.gym.offline import OfflineWorld
 from walkman.hal.sim import SimBackend
-from walkman.modules import drc_door, drc_drive, drc_valve
+from walkman.modules import drc_door, drc_drive, drc_valve, task
 
 WHEEL = "steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18"
 DOOR = "doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6"
@@ -51,12 +51,15 @@ def test_accelerate_presses_the_throttle_for_the_time_asked(driving):
     assert "the foot is not on the pedal (rotate_foot first)" in module.warnings[-1]
     module.do("rotate_foot", "drive")
     module.command("accelerate 2")
-    pressed = 0.0
+    samples = []
     while True:
         world.step(0.01)
-        pressed += 0.01 if world.prop("throttle") > 0.08 else 0.0
+        samples.append(world.prop("throttle"))
         if module.state == "drive":
             break
+    peak = max(samples)
+    pressed = 0.01 * sum(value > peak / 2 for value in samples)
+    assert peak > 0.1  # of the pedal's 0.35 rad
     assert 0.9 * 2 <= pressed <= 2 + 1.5, pressed  # the hold, plus part of press and release
     module.do("move_away_foot", "drive")
     assert world.prop("throttle") < 0.02
@@ -142,7 +145,7 @@ def test_two_modules_on_the_same_joints_the_second_is_refused_until_the_first_pa
     door.command(DOOR)
     door.command("reach")
     world.step(1.0)
-    waist = [world.backend.index[name] for name in drc_door.WAIST + drc_door.ARM]
+    waist = [world.backend.index[name] for name in task.WAIST + task.LEFT_ARM]
     assert np.abs(world.backend.reference[waist] - valve.thread.reference[waist]).max() < 1e-9
     valve.switch("pause")  # silent: its joints are free after release_after
     world.run_until(lambda: door.state == "reached", 20, "the door module's reach")

@@ -23,20 +23,16 @@ and the waist.  Every target is checked reachable before the state changes.
 from __future__ import annotations
 
 import math
-from typing import List, Optional
+from typing import List
 
 import numpy as np
 import pinocchio as pin
 
 from walkman.modules.drc_valve import rpy_matrix
-from walkman.modules.task import HAND_CLOSED, HAND_OPEN, Effector, TaskModule, task_statuses
+from walkman.modules.task import GraspTask, task_statuses
 
-ARM = ["LShSag", "LShLat", "LShYaw", "LElbj", "LForearmPlate", "LWrj1", "LWrj2"]
-WAIST = ["WaistLat", "WaistSag", "WaistYaw"]
-HAND = "l_handj"
-GRIP = np.array([0.0, 0.0, -0.1])
 APPROACH_GAP, REACH_GAP, AWAY = 0.04, 0.15, 0.15
-SPEED, TURN_SPEED, OPEN_SPEED = 0.15, 0.6, 0.4
+TURN_SPEED, OPEN_SPEED = 0.6, 0.4
 
 TABLE = {
     "idle": {"doordatasent": "ready"},
@@ -59,19 +55,14 @@ TABLE = {
 }
 
 
-class Module(TaskModule):
+class Module(GraspTask):
     statuses = task_statuses(TABLE)
     table = TABLE
     arguments = {"doordatasent": (8, 8, "X Y Z ROLL PITCH YAW HANDLE_LENGTH DOOR_WIDTH"),
                  "turn": (0, 1, "ANGLE rad"), "open": (0, 1, "ANGLE rad")}
-    joints = ARM + WAIST + [HAND]
-
-    def setup(self) -> None:
-        self.hand = Effector("l_hand", GRIP, ARM + WAIST)
-        self.door: Optional[dict] = None
 
     def status_data(self) -> List[float]:
-        return [] if self.door is None else [float(self.door["opened"])]
+        return [] if self.target is None else [float(self.target["opened"])]
 
     def _start_doordatasent(self, x, y, z, roll, pitch, yaw, handle_length, door_width) -> None:
         if not 0.03 <= handle_length <= 0.3:
@@ -81,33 +72,22 @@ class Module(TaskModule):
         rotation = rpy_matrix(roll, pitch, yaw)
         pivot, normal, along = np.array([x, y, z]), rotation[:, 0], rotation[:, 1]
         grip = pivot + handle_length * along
-        door = {"pivot": pivot, "normal": normal, "grip": grip,
-                "hinge": pivot + door_width * along, "axis": rotation[:, 2],
-                "side": math.copysign(1.0, door_width), "opened": 0.0,
-                "reach": grip - REACH_GAP * normal, "approach": grip - APPROACH_GAP * normal}
-        for point in ("reach", "approach"):
-            self.reachable(self.hand, door[point], what=f"handle's {point} point")
-        self.door = door
-
-    def _start_reach(self) -> None:
-        self.line_to(self.hand, self.door["reach"], SPEED)
-
-    def _start_approach(self) -> None:
-        self.line_to(self.hand, self.door["approach"], SPEED)
-
-    def _start_grasp(self) -> None:
-        self.set_hand(HAND, HAND_CLOSED)
+        self.aim({"pivot": pivot, "normal": normal, "grip": grip,
+                  "hinge": pivot + door_width * along, "axis": rotation[:, 2],
+                  "side": math.copysign(1.0, door_width), "opened": 0.0,
+                  "reach": grip - REACH_GAP * normal, "approach": grip - APPROACH_GAP * normal},
+                 "handle")
 
     def _start_turn(self, angle: float = 0.9) -> None:
         if not 0.1 <= angle <= 1.2:
             raise ValueError(f"turn the handle by 0.1..1.2 rad, got {angle}")
         # Down: about the door's normal, the lever's free end goes towards -z.
-        self.arc(self.hand, self.door["pivot"], self.door["normal"], -angle, TURN_SPEED)
+        self.arc(self.hand, self.target["pivot"], self.target["normal"], -angle, TURN_SPEED)
 
     def _start_open(self, angle: float = 0.7) -> None:
         if not 0.05 <= angle <= 1.2:
             raise ValueError(f"open by 0.05..1.2 rad at a time, got {angle}")
-        door, signed = self.door, self.door["side"] * angle
+        door, signed = self.target, self.target["side"] * angle
         position, _ = self.pose(self.hand)
         hinge = door["hinge"] + door["axis"] * float(door["axis"] @ (position - door["hinge"]))
         # Check the end of the push before moving: a door opened too far is out of reach.
@@ -116,15 +96,9 @@ class Module(TaskModule):
         self.arc(self.hand, hinge, door["axis"], signed, OPEN_SPEED)
         door["opened"] += angle
 
-    def _start_ungrasp(self) -> None:
-        self.set_hand(HAND, HAND_OPEN)
-
     def _start_move_away(self) -> None:
         position, _ = self.pose(self.hand)
-        goal = position - AWAY * self.door["normal"]
+        goal = position - AWAY * self.target["normal"]
         self.reachable(self.hand, goal, what="point away from the door")
-        self.line_to(self.hand, goal, SPEED)
-
-    def _start_home(self) -> None:
-        self.home(ARM + WAIST)
+        self.line_to(self.hand, goal, self.speed)
 

@@ -28,47 +28,41 @@ drives standing (the rig has no seat: see ``walkman/model/mjcf.py``).
 
 from __future__ import annotations
 
-from typing import List, Optional
+from typing import List
 
 import numpy as np
 
 from walkman.control.fsm import DRIVE_TABLE
 from walkman.modules.drc_valve import rpy_matrix
-from walkman.modules.task import HAND_CLOSED, HAND_OPEN, Effector, TaskModule, task_statuses
+from walkman.modules.task import LEFT_ARM, WAIST, Effector, GraspTask, task_statuses
 
-ARM = ["LShSag", "LShLat", "LShYaw", "LElbj", "LForearmPlate", "LWrj1", "LWrj2"]
-WAIST = ["WaistLat", "WaistSag", "WaistYaw"]
 RIGHT_LEG = ["RHipLat", "RHipYaw", "RHipSag", "RKneeSag", "RAnkSag", "RAnkLat"]
-HAND = "l_handj"
-GRIP = np.array([0.0, 0.0, -0.1])    # the hand's grip point (models: l_hand_grip)
 SOLE = np.array([0.10, 0.0, -0.10])  # the ball of the right foot, under the sole
 #: Where the throttle pad is in the pelvis frame at the car station, unless the pilot says.
 PEDAL = np.array([0.36, -0.11, -1.05])
 PEDAL_CLEARANCE = 0.03               # m above the pad when the foot is on the pedal
 PRESS_DEPTH = 0.04                   # m the foot pushes the pad down
 APPROACH_GAP, REACH_GAP = 0.04, 0.15
-SPEED, TURN_SPEED, FOOT_SPEED = 0.15, 0.6, 0.1
+TURN_SPEED, FOOT_SPEED = 0.6, 0.1
 
 
-class Module(TaskModule):
+class Module(GraspTask):
     statuses = task_statuses(DRIVE_TABLE)
     table = DRIVE_TABLE
     arguments = {"steeringwheeldatasent": (7, 10, "X Y Z ROLL PITCH YAW RADIUS [PX PY PZ]"),
                  "turn_left": (0, 1, "ANGLE rad"), "turn_right": (0, 1, "ANGLE rad"),
                  "accelerate": (0, 1, "SECONDS")}
-    joints = ARM + WAIST + [HAND] + RIGHT_LEG
+    joints = GraspTask.joints + RIGHT_LEG
 
     def setup(self) -> None:
-        self.hand = Effector("l_hand", GRIP, ARM + WAIST)
+        super().setup()
         self.foot = Effector("r_foot", SOLE, RIGHT_LEG)
-        self.wheel: Optional[dict] = None
         self.foot_on_pedal = False
 
     def status_data(self) -> List[float]:
-        if self.wheel is None:
+        if self.target is None:
             return []
-        steered = float(self.wheel.get("steered", 0.0))
-        return [*map(float, self.wheel["center"]), steered]
+        return [*map(float, self.target["center"]), float(self.target["steered"])]
 
     def _start_steeringwheeldatasent(self, x, y, z, roll, pitch, yaw, radius,
                                      *pedal: float) -> None:
@@ -82,20 +76,9 @@ class Module(TaskModule):
         wheel = {"center": center, "axis": axis, "grip": grip,
                  "approach": grip + APPROACH_GAP * axis, "reach": grip + REACH_GAP * axis,
                  "pedal": np.array(pedal) if pedal else PEDAL.copy(), "steered": 0.0}
-        for point in ("reach", "approach"):
-            self.reachable(self.hand, wheel[point], what=f"wheel's {point} point")
         above = wheel["pedal"] + [0.0, 0.0, PEDAL_CLEARANCE]
         self.reachable(self.foot, above, np.eye(3), what="throttle pedal")
-        self.wheel = wheel
-
-    def _start_reach(self) -> None:
-        self.line_to(self.hand, self.wheel["reach"], SPEED)
-
-    def _start_approach(self) -> None:
-        self.line_to(self.hand, self.wheel["approach"], SPEED)
-
-    def _start_grasp(self) -> None:
-        self.set_hand(HAND, HAND_CLOSED)
+        self.aim(wheel, "wheel")
 
     def _start_drive(self) -> None:
         """Grasped: from now on the pilot steers and accelerates."""
@@ -109,11 +92,11 @@ class Module(TaskModule):
     def _steer(self, angle: float) -> None:
         if not 0.01 <= abs(angle) <= 3.2:
             raise ValueError(f"steer by 0.01..3.2 rad at a time, got {abs(angle)}")
-        self.arc(self.hand, self.wheel["center"], self.wheel["axis"], angle, TURN_SPEED)
-        self.wheel["steered"] += angle
+        self.arc(self.hand, self.target["center"], self.target["axis"], angle, TURN_SPEED)
+        self.target["steered"] += angle
 
     def _start_rotate_foot(self) -> None:
-        self.line_to(self.foot, self.wheel["pedal"] + [0.0, 0.0, PEDAL_CLEARANCE], FOOT_SPEED,
+        self.line_to(self.foot, self.target["pedal"] + [0.0, 0.0, PEDAL_CLEARANCE], FOOT_SPEED,
                      np.eye(3))
         self.foot_on_pedal = True
 
@@ -122,8 +105,8 @@ class Module(TaskModule):
             raise ValueError("the foot is not on the pedal (rotate_foot first)")
         if not 0.1 <= seconds <= 10:
             raise ValueError(f"accelerate for 0.1..10 s, got {seconds}")
-        above = self.wheel["pedal"] + [0.0, 0.0, PEDAL_CLEARANCE]
-        pressed = self.wheel["pedal"] - [0.0, 0.0, PRESS_DEPTH]
+        above = self.target["pedal"] + [0.0, 0.0, PEDAL_CLEARANCE]
+        pressed = self.target["pedal"] - [0.0, 0.0, PRESS_DEPTH]
         self.line_to(self.foot, pressed, FOOT_SPEED, np.eye(3), contact=True)
         # The pad pushes back: hold the commanded depth, then let it up.
         self.then(lambda: self.hold_for(seconds),
@@ -133,8 +116,5 @@ class Module(TaskModule):
         self.home(RIGHT_LEG)
         self.foot_on_pedal = False
 
-    def _start_ungrasp(self) -> None:
-        self.set_hand(HAND, HAND_OPEN)
-
     def _start_move_away_hand(self) -> None:
-        self.home(ARM + WAIST)
+        self.home(LEFT_ARM + WAIST)

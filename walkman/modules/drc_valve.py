@@ -26,20 +26,15 @@ has closed (or opened).  A valve pose the hand cannot reach is refused at
 from __future__ import annotations
 
 import math
-from typing import List, Optional
+from typing import List
 
 import numpy as np
 import pinocchio as pin
 
-from walkman.modules.task import HAND_CLOSED, HAND_OPEN, Effector, TaskModule, task_statuses
+from walkman.modules.task import GraspTask, task_statuses
 
-ARM = ["LShSag", "LShLat", "LShYaw", "LElbj", "LForearmPlate", "LWrj1", "LWrj2"]
-WAIST = ["WaistLat", "WaistSag", "WaistYaw"]
-HAND = "l_handj"
-GRIP = np.array([0.0, 0.0, -0.1])     # the grip point in the hand frame (models: l_hand_grip)
 APPROACH_GAP = 0.045                  # m in front of the rim when approached (grasp within 6 cm)
 REACH_GAP = 0.165                     # m in front of the rim when reached
-SPEED = 0.15                          # m/s, peak Cartesian speed
 TURN_SPEED = 0.6                      # rad/s, peak wheel speed
 
 TABLE = {
@@ -64,19 +59,14 @@ def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     return pin.rpy.rpyToMatrix(roll, pitch, yaw)
 
 
-class Module(TaskModule):
+class Module(GraspTask):
     statuses = task_statuses(TABLE)
     table = TABLE
     arguments = {"valvedatasent": (7, 7, "X Y Z ROLL PITCH YAW RADIUS"),
                  "turn": (0, 1, "ANGLE rad")}
-    joints = ARM + WAIST + [HAND]
-
-    def setup(self) -> None:
-        self.hand = Effector("l_hand", GRIP, ARM + WAIST)
-        self.valve: Optional[dict] = None
 
     def status_data(self) -> List[float]:
-        return [] if self.valve is None else [float(v) for v in self.valve["center"]]
+        return [] if self.target is None else [float(v) for v in self.target["center"]]
 
     def _start_valvedatasent(self, x, y, z, roll, pitch, yaw, radius) -> None:
         if not 0.05 <= radius <= 0.5:
@@ -85,32 +75,15 @@ class Module(TaskModule):
         center = np.array([x, y, z])
         axis = rotation[:, 0]
         grip = center + radius * rotation[:, 2]
-        valve = {"center": center, "axis": axis, "grip": grip, "radius": radius,
-                 "approach": grip - APPROACH_GAP * axis, "reach": grip - REACH_GAP * axis}
-        for point in ("reach", "approach"):
-            self.reachable(self.hand, valve[point], what=f"valve's {point} point")
-        self.valve = valve
-
-    def _start_reach(self) -> None:
-        self.line_to(self.hand, self.valve["reach"], SPEED)
-
-    def _start_approach(self) -> None:
-        self.line_to(self.hand, self.valve["approach"], SPEED)
+        self.aim({"center": center, "axis": axis, "grip": grip, "radius": radius,
+                  "approach": grip - APPROACH_GAP * axis, "reach": grip - REACH_GAP * axis},
+                 "valve")
 
     def _start_move_away(self) -> None:
         # Back to the reach point: checked reachable at valvedatasent, clear of the wheel.
-        self.line_to(self.hand, self.valve["reach"], SPEED)
-
-    def _start_grasp(self) -> None:
-        self.set_hand(HAND, HAND_CLOSED)
-
-    def _start_ungrasp(self) -> None:
-        self.set_hand(HAND, HAND_OPEN)
+        self.line_to(self.hand, self.target["reach"], self.speed)
 
     def _start_turn(self, angle: float = math.pi / 2) -> None:
         if abs(angle) > 2 * math.pi:
             raise ValueError(f"turn by at most 2 pi rad, got {angle}")
-        self.arc(self.hand, self.valve["center"], self.valve["axis"], angle, TURN_SPEED)
-
-    def _start_home(self) -> None:
-        self.home(ARM + WAIST)
+        self.arc(self.hand, self.target["center"], self.target["axis"], angle, TURN_SPEED)

@@ -50,6 +50,10 @@ TICK_IK_ITERATIONS = 20  # per control tick: the target moved a little since the
 OVERDUE_S = 2.0           # s after a trajectory's end before saying it is stuck
 SETTLE_GAIN = 0.02        # share of the remaining error added to the IK target per tick
 HAND_CLOSED, HAND_OPEN = 1.2, 0.0
+LEFT_ARM = ["LShSag", "LShLat", "LShYaw", "LElbj", "LForearmPlate", "LWrj1", "LWrj2"]
+WAIST = ["WaistLat", "WaistSag", "WaistYaw"]
+LEFT_HAND = "l_handj"
+GRIP = np.array([0.0, 0.0, -0.1])  # the grip point in the hand frame (models: l_hand_grip)
 
 
 @dataclass
@@ -323,3 +327,39 @@ class TaskModule(ControlThread):
         return True
 
     speed_after_resume = 0.1  # m/s
+
+
+class GraspTask(TaskModule):
+    """A task done with the left hand on a part: reach, approach, grasp, ... ungrasp.
+
+    ``_start_<...>datasent`` fills :attr:`target` with at least ``reach`` and
+    ``approach`` points (pelvis frame), checked reachable by :meth:`aim`.
+    """
+
+    joints = LEFT_ARM + WAIST + [LEFT_HAND]
+    speed = 0.15  # m/s, peak Cartesian speed
+
+    def setup(self) -> None:
+        self.hand = Effector("l_hand", GRIP, LEFT_ARM + WAIST)
+        self.target: Optional[dict] = None
+
+    def aim(self, target: dict, part: str) -> None:
+        """Take ``target`` once its reach and approach points are reachable (else refuse)."""
+        for point in ("reach", "approach"):
+            self.reachable(self.hand, target[point], what=f"{part}'s {point} point")
+        self.target = target
+
+    def _start_reach(self) -> None:
+        self.line_to(self.hand, self.target["reach"], self.speed)
+
+    def _start_approach(self) -> None:
+        self.line_to(self.hand, self.target["approach"], self.speed)
+
+    def _start_grasp(self) -> None:
+        self.set_hand(LEFT_HAND, HAND_CLOSED)
+
+    def _start_ungrasp(self) -> None:
+        self.set_hand(LEFT_HAND, HAND_OPEN)
+
+    def _start_home(self) -> None:
+        self.home(LEFT_ARM + WAIST)
