@@ -87,7 +87,7 @@ def test_profiles_shape_the_link(link):
     assert "tbf" in qdisc and "1Mbit" in qdisc
     receiver = subprocess.Popen(link.exec_argv("pilot", [
         PYTHON, "-c", "import socket; s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM); "
-        f"s.bind(('{link.address('pilot')}', 9999)); s.settimeout(2); n = 0\n"
+        f"s.bind(('{link.address('pilot')}', 9999)); s.settimeout(6); n = 0\n"
         "try:\n    while True: s.recv(100); n += 1\nexcept OSError: print(n)"]),
         stdout=subprocess.PIPE, text=True)
     time.sleep(0.5)
