@@ -149,3 +149,24 @@ def test_two_modules_on_the_same_joints_the_second_is_refused_until_the_first_pa
     assert np.abs(world.backend.reference[waist] - valve.thread.reference[waist]).max() < 1e-9
     valve.switch("pause")  # silent: its joints are free after release_after
     world.run_until(lambda: door.state == "reached", 20, "the door module's reach")
+
+
+def test_a_pose_may_name_its_frame_and_an_unknown_frame_is_refused():
+    world, module = started("valve", drc_valve.Module, "drc_valve")
+    module.command("valvedatasent Elbow 0.66 0.25 0.08 0 0 0 0.15")
+    world.step(0.1)
+    assert "no frame 'Elbow' in the model" in module.warnings[-1]
+    assert module.state == "idle"
+    # The paper's frame name for the pelvis, then the same valve given in the torso's frame.
+    module.do("valvedatasent Waist 0.66 0.25 0.08 0 0 0 0.15", "ready", 1)
+    assert module.interfaces.data == pytest.approx([0.66, 0.25, 0.08])
+    origin, rotation = world.kinematics.pose(world.backend.positions(), "torso")
+    moved = np.array([0.64, 0.22, 0.10])  # another valve, so the check can tell
+    local = rotation.T @ (moved - origin)
+    roll, pitch, yaw = __import__("pinocchio").rpy.matrixToRpy(rotation.T)
+    warnings = len(module.warnings)
+    module.command("valvedatasent torso %.6f %.6f %.6f %.6f %.6f %.6f 0.15"
+                   % (*local, roll, pitch, yaw))
+    world.step(0.1)
+    assert len(module.warnings) == warnings, module.warnings[warnings:]
+    assert module.interfaces.data == pytest.approx(moved.tolist(), abs=1e-4)

@@ -8,7 +8,10 @@ and a control loop that tracks the current motion every tick.
 
 * A pilot command is checked in this order, and a refusal changes nothing:
   is it one of the module's commands, does the current state accept it, are
-  its arguments the right count of finite numbers, does ``_start_<command>``
+  its arguments the right count of finite numbers (a pose command --
+  ``...datasent`` -- may name the frame it is given in first, e.g.
+  ``valvedatasent Waist 0.6 ...``; it is moved to the pelvis frame at the
+  robot's current posture, and a frame the model lacks is refused), does ``_start_<command>``
   accept them (it raises ``ValueError`` saying why, e.g. an unreachable
   target).  Only then does the state machine move.
 * A motion is a Cartesian trajectory of one end-effector point
@@ -38,6 +41,7 @@ from dataclasses import dataclass
 from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
+import pinocchio as pin
 
 from walkman.control.fsm import StateMachine
 from walkman.control.ik import InverseKinematics
@@ -78,6 +82,10 @@ def finite_numbers(args: Sequence) -> List[float]:
             raise ValueError(f"'{value}' is not a finite number")
         values.append(float(value))
     return values
+
+
+#: Frame names pilots used on the original robot, and the model's link they mean.
+FRAME_ALIASES = {"Waist": "pelvis", "waist": "pelvis", "base_link": "pelvis"}
 
 
 class TaskModule(ControlThread):
@@ -138,6 +146,8 @@ class TaskModule(ControlThread):
             self.warning_interface.warn(self.fsm.fire(name).reason)  # refused: state stays
             return
         try:
+            if name.endswith("datasent") and args and isinstance(args[0], str):
+                args = self.in_pelvis_frame(str(args[0]), finite_numbers(args[1:]))
             values = finite_numbers(args)
             fewest, most, usage = self.arguments.get(name, (0, 0, ""))
             if not fewest <= len(values) <= most:
@@ -153,6 +163,20 @@ class TaskModule(ControlThread):
 
     def warn(self, text: str) -> None:
         self.warning_interface.warn(f"{self.name}: {text}")
+
+    def in_pelvis_frame(self, frame: str, values: List[float]) -> List[float]:
+        """``X Y Z ROLL PITCH YAW ...`` given in ``frame``, expressed in the pelvis frame."""
+        link = FRAME_ALIASES.get(frame, frame)
+        if not self.kinematics.model.existFrame(link):
+            raise ValueError(f"no frame '{frame}' in the model (try pelvis, torso, head, "
+                             f"multisense_frame, l_hand...)")
+        if len(values) < 6:
+            raise ValueError(f"a pose in frame {frame} is X Y Z ROLL PITCH YAW, got "
+                             f"{len(values)} numbers")
+        origin, rotation = self.kinematics.pose(self.robot.sense_position(), link)
+        position = origin + rotation @ np.array(values[:3])
+        orientation = pin.rpy.matrixToRpy(rotation @ pin.rpy.rpyToMatrix(*values[3:6]))
+        return [*map(float, position), *map(float, orientation), *values[6:]]
 
     def refuse(self, reason: str, *data: float) -> None:
         """Say ``refused`` (with data) and raise: the command changes nothing."""
