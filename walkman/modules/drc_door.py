@@ -29,30 +29,18 @@ import numpy as np
 import pinocchio as pin
 
 from walkman.modules.drc_valve import rpy_matrix
-from walkman.modules.task import GraspTask, task_statuses
+from walkman.modules.task import GraspTask, grasp_table, task_statuses
 
 APPROACH_GAP, REACH_GAP, AWAY = 0.04, 0.15, 0.15
 TURN_SPEED, OPEN_SPEED = 0.6, 0.4
 
-TABLE = {
-    "idle": {"doordatasent": "ready"},
-    "ready": {"doordatasent": "ready", "reach": "reaching", "home": "homing"},
-    "reaching": {"action_done": "reached"},
-    "reached": {"approach": "approaching", "move_away": "moving_away", "home": "homing"},
-    "approaching": {"action_done": "approached"},
-    "approached": {"grasp": "grasping", "move_away": "moving_away"},
-    "grasping": {"hand_done": "grasped"},
+TABLE = grasp_table("doordatasent", {
     "grasped": {"turn": "turning", "ungrasp": "ungrasping"},
     "turning": {"action_done": "turned"},
     "turned": {"open": "opening", "ungrasp": "ungrasping"},
     "opening": {"action_done": "opened"},
     "opened": {"open": "opening", "ungrasp": "ungrasping"},
-    "ungrasping": {"hand_done": "ungrasped"},
-    "ungrasped": {"move_away": "moving_away", "grasp": "grasping"},
-    "moving_away": {"action_done": "moved_away"},
-    "moved_away": {"home": "homing", "doordatasent": "ready", "reach": "reaching"},
-    "homing": {"action_done": "idle"},
-}
+})
 
 
 class Module(GraspTask):

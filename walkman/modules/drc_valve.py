@@ -31,28 +31,16 @@ from typing import List
 import numpy as np
 import pinocchio as pin
 
-from walkman.modules.task import GraspTask, task_statuses
+from walkman.modules.task import GraspTask, grasp_table, task_statuses
 
 APPROACH_GAP = 0.045                  # m in front of the rim when approached (grasp within 6 cm)
 REACH_GAP = 0.165                     # m in front of the rim when reached
 TURN_SPEED = 0.6                      # rad/s, peak wheel speed
 
-TABLE = {
-    "idle": {"valvedatasent": "ready"},
-    "ready": {"valvedatasent": "ready", "reach": "reaching", "home": "homing"},
-    "reaching": {"action_done": "reached"},
-    "reached": {"approach": "approaching", "move_away": "moving_away", "home": "homing"},
-    "approaching": {"action_done": "approached"},
-    "approached": {"grasp": "grasping", "move_away": "moving_away"},
-    "grasping": {"hand_done": "grasped"},
+TABLE = grasp_table("valvedatasent", {
     "grasped": {"turn": "turning", "ungrasp": "ungrasping"},
     "turning": {"action_done": "grasped"},
-    "ungrasping": {"hand_done": "ungrasped"},
-    "ungrasped": {"move_away": "moving_away", "grasp": "grasping"},
-    "moving_away": {"action_done": "moved_away"},
-    "moved_away": {"home": "homing", "valvedatasent": "ready", "reach": "reaching"},
-    "homing": {"action_done": "idle"},
-}
+})
 
 
 def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:

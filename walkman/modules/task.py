@@ -353,6 +353,29 @@ class TaskModule(ControlThread):
     speed_after_resume = 0.1  # m/s
 
 
+def grasp_table(datasent: str, grasped: Mapping[str, Mapping[str, str]]) -> Dict[str, Dict[str, str]]:
+    """The state table of a left-hand task: the part's pose (``datasent``), reach,
+    approach, grasp, then the task's own ``grasped`` rows, ungrasp, move_away, home."""
+    table: Dict[str, Dict[str, str]] = {
+        "idle": {datasent: "ready"},
+        "ready": {datasent: "ready", "reach": "reaching", "home": "homing"},
+        "reaching": {"action_done": "reached"},
+        "reached": {"approach": "approaching", "move_away": "moving_away", "home": "homing"},
+        "approaching": {"action_done": "approached"},
+        "approached": {"grasp": "grasping", "move_away": "moving_away"},
+        "grasping": {"hand_done": "grasped"},
+    }
+    table.update({state: dict(moves) for state, moves in grasped.items()})
+    table.update({
+        "ungrasping": {"hand_done": "ungrasped"},
+        "ungrasped": {"move_away": "moving_away", "grasp": "grasping"},
+        "moving_away": {"action_done": "moved_away"},
+        "moved_away": {"home": "homing", datasent: "ready", "reach": "reaching"},
+        "homing": {"action_done": "idle"},
+    })
+    return table
+
+
 class GraspTask(TaskModule):
     """A task done with the left hand on a part: reach, approach, grasp, ... ungrasp.
 
