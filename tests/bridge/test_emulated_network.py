@@ -94,7 +94,7 @@ def test_profiles_shape_the_link(link):
     subprocess.run(link.exec_argv("robot", [
         PYTHON, "-c", "import socket, time; s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)\n"
         f"for i in range(2000): s.sendto(b'x' * 50, ('{link.address('pilot')}', 9999)); "
-        "time.sleep(0.0005)"]), check=True)
+        "time.sleep(0.001)"]), check=True)  # 0.7 Mbit/s with headers: under the 1 Mbit/s shaper
     arrived = int(receiver.communicate(timeout=20)[0])
     assert 0.74 < arrived / 2000 < 0.86  # 20 % lost, give or take sampling noise
 

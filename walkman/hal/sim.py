@@ -6,7 +6,7 @@ effort: modules command positions, the robot is compliant under contact, as
 the real series-elastic actuators are.  Idle joints get zero torque.
 
 Grasping is modelled, not simulated finger by finger: when a hand closes
-(``l_handj`` above 0.8 rad) with its grip point within 6 cm of a graspable
+(``l_handj`` above 0.8 rad) with its grip point within 8 cm of a graspable
 part (valve rim, steering wheel, door handle), a weld between hand and part
 is switched on at their current relative pose; opening the hand (below 0.4
 rad) releases it.  The door's latch (a joint equality holding the door shut)
@@ -36,7 +36,7 @@ from walkman.model.mjcf import GRASPABLE, HANDS, STATIONS
 
 GRASP_CLOSED = 0.8
 GRASP_OPEN = 0.4
-GRASP_DISTANCE = 0.06
+GRASP_DISTANCE = 0.08  # m: the soft hand closes on a part with large position errors
 LATCH_RELEASE = -0.5   # rad of the door handle (down) that frees the latch
 HARNESS_MODES = ("locked", "trolley", "off")
 

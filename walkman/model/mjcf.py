@@ -155,7 +155,7 @@ def scene_bodies() -> List[str]:
       <body name="steering_column" pos="0.55 0.1 1.15" euler="0 -1.0472 0">
         <geom name="steering_shaft" type="cylinder" size="0.02 0.15" pos="0 0 -0.15" rgba="0.2 0.2 0.2 1"/>
         <body name="steering_wheel">
-          <joint name="steering" type="hinge" axis="0 0 1" range="-6.28 6.28" damping="0.8"/>
+          <joint name="steering" type="hinge" axis="0 0 1" range="-6.28 6.28" damping="0.8" frictionloss="1.5"/>
           <geom name="steering_rim" type="cylinder" size="0.18 0.015" rgba="0.1 0.1 0.1 1"/>
           <site name="steering_grip" pos="0 0.18 0" size="0.015" rgba="1 1 0 0.6"/>
         </body>

@@ -33,7 +33,7 @@ import pinocchio as pin
 
 from walkman.modules.task import GraspTask, grasp_table, task_statuses
 
-APPROACH_GAP = 0.045                  # m in front of the rim when approached (grasp within 6 cm)
+APPROACH_GAP = 0.045                  # m in front of the rim when approached (the hand grasps within 8 cm)
 REACH_GAP = 0.165                     # m in front of the rim when reached
 TURN_SPEED = 0.6                      # rad/s, peak wheel speed
 
