@@ -1,14 +1,21 @@
-"""A DRC task piloted only with the ROS tools, through the pilot gateway (one PC, lab)."""
+"""Each DRC task piloted only with the ROS tools, through the pilot gateway (one PC, lab).
+
+The HAL (MuJoCo) at the task's station, the module under the supervisor, the gateway;
+the pilot uses ``rosservice call`` alone, and the scene is read from the HAL's world port.
+"""
 
 import math
 import sys
+
+import pytest
 
 from system.processes import wait_until
 from system.topology import REPO
 
 PYTHON = sys.executable
 CONFIG = REPO / "models" / "bridge_drc.xml"
-VALVE_ANGLE = """
+SCENE = """
+import math, sys
 from walkman.hal import protocol
 from walkman.model import SCENE_PATH
 from yarp_lite.buffered_port import BufferedPort
@@ -18,55 +25,122 @@ model = mujoco.MjModel.from_xml_path(str(SCENE_PATH))
 port = BufferedPort("/probe/world:i")
 NameClient().subscribe(protocol.world_port_name("walkman"), port.name)
 values = protocol.decode_world(port.read(timeout=20), model.nq)[1]
-print("valve", values[model.joint("valve").qposadr[0]])
+base = model.joint("base").qposadr[0]
+print("base_x", values[base], "base_yaw", 2 * math.atan2(values[base + 6], values[base + 3]))
+for joint in sys.argv[1:]:
+    print(joint, values[model.joint(joint).qposadr[0]])
 port.close()
 """
+VALVE = "valvedatasent 0.66 0.25 0.08 0 0 0 0.15"  # models/walkman_drc.xml, station valve
+WHEEL = "steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18"  # station car
+DOOR = "doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6"  # station door
+GRASP = (("reach", "reached"), ("approach", "approached"), ("grasp", "grasped"))
 
 
-def rosservice(pc, *args: str) -> str:
-    return pc.run(["rosservice", "call", *args], timeout=60).output()
+class RosPilot:
+    """One module piloted with ``rosservice call`` on the gateway's services."""
 
+    def __init__(self, pc, module: str) -> None:
+        self.pc, self.module = pc, module
 
-def valve_angle(pc) -> float:
-    out = pc.run([PYTHON, "-c", VALVE_ANGLE], timeout=60).output()
-    return float(out.split("valve")[-1].split()[0])
+    def call(self, service: str, request: str = "") -> str:
+        args = ["rosservice", "call", f"/{self.module}/{service}"] + ([request] if request else [])
+        return self.pc.run(args, timeout=60).output()
 
+    def state(self) -> str:
+        out = self.call("get_status")
+        return out.split('state: "')[1].split('"')[0] if 'state: "' in out else ""
 
-def test_the_valve_task_through_rosservice(make_pc):
-    pc = make_pc()
-    pc.start_name_servers()
-    pc.start("hal", [PYTHON, "-m", "walkman.hal.server", "--station", "valve"]).wait_for(
-        "HAL for walkman", 60)
-    pc.start("drc_valve", [PYTHON, "-m", "walkman.gym.supervisor", "drc_valve"]).wait_for(
-        "ready for the pilot", 60)
-    gateway = pc.start("gateway", [PYTHON, "-m", "rosnodes.gateway", "--config", str(CONFIG),
-                                   "--modules", "drc_valve"])
-    gateway.wait_for(r"ROS topics and services up", 60)
-    gateway.wait_for(r"connected .*/drc_valve/command:o -> /drc_valve/command:i", 30)
+    def wait_state(self, state: str, timeout: float = 60, after: str = "") -> None:
+        wait_until(lambda: self.state() == state, timeout,
+                   message=f"{self.module} {state} after {after}")
 
-    def wait_state(state: str, timeout: float = 60, after: str = "") -> None:
-        wait_until(lambda: f'state: "{state}"' in rosservice(pc, "/drc_valve/get_status"),
-                   timeout, message=f"drc_valve {state} after {after}")
-
-    def step(request: str, state: str, timeout: float = 60) -> None:
-        reply = rosservice(pc, "/drc_valve/send_command", request)
+    def send(self, request: str) -> None:
+        reply = self.call("send_command", request)
         assert "ok: True" in reply, reply
-        wait_state(state, timeout, request)
 
-    assert "ok: True" in rosservice(pc, "/drc_valve/switch_and_wait", "{command: start}")
-    wait_until(lambda: 'state: "idle"' in rosservice(pc, "/drc_valve/get_status"), 30,
-               message="drc_valve idle")
+    def step(self, request: str, state: str, timeout: float = 60) -> None:
+        self.send(request)
+        self.wait_state(state, timeout, request)
+
+    def steps(self, pairs) -> None:
+        for command, state in pairs:
+            self.step(f"{{command: {command}}}", state)
+
+    def scene(self, *joints: str) -> dict:
+        """The sim's ground truth: ``base_x``, ``base_yaw`` and the scene joints asked."""
+        out = self.pc.run([PYTHON, "-c", SCENE, *joints], timeout=60).output()
+        words = out.split()
+        names = ["base_x", "base_yaw", *joints]
+        return {name: float(words[words.index(name) + 1]) for name in names}
+
+
+@pytest.fixture
+def pilot_at(make_pc):
+    """``pilot_at(station, module, *hal_options)``: HAL, module and gateway up, started."""
+
+    def start(station: str, module: str, *hal_options: str) -> RosPilot:
+        pc = make_pc()
+        pc.start_name_servers()
+        pc.start("hal", [PYTHON, "-m", "walkman.hal.server", "--station", station,
+                         *hal_options]).wait_for("HAL for walkman", 60)
+        pc.start(module, [PYTHON, "-m", "walkman.gym.supervisor", module]).wait_for(
+            "ready for the pilot", 60)
+        gateway = pc.start("gateway", [PYTHON, "-m", "rosnodes.gateway", "--config",
+                                       str(CONFIG), "--modules", module])
+        gateway.wait_for(r"ROS topics and services up", 60)
+        gateway.wait_for(rf"connected .*/{module}/command:o -> /{module}/command:i", 30)
+        pilot = RosPilot(pc, module)
+        assert "ok: True" in pilot.call("switch_and_wait", "{command: start}")
+        pilot.wait_state("idle", 30, "start")
+        return pilot
+
+    return start
+
+
+def test_the_valve_task_through_rosservice(pilot_at):
+    valve = pilot_at("valve", "drc_valve")
     # Illegal in this state: refused by the module, said on /drc_valve/warning.
-    step("{command: grasp}", "idle", 10)
-    step("{text: 'valvedatasent 0.66 0.25 0.08 0 0 0 0.15'}", "ready")
-    for command, state in (("reach", "reached"), ("approach", "approached"),
-                           ("grasp", "grasped")):
-        step(f"{{command: {command}}}", state)
-    before = valve_angle(pc)
-    step("{command: turn, numbers: [1.5708]}", "turning", 20)
-    wait_state("grasped", 60, "the turn")
-    turned = valve_angle(pc) - before
+    valve.step("{command: grasp}", "idle", 10)
+    valve.step(f"{{text: '{VALVE}'}}", "ready")
+    valve.steps(GRASP)
+    before = valve.scene("valve")["valve"]
+    valve.step("{command: turn, numbers: [1.5708]}", "turning", 20)
+    valve.wait_state("grasped", 60, "the turn")
+    turned = valve.scene("valve")["valve"] - before
     assert math.isclose(turned, math.pi / 2, rel_tol=0.1), turned
-    for command, state in (("ungrasp", "ungrasped"), ("move_away", "moved_away"),
-                           ("home", "idle")):
-        step(f"{{command: {command}}}", state)
+    valve.steps((("ungrasp", "ungrasped"), ("move_away", "moved_away"), ("home", "idle")))
+
+
+def test_the_drive_task_through_rosservice(pilot_at):
+    drive = pilot_at("car", "drc_drive")
+    drive.step(f"{{text: '{WHEEL}'}}", "ready")
+    drive.steps(GRASP + (("drive", "drive"),))
+    before = drive.scene("steering")["steering"]
+    drive.step("{command: turn_left, numbers: [0.5]}", "turning_left", 20)
+    drive.wait_state("drive", 60, "turn_left")
+    turned = drive.scene("steering")["steering"] - before
+    assert math.isclose(turned, 0.5, rel_tol=0.1), turned
+    drive.step("{command: rotate_foot}", "drive")
+    drive.step("{command: accelerate, numbers: [3.0]}", "accelerating", 20)
+    wait_until(lambda: drive.scene("throttle")["throttle"] > 0.05, 10,  # of 0.35 rad
+               message="the throttle pressed")
+    drive.wait_state("drive", 30, "accelerate")
+    drive.steps((("move_away_foot", "drive"), ("ungrasp", "ungrasped"),
+                 ("move_away_hand", "moved_away_hand")))
+
+
+def test_the_door_task_through_rosservice(pilot_at):
+    door = pilot_at("door", "drc_door")
+    door.step(f"{{text: '{DOOR}'}}", "ready")
+    door.steps(GRASP + (("turn", "turned"), ("open", "opened"), ("ungrasp", "ungrasped"),
+                        ("move_away", "moved_away"), ("home", "idle")))
+    assert math.degrees(door.scene("door")["door"]) > 30
+
+
+def test_walking_through_rosservice(pilot_at):
+    walk = pilot_at("yard", "walking", "--harness", "trolley")
+    before = walk.scene()["base_x"]
+    walk.step("{command: go_straight, numbers: [0.5]}", "walking", 20)
+    walk.wait_state("idle", 60, "go_straight 0.5")
+    assert walk.scene()["base_x"] - before >= 0.4
