@@ -18,24 +18,25 @@ import numpy as np
 
 from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import SimBackend
+from walkman.model.mjcf import PILOT_POSES
 from walkman.modules import drc_door, drc_drive, drc_valve, walking
 
 Step = Tuple[str, str]
 TASKS: Dict[str, Tuple[str, type, List[Step], Callable[[OfflineWorld], str]]] = {
     "drc_valve": ("valve", drc_valve.Module, [
-        ("valvedatasent 0.66 0.25 0.08 0 0 0 0.15", "ready"), ("reach", "reached"),
+        (PILOT_POSES["valve"], "ready"), ("reach", "reached"),
         ("approach", "approached"), ("grasp", "grasped"), ("turn 1.5708", "grasped"),
         ("ungrasp", "ungrasped"), ("move_away", "moved_away"), ("home", "idle")],
         lambda world: f"valve turned {world.prop('valve'):.3f} rad for 1.571"),
     "drc_drive": ("car", drc_drive.Module, [
-        ("steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18", "ready"),
+        (PILOT_POSES["car"], "ready"),
         ("reach", "reached"), ("approach", "approached"), ("grasp", "grasped"),
         ("drive", "drive"), ("turn_left 0.5", "drive"), ("turn_right 1.0", "drive"),
         ("rotate_foot", "drive"), ("accelerate 1.5", "drive"), ("move_away_foot", "drive"),
         ("ungrasp", "ungrasped"), ("move_away_hand", "moved_away_hand")],
         lambda world: f"steering at {world.prop('steering'):.3f} rad (net -0.5 asked)"),
     "drc_door": ("door", drc_door.Module, [
-        ("doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6", "ready"), ("reach", "reached"),
+        (PILOT_POSES["door"], "ready"), ("reach", "reached"),
         ("approach", "approached"), ("grasp", "grasped"), ("turn", "turned"),
         ("open", "opened"), ("ungrasp", "ungrasped"), ("move_away", "moved_away"),
         ("home", "idle")],

@@ -6,7 +6,9 @@ commands for joints the first holds, and says so on the second's warning port.
 
 import math
 
-DOOR = "doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6"  # models/walkman_drc.xml, station door
+from walkman.model.mjcf import PILOT_POSES
+
+DOOR = PILOT_POSES["door"]
 
 
 def test_the_door_opens_past_30_degrees(task_at):

@@ -9,8 +9,9 @@ import time
 import pytest
 
 from harness import wait_until
+from walkman.model.mjcf import PILOT_POSES
 
-WHEEL = "steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18"  # models/walkman_drc.xml
+WHEEL = PILOT_POSES["car"]
 
 
 def test_steer_and_accelerate(task_at):

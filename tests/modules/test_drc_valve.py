@@ -8,8 +8,9 @@ import math
 import pytest
 
 from harness import wait_until
+from walkman.model.mjcf import PILOT_POSES
 
-VALVE = "valvedatasent 0.66 0.25 0.08 0 0 0 0.15"  # where models/walkman_drc.xml puts it
+VALVE = PILOT_POSES["valve"]
 
 
 def test_the_valve_turns_by_the_commanded_angle(task_at):

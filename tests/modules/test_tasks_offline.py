@@ -10,11 +10,10 @@ import pytest
 
 from walkman.gym.offline import OfflineWorld
 from walkman.hal.sim import SimBackend
+from walkman.model.mjcf import PILOT_POSES
 from walkman.modules import drc_door, drc_drive, drc_valve, task
 
-WHEEL = "steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18"
-DOOR = "doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6"
-VALVE = "valvedatasent 0.66 0.25 0.08 0 0 0 0.15"
+WHEEL, DOOR, VALVE = PILOT_POSES["car"], PILOT_POSES["door"], PILOT_POSES["valve"]
 
 
 def started(station: str, module_class, name: str):

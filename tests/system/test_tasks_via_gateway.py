@@ -11,29 +11,11 @@ import pytest
 
 from system.processes import wait_until
 from system.topology import REPO
+from walkman.model.mjcf import PILOT_POSES
 
 PYTHON = sys.executable
 CONFIG = REPO / "models" / "bridge_drc.xml"
-SCENE = """
-import math, sys
-from walkman.hal import protocol
-from walkman.model import SCENE_PATH
-from yarp_lite.buffered_port import BufferedPort
-from yarp_lite.nameclient import NameClient
-import mujoco
-model = mujoco.MjModel.from_xml_path(str(SCENE_PATH))
-port = BufferedPort("/probe/world:i")
-NameClient().subscribe(protocol.world_port_name("walkman"), port.name)
-values = protocol.decode_world(port.read(timeout=20), model.nq)[1]
-base = model.joint("base").qposadr[0]
-print("base_x", values[base], "base_yaw", 2 * math.atan2(values[base + 6], values[base + 3]))
-for joint in sys.argv[1:]:
-    print(joint, values[model.joint(joint).qposadr[0]])
-port.close()
-"""
-VALVE = "valvedatasent 0.66 0.25 0.08 0 0 0 0.15"  # models/walkman_drc.xml, station valve
-WHEEL = "steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18"  # station car
-DOOR = "doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6"  # station door
+VALVE, WHEEL, DOOR = PILOT_POSES["valve"], PILOT_POSES["car"], PILOT_POSES["door"]
 GRASP = (("reach", "reached"), ("approach", "approached"), ("grasp", "grasped"))
 
 
@@ -69,7 +51,7 @@ class RosPilot:
 
     def scene(self, *joints: str) -> dict:
         """The sim's ground truth: ``base_x``, ``base_yaw`` and the scene joints asked."""
-        out = self.pc.run([PYTHON, "-c", SCENE, *joints], timeout=60).output()
+        out = self.pc.run([PYTHON, "-m", "tests.modules.scene", *joints], timeout=60).output()
         words = out.split()
         names = ["base_x", "base_yaw", *joints]
         return {name: float(words[words.index(name) + 1]) for name in names}

@@ -46,6 +46,12 @@ HANDS = ("l", "r")
 #: Where the robot can start: station -> (x, y, yaw) of the pelvis in the world.
 STATIONS = {"valve": (0.0, 0.0, 0.0), "car": (0.0, -2.5, 0.0), "door": (0.34, 2.25, 0.0),
             "door_far": (-0.16, 2.25, 0.0), "yard": (-3.0, 0.0, 0.0)}
+#: The command a pilot sends at a station to tell its task module where the part is (its
+#: pose in the pelvis frame, as perception would measure it): one copy of the scene's numbers
+#: for tests and benchmarks.
+PILOT_POSES = {"valve": "valvedatasent 0.66 0.25 0.08 0 0 0 0.15",
+               "car": "steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18",
+               "door": "doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6"}
 #: Vertical stiffness (N/m) of the harness spring and its share of the robot's weight when
 #: the feet touch the floor (trolley mode).
 HARNESS_STIFFNESS = 3000.0

@@ -1,0 +1,61 @@
+"""The simulator's scene read from the HAL's world port, for tests that check the task's outcome.
+
+Used in the test process (``tests/modules/conftest.py``) and run as a probe inside another
+PC's environment (``python -m tests.modules.scene JOINT...``, tests/system).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from typing import List
+
+import mujoco
+
+from walkman.hal import protocol
+from walkman.model import SCENE_PATH
+from yarp_lite.buffered_port import BufferedPort
+from yarp_lite.nameclient import NameClient
+
+
+class World:
+    """The simulator's scene state, as the HAL publishes it (``/walkman/sim/world:o``)."""
+
+    def __init__(self, port_name: str = "/test/world:i") -> None:
+        self.model = mujoco.MjModel.from_xml_path(str(SCENE_PATH))
+        self.port = BufferedPort(port_name)
+        NameClient().subscribe(protocol.world_port_name("walkman"), self.port.name)
+        assert self.port.wait_for_inputs(1, 20)
+
+    def _positions(self) -> List[float]:
+        bottle = self.port.read(timeout=5)
+        return protocol.decode_world(bottle, self.model.nq)[1]
+
+    def prop(self, joint: str) -> float:
+        """A scene joint's position: ``valve``, ``steering``, ``throttle``, ``door``..."""
+        return self._positions()[self.model.joint(joint).qposadr[0]]
+
+    def base(self) -> list:
+        """The pelvis in the world: x, y, z, yaw (ground truth)."""
+        adr = self.model.joint("base").qposadr[0]
+        x, y, z, w, _, _, qz = self._positions()[adr:adr + 7]
+        return [x, y, z, 2.0 * math.atan2(qz, w)]
+
+    def close(self) -> None:
+        self.port.close()
+
+
+def main(joints: List[str]) -> None:
+    """Print ``base_x X base_yaw YAW`` then ``JOINT VALUE`` for each joint asked."""
+    world = World("/probe/world:i")
+    try:
+        x, _, _, yaw = world.base()
+        print("base_x", x, "base_yaw", yaw)
+        for joint in joints:
+            print(joint, world.prop(joint))
+    finally:
+        world.close()
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
