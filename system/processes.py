@@ -22,6 +22,11 @@ from typing import Dict, List, Optional, Sequence
 
 REPO = Path(__file__).resolve().parents[1]
 
+#: The line ``roscore`` prints once it is usable.  Not ``process[master]``: the master is up
+#: then but ``/run_id`` is not set yet, and a ``roslaunch`` started in that gap declares its
+#: own run id and dies with "run_id on parameter server does not match declared run_id".
+ROSCORE_READY = r"started core service \[/rosout\]"
+
 
 def descendants(pid: int) -> List[int]:
     """Every living process below ``pid`` (children, grandchildren ...), from /proc."""

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Tuple
 
-from system.processes import REPO, Proc, WaitTimeout
+from system.processes import REPO, ROSCORE_READY, Proc, WaitTimeout
 from yarp_lite.freeport import free_port, release
 
 PYTHON = sys.executable
@@ -167,7 +167,7 @@ class Pc:
                                             str(self.yarp_port), "--ip", "127.0.0.1", "--write"])
         roscore = self.start("roscore", ["roscore", "-p", str(self.ros_port)])
         server.wait_for(r"Ready", 30)
-        roscore.wait_for(r"started core service|process\[master\]", 60)
+        roscore.wait_for(ROSCORE_READY, 60)
 
     def kill(self, name: str) -> None:
         proc = self.processes.pop(name, None)

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
 from bridge.emulation import EmulatedLink
+from system.processes import ROSCORE_READY
 from harness import REPO, Implementation, Proc, YarpWorld, free_port, wait_until
 
 PYTHON = sys.executable
@@ -73,7 +74,7 @@ class TwoPCs:
 
     def start_roscore(self, side: Side) -> Proc:
         side.roscore = side.start(["roscore", "-p", str(side.ros_port)], f"{side.name} roscore")
-        side.roscore.wait_for(r"started core service|master.*running|process\[master\]", 60)
+        side.roscore.wait_for(ROSCORE_READY, 60)
         wait_until(lambda: self._ros_master_up(side), 30, message=f"{side.name} ROS master")
         return side.roscore
 

@@ -5,7 +5,7 @@ import sys
 
 import pytest
 
-from system.processes import wait_until
+from system.processes import ROSCORE_READY, wait_until
 from system.topology import REPO
 
 PYTHON = sys.executable
@@ -91,7 +91,7 @@ def test_a_gateway_started_before_roscore_waits_serves_and_survives_a_roscore_re
     # roscore dies and comes back: the gateway registers again, the tools work again.
     pc.kill("roscore")
     roscore = pc.start("roscore", ["roscore", "-p", str(pc.ros_port)])
-    roscore.wait_for(r"started core service", 60)
+    roscore.wait_for(ROSCORE_READY, 60)
     gateway.wait_for(r"the ROS master restarted", 60)
     wait_until(lambda: "ok: True" in rosservice(pc, "/counter/send_command",
                                                      "{command: again}"), 60,
