@@ -165,9 +165,14 @@ class Pc:
         (self.root / "yarp").mkdir(parents=True, exist_ok=True)
         server = self.start("yarp-server", [PYTHON, "-m", "yarp_lite", "server", "--socket",
                                             str(self.yarp_port), "--ip", "127.0.0.1", "--write"])
-        roscore = self.start("roscore", ["roscore", "-p", str(self.ros_port)])
+        roscore = self.start_roscore()
         server.wait_for(r"Ready", 30)
         roscore.wait_for(ROSCORE_READY, 60)
+
+    def start_roscore(self) -> Proc:
+        """Start this PC's ``roscore`` without waiting; it is usable once it prints
+        :data:`ROSCORE_READY`."""
+        return self.start("roscore", ["roscore", "-p", str(self.ros_port)])
 
     def kill(self, name: str) -> None:
         proc = self.processes.pop(name, None)

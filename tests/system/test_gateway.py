@@ -90,8 +90,7 @@ def test_a_gateway_started_before_roscore_waits_serves_and_survives_a_roscore_re
 
     # roscore dies and comes back: the gateway registers again, the tools work again.
     pc.kill("roscore")
-    roscore = pc.start("roscore", ["roscore", "-p", str(pc.ros_port)])
-    roscore.wait_for(ROSCORE_READY, 60)
+    pc.start_roscore().wait_for(ROSCORE_READY, 60)
     gateway.wait_for(r"the ROS master restarted", 60)
     wait_until(lambda: "ok: True" in rosservice(pc, "/counter/send_command",
                                                      "{command: again}"), 60,
