@@ -9,7 +9,6 @@ set -euo pipefail
 
 VERSION=3.5.0
 SHA256=7a8f78e1b6d3477fcd5e73fd5839ebf6971c3c0f5d3208d3ec0ee2b0c44507b9
-URL="https://files.pythonhosted.org/packages/1d/3d/b5a491c21b122d9cdd65826a1cd5d7ba51580f9f84a6ebfc315beb048d30/yarp_middleware-${VERSION}.tar.gz"
 CACHE="${XDG_CACHE_HOME:-$HOME/.cache}/walkman"
 PREFIX="${WALKMAN_YARP_PREFIX:-$CACHE/yarp-$VERSION}"
 
@@ -22,7 +21,7 @@ fi
 
 say() { echo "[build_reference_yarp] $*"; }
 need=()
-for pkg in cmake g++ make ycm-cmake-modules curl; do
+for pkg in cmake g++ make ycm-cmake-modules; do
   dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
 done
 if ((${#need[@]})); then
@@ -33,10 +32,19 @@ fi
 mkdir -p "$CACHE"
 tarball="$CACHE/yarp_middleware-$VERSION.tar.gz"
 if ! echo "$SHA256  $tarball" | sha256sum -c --status 2>/dev/null; then
-  say "downloading yarp-middleware $VERSION sdist from PyPI"
-  curl -fsSL --retry 3 -o "$tarball.part" "$URL"
-  echo "$SHA256  $tarball.part" | sha256sum -c --status || { say "checksum mismatch for $URL"; exit 1; }
-  mv "$tarball.part" "$tarball"
+  # The project's venv (made by bootstrap.sh) has pip; Debian's python3 may not.
+  PIP_PYTHON="$(cd "$(dirname "$0")/.." && pwd)/.venv/bin/python"
+  [[ -x $PIP_PYTHON ]] || PIP_PYTHON=python3
+  say "downloading the yarp-middleware $VERSION sdist with pip"
+  part="$CACHE/download.part"
+  rm -rf "$part" && mkdir -p "$part"
+  # The sdist is the whole YARP source; pip downloads it (its build tools come as wheels, only to read its metadata).
+  "$PIP_PYTHON" -m pip download -q --disable-pip-version-check --no-deps --no-binary yarp-middleware \
+    -d "$part" "yarp-middleware==$VERSION" 2>&1 | tail -5 || true
+  got="$part/yarp_middleware-$VERSION.tar.gz"
+  [[ -f $got ]] || { say "pip could not download yarp-middleware==$VERSION"; exit 1; }
+  echo "$SHA256  $got" | sha256sum -c --status || { say "checksum mismatch for the yarp-middleware sdist"; exit 1; }
+  mv "$got" "$tarball" && rm -rf "$part"
 fi
 
 src="$CACHE/src/yarp_middleware-$VERSION"
