@@ -5,26 +5,41 @@ the receiver opens a UDP socket and answers with its number; both then drop
 the TCP connection.  Messages are the tcp index + payload cut into datagrams
 by :mod:`yarp_lite.carriers.datagram`.  There are no replies and no
 acknowledgements; a lost datagram loses its whole message, nothing more.
+
+Nothing tells a udp sender that its message was refused, so the receiving
+side keeps the account (:attr:`DatagramMessageSource.counters`): datagrams
+lost, messages that broke the protocol (a :class:`RemoteProtocolError`,
+dropped) and messages our own code failed on (a bug: logged with its
+traceback, dropped).  Either kind of failure costs one message, never the
+connection -- a dropped udp input would silence the stream for good without
+the sender ever knowing -- and is logged once per burst: the first, then the
+10th, 100th ... naming the sender and what was wrong.
 """
 
 from __future__ import annotations
 
+import logging
 import socket
 import time
-from typing import List, Union
+from dataclasses import dataclass
+from typing import Callable, List, Tuple, Union
 
 from yarp_lite.bottle import Bottle
 from yarp_lite.carriers.base import Incoming, MessageSource
 from yarp_lite.carriers.binary import BinaryCarrier
 from yarp_lite.carriers.datagram import MAX_DATAGRAM, DatagramAssembler, pack_message
-from yarp_lite.errors import LocalProtocolError, NetworkError
+from yarp_lite.errors import LocalProtocolError, NetworkError, RemoteProtocolError
 from yarp_lite.framing import MessageDecoder, expect_yarp_number, yarp_number
 from yarp_lite.stream import Address, Stream
+
+log = logging.getLogger("yarp_lite.carriers.udp")
 
 Buffer = Union[bytes, bytearray, memoryview]
 _SPECIFIER_BASE = 7777
 #: YARP waits ~1 ms after a nearly full datagram so receivers keep up; so do we.
 _PACING_SECONDS = 0.001
+#: A burst of failures ends after this many seconds without one; the next is logged at once.
+BURST_QUIET_SECONDS = 10.0
 
 
 class UdpCarrier(BinaryCarrier):
@@ -40,7 +55,7 @@ class UdpCarrier(BinaryCarrier):
         return DatagramStream.connect(host, port)
 
     def respond_to_header(self, stream: Stream, sender: str, local_port: int) -> Stream:
-        datagrams = DatagramStream.bind(stream.local_address[0])
+        datagrams = DatagramStream.bind(stream.local_address[0], sender)
         stream.write(yarp_number(datagrams.local_address[1]))
         stream.close()
         return datagrams
@@ -71,14 +86,16 @@ class DatagramStream(Stream):
         return cls(sock, f"udp to {host}:{port}")
 
     @classmethod
-    def bind(cls, host: str) -> "DatagramStream":
+    def bind(cls, host: str, sender: str = "") -> "DatagramStream":
+        """The receiving end; ``sender`` (the port named in the handshake) names it in logs."""
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 * 1024 * 1024)
         except OSError:
             pass
         sock.bind((host, 0))
-        return cls(sock, f"udp on {host}:{sock.getsockname()[1]}")
+        origin = f"udp from {sender} " if sender else "udp "
+        return cls(sock, f"{origin}on {host}:{sock.getsockname()[1]}")
 
     def write(self, *chunks: Buffer) -> None:
         self._pending.extend(chunks)
@@ -94,20 +111,21 @@ class DatagramStream(Stream):
             # Datagrams to a vanished receiver fail with ECONNREFUSED; report it.
             raise NetworkError(f"{self.where}: send failed: {exc}") from exc
 
-    def receive_datagram(self) -> bytes:
+    def receive_datagram(self) -> Tuple[bytes, Address]:
+        """The next datagram and the address it came from (which a log may need to name)."""
         try:
-            data = self.sock.recv(65536)
+            data, origin = self.sock.recvfrom(65536)
         except OSError as exc:
             raise NetworkError(f"{self.where}: receive failed: {exc}") from exc
         if self._closed:
             raise NetworkError(f"{self.where}: stream closed")
-        return data
+        return data, origin[:2]
 
     def read_exact(self, count: int) -> bytes:
         raise LocalProtocolError("a udp stream is read datagram by datagram")
 
     def read_some(self) -> bytes:
-        return self.receive_datagram()
+        return self.receive_datagram()[0]
 
     def read_line(self, limit: int = 0) -> str:
         raise LocalProtocolError("a udp stream carries no text")
@@ -139,8 +157,49 @@ class DatagramStream(Stream):
             return ("", 0)
 
 
+@dataclass(frozen=True)
+class InputCounters:
+    """What one udp input lost, and why (a snapshot)."""
+
+    #: Messages delivered to the port.
+    messages: int = 0
+    #: Datagrams dropped by the reassembly (lost, corrupt, out of order, truncated).
+    dropped_datagrams: int = 0
+    #: Whole messages that broke the protocol (the peer's fault), dropped.
+    malformed: int = 0
+    #: Messages our decoding failed on with an unexpected exception (our bug), dropped.
+    failures: int = 0
+
+
+class Burst:
+    """When a recurring problem deserves a log line: the 1st, 10th, 100th ... of a burst.
+
+    A burst ends after ``quiet`` seconds without the problem, so a new one
+    after a calm spell is reported at once instead of at the next power of ten.
+    """
+
+    def __init__(self, quiet: float = BURST_QUIET_SECONDS,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.quiet = quiet
+        self.clock = clock
+        self.count = 0
+        self._last = -float("inf")
+
+    def record(self) -> bool:
+        """Count one occurrence; True when this one should be logged."""
+        now = self.clock()
+        if now - self._last > self.quiet:
+            self.count = 0
+        self._last = now
+        self.count += 1
+        count = self.count
+        while count % 10 == 0:
+            count //= 10
+        return count == 1
+
+
 class DatagramMessageSource(MessageSource):
-    """Reassembles messages from datagrams; incomplete ones are dropped whole."""
+    """Reassembles messages from datagrams; incomplete or broken ones are dropped whole."""
 
     def __init__(self, stream: Stream, where: str, max_message: int) -> None:
         if not isinstance(stream, DatagramStream):
@@ -149,10 +208,16 @@ class DatagramMessageSource(MessageSource):
         self.where = where
         self.assembler = DatagramAssembler()
         self.decoder = MessageDecoder(where, max_message)
+        self.messages = 0
+        self.malformed = 0
+        self.failures = 0
+        self._malformed_burst = Burst()
+        self._failure_burst = Burst()
 
     def next(self) -> Incoming:
         while True:
-            body, restart = self.assembler.accept(self.stream.receive_datagram())
+            datagram, origin = self.stream.receive_datagram()
+            body, restart = self.assembler.accept(datagram)
             if restart:
                 self.decoder.reset()
             if body is None:
@@ -160,15 +225,41 @@ class DatagramMessageSource(MessageSource):
             self.decoder.feed(body)
             try:
                 message = self.decoder.next_message()
-            except Exception:
-                self.decoder.reset()
-                self.assembler.message_done()
+            except RemoteProtocolError as exc:
+                self._discard()
+                self.malformed += 1
+                if self._malformed_burst.record():
+                    log.warning("%s (datagram from %s:%d); message dropped, %s",
+                                exc, *origin, self._tally(self._malformed_burst, self.malformed,
+                                                        "malformed"))
+                continue
+            except Exception:  # our bug: seen (traceback) and counted, costs this message only
+                self._discard()
+                self.failures += 1
+                if self._failure_burst.record():
+                    log.exception("%s: failed to decode a message (datagram from %s:%d); "
+                                  "message dropped, %s", self.where, *origin,
+                                  self._tally(self._failure_burst, self.failures, "failures"))
                 continue
             if message is not None:
-                self.assembler.message_done()
-                self.decoder.reset()
+                self._discard()
+                self.messages += 1
                 return Incoming(message.command, message.text, binary=message.payload,
                                 where=self.where)
+
+    def _discard(self) -> None:
+        """Forget the current message, finished or not; the next starts at datagram 0."""
+        self.assembler.message_done()
+        self.decoder.reset()
+
+    def _tally(self, burst: Burst, total: int, kind: str) -> str:
+        return (f"{burst.count} in this burst, {total} {kind} and {self.messages} delivered "
+                f"on this connection")
+
+    @property
+    def counters(self) -> InputCounters:
+        return InputCounters(self.messages, self.assembler.dropped, self.malformed,
+                             self.failures)
 
     @property
     def dropped(self) -> int:
