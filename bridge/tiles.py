@@ -22,6 +22,23 @@ clouds.
 :class:`Canvas` pastes whatever tiles arrived into a frame filled with blanks
 (zeros) or NaN (float images, the float fields of a cloud) and reports the
 fraction of cells it received.
+
+Hostile input
+-------------
+A tile comes off the network, so :func:`decode_tile` checks every header
+field before anything is allocated or decoded, and refuses with
+:class:`BridgeProtocolError` naming the field:
+
+* cell type, fill and codec must be known and agree with each other: NaN fill
+  only for float cells, NaN-at-offsets only for byte cells (a cloud point),
+  JPEG only for 8-bit cells of 1 or 3 channels, PNG for 8/16-bit cells of 1,
+  3 or 4 channels, quality 0..100;
+* limits: at most :data:`MAX_CELLS` cells, 4096 channels, 64 NaN offsets and
+  :data:`MAX_RASTER_BYTES` bytes for the whole raster (the canvas a tile
+  makes the receiver allocate), and the tile inside its raster;
+* an embedded PNG or full JPEG must declare the tile's own size before the
+  image decoder sees it, so a tiny datagram cannot make OpenCV allocate a
+  huge image, and no other image format reaches OpenCV.
 """
 
 from __future__ import annotations
@@ -43,7 +60,14 @@ CODEC_NAMES = {"jpeg": JPEG, "png": PNG, "zlib": ZLIB}
 FILL_ZERO, FILL_NAN, FILL_NAN_AT = 0, 1, 2
 DTYPES = (np.uint8, np.uint16, np.int16, np.float32, np.float64, np.int8, np.int32, np.uint32)
 _DTYPE_CODE = {np.dtype(t).str: code for code, t in enumerate(DTYPES)}
+#: Largest raster (cells) and canvas (bytes) a peer may make the receiver allocate:
+#: a 2048 x 1088 cloud of 32-byte points is 71 MB.
 MAX_CELLS = 1 << 26
+MAX_RASTER_BYTES = 1 << 27
+MAX_CHANNELS = 4096
+MAX_NAN_OFFSETS = 64
+#: Pixel codec of each tile codec (a JPEG raster may carry full JPEG tiles).
+_FAMILY = {JPEG: JPEG, JPEG_FULL: JPEG, PNG: PNG, ZLIB: ZLIB}
 
 
 @dataclass(frozen=True)
@@ -85,15 +109,50 @@ def header_for(pixels: np.ndarray, codec: int, quality: int = 80,
     if np.dtype(dtype).str not in _DTYPE_CODE:
         raise BridgeUsageError(f"cells of type {pixels.dtype} cannot be tiled")
     channels = pixels.shape[2] if pixels.ndim == 3 else 1
-    if codec == JPEG and (pixels.dtype != np.uint8 or channels not in (1, 3)):
-        raise BridgeUsageError(f"JPEG takes 8-bit images of 1 or 3 channels, not "
-                               f"{pixels.dtype} x {channels}")
-    if codec == PNG and (pixels.dtype not in (np.uint8, np.uint16) or channels not in (1, 3, 4)):
-        raise BridgeUsageError("PNG takes 8/16-bit images of 1, 3 or 4 channels")
-    fill = FILL_NAN_AT if nan_offsets else (
+    fill = FILL_NAN_AT if len(nan_offsets) else (
         FILL_NAN if np.issubdtype(pixels.dtype, np.floating) else FILL_ZERO)
-    return RasterHeader(pixels.shape[0], pixels.shape[1], channels, np.dtype(dtype), codec,
-                        quality, fill, tuple(nan_offsets))
+    header = RasterHeader(pixels.shape[0], pixels.shape[1], channels, np.dtype(dtype), codec,
+                          quality, fill, tuple(nan_offsets))
+    problem = header_problem(header)
+    if problem is not None:
+        raise BridgeUsageError(problem)
+    return header
+
+
+def header_problem(header: RasterHeader, max_bytes: int = MAX_RASTER_BYTES) -> Optional[str]:
+    """What makes ``header`` unusable, or None: the one rule for both ends."""
+    dtype, channels = header.dtype, header.channels
+    if header.codec not in (JPEG, PNG, ZLIB):
+        return f"unknown raster codec {header.codec}"
+    if not 0 <= header.quality <= 100:
+        return f"quality {header.quality} outside 0..100"
+    if not 1 <= channels <= MAX_CHANNELS:
+        return f"{channels} channels (1..{MAX_CHANNELS})"
+    cells = header.height * header.width
+    if not 0 < cells <= MAX_CELLS:
+        return f"raster of {header.height} x {header.width} cells (1..{MAX_CELLS})"
+    if cells * channels * dtype.itemsize > max_bytes:
+        return (f"raster of {header.height} x {header.width} x {channels} {dtype} exceeds "
+                f"{max_bytes} bytes")
+    if header.codec == JPEG and (dtype != np.uint8 or channels not in (1, 3)):
+        return f"JPEG takes 8-bit images of 1 or 3 channels, not {dtype} x {channels}"
+    if header.codec == PNG and (dtype not in (np.uint8, np.uint16) or channels not in (1, 3, 4)):
+        return f"PNG takes 8/16-bit images of 1, 3 or 4 channels, not {dtype} x {channels}"
+    if header.fill == FILL_NAN and not np.issubdtype(dtype, np.floating):
+        return f"NaN fill for {dtype} cells"
+    if header.fill == FILL_NAN_AT:
+        if dtype != np.uint8:
+            return f"NaN points need byte cells, not {dtype}"
+        if not 1 <= len(header.nan_offsets) <= MAX_NAN_OFFSETS:
+            return f"{len(header.nan_offsets)} NaN offsets (1..{MAX_NAN_OFFSETS})"
+        for offset in header.nan_offsets:
+            if not 0 <= offset <= channels - 4:
+                return f"NaN offset {offset} outside a {channels}-byte cell"
+    elif header.fill not in (FILL_ZERO, FILL_NAN):
+        return f"unknown fill {header.fill}"
+    elif header.nan_offsets:
+        return "NaN offsets without the NaN-at-offsets fill"
+    return None
 
 
 # -- JPEG without its constant header ------------------------------------------------
@@ -161,9 +220,48 @@ def _encode_region(header: RasterHeader, region: np.ndarray) -> Tuple[int, bytes
         header.dtype.newbyteorder("<"), copy=False).tobytes(), 6)
 
 
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: Start-of-frame markers other than baseline SOF0: progressive, lossless, arithmetic...
+_OTHER_SOF = frozenset(range(0xC1, 0xD0)) - {0xC4, 0xC8, 0xCC}
+
+
+def _declared_size(codec: int, data: bytes) -> Optional[Tuple[int, int, int]]:
+    """``(height, width, channels)`` an embedded PNG or baseline JPEG declares, or None.
+
+    Read before OpenCV sees the bytes: it would allocate whatever size they claim.
+    """
+    if codec == PNG:
+        if len(data) < 26 or not data.startswith(_PNG_SIGNATURE) or data[12:16] != b"IHDR":
+            return None
+        color = data[25]
+        channels = {0: 1, 2: 3, 6: 4}.get(color)
+        if channels is None:
+            return None
+        return (int.from_bytes(data[20:24], "big"), int.from_bytes(data[16:20], "big"), channels)
+    if not data.startswith(b"\xff\xd8"):
+        return None
+    pos, size = 2, None
+    while pos + 4 <= len(data) and data[pos] == 0xFF:
+        marker = data[pos + 1]
+        length = int.from_bytes(data[pos + 2:pos + 4], "big")
+        if marker in _OTHER_SOF:
+            return None
+        if marker == 0xC0:
+            if size is not None or length < 8 or pos + 10 > len(data):
+                return None
+            size = (int.from_bytes(data[pos + 5:pos + 7], "big"),
+                    int.from_bytes(data[pos + 7:pos + 9], "big"), data[pos + 9])
+        if marker == 0xDA:
+            return size
+        pos += 2 + length
+    return None
+
+
 def _decode_region(header: RasterHeader, codec: int, data: bytes, width: int,
                    height: int) -> np.ndarray:
     shape = header.shape(height, width)
+    if _FAMILY.get(codec) != header.codec:
+        raise BridgeProtocolError(f"tile codec {codec} in a raster of codec {header.codec}")
     if codec in (JPEG, JPEG_FULL, PNG):
         import cv2
 
@@ -172,24 +270,30 @@ def _decode_region(header: RasterHeader, codec: int, data: bytes, width: int,
             if prefix is None:
                 raise BridgeProtocolError("no JPEG header template for this quality")
             data = prefix + data + b"\xff\xd9"
-        image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        else:
+            declared = _declared_size(codec, data)
+            if declared != (height, width, header.channels):
+                raise BridgeProtocolError(f"tile image declares {declared} (height, width, "
+                                          f"channels), expected {(height, width, header.channels)}")
+        try:
+            image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        except cv2.error as exc:
+            raise BridgeProtocolError(f"tile image does not decode: {exc}") from None
         if image is None or image.shape != shape or image.dtype != header.dtype:
             raise BridgeProtocolError(f"tile image does not decode to {shape} "
                                       f"{header.dtype}")
         return image
-    if codec == ZLIB:
-        expected = int(np.prod(shape)) * header.dtype.itemsize
-        inflater = zlib.decompressobj()
-        try:
-            raw = inflater.decompress(data, expected + 1)
-        except zlib.error as exc:
-            raise BridgeProtocolError(f"tile does not inflate: {exc}") from None
-        if len(raw) != expected or inflater.unconsumed_tail:
-            raise BridgeProtocolError(f"tile inflates to {len(raw)}+ bytes, expected "
-                                      f"{expected}")
-        return np.frombuffer(raw, header.dtype.newbyteorder("<")).astype(
-            header.dtype).reshape(shape)
-    raise BridgeProtocolError(f"unknown tile codec {codec}")
+    expected = int(np.prod(shape)) * header.dtype.itemsize
+    inflater = zlib.decompressobj()
+    try:
+        raw = inflater.decompress(data, expected + 1)
+    except zlib.error as exc:
+        raise BridgeProtocolError(f"tile does not inflate: {exc}") from None
+    if len(raw) != expected or inflater.unconsumed_tail:
+        raise BridgeProtocolError(f"tile inflates to {len(raw)}+ bytes, expected "
+                                  f"{expected}")
+    return np.frombuffer(raw, header.dtype.newbyteorder("<")).astype(
+        header.dtype).reshape(shape)
 
 
 # -- tile bodies -----------------------------------------------------------------------
@@ -220,29 +324,28 @@ def encode_tile(tile: Tile, codec: int) -> bytes:
     return bytes(out)
 
 
-def decode_tile(body: Buffer) -> Tuple[Tile, int]:
-    """``(tile, codec)``; :class:`BridgeProtocolError` when the body is malformed."""
+def decode_tile(body: Buffer, max_bytes: int = MAX_RASTER_BYTES) -> Tuple[Tile, int]:
+    """``(tile, codec)``; :class:`BridgeProtocolError` names the first bad field.
+
+    Every header field is checked (see "Hostile input" above) before the
+    caller can allocate a canvas for it; ``max_bytes`` bounds that canvas.
+    """
     try:
         height, pos = get_varint(body, 0, "height")
         width, pos = get_varint(body, pos, "width")
         channels, pos = get_varint(body, pos, "channels")
         raw, pos = take(body, pos, 3, "cell type")
         dtype_code, quality, fill = raw
-        if dtype_code >= len(DTYPES) or fill > FILL_NAN_AT or not 1 <= channels <= 4096:
-            raise BridgeProtocolError(f"bad raster header: dtype {dtype_code}, fill {fill}, "
-                                      f"{channels} channels")
-        if height * width > MAX_CELLS or height * width == 0:
-            raise BridgeProtocolError(f"raster of {height} x {width} cells")
+        if dtype_code >= len(DTYPES):
+            raise BridgeProtocolError(f"bad raster header: unknown cell type {dtype_code}")
         offsets: List[int] = []
         if fill == FILL_NAN_AT:
             count, pos = get_varint(body, pos, "NaN offsets")
-            if count > 64:
-                raise BridgeProtocolError(f"{count} NaN offsets")
+            if count > MAX_NAN_OFFSETS:
+                raise BridgeProtocolError(f"bad raster header: {count} NaN offsets "
+                                          f"(at most {MAX_NAN_OFFSETS})")
             for _ in range(count):
                 offset, pos = get_varint(body, pos, "NaN offset")
-                if offset + 4 > channels:
-                    raise BridgeProtocolError(f"NaN offset {offset} outside a {channels}-byte "
-                                              f"cell")
                 offsets.append(offset)
         meta_length, pos = get_varint(body, pos, "meta length")
         meta, pos = take(body, pos, meta_length, "meta")
@@ -253,12 +356,18 @@ def decode_tile(body: Buffer) -> Tuple[Tile, int]:
         codec_raw, pos = take(body, pos, 1, "codec")
     except NeedMoreData as exc:
         raise BridgeProtocolError(f"tile truncated: {exc}") from None
+    codec = codec_raw[0]
+    if codec not in _FAMILY:
+        raise BridgeProtocolError(f"unknown tile codec {codec}")
+    header = RasterHeader(height, width, channels, np.dtype(DTYPES[dtype_code]),
+                          _FAMILY[codec], quality, fill, tuple(offsets))
+    problem = header_problem(header, max_bytes)
+    if problem is not None:
+        raise BridgeProtocolError(f"bad raster header: {problem}")
     if not tile_width or not tile_height or x + tile_width > width or y + tile_height > height:
         raise BridgeProtocolError(f"tile {tile_width}x{tile_height}+{x}+{y} outside the "
                                   f"{width}x{height} raster")
-    header = RasterHeader(height, width, channels, np.dtype(DTYPES[dtype_code]),
-                          codec_raw[0], quality, fill, tuple(offsets))
-    return Tile(header, meta, x, y, tile_width, tile_height, bytes(body[pos:])), codec_raw[0]
+    return Tile(header, meta, x, y, tile_width, tile_height, bytes(body[pos:])), codec
 
 
 def split(pixels: np.ndarray, header: RasterHeader, meta: bytes,
@@ -309,6 +418,9 @@ class Canvas:
     """One frame being rebuilt from the tiles that arrive."""
 
     def __init__(self, header: RasterHeader, meta: bytes) -> None:
+        problem = header_problem(header)
+        if problem is not None:  # decode_tile refuses these from a peer
+            raise BridgeUsageError(f"cannot paint a raster with {problem}")
         self.header = header
         self.meta = meta
         self.pixels = np.zeros(header.shape(header.height, header.width), header.dtype)

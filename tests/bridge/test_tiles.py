@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from bridge import tiles
@@ -118,6 +118,7 @@ def test_garbage_tiles_raise_the_peer_error(data):
 
 @FUZZ
 @given(st.integers(0, 200), st.integers(1, 255))
+@example(index=5, flip=1)  # first CI failure: the fill byte became NaN on a uint8 raster
 def test_a_corrupted_tile_never_paints_garbage_silently(index, flip):
     image = camera_image(64, 64)
     body = bytearray(tiles.split(image, tiles.header_for(image, tiles.ZLIB), b"m")[0])
@@ -127,3 +128,79 @@ def test_a_corrupted_tile_never_paints_garbage_silently(index, flip):
         tiles.Canvas(tile.header, tile.meta).paste(tile, codec)
     except BridgeProtocolError:
         pass
+
+
+def zlib_tile(image=None):
+    image = camera_image(16, 16) if image is None else image
+    return bytearray(tiles.split(image, tiles.header_for(image, tiles.ZLIB), b"m")[0])
+
+
+@pytest.mark.parametrize("offset, value, problem", [
+    (5, 1, "NaN fill for uint8 cells"),          # fill byte of the CI failure
+    (3, 200, "unknown cell type 200"),
+    (4, 101, "quality 101 outside 0..100"),
+    (5, 9, "unknown fill 9"),
+    (2, 0, "0 channels"),
+    (0, 0, "raster of 0 x 16 cells"),
+])
+def test_every_raster_header_field_is_checked_by_name(offset, value, problem):
+    body = zlib_tile()
+    assert body[:6] == bytes((16, 16, 3, 0, 80, 0))  # height width channels dtype quality fill
+    body[offset] = value
+    with pytest.raises(BridgeProtocolError, match=problem):
+        tiles.decode_tile(bytes(body))
+
+
+def test_a_tiny_tile_cannot_claim_a_huge_raster():
+    body = zlib_tile()
+    huge = tiles.Tile(tiles.RasterHeader(1 << 13, 1 << 13, 3, np.dtype(np.uint8), tiles.ZLIB),
+                      b"m", 0, 0, 1, 1, b"")
+    with pytest.raises(BridgeProtocolError, match="exceeds 134217728 bytes"):
+        tiles.decode_tile(tiles.encode_tile(huge, tiles.ZLIB))
+    with pytest.raises(BridgeProtocolError, match="exceeds 500 bytes"):
+        tiles.decode_tile(bytes(body), max_bytes=500)
+
+
+def test_nan_points_need_byte_cells_inside_the_cell():
+    floats = np.zeros((4, 4, 4), np.float32)
+    with pytest.raises(BridgeUsageError, match="NaN points need byte cells"):
+        tiles.header_for(floats, tiles.ZLIB, nan_offsets=(0,))
+    cells = np.zeros((4, 4, 8), np.uint8)
+    with pytest.raises(BridgeUsageError, match="NaN offset 5 outside"):
+        tiles.header_for(cells, tiles.ZLIB, nan_offsets=(5,))
+    with pytest.raises(BridgeUsageError, match="quality 120"):
+        tiles.header_for(camera_image(8, 8), tiles.JPEG, 120)
+
+
+def test_full_jpeg_tiles_paste_beside_headerless_ones():
+    import cv2
+
+    image = camera_image(64, 128)
+    header = tiles.header_for(image, tiles.JPEG, 85)
+    bodies = tiles.split(image, header, b"", budget=600)
+    assert len(bodies) > 1
+    tile, codec = tiles.decode_tile(bodies[0])
+    full = cv2.imencode(".jpg", image[tile.y:tile.y + tile.height, tile.x:tile.x + tile.width],
+                        [cv2.IMWRITE_JPEG_QUALITY, 85])[1].tobytes()
+    replaced = tiles.encode_tile(tiles.Tile(header, b"", tile.x, tile.y, tile.width,
+                                            tile.height, full), tiles.JPEG_FULL)
+    canvas = assemble([replaced, *bodies[1:]])
+    assert canvas.completeness == 1.0
+
+
+@pytest.mark.parametrize("codec", [tiles.PNG, tiles.JPEG_FULL])
+def test_an_embedded_image_must_declare_the_tiles_size_before_decoding(codec):
+    import cv2
+
+    big = camera_image(64, 64)
+    data = cv2.imencode(".png" if codec == tiles.PNG else ".jpg", big)[1].tobytes()
+    header = tiles.header_for(camera_image(16, 16), tiles.PNG if codec == tiles.PNG else tiles.JPEG)
+    body = tiles.encode_tile(tiles.Tile(header, b"", 0, 0, 16, 16, data), codec)
+    tile, got = tiles.decode_tile(body)
+    with pytest.raises(BridgeProtocolError, match=r"declares \(64, 64, 3\)"):
+        tiles.Canvas(tile.header, tile.meta).paste(tile, got)
+    other = tiles.encode_tile(tiles.Tile(header, b"", 0, 0, 16, 16, b"GIF89a" + bytes(40)),
+                              codec)
+    tile, got = tiles.decode_tile(other)
+    with pytest.raises(BridgeProtocolError, match="declares None"):
+        tiles.Canvas(tile.header, tile.meta).paste(tile, got)
