@@ -31,6 +31,14 @@ integers as the zigzag difference, other leaves in full.  ``seq "a"`` where only
 the sequence number moved costs 2 bytes.  Deltas are only valid between two
 ends that agree on the previous message: the TCP channel keeps them per
 connection and starts every new connection with full messages.
+
+Hostile input: :func:`decode` and :func:`decode_delta` raise
+:class:`BridgeProtocolError` naming the byte for anything malformed, and a
+decoded Bottle always re-encodes as YARP (every integer fits its kind's
+width, a vocab 32 bits, an integral float 53 bits).  Limits: lists nest at
+most :data:`MAX_DEPTH` deep, and a count may not exceed the bytes left (each
+item costs one at least), so memory stays proportional to the input, which
+the link's frame limit bounds.
 """
 
 from __future__ import annotations
@@ -43,12 +51,12 @@ from bridge.errors import BridgeProtocolError, NeedMoreData
 from bridge.wire import Buffer, get_svarint, get_varint, put_svarint, put_varint, take
 from yarp_lite.bottle import (Bottle, Dict, Float32, Int8, Int16, Int64, Tag, Vocab, tag_of,
                               vocab_encode)
-from yarp_lite.errors import LocalProtocolError
 
 INT32, INT8, INT16, INT64, VOCAB, F64, F64_AS_F32, F64_AS_INT, F32, STRING, BLOB, LIST, DICT, \
     SAME_KIND = range(14)
 _INTS = (INT32, INT8, INT16, INT64)
 _INT_WRAP = {INT32: int, INT8: Int8, INT16: Int16, INT64: Int64}
+_INT_BITS = {INT32: 32, INT8: 8, INT16: 16, INT64: 64}
 _KIND_OF_TAG = {Tag.INT32: INT32, Tag.INT8: INT8, Tag.INT16: INT16, Tag.INT64: INT64,
                 Tag.VOCAB32: VOCAB, Tag.FLOAT64: F64, Tag.FLOAT32: F32, Tag.STRING: STRING,
                 Tag.BLOB: BLOB}
@@ -159,6 +167,14 @@ def encode(bottle: Sequence[Any]) -> bytes:
     return bytes(out)
 
 
+def _integer(kind: int, value: int, what: str) -> int:
+    """``value`` wrapped in its kind's type; out of its width is the peer's error."""
+    half = 1 << (_INT_BITS[kind] - 1)
+    if not -half <= value < half:
+        raise BridgeProtocolError(f"{what}: {value} does not fit in {_INT_BITS[kind]} bits")
+    return _INT_WRAP[kind](value)
+
+
 class _Reader:
     def __init__(self, data: Buffer) -> None:
         self.data = data
@@ -168,12 +184,7 @@ class _Reader:
         data = self.data
         if kind in _INTS:
             value, self.pos = get_svarint(data, self.pos, "integer")
-            wrap = _INT_WRAP[kind]
-            try:
-                return wrap(value)
-            except (ValueError, OverflowError, LocalProtocolError):
-                raise BridgeProtocolError(f"integer {value} out of range for its type "
-                                          f"at byte {self.pos}") from None
+            return _integer(kind, value, f"integer at byte {self.pos}")
         if kind == VOCAB:
             value, self.pos = get_svarint(data, self.pos, "vocab")
             if not -(1 << 31) <= value < 1 << 31:
@@ -306,11 +317,8 @@ def decode_delta(data: Buffer, previous: Sequence[Any]) -> Bottle:
                 new_leaves.append(old)
             elif kind in _INTS:
                 change, reader.pos = get_svarint(data, reader.pos, "integer delta")
-                try:
-                    new_leaves.append(_INT_WRAP[kind](int(old) + change))
-                except (ValueError, OverflowError, LocalProtocolError):
-                    raise BridgeProtocolError(f"integer delta {change} overflows its type") \
-                        from None
+                new_leaves.append(_integer(kind, int(old) + change,
+                                           f"integer delta {change} of leaf {index}"))
             elif kind == F64:
                 mode, reader.pos = reader.kind()
                 if mode not in (F64, F64_AS_F32, F64_AS_INT):
