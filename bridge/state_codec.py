@@ -23,6 +23,13 @@ channel guarantees per connection (:meth:`StateEncoder.reset` on reconnect).
 
 Frame: ``header`` ``svarint time delta (ms)`` [``layout``] ``encoders``
 ``torques`` ``temperatures``.
+
+Hostile input: :meth:`StateDecoder.decode` raises :class:`BridgeProtocolError`
+naming the field (unknown header bits, a delta without a key frame, a code
+leaving its range, temperatures outside the layout, trailing bytes) and
+leaves its context untouched, so the next good frame decodes as if the bad
+one never came.  Limits: a layout has at most 64 chains of 1024 joints, names
+of 255 bytes; every other count is bounded by the layout.
 """
 
 from __future__ import annotations
@@ -273,6 +280,7 @@ class StateDecoder(_Context):
             raise BridgeProtocolError(f"truncated robot state: {exc}") from None
 
     def _decode(self, data: Buffer) -> RobotState:
+        """Decode against the previous frame; the context only changes on success."""
         if not data:
             raise BridgeProtocolError("empty robot state")
         header = data[0]
@@ -281,24 +289,26 @@ class StateDecoder(_Context):
         key = bool(header & KEY)
         change, pos = get_svarint(data, 1, "time")
         if key:
-            self.reset()
+            layout, pos = _get_layout(data, pos)
+            old_encoders = old_torques = None
+            known = np.zeros(layout.joints, np.int64)
+            time_ms = change
         elif self._layout is None:
             raise BridgeProtocolError("robot state delta before any key frame")
-        time_ms = self._time_ms + change
-        if key:
-            layout, pos = _get_layout(data, pos)
         else:
-            layout = self._layout
+            layout, old_encoders, old_torques = self._layout, self._encoders, self._torques
+            known = self._temperatures.copy()
+            time_ms = self._time_ms + change
         count = layout.joints
-        encoders, pos = _decode_field(data, pos, (header >> 1) & 3, self._encoders, count, 2,
+        encoders, pos = _decode_field(data, pos, (header >> 1) & 3, old_encoders, count, 2,
                                       "encoders")
-        torques, pos = _decode_field(data, pos, (header >> 3) & 3, self._torques, count, 1,
+        torques, pos = _decode_field(data, pos, (header >> 3) & 3, old_torques, count, 1,
                                      "torques")
         start, pos = get_varint(data, pos, "temperature start")
         many, pos = get_varint(data, pos, "temperature count")
-        if many > count or (count and start >= count) or (key and many != count):
+        if many > count or (count and start >= count) or (not count and start) or \
+                (key and (start or many != count)):
             raise BridgeProtocolError(f"temperatures {start}+{many} do not fit {count} joints")
-        known = np.zeros(count, np.int64) if key else self._temperatures.copy()
         fresh: List[int] = []
         for offset in range(many):
             index = (start + offset) % count

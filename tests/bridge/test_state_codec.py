@@ -100,3 +100,26 @@ def test_truncated_frames_are_refused():
     for cut in range(1, len(frame)):
         with pytest.raises(BridgeProtocolError):
             StateDecoder().decode(frame[:cut])
+
+
+def test_a_refused_frame_leaves_the_previous_one_in_place():
+    rng = np.random.default_rng(4)
+    encoder, decoder = StateEncoder(), StateDecoder()
+    first = decoder.decode(encoder.encode(state(0.0, rng)))
+    second_frame = encoder.encode(state(0.5, rng))
+    bad_key = StateEncoder().encode(state(9.0, rng))[:-1]  # a truncated key frame
+    with pytest.raises(BridgeProtocolError, match="truncated"):
+        decoder.decode(bad_key)
+    second = decoder.decode(second_frame)  # still the delta of the first frame
+    assert second.time == 0.5 and first.time == 0.0
+    assert np.allclose(second.q, np.sin(0.5 + np.arange(JOINTS)), atol=2e-4)
+
+
+def test_a_key_frame_carries_every_temperature_from_joint_zero():
+    cold = RobotState(LAYOUT, 0.0, np.zeros(JOINTS), np.zeros(JOINTS), np.full(JOINTS, -99.5))
+    frame = bytearray(StateEncoder().encode(cold))
+    start = len(frame) - JOINTS - 2  # start, count, then one byte per joint (code 50)
+    assert frame[start:start + 2] == bytes((0, JOINTS))
+    frame[start] = 1
+    with pytest.raises(BridgeProtocolError, match="temperatures 1\\+33 do not fit"):
+        StateDecoder().decode(bytes(frame))
