@@ -5,12 +5,17 @@ per 8-bit id).  On ``/bridge/<side>/status:o`` and in ``rpc status`` replies it
 travels as YARP property lists, ``((key value) ...)``, so ``yarp read`` shows
 it readably; :func:`from_bottle` gives the dict back to tools that sample it
 (keys come back as strings, as YARP text has no integer keys).
+
+:func:`from_bottle` reads what a port delivered, so anything that is not a
+status raises :class:`BridgeProtocolError`; its depth is bounded by the
+Bottle decoders' own nesting limits.
 """
 
 from __future__ import annotations
 
 from typing import Any, Dict
 
+from bridge.errors import BridgeProtocolError
 from yarp_lite.bottle import Bottle
 
 
@@ -43,5 +48,5 @@ def from_bottle(bottle: Bottle) -> Dict[str, Any]:
 
     result = convert(bottle)
     if not isinstance(result, dict):
-        raise ValueError(f"not a bridge status: {str(bottle)[:80]!r}")
+        raise BridgeProtocolError(f"not a bridge status: {str(bottle)[:80]!r}")
     return result

@@ -29,9 +29,11 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional
 
 from bridge import status as status_codec
+from bridge.errors import BridgeProtocolError
 from system.processes import WaitTimeout, wait_until
 from system.topology import PYTHON
 from yarp_lite.bottle_text import parse
+from yarp_lite.errors import RemoteProtocolError
 
 MODULES = ("gaze_control", "temperature")
 VALVE_IN_PELVIS = (0.66, 0.25, 0.08)  # the valve wheel, seen from the pelvis (models/walkman_drc.xml)
@@ -185,7 +187,8 @@ def _parse_bridge_status(line: str) -> Optional[dict]:
                 "udp_by_id": {int(k): int(v) for k, v in udp.get("bytes_by_id", {}).items()},
                 "completeness": {name: float(flow["mean_completeness"])
                                  for name, flow in udp.get("flows", {}).items()}}
-    except (KeyError, TypeError, ValueError, AttributeError):
+    except (BridgeProtocolError, RemoteProtocolError, KeyError, TypeError, ValueError,
+            AttributeError):
         return None  # not a status line (the tool's own messages)
 
 

@@ -5,6 +5,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from bridge import status
+from bridge.errors import BridgeProtocolError
 from yarp_lite.bottle_text import format_bottle, parse
 
 keys = st.text(alphabet="abcdefghijklmnopqrstuvwxyz_/", min_size=1, max_size=12).filter(
@@ -32,5 +33,5 @@ def test_integer_keys_come_back_as_strings():
 
 @pytest.mark.parametrize("line", ["hello", "1 2 3", '"just a string"'])
 def test_lines_that_are_not_a_status_are_refused(line):
-    with pytest.raises(ValueError, match="not a bridge status"):
+    with pytest.raises(BridgeProtocolError, match="not a bridge status"):
         status.from_bottle(parse(line))
