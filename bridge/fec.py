@@ -13,6 +13,12 @@ sub-matrix of a Cauchy matrix is invertible, so whichever ``k`` datagrams
 arrive, the ``k x k`` system they form can be solved.  Datagrams of different
 lengths are framed as ``len (2 bytes) + payload``, zero padded to the longest.
 Pure functions over bytes, vectorized with numpy lookup tables.
+
+:func:`recover` takes what arrived from the network, so it checks every
+number before using it: ``1 <= k <=`` :data:`MAX_DATA`, data indices inside
+the group, repair rows below :data:`MAX_REPAIRS`, repairs of one length
+between 2 and :data:`MAX_SYMBOL` bytes (a 2-byte length + a datagram), no
+data longer than its repairs.  Anything else is :class:`BridgeProtocolError`.
 """
 
 from __future__ import annotations
@@ -42,6 +48,10 @@ for _a in range(1, 256):
     _MUL[_a, 1:] = _EXP[_LOG[_a] + _LOG[_nonzero]]
 _LEN = struct.Struct(">H")
 MAX_SYMBOLS = 255
+#: Group limits: data datagrams, repair rows (x_j = row < 128 <= y_i keeps x_j != y_i).
+MAX_DATA, MAX_REPAIRS = 127, 128
+#: Longest symbol: the 2-byte length and the longest payload it can describe.
+MAX_SYMBOL = _LEN.size + 0xFFFF
 
 
 def _inverse(value: int) -> int:
@@ -74,9 +84,12 @@ def encode(payloads: Sequence[bytes], m: int) -> List[bytes]:
     k = len(payloads)
     if k == 0 or m == 0:
         return []
-    if k > 127 or m > 128:
-        raise BridgeUsageError(f"FEC groups hold at most 127 data and 128 repair datagrams, "
-                               f"got {k} + {m}")
+    if k > MAX_DATA or m > MAX_REPAIRS:
+        raise BridgeUsageError(f"FEC groups hold at most {MAX_DATA} data and {MAX_REPAIRS} "
+                               f"repair datagrams, got {k} + {m}")
+    longest = max(len(payload) for payload in payloads)
+    if longest + _LEN.size > MAX_SYMBOL:
+        raise BridgeUsageError(f"a payload of {longest} bytes is too long for FEC")
     data = _symbols(payloads)
     repairs = []
     for row in range(m):
@@ -115,6 +128,14 @@ def recover(k: int, data: Dict[int, bytes], repairs: Dict[int, bytes]) -> Dict[i
     Returns only the recovered (missing) ones; raises :class:`BridgeProtocolError`
     when fewer than ``k`` datagrams are at hand or the repairs are malformed.
     """
+    if not 1 <= k <= MAX_DATA:
+        raise BridgeProtocolError(f"FEC group of {k} data datagrams (1..{MAX_DATA})")
+    for index in data:
+        if not 0 <= index < k:
+            raise BridgeProtocolError(f"data datagram {index} outside a group of {k}")
+    for row in repairs:
+        if not 0 <= row < MAX_REPAIRS:
+            raise BridgeProtocolError(f"repair row {row} (0..{MAX_REPAIRS - 1})")
     missing = [index for index in range(k) if index not in data]
     if not missing:
         return {}
@@ -125,6 +146,9 @@ def recover(k: int, data: Dict[int, bytes], repairs: Dict[int, bytes]) -> Dict[i
     if len(widths) != 1:
         raise BridgeProtocolError("repair datagrams of one group differ in length")
     width = widths.pop()
+    if not _LEN.size <= width <= MAX_SYMBOL:
+        raise BridgeProtocolError(f"repair datagrams of {width} bytes "
+                                  f"({_LEN.size}..{MAX_SYMBOL})")
     rows = []
     values = []
     for index, payload in data.items():

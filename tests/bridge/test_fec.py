@@ -9,7 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from bridge import fec
-from bridge.errors import BridgeProtocolError
+from bridge.errors import BridgeProtocolError, BridgeUsageError
 from codec_helpers import FUZZ
 
 
@@ -53,3 +53,20 @@ def test_repair_counts():
     assert fec.repair_count(10, 0.0) == 0
     assert fec.repair_count(10, 0.3) == 3
     assert fec.repair_count(1, 0.01) == 1
+
+
+@pytest.mark.parametrize("k, data, repairs, problem", [
+    (0, {}, {0: b"\0\0"}, "FEC group of 0"),
+    (200, {}, {0: b"\0\0"}, "FEC group of 200"),
+    (2, {5: b"x"}, {0: b"\0\0\0"}, "data datagram 5 outside a group of 2"),   # IndexError before
+    (2, {0: b"x"}, {128: b"\0\0\0"}, "repair row 128"),                       # 0 had no inverse
+    (1, {}, {0: b"\0"}, "repair datagrams of 1 bytes"),                      # struct.error before
+])
+def test_every_group_field_is_checked_before_use(k, data, repairs, problem):
+    with pytest.raises(BridgeProtocolError, match=problem):
+        fec.recover(k, data, repairs)
+
+
+def test_a_payload_too_long_for_its_length_field_is_a_usage_error():
+    with pytest.raises(BridgeUsageError, match="too long for FEC"):
+        fec.encode([bytes(70000)], 1)
