@@ -23,13 +23,20 @@ The file lists modules by 8-bit id (0..255, unique across every section):
 Every channel gets ``(id, kind)``: the module id and which of its flows it
 is.  The file is checked against ``bridge.xsd`` and then for what a schema
 cannot say; every error names the file, the line and the problem.
+
+Any input, however malformed, gives a :class:`BridgeConfig` or a
+:class:`ConfigError` (``file:line: problem``).  The XML parser resolves no
+entities and loads no DTD or network resource; a file may be at most
+:data:`MAX_CONFIG_BYTES`; numbers must be finite and in range (ids 0..255,
+quality 0..100, fec 0..0.5, period/gather/rate > 0).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Dict, List, Optional, Tuple
+from typing import Callable, Dict, List, Optional, Tuple, TypeVar, Union
 
 from lxml import etree
 
@@ -40,6 +47,8 @@ CHANNELS = ("tcp", "udp")
 DEFAULT_PERIOD = 0.5
 DEFAULT_GATHER = 0.4
 DEFAULT_STATE_RATE = 10.0
+#: Largest configuration file read (the DRC's is 5 kB).
+MAX_CONFIG_BYTES = 1 << 20
 
 # Sub-channels of a standard GYM module (the "kind" byte on the wire).
 GYM_FLOWS = (("switch", "pilot_to_robot", "switch:i", True),
@@ -111,22 +120,22 @@ def _schema() -> etree.XMLSchema:
     return etree.XMLSchema(etree.parse(str(SCHEMA_PATH)))
 
 
-def _read_tree(text: str, where: str) -> etree._Element:
+def _read_tree(data: bytes, where: str) -> etree._Element:
     """Parse, accepting the paper's two top-level elements (wrapped in <bridge>)."""
-    parser = etree.XMLParser(remove_comments=True)
+    parser = etree.XMLParser(remove_comments=True, remove_pis=True, resolve_entities=False,
+                             load_dtd=False, no_network=True, huge_tree=False)
     try:
-        root = etree.fromstring(text.encode(), parser)
+        root = etree.fromstring(data, parser)
         if root.tag == "bridge":
             return root
     except etree.XMLSyntaxError as exc:
         if "Extra content at the end of the document" not in str(exc) and \
                 "junk after document element" not in str(exc):
             raise ConfigError(f"{where}:{exc.lineno}: malformed XML: {exc.msg}") from None
-    body = text.split("?>", 1)[1] if text.lstrip().startswith("<?xml") else text
-    offset = text.count("\n", 0, len(text) - len(body))
+    body = data.split(b"?>", 1)[1] if data.lstrip().startswith(b"<?xml") else data
+    offset = data.count(b"\n", 0, len(data) - len(body))
     try:
-        root = etree.fromstring(("\n" * offset + "<bridge>" + body + "</bridge>").encode(),
-                                parser)
+        root = etree.fromstring(b"\n" * offset + b"<bridge>" + body + b"</bridge>", parser)
     except etree.XMLSyntaxError as exc:
         raise ConfigError(f"{where}:{exc.lineno}: malformed XML: {exc.msg}") from None
     return root
@@ -135,18 +144,29 @@ def _read_tree(text: str, where: str) -> etree._Element:
 def load(path: Path) -> BridgeConfig:
     path = Path(path)
     try:
-        text = path.read_text()
+        with path.open("rb") as file:
+            data = file.read(MAX_CONFIG_BYTES + 1)
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
-    return parse(text, str(path))
+    return parse(data, str(path))
 
 
-def parse(text: str, where: str = "<bridge config>") -> BridgeConfig:
+def parse(text: Union[str, bytes], where: str = "<bridge config>") -> BridgeConfig:
+    """The configuration in ``text`` (a file's bytes, or its text)."""
+    if isinstance(text, str):
+        try:
+            text = text.encode("utf-8")
+        except UnicodeEncodeError as exc:
+            line = text.count("\n", 0, exc.start) + 1
+            raise ConfigError(f"{where}:{line}: not text: {exc.reason}") from None
+    if len(text) > MAX_CONFIG_BYTES:
+        raise ConfigError(f"{where}:1: larger than {MAX_CONFIG_BYTES} bytes")
     root = _read_tree(text, where)
     schema = _schema()
     if not schema.validate(root):
         error = schema.error_log.last_error
-        raise ConfigError(f"{where}:{error.line}: {error.message}")
+        raise ConfigError(f"{where}:{error.line}: {error.message}" if error is not None else
+                          f"{where}:{root.sourceline}: invalid configuration")
     config = BridgeConfig(path=where,
                           period=_positive(root, "period", DEFAULT_PERIOD, where),
                           gather=_positive(root, "gather", DEFAULT_GATHER, where))
@@ -154,7 +174,7 @@ def parse(text: str, where: str = "<bridge config>") -> BridgeConfig:
     claimed: Dict[Tuple[str, str], int] = {}
 
     def take_id(element: etree._Element) -> int:
-        value = int(element.get("id"))
+        value = _number(element, "id", 0, where, int)
         line = element.sourceline
         if not 0 <= value <= 255:
             raise ConfigError(f"{where}:{line}: id {value} does not fit in 8 bits (0..255)")
@@ -251,18 +271,41 @@ def parse(text: str, where: str = "<bridge config>") -> BridgeConfig:
         source, destination = DIRECTIONS[direction]
         claim(source, "ros:" + topic, line)
         claim(destination, "ros:" + topic + ":publish", line)
-        fec = float(element.get("fec", "0"))
+        fec = _number(element, "fec", 0.0, where)
         if not 0 <= fec <= 0.5:
             raise ConfigError(f"{where}:{line}: fec is a repair fraction 0..0.5, got {fec}")
+        quality = _number(element, "quality", 80, where, int)
+        if not 0 <= quality <= 100:
+            raise ConfigError(f"{where}:{line}: quality is a JPEG quality 0..100, got {quality}")
         config.channels.append(Channel(
             topic_id, 0, topic, source, destination, "ros", "udp", False, ros_type=ros_type,
             latch=element.get("latch", "false") in ("true", "1"),
-            quality=int(element.get("quality", "80")), fec=fec, line=line))
+            quality=quality, fec=fec, line=line))
     return config
 
 
+Number = TypeVar("Number", int, float)
+
+
+def _number(element: etree._Element, attribute: str, default: Number, where: str,
+            convert: Callable[[str], Number] = float) -> Number:
+    """A numeric attribute the schema let through, made sure to be a finite number."""
+    text = element.get(attribute)
+    if text is None:
+        return default
+    try:
+        value = convert(text)
+    except ValueError:  # e.g. an integer of more digits than Python converts
+        raise ConfigError(f"{where}:{element.sourceline}: {attribute} {text[:40]!r} is not "
+                          f"a usable number") from None
+    if not math.isfinite(value):
+        raise ConfigError(f"{where}:{element.sourceline}: {attribute} {text[:40]!r} is not "
+                          f"finite")
+    return value
+
+
 def _positive(root: etree._Element, attribute: str, default: float, where: str) -> float:
-    value = float(root.get(attribute, default))
+    value = _number(root, attribute, default, where)
     if value <= 0:
         raise ConfigError(f"{where}:{root.sourceline}: {attribute} must be positive, got {value}")
     return value

@@ -81,6 +81,17 @@ BAD = [
     ('<modules><module name="a" id="1">\n</modules>', 2, "malformed XML"),
     ('<modules><modul name="a" id="1"/></modules>', 1, "modul"),
     ('<bridge period="-1"/>', 1, "period must be positive"),
+    # hostile input: each raised something else than ConfigError before
+    ('<modules>\n<module name="a" id="%s"/></modules>' % ("9" * 5000), 2,
+     "is not a usable number"),                                       # int() digit limit
+    ('<bridge period="%s"/>' % ("9" * 400), 1, "is not finite"),      # float() gave inf
+    ('<bridge><ros_topics>\n<topic name="/a" type="a/B" id="1" direction="robot_to_pilot" '
+     'channel="udp" quality="1000"/></ros_topics></bridge>', 2,
+     "quality is a JPEG quality 0..100"),                              # tiles: byte overflow
+    ('<modules>\n<module name="a\udcff" id="1"/></modules>', 2, "not text"),  # UnicodeEncodeError
+    (b'<modules><module name="a\xff" id="1"/></modules>', 1, "malformed XML"),
+    ('<!DOCTYPE bridge [<!ENTITY x SYSTEM "file:///etc/hostname">]>\n<bridge><modules>'
+     '<module name="&x;" id="1"/></modules></bridge>', 2, "external entity"),
 ]
 
 
@@ -90,6 +101,21 @@ def test_errors_name_the_file_line_and_problem(text, line, problem):
         config.parse(text, "bridge.xml")
     assert str(caught.value).startswith(f"bridge.xml:{line}: ")
     assert problem in str(caught.value)
+
+
+def test_a_file_is_read_as_bytes_and_bounded(tmp_path):
+    latin = tmp_path / "latin.xml"
+    latin.write_bytes(b'<modules><module name="caf\xe9" id="1"/></modules>')
+    with pytest.raises(ConfigError, match="latin.xml:1: malformed XML"):
+        config.load(latin)  # UnicodeDecodeError before
+    declared = tmp_path / "declared.xml"
+    declared.write_bytes(b'<?xml version="1.0" encoding="ISO-8859-1"?>\n'
+                         b'<bridge><modules><module name="caf\xe9" id="1"/></modules></bridge>')
+    assert config.load(declared).modules == {"caf\xe9": 1}
+    big = tmp_path / "big.xml"
+    big.write_bytes(b"<bridge>" + b" " * config.MAX_CONFIG_BYTES + b"</bridge>")
+    with pytest.raises(ConfigError, match="big.xml:1: larger than"):
+        config.load(big)
 
 
 def test_the_check_command_prints_the_table_or_the_error(tmp_path, capsys):
