@@ -206,3 +206,39 @@ class PilotInterfaces:
     def close(self) -> None:
         for port in self.ports:
             port.close()
+
+
+class RecordingInterfaces(PilotInterfaces):
+    """Pilot interfaces with no ports: statuses and warnings are kept in lists.
+
+    What the offline runner and in-process tests of the runner use instead of
+    YARP; :meth:`wait_for` lets a test wait for what the module says, from any thread.
+    """
+
+    def __init__(self, prefix: str, module_class: type) -> None:
+        super().__init__(prefix, statuses=getattr(module_class, "statuses", None) or None,
+                         command_decoder=decoder_for(module_class))
+        self.warnings: List[str] = []
+        self.history: List[str] = []
+        self._changed = threading.Condition()
+
+    def open(self, wait: float) -> None:
+        """Nothing to open."""
+
+    def set_status(self, state: str, data: Sequence = ()) -> bool:
+        with self._changed:
+            if state != self.state:
+                self.history.append(state)
+            changed = super().set_status(state, data)
+            self._changed.notify_all()
+        return changed
+
+    def warn(self, text: str) -> None:
+        with self._changed:
+            self.warnings.append(text)
+            self._changed.notify_all()
+
+    def wait_for(self, predicate: Callable[[], bool], timeout: float) -> bool:
+        """Block until ``predicate()`` holds after a status or warning; False on timeout."""
+        with self._changed:
+            return self._changed.wait_for(predicate, timeout)

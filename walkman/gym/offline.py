@@ -20,7 +20,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Type
 import numpy as np
 
 from walkman.control.kinematics import Kinematics
-from walkman.gym.interfaces import PilotInterfaces, decoder_for
+from walkman.gym.interfaces import RecordingInterfaces
 from walkman.gym.lifecycle import IllegalTransition, State, next_state
 from walkman.gym.thread import ControlThread
 from walkman.hal.arbitration import JointArbiter
@@ -78,31 +78,13 @@ class SimulatedRobot:
         return warnings
 
 
-class _RecordingInterfaces(PilotInterfaces):
-    """Pilot interfaces with no ports: statuses and warnings are kept in lists."""
-
-    def __init__(self, prefix: str, module_class: type) -> None:
-        super().__init__(prefix, statuses=module_class.statuses or None,
-                         command_decoder=decoder_for(module_class))
-        self.warnings: List[str] = []
-        self.history: List[str] = []
-
-    def set_status(self, state: str, data: Sequence = ()) -> bool:
-        if state != self.state:
-            self.history.append(state)
-        return super().set_status(state, data)
-
-    def warn(self, text: str) -> None:
-        self.warnings.append(text)
-
-
 class OfflineModule:
     """One module in an :class:`OfflineWorld`: switch it, command it, read its status."""
 
     def __init__(self, world: "OfflineWorld", module_class: Type[ControlThread], name: str,
                  config: Optional[Dict] = None) -> None:
         self.world, self.name = world, name
-        self.interfaces = _RecordingInterfaces(f"/{name}", module_class)
+        self.interfaces = RecordingInterfaces(f"/{name}", module_class)
         self.robot = SimulatedRobot(world, f"/{name}")
         self.thread = module_class(name, {"thread_period": 10, **(config or {})},
                                    self.interfaces, robot=self.robot,

@@ -13,7 +13,17 @@ Three threads:
   the watchdog's request, between two ``run()`` calls, so user code is never
   re-entered;
 * the **connector** finds the HAL (whole-body interface) in the background, so
-  the module starts before the HAL and says "waiting_hal" meanwhile.
+  the module starts before the HAL and says "waiting_hal" meanwhile.  Only a
+  :class:`~yarp_lite.errors.NetworkError` means "not there yet" and is retried;
+  a HAL that answers wrongly, or any other exception (a bug, logged with its
+  traceback), makes every ``start`` fail with the reason on the warning port.
+
+Both the watchdog and the control thread change the lifecycle state (the
+control thread stops a module whose ``run()`` raised), so every change goes
+through :meth:`ModuleRunner._transition`: the lifecycle table applied to the
+state as it is *now*, under one lock.  A change that lost a race (a ``pause``
+whose module failed meanwhile) is refused by the table, never written over
+the winner's.
 
 ``stop`` and ``quit`` always win: the watchdog asks the control thread and
 waits 2 s; if ``run()`` hangs, the process exits with :data:`EXIT_ESCALATED`
@@ -32,14 +42,14 @@ import os
 import sys
 import threading
 import time
-import traceback
 from typing import Any, Dict, List, Optional, Tuple, Type
 
 from walkman.gym import inifile
 from walkman.gym.interfaces import PilotInterfaces, decoder_for
-from walkman.gym.lifecycle import IllegalTransition, State, next_state
+from walkman.gym.lifecycle import IllegalTransition, State, Switch, next_state, parse_switch
 from walkman.gym.thread import ControlThread, GenericThread
-from walkman.hal.protocol import HalUsageError
+from walkman.hal.protocol import HalProtocolError, HalUsageError
+from yarp_lite.errors import NetworkError
 from yarp_lite.nameclient import NameClient
 
 log = logging.getLogger("walkman.gym")
@@ -49,6 +59,7 @@ EXIT_ESCALATED = 3
 HOOK_TIMEOUT = 2.0
 PAUSE_GRACE = 5.0  # s a module may take to reach a safe pause (finish a step)
 STATUS_PERIOD = 0.5
+CONNECT_RETRY = 2.0  # s between two attempts to reach a HAL that is not there yet
 DEFAULTS = {"thread_period": 10, "robot_name": "walkman", "urdf_path": ""}
 
 
@@ -81,8 +92,9 @@ class ControlLoop(threading.Thread):
         self.period_errors: List[float] = []
         self.exit = False
 
-    def ask(self, hook: str, timeout: float = HOOK_TIMEOUT) -> Optional[bool]:
+    def ask(self, hook: str, timeout: Optional[float] = None) -> Optional[bool]:
         """Have the control thread perform a hook; None if it did not within ``timeout``."""
+        timeout = HOOK_TIMEOUT if timeout is None else timeout
         with self.cond:
             self.request, self.done = hook, None
             self.cond.notify_all()
@@ -121,11 +133,11 @@ class ControlLoop(threading.Thread):
                 runner.thread.run()
             except HalUsageError as exc:
                 runner.warn(f"{runner.name}: refused by the robot: {exc}")
-                runner.hold()
-            except Exception as exc:  # user code: report, hold, stop
-                runner.warn(f"{runner.name}: run() raised {type(exc).__name__}: {exc}")
-                log.debug("%s", traceback.format_exc())
-                runner.hold()
+                runner.hold("a refused command")
+            except Exception as exc:  # the module's bug: told with its traceback, hold, stop
+                runner.warn(f"{runner.name}: run() raised {type(exc).__name__}: {exc}",
+                            exc_info=True)
+                runner.hold("run() raised")
                 runner.fail_stop()
             deadline += period
             delay = deadline - time.perf_counter()
@@ -141,19 +153,27 @@ class ControlLoop(threading.Thread):
 
 
 class ModuleRunner:
+    """One module's lifecycle, hooks and pilot interfaces (see the module docstring).
+
+    ``interfaces`` replaces the port-backed pilot interfaces (tests pass
+    :class:`~walkman.gym.interfaces.RecordingInterfaces` to run without YARP).
+    """
+
     def __init__(self, name: str, module_class: Type[GenericThread], config: Dict[str, Any],
                  prefix: Optional[str] = None, initial: State = State.CONSTRUCTOR,
                  heartbeat_fd: Optional[int] = None,
-                 nameclient: Optional[NameClient] = None) -> None:
+                 nameclient: Optional[NameClient] = None,
+                 interfaces: Optional[PilotInterfaces] = None) -> None:
         self.name = name
         self.prefix = prefix or f"/{name}"
         self.config = config
         self.module_class = module_class
         self.nameclient = nameclient or NameClient()
-        self.interfaces = PilotInterfaces(self.prefix, self.nameclient,
-                                          statuses=module_class.statuses or None,
-                                          command_decoder=decoder_for(module_class))
-        self.state = initial
+        self.interfaces = interfaces or PilotInterfaces(
+            self.prefix, self.nameclient, statuses=module_class.statuses or None,
+            command_decoder=decoder_for(module_class))
+        self._state_lock = threading.Lock()
+        self._state = initial
         self.heartbeat_fd = heartbeat_fd
         self.wake = threading.Event()
         self.interfaces.switch.on_arrival = self.wake.set
@@ -161,6 +181,8 @@ class ModuleRunner:
         self.robot = None
         self.kinematics = None
         self.robot_ready = threading.Event()
+        #: Why the module cannot start (the connector gave up), or None.
+        self.robot_failure: Optional[str] = None
         self.thread = self._make_thread()
         self.loop = ControlLoop(self)
         self.quit_requested = False
@@ -177,6 +199,24 @@ class ModuleRunner:
         return self.module_class(self.name, self.config, self.interfaces,
                                  on_status_change=self.wake.set)
 
+    # -- the lifecycle state ------------------------------------------------------------
+
+    @property
+    def state(self) -> State:
+        """The lifecycle state; only :meth:`_transition` changes it."""
+        return self._state
+
+    def _transition(self, switch: Switch) -> Tuple[State, State]:
+        """Apply ``switch`` to the state as it is now, atomically: ``(before, after)``.
+
+        Raises :class:`IllegalTransition` when the table refuses it, which after
+        a first check means the other thread changed the state meanwhile.
+        """
+        with self._state_lock:
+            before = self._state
+            self._state = next_state(self.name, before, switch.value)
+            return before, self._state
+
     # -- set-up --------------------------------------------------------------------------
 
     def start(self) -> None:
@@ -192,29 +232,47 @@ class ModuleRunner:
                  self.state.value)
 
     def _connect_robot(self) -> None:
-        from walkman.control.kinematics import Kinematics
-        from walkman.hal.robot import Robot
+        """The connector thread: retry while the HAL is not there; any other failure is final."""
+        try:
+            from walkman.control.kinematics import Kinematics
+            from walkman.hal.robot import Robot
 
-        while not self.quit_requested:
-            try:
-                self.robot = Robot(self.prefix, robot=str(self.config.get("robot_name", "walkman")),
-                                   nameclient=self.nameclient, connect_timeout=3600)
-                break
-            except Exception as exc:  # noqa: BLE001 - keep trying, say why
-                log.info("%s: HAL not reachable yet (%s)", self.name, exc)
-                time.sleep(2)
-        urdf = self.config.get("urdf_path") or None
-        self.kinematics = Kinematics(urdf)
+            while self.robot is None:
+                if self.quit_requested:
+                    return
+                try:
+                    self.robot = Robot(self.prefix,
+                                       robot=str(self.config.get("robot_name", "walkman")),
+                                       nameclient=self.nameclient, connect_timeout=3600)
+                except NetworkError as exc:
+                    log.info("%s: HAL not reachable yet (%s)", self.name, exc)
+                    time.sleep(CONNECT_RETRY)
+            self.kinematics = Kinematics(self.config.get("urdf_path") or None)
+        except HalProtocolError as exc:  # the HAL answered, but not as this module needs
+            self._cannot_start(f"the HAL does not fit this module: {exc}")
+            return
+        except Exception as exc:  # a bug: seen with its traceback; starting would drive blind
+            self._cannot_start(f"connecting to the robot failed: {type(exc).__name__}: {exc}",
+                               exc_info=True)
+            return
         thread = self.thread
         if isinstance(thread, ControlThread):
             thread.robot, thread.kinematics = self.robot, self.kinematics
         self.robot_ready.set()
         self.wake.set()
 
+    def _cannot_start(self, reason: str, exc_info: bool = False) -> None:
+        self.robot_failure = reason
+        self.warn(f"{self.name}: {reason}; the module cannot start", exc_info=exc_info)
+        self.wake.set()  # a start waiting for the robot is refused now
+
     # -- hooks, run by the control thread ---------------------------------------------------
 
     def perform(self, hook: str) -> bool:
+        """Run ``custom_<hook>``; False if it failed, or if it no longer applies."""
         thread = self.thread
+        if hook in ("pause", "resume") and self.state != State.PAUSED:
+            return False  # run() failed and the module stopped since the pilot asked
         try:
             if hook == "init":
                 if not self.robot_ready.wait(timeout=0):
@@ -229,8 +287,9 @@ class ModuleRunner:
             if hook == "release":
                 thread.custom_release()
                 return True
-        except Exception as exc:  # user hook failed: report
-            self.warn(f"{self.name}: custom_{hook}() raised {type(exc).__name__}: {exc}")
+        except Exception as exc:  # the module's hook failed: its bug, told with the traceback
+            self.warn(f"{self.name}: custom_{hook}() raised {type(exc).__name__}: {exc}",
+                      exc_info=True)
             return False
         return False
 
@@ -253,96 +312,137 @@ class ModuleRunner:
             self.wake.set()
         return alive
 
-    def hold(self) -> None:
-        if self.robot is not None:
-            try:
-                self.robot.hold()
-            except Exception:  # noqa: BLE001 - holding is best effort
-                pass
+    def hold(self, after: str) -> None:
+        """Keep the robot where it is after ``after``; if even that fails, the pilot hears it."""
+        if self.robot is None:
+            return
+        try:
+            held = self.robot.hold()
+        except HalUsageError as exc:
+            self.warn(f"{self.name}: could not hold the robot after {after}: {exc}")
+            return
+        except Exception as exc:  # a bug while holding: told with its traceback; stopping goes on
+            self.warn(f"{self.name}: holding the robot after {after} failed with "
+                      f"{type(exc).__name__}: {exc}", exc_info=True)
+            return
+        if not held:
+            self.warn(f"{self.name}: could not hold the robot after {after}: the HAL does not "
+                      f"take commands")
 
     def fail_stop(self) -> None:
-        """Called from the control thread after run() raised."""
+        """After run() raised (control thread): stop, unless the pilot stopped it meanwhile."""
+        try:
+            self._transition(Switch.STOP)
+        except IllegalTransition:
+            return  # stopped or quit by the watchdog, whose release request comes next
         self.perform("release")
-        self.state = State.STOPPED
         self._set_lifecycle_status()
         self.wake.set()
 
-    def warn(self, text: str) -> None:
-        log.warning("%s", text)
+    def warn(self, text: str, exc_info: bool = False) -> None:
+        log.warning("%s", text, exc_info=exc_info)
         self.interfaces.warn(text)
 
     # -- switch commands (watchdog) ----------------------------------------------------------------
 
     def _set_lifecycle_status(self) -> None:
-        if self.state != State.RUNNING:
-            word = {State.CONSTRUCTOR: "initializing"}.get(self.state, self.state.value)
-            if self.state == State.CONSTRUCTOR and not self.robot_ready.is_set() and \
-                    getattr(self.module_class, "needs_robot", False) and self.robot is None:
-                word = "initializing"
-            self.interfaces.set_status(word)
+        state = self.state
+        if state != State.RUNNING:
+            self.interfaces.set_status("initializing" if state == State.CONSTRUCTOR
+                                       else state.value)
 
     def switch(self, command: str) -> None:
+        """Apply a pilot's switch command (watchdog thread)."""
         try:
-            target = next_state(self.name, self.state, command)
+            next_state(self.name, self.state, command)  # refused now: no hook runs
         except IllegalTransition as exc:
             self.warn(str(exc))
             return
-        word = command.strip().lower()
-        if word == "start":
-            if not self.robot_ready.is_set():
-                # Started before the HAL: say so, and start as soon as it is there.
-                self.start_pending = True
-                self.interfaces.set_status("waiting_hal")
-                log.info("%s: start requested; waiting for the robot (HAL) first", self.name)
-                self.interfaces.send_status()
-                return
-            self.start_pending = False
-            ok = self.loop.ask("init", timeout=30)
-            if not ok:
-                self.warn(f"{self.name}: custom_init() failed, the module stays {self.state.value}")
-                self._set_lifecycle_status()
-                return
-            self.state = target
-        elif word == "pause":
-            self._reach_safe_pause()
-            self.state = State.PAUSED  # the loop stops calling run() right away
-            # What the module was saying, told again on resume (run() may not repeat it).
-            self._status_at_pause = (self.interfaces.state, list(self.interfaces.data))
-            if self.loop.ask("pause") is None:
-                self.warn(f"{self.name}: custom_pause() did not return")
-            self._set_lifecycle_status()
-        elif word == "resume":
-            self.thread.pause_requested = False
-            ok = self.loop.ask("resume")
-            if ok:
-                self.state = target
-                if self.interfaces.state == State.PAUSED.value and self._status_at_pause:
-                    self.interfaces.set_status(*self._status_at_pause)
+        switch = parse_switch(command)
+        try:
+            if switch == Switch.START:
+                changed = self._start()
+            elif switch == Switch.PAUSE:
+                changed = self._pause()
+            elif switch == Switch.RESUME:
+                changed = self._resume()
             else:
-                self.warn(f"{self.name}: custom_resume() failed, staying paused")
-        elif word in ("stop", "quit"):
-            previous, self.state = self.state, State.STOPPED
-            result = self.loop.ask("release") if previous != State.CONSTRUCTOR else True
-            if result is None:
-                self.warn(f"{self.name}: run() does not give control back; restarting the "
-                          f"module process ({word})")
-                self.exit_code = EXIT_QUIT if word == "quit" else EXIT_ESCALATED
-                self.quit_requested = True
-                return
-            self.hold()
-            if word == "quit":
-                self.state = State.DESTRUCTOR
-                self.quit_requested = True
-            self._set_lifecycle_status()
-        log.info("%s: %s -> %s", self.name, word, self.state.value)
+                changed = self._stop(switch)
+        except IllegalTransition as exc:  # run() failed while the hooks ran: the module stopped
+            self.warn(f"{exc}; the state changed meanwhile")
+            changed = False
+        if changed:
+            log.info("%s: %s -> %s", self.name, switch.value, self.state.value)
         self.interfaces.send_status()
+
+    def _start(self) -> bool:
+        if self.robot_failure is not None:
+            self.start_pending = False
+            self.warn(f"{self.name}: cannot start: {self.robot_failure}")
+            self._set_lifecycle_status()
+            return False
+        if not self.robot_ready.is_set():
+            # Started before the HAL: say so, and start as soon as it is there.
+            self.start_pending = True
+            self.interfaces.set_status("waiting_hal")
+            log.info("%s: start requested; waiting for the robot (HAL) first", self.name)
+            return False
+        self.start_pending = False
+        if not self.loop.ask("init", timeout=30):
+            self.warn(f"{self.name}: custom_init() failed, the module stays {self.state.value}")
+            self._set_lifecycle_status()
+            return False
+        self._transition(Switch.START)
+        return True
+
+    def _pause(self) -> bool:
+        self._reach_safe_pause()
+        try:
+            self._transition(Switch.PAUSE)  # the loop stops calling run() right away
+        except IllegalTransition:
+            self.thread.pause_requested = False
+            raise
+        # What the module was saying, told again on resume (run() may not repeat it).
+        self._status_at_pause = (self.interfaces.state, list(self.interfaces.data))
+        if self.loop.ask("pause") is None:
+            self.warn(f"{self.name}: custom_pause() did not return")
+        self._set_lifecycle_status()
+        return True
+
+    def _resume(self) -> bool:
+        self.thread.pause_requested = False
+        if not self.loop.ask("resume"):
+            self.warn(f"{self.name}: custom_resume() failed, staying paused")
+            return False
+        self._transition(Switch.RESUME)
+        if self.interfaces.state == State.PAUSED.value and self._status_at_pause:
+            self.interfaces.set_status(*self._status_at_pause)
+        return True
+
+    def _stop(self, switch: Switch) -> bool:
+        """``stop`` or ``quit``: the state changes first, so run() is not called again."""
+        before, _ = self._transition(switch)
+        # custom_init in force (running or paused): undo it once, and hold what it drove.
+        active = before in (State.RUNNING, State.PAUSED)
+        if active and self.loop.ask("release") is None:
+            self.warn(f"{self.name}: run() does not give control back; restarting the "
+                      f"module process ({switch.value})")
+            self.exit_code = EXIT_QUIT if switch == Switch.QUIT else EXIT_ESCALATED
+            self.quit_requested = True
+            return True
+        if active:
+            self.hold(f"'{switch.value}'")
+        if switch == Switch.QUIT:
+            self.quit_requested = True
+        self._set_lifecycle_status()
+        return True
 
     def _reach_safe_pause(self) -> None:
         """Let run() go on until the module says it can pause (paper: finish the step)."""
         thread = self.thread
         thread.pause_requested = True
         deadline = time.monotonic() + PAUSE_GRACE
-        while not thread.ready_to_pause():
+        while self.state == State.RUNNING and not thread.ready_to_pause():
             if time.monotonic() > deadline:
                 self.warn(f"{self.name}: no safe pause within {PAUSE_GRACE:g} s; pausing now")
                 return
@@ -367,7 +467,8 @@ class ModuleRunner:
                 if command.name.strip().lower() in ("stop", "quit"):
                     self.start_pending = False
                 self.switch(command.name)
-            if self.start_pending and self.robot_ready.is_set() and not self.quit_requested:
+            if self.start_pending and not self.quit_requested and \
+                    (self.robot_ready.is_set() or self.robot_failure is not None):
                 self.switch("start")
             now = time.monotonic()
             if now >= next_status:
