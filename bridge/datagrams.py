@@ -7,7 +7,7 @@ is cut into ``parts`` datagrams of at most :data:`MAX_DATAGRAM` bytes, the UDP
 payload of a 1500-byte Ethernet frame, so IP never fragments them::
 
     datagram := 0xB7 id flags varint(message) varint(parts) varint(group)
-                varint(index) [varint(row) if REPAIR] body crc16[2]
+                varint(index) [varint(row) if REPAIR] body
     flags    := kind (bits 0-2) | REPAIR (bit 3)
 
 ``message`` numbers the messages of one channel, in order: the receiver
@@ -16,23 +16,27 @@ rebuilds by it and drops replays and stragglers.  Data parts are numbered
 are followed by repair datagrams (``index`` = the group, ``row`` = the repair
 row, see :mod:`bridge.fec`).  What a data body holds depends on the channel:
 a standalone tile (:mod:`bridge.tiles`) or a plain slice of the message.
+
+On the wire every datagram is sealed by the link (:mod:`bridge.link`: a
+counter and an authentication tag, which also catch corrupted bytes), so the
+budget for a body leaves room for the seal.
 """
 
 from __future__ import annotations
 
-import struct
 from dataclasses import dataclass
 
 from bridge.errors import BridgeProtocolError, BridgeUsageError, NeedMoreData
-from bridge.wire import Buffer, crc16, get_varint, put_varint
+from bridge.link import SEAL_OVERHEAD
+from bridge.wire import Buffer, get_varint, put_varint
 
 MAGIC = 0xB7
 MAX_DATAGRAM = 1472           # 1500 - 20 (IPv4) - 8 (UDP)
 REPAIR = 0x08
-_CRC = struct.Struct(">H")
-#: Room left for a body after the largest header and the CRC.
+#: Room left for a body after the largest header and the link's seal.
 MAX_HEADER = 3 + 5 + 3 + 2 + 3 + 2
-BODY_BUDGET = MAX_DATAGRAM - MAX_HEADER - _CRC.size
+MAX_INNER = MAX_DATAGRAM - SEAL_OVERHEAD
+BODY_BUDGET = MAX_INNER - MAX_HEADER
 
 
 @dataclass(frozen=True)
@@ -62,28 +66,24 @@ def encode(datagram: Datagram) -> bytes:
     if datagram.is_repair:
         put_varint(out, datagram.repair_row)
     out += datagram.body
-    out += _CRC.pack(crc16(out))
-    if len(out) > MAX_DATAGRAM:
-        raise BridgeUsageError(f"datagram of {len(out)} bytes exceeds {MAX_DATAGRAM}")
+    if len(out) > MAX_INNER:
+        raise BridgeUsageError(f"datagram of {len(out)} bytes exceeds {MAX_INNER} (the link's "
+                               f"seal takes the rest of {MAX_DATAGRAM})")
     return bytes(out)
 
 
 def decode(data: Buffer) -> Datagram:
     """One datagram, or :class:`BridgeProtocolError` naming what is wrong with it."""
-    if len(data) < 9:
+    if len(data) < 7:
         raise BridgeProtocolError(f"datagram of {len(data)} bytes is too short")
-    if len(data) > MAX_DATAGRAM:
-        raise BridgeProtocolError(f"datagram of {len(data)} bytes exceeds {MAX_DATAGRAM}")
+    if len(data) > MAX_INNER:
+        raise BridgeProtocolError(f"datagram of {len(data)} bytes exceeds {MAX_INNER}")
     if data[0] != MAGIC:
         raise BridgeProtocolError(f"datagram starts with {data[0]:#04x}, not {MAGIC:#04x}")
-    (expected,) = _CRC.unpack_from(data, len(data) - 2)
-    if crc16(data[:-2]) != expected:
-        raise BridgeProtocolError("datagram fails its CRC")
     flags = data[2]
     if flags & ~(0x07 | REPAIR):
         raise BridgeProtocolError(f"datagram flags {flags:#04x} have unknown bits")
-    end = len(data) - 2
-    view = bytes(data[:end])
+    view = bytes(data)
     try:
         message, pos = get_varint(view, 3, "message")
         parts, pos = get_varint(view, pos, "parts")

@@ -1,11 +1,14 @@
-"""The TCP channel's frames: pure functions and an incremental decoder over bytes.
+"""The TCP channel's frames: pure functions and an incremental splitter over bytes.
 
 Theory of operation
 -------------------
 Everything one side has to say during a period T travels in one frame::
 
-    frame  := varint(len(body)) body crc16(body)[2, big endian]
-    body   := flags [varint ack] [varint seq] entry*
+    frame  := varint(len(body)) body trailer
+    body   := flags [varint ack] [varint seq] entry*          (data)
+            | HELLO version side fingerprint[8] session[8] nonce[16] keyed
+            | AUTH proof[16]
+            | RESUME varint(accepted)
     entry  := id head [varint length] payload
     head   := kind << 5 | DELTA << 4 | length (0..14; 15 = a varint length follows)
 
@@ -17,14 +20,16 @@ framing, where YARP spends 30 and ROS more.
 Reliable entries (pilot commands, warnings) are numbered: ``seq`` is the number
 of the first reliable entry in the frame, the others follow in order.
 ``ack`` tells the peer the highest number accepted so far, so it can forget
-what it journalled.  A connection opens with a HELLO from each side (protocol
-version, side, a fingerprint of the configuration, the journal's session) and
-a RESUME (the highest number already accepted from that session): the sender
-resends everything after it, so nothing is lost or repeated across reconnects.
+what it journalled.  A connection opens with HELLO and AUTH from each side and
+a RESUME (the highest number already accepted from the peer's journal
+session): the sender resends everything after it, so nothing is lost or
+repeated across reconnects.
 
-The CRC catches what TCP does not (a confused peer, a corrupting middlebox); a
-frame that fails it, or any other check, raises :class:`BridgeProtocolError`
-and the connection is dropped -- reconnecting is cheap and loses nothing.
+The ``trailer`` is the link's business (:mod:`bridge.link`): none on HELLO and
+AUTH, an 8-byte authentication tag on every later frame.  This module only
+splits the stream into ``(body, trailer)`` records -- never half-consuming one
+-- and encodes and parses bodies; any violation raises
+:class:`BridgeProtocolError` naming the field.
 """
 
 from __future__ import annotations
@@ -32,15 +37,19 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass, field
 from enum import IntFlag
-from typing import List, Optional, Tuple, Union
+from typing import Iterable, List, Optional, Tuple, Union
 
 from bridge.errors import BridgeProtocolError, BridgeUsageError, NeedMoreData
-from bridge.wire import Buffer, crc16, get_varint, put_varint, take
+from bridge.wire import Buffer, get_varint, put_varint, take
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
 DEFAULT_MAX_FRAME = 4 << 20
+#: Frames of the handshake are tiny; a bigger one is refused before it is buffered.
+MAX_HANDSHAKE_FRAME = 64
 MAX_KIND = 7
-_CRC = struct.Struct(">H")
+NONCE_SIZE = 16
+PROOF_SIZE = 16
+_HELLO = struct.Struct(">BBB8sQ16sB")
 
 
 class Flags(IntFlag):
@@ -48,9 +57,10 @@ class Flags(IntFlag):
     SEQ = 0x02
     HELLO = 0x04
     RESUME = 0x08
+    AUTH = 0x10
 
 
-_KNOWN_FLAGS = int(Flags.ACK | Flags.SEQ | Flags.HELLO | Flags.RESUME)
+_KNOWN_FLAGS = int(Flags.ACK | Flags.SEQ | Flags.HELLO | Flags.RESUME | Flags.AUTH)
 
 
 @dataclass(frozen=True)
@@ -73,7 +83,14 @@ class Hello:
     side: str             # "robot" or "pilot"
     fingerprint: bytes    # 8 bytes: both sides must run the same configuration
     session: int          # 64-bit id of the sender's journal
+    nonce: bytes = bytes(NONCE_SIZE)   # fresh for every connection
+    keyed: bool = True    # False: the sender runs without a key (--no-auth)
     version: int = PROTOCOL_VERSION
+
+
+@dataclass(frozen=True)
+class Auth:
+    proof: bytes          # 16 bytes: the sender knows the key and saw both HELLOs
 
 
 @dataclass(frozen=True)
@@ -81,16 +98,17 @@ class Resume:
     accepted: int         # highest reliable number already accepted from the peer's session
 
 
-Frame = Union[DataFrame, Hello, Resume]
+Frame = Union[DataFrame, Hello, Auth, Resume]
 _SIDES = {"robot": 0x72, "pilot": 0x70}
 _SIDE_NAMES = {code: name for name, code in _SIDES.items()}
 
 
-def _wrap(body: bytes) -> bytes:
+def wrap(body: bytes, trailer: bytes = b"") -> bytes:
+    """One frame on the wire: the body's length, the body, the link's trailer."""
     out = bytearray()
     put_varint(out, len(body))
     out += body
-    out += _CRC.pack(crc16(body))
+    out += trailer
     return bytes(out)
 
 
@@ -107,9 +125,9 @@ def entry_bytes(entry: Entry) -> bytes:
     return bytes(out)
 
 
-def encode_data(entries: Tuple[Entry, ...] = (), ack: Optional[int] = None,
-                seq: Optional[int] = None, encoded: Optional[List[bytes]] = None) -> bytes:
-    """A data frame; ``encoded`` may hold the entries already through :func:`entry_bytes`."""
+def data_body(entries: Iterable[Entry] = (), ack: Optional[int] = None,
+              seq: Optional[int] = None, encoded: Optional[List[bytes]] = None) -> bytes:
+    """A data frame's body; ``encoded`` may hold entries already through :func:`entry_bytes`."""
     flags = (Flags.ACK if ack is not None else 0) | (Flags.SEQ if seq is not None else 0)
     body = bytearray((flags,))
     if ack is not None:
@@ -118,36 +136,56 @@ def encode_data(entries: Tuple[Entry, ...] = (), ack: Optional[int] = None,
         put_varint(body, seq)
     for chunk in encoded if encoded is not None else (entry_bytes(e) for e in entries):
         body += chunk
-    return _wrap(bytes(body))
+    return bytes(body)
 
 
-def encode_hello(hello: Hello) -> bytes:
+def hello_body(hello: Hello) -> bytes:
     if len(hello.fingerprint) != 8:
         raise BridgeUsageError("a configuration fingerprint is 8 bytes")
-    body = bytes((Flags.HELLO, hello.version, _SIDES[hello.side])) + hello.fingerprint + \
-        struct.pack(">Q", hello.session)
-    return _wrap(body)
+    if len(hello.nonce) != NONCE_SIZE:
+        raise BridgeUsageError(f"a HELLO nonce is {NONCE_SIZE} bytes")
+    if hello.side not in _SIDES:
+        raise BridgeUsageError(f"side must be robot or pilot, not {hello.side!r}")
+    return _HELLO.pack(Flags.HELLO, hello.version, _SIDES[hello.side], hello.fingerprint,
+                       hello.session, hello.nonce, int(hello.keyed))
 
 
-def encode_resume(resume: Resume) -> bytes:
+def auth_body(auth: Auth) -> bytes:
+    if len(auth.proof) != PROOF_SIZE:
+        raise BridgeUsageError(f"an AUTH proof is {PROOF_SIZE} bytes")
+    return bytes((Flags.AUTH,)) + auth.proof
+
+
+def resume_body(resume: Resume) -> bytes:
     body = bytearray((Flags.RESUME,))
     put_varint(body, resume.accepted)
-    return _wrap(bytes(body))
+    return bytes(body)
 
 
-def _parse_body(body: bytes) -> Frame:
+def body_of(frame: Frame) -> bytes:
+    """The body of any frame (the link adds length and trailer)."""
+    if isinstance(frame, Hello):
+        return hello_body(frame)
+    if isinstance(frame, Auth):
+        return auth_body(frame)
+    if isinstance(frame, Resume):
+        return resume_body(frame)
+    return data_body(frame.entries, frame.ack, frame.seq)
+
+
+def parse_body(body: bytes) -> Frame:
+    """Decode one body; :class:`BridgeProtocolError` names what is wrong."""
     if not body:
         raise BridgeProtocolError("empty frame")
     flags = body[0]
     if flags & ~_KNOWN_FLAGS:
         raise BridgeProtocolError(f"frame flags {flags:#04x} have unknown bits")
     if flags & Flags.HELLO:
-        if flags != Flags.HELLO or len(body) != 19:
-            raise BridgeProtocolError(f"malformed HELLO ({len(body)} bytes, flags {flags:#x})")
-        side = _SIDE_NAMES.get(body[2])
-        if side is None:
-            raise BridgeProtocolError(f"HELLO names an unknown side {body[2]:#x}")
-        return Hello(side, body[3:11], struct.unpack(">Q", body[11:19])[0], body[1])
+        return _parse_hello(body)
+    if flags & Flags.AUTH:
+        if flags != Flags.AUTH or len(body) != 1 + PROOF_SIZE:
+            raise BridgeProtocolError(f"malformed AUTH ({len(body)} bytes, flags {flags:#x})")
+        return Auth(bytes(body[1:]))
     pos = 1
     try:
         if flags & Flags.RESUME:
@@ -180,19 +218,32 @@ def _parse_body(body: bytes) -> Frame:
     return DataFrame(tuple(entries), ack, seq)
 
 
-def decode(frame: Buffer) -> Frame:
-    """Decode exactly one whole frame."""
-    decoder = FrameDecoder()
-    frames = decoder.feed(frame)
-    if len(frames) != 1 or decoder.pending:
-        raise BridgeProtocolError(f"expected one frame, got {len(frames)} and "
-                                  f"{decoder.pending} extra bytes")
-    return frames[0]
+def _parse_hello(body: bytes) -> Hello:
+    flags = body[0]
+    if flags != Flags.HELLO or len(body) < 2:
+        raise BridgeProtocolError(f"malformed HELLO ({len(body)} bytes, flags {flags:#x})")
+    if body[1] != PROTOCOL_VERSION:
+        # Checked first: a peer of another version has another HELLO layout.
+        raise BridgeProtocolError(f"peer speaks bridge protocol {body[1]}, we speak "
+                                  f"{PROTOCOL_VERSION}; run the same bridge on both sides")
+    if len(body) != _HELLO.size:
+        raise BridgeProtocolError(f"malformed HELLO ({len(body)} bytes, expected {_HELLO.size})")
+    _, version, side_code, fingerprint, session, nonce, keyed = _HELLO.unpack(body)
+    side = _SIDE_NAMES.get(side_code)
+    if side is None:
+        raise BridgeProtocolError(f"HELLO names an unknown side {side_code:#x}")
+    if keyed not in (0, 1):
+        raise BridgeProtocolError(f"HELLO key flag {keyed:#x} is neither 0 nor 1")
+    return Hello(side, fingerprint, session, nonce, bool(keyed), version)
 
 
 @dataclass
-class FrameDecoder:
-    """Feed bytes as they arrive; get whole frames.  Never half-consumes a frame."""
+class FrameSplitter:
+    """Feed bytes as they arrive; take whole ``(body, trailer)`` records.
+
+    The caller says how long the next record's trailer is (it depends on the
+    link's phase); a record is only removed from the buffer once it is whole.
+    """
 
     max_frame: int = DEFAULT_MAX_FRAME
     _buffer: bytearray = field(default_factory=bytearray)
@@ -201,29 +252,24 @@ class FrameDecoder:
     def pending(self) -> int:
         return len(self._buffer)
 
-    def feed(self, data: Buffer) -> List[Frame]:
+    def feed(self, data: Buffer) -> None:
         self._buffer += data
-        frames: List[Frame] = []
-        while True:
-            frame = self._next()
-            if frame is None:
-                return frames
-            frames.append(frame)
 
-    def _next(self) -> Optional[Frame]:
+    def next_record(self, trailer: int, max_frame: Optional[int] = None
+                    ) -> Optional[Tuple[bytes, bytes]]:
+        """The next ``(body, trailer)``, or None until more bytes arrive."""
         buf = self._buffer
+        limit = self.max_frame if max_frame is None else max_frame
         try:
             length, pos = get_varint(buf, 0, "frame length")
         except NeedMoreData:
             return None
-        if length > self.max_frame:
+        if length > limit:
             raise BridgeProtocolError(f"declared frame length {length} exceeds the "
-                                      f"{self.max_frame}-byte limit")
-        if len(buf) < pos + length + 2:
+                                      f"{limit}-byte limit")
+        end = pos + length + trailer
+        if len(buf) < end:
             return None
-        body = bytes(buf[pos:pos + length])
-        (expected,) = _CRC.unpack_from(buf, pos + length)
-        del buf[:pos + length + 2]
-        if crc16(body) != expected:
-            raise BridgeProtocolError(f"frame of {length} bytes fails its CRC")
-        return _parse_body(body)
+        record = bytes(buf[pos:pos + length]), bytes(buf[pos + length:end])
+        del buf[:end]
+        return record

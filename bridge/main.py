@@ -2,12 +2,16 @@
 
 Usage::
 
-    walkman-bridge --side robot --config models/bridge_drc.xml --peer 169.254.10.2
-    walkman-bridge --side pilot --config models/bridge_drc.xml --peer 169.254.10.1
+    walkman-bridge --gen-key ~/.config/walkman/bridge.key   # once; copy it to the other PC
+    walkman-bridge --side robot --config models/bridge_drc.xml --peer 169.254.10.2 --key K
+    walkman-bridge --side pilot --config models/bridge_drc.xml --peer 169.254.10.1 --key K
     walkman-bridge --check models/bridge_drc.xml      # validate, print the id table
 
 Both sides must use the same configuration file (the handshake compares a
-fingerprint).  The robot side listens on ``--port`` and the pilot side dials
+fingerprint) and the same key file (the handshake proves it both ways; every
+frame and datagram then carries an authentication tag, see :mod:`bridge.link`).
+The key file must be readable by its owner only, as ssh wants of its keys;
+``--no-auth`` runs without one, for a closed lab network.  The robot side listens on ``--port`` and the pilot side dials
 it; both send UDP to the peer's ``--udp-port``.  Talk to a running bridge with
 ``yarp rpc /bridge/<side>/rpc:i`` (``status``) or read
 ``/bridge/<side>/status:o``.
@@ -27,7 +31,9 @@ from typing import List, Optional
 
 from bridge import config as bridge_config
 from bridge.config import ConfigError
+from bridge.errors import BridgeUsageError
 from bridge.journal import default_state_dir
+from bridge.link import LinkKey, generate_key_file
 
 DEFAULT_TCP_PORT = 10150
 DEFAULT_UDP_PORT = 10151
@@ -59,9 +65,16 @@ def build_parser() -> argparse.ArgumentParser:
         prog="walkman-bridge", description="One side of the Walk-Man robot/pilot bridge.")
     parser.add_argument("--check", metavar="CONFIG",
                         help="validate a configuration and print its flows, then exit")
+    parser.add_argument("--gen-key", metavar="FILE", type=Path,
+                        help="write a new random key to FILE (mode 600), then exit")
     parser.add_argument("--side", choices=("robot", "pilot"))
     parser.add_argument("--config", type=Path, help="bridge XML (same file on both sides)")
     parser.add_argument("--peer", help="host name or address of the other side")
+    auth = parser.add_mutually_exclusive_group()
+    auth.add_argument("--key", type=Path, metavar="FILE",
+                      help="the key file both bridges share (from --gen-key; mode 600)")
+    auth.add_argument("--no-auth", action="store_true",
+                      help="run without a key: frames are checked but not authenticated")
     parser.add_argument("--port", type=_port, default=DEFAULT_TCP_PORT,
                         help=f"TCP channel port (default {DEFAULT_TCP_PORT})")
     parser.add_argument("--udp-port", type=_port, default=DEFAULT_UDP_PORT,
@@ -129,6 +142,14 @@ def configure_logging(side: str, verbose: bool) -> None:
 def main(argv: Optional[List[str]] = None) -> int:
     parser = build_parser()
     options = parser.parse_args(argv)
+    if options.gen_key:
+        try:
+            path = generate_key_file(options.gen_key)
+        except (BridgeUsageError, OSError) as exc:
+            print(f"walkman-bridge: {exc}", file=sys.stderr)
+            return 1
+        print(f"wrote a new bridge key to {path}; copy it (mode 600) to the other PC")
+        return 0
     if options.check:
         try:
             print(describe(bridge_config.load(Path(options.check))))
@@ -140,7 +161,19 @@ def main(argv: Optional[List[str]] = None) -> int:
                                         ("--peer", options.peer)) if not value]
     if missing:
         parser.error(f"missing {', '.join(missing)}")
+    if not options.key and not options.no_auth:
+        parser.error("missing --key FILE (create one with --gen-key FILE and copy it to the "
+                     "other PC), or --no-auth to run unauthenticated")
+    try:
+        key = LinkKey.none() if options.no_auth else LinkKey.from_file(options.key)
+    except BridgeUsageError as exc:
+        print(f"walkman-bridge: {exc}", file=sys.stderr)
+        return 1
     configure_logging(options.side, options.verbose)
+    if not key.keyed:
+        logging.getLogger("bridge").warning(
+            "running WITHOUT authentication (--no-auth): anyone on the link can command "
+            "the robot")
     try:
         text = options.config.read_text()
         config = bridge_config.parse(text, str(options.config))
@@ -158,7 +191,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                         peer_udp_port=options.peer_udp_port, listen=options.listen,
                         state_dir=options.state_dir or default_state_dir(options.side),
                         udp_rate=options.udp_rate, link_timeout=options.link_timeout,
-                        queue_limit=options.queue_limit, fsync=options.fsync)
+                        queue_limit=options.queue_limit, fsync=options.fsync, key=key)
         bridge.start()
     except OSError as exc:
         print(f"walkman-bridge: cannot start: {exc}", file=sys.stderr)

@@ -15,7 +15,9 @@ keeps a message until its port is connected -- a command sent while a module
 is down waits for the module, it is not lost.
 
 The bridge describes itself on ``/bridge/<side>/status:o`` (every second) and
-answers ``status`` on ``/bridge/<side>/rpc:i``, for ``yarp rpc`` and scripts.
+answers ``status`` on ``/bridge/<side>/rpc:i``, for ``yarp rpc`` and scripts:
+link phase, queues, and what was dropped by reason (:mod:`bridge.drops`:
+forged, replayed, strangers, stale...).
 """
 
 from __future__ import annotations
@@ -31,8 +33,10 @@ from typing import Any, Dict, List, Optional, Tuple
 from bridge import compact
 from bridge import status as status_codec
 from bridge.config import PILOT, ROBOT, BridgeConfig, Channel
+from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeProtocolError
 from bridge.journal import Journal, QueueFull
+from bridge.link import LinkKey
 from bridge.tcp_channel import BOTTLE, STATE, Route, TcpChannel
 from bridge.udp_channel import UdpChannel, UdpRoute
 from yarp_lite.bottle import Bottle
@@ -53,7 +57,8 @@ class Bridge:
                  tcp_port: int, udp_port: int, peer_udp_port: Optional[int] = None,
                  listen: Optional[bool] = None, state_dir: Path,
                  udp_rate: Optional[float] = None, link_timeout: float = 5.0,
-                 queue_limit: int = 1000, fsync: bool = False) -> None:
+                 queue_limit: int = 1000, fsync: bool = False,
+                 key: Optional[LinkKey] = None) -> None:
         if side not in (ROBOT, PILOT):
             raise ValueError(f"side must be robot or pilot, not {side!r}")
         self.config = config
@@ -61,8 +66,9 @@ class Bridge:
         self.nameclient = NameClient()
         self.journal = Journal(state_dir, limit=queue_limit, fsync=fsync)
         self.refused = 0
-        self.dropped_early = 0
         self.delivered = 0
+        self.internal_errors = 0
+        self.drops = DropLedger("bridge", log)
         self._sources: Dict[Key, Any] = {}
         self._sinks: List[Any] = []
         self._ros_sinks: List[Any] = []
@@ -79,10 +85,15 @@ class Bridge:
                               config_text=config_text, journal=self.journal,
                               routes=tcp_routes, period=config.period,
                               on_message=self._on_message, on_reliable=self._deliver_wake.set,
-                              on_connected=self._on_link_up, link_timeout=link_timeout)
+                              on_connected=self._on_link_up, link_timeout=link_timeout,
+                              key=key, on_keys=self._on_keys)
         self.udp = UdpChannel(peer=peer, port=udp_port, peer_port=peer_udp_port or udp_port,
                               routes=udp_routes, gather=config.gather,
                               on_message=self._on_message, rate=udp_rate) if udp_routes else None
+
+    def _on_keys(self, event: str, send_key: bytes, receive_key: bytes) -> None:
+        if self.udp is not None:
+            self.udp.set_keys(event, send_key, receive_key)
 
     # -- wiring ------------------------------------------------------------------------
 
@@ -210,7 +221,8 @@ class Bridge:
     def _on_message(self, key: Key, value: Any) -> None:
         source = self._sources.get(key)
         if source is None:
-            self.dropped_early += 1
+            self.drops.drop(Reason.NOT_READY, f"id {key[0]} kind {key[1]}: local endpoint not "
+                                              f"open yet")
             return
         try:
             source.deliver(value)
@@ -218,6 +230,13 @@ class Bridge:
             log.warning("delivering on %s failed: %s", key, exc)
 
     def _deliver_loop(self) -> None:
+        """Write queued reliable messages to their ports, in order, each exactly once.
+
+        A message stays queued until its port takes it; an exception from a port
+        (its network gone, or a bug) blocks only that flow until the next round, so
+        the thread never dies and nothing is lost.
+        """
+        failing: set = set()   # rows whose delivery raised a bug, logged once each
         while not self._stop.is_set():
             self._deliver_wake.wait(0.25)
             self._deliver_wake.clear()
@@ -227,8 +246,8 @@ class Bridge:
                 if key in blocked:
                     continue
                 if self.config.channel(key) is None:
-                    log.warning("dropping a queued message for id %d kind %d: not in the "
-                                "configuration any more", ident, kind)
+                    self.drops.drop(Reason.UNCONFIGURED, f"queued message for id {ident} kind "
+                                                         f"{kind}")
                     self.journal.delivered(row)
                     continue
                 source = self._sources.get(key)
@@ -238,9 +257,19 @@ class Bridge:
                 try:
                     ok = source.deliver(compact.decode(payload))
                 except BridgeProtocolError as exc:
-                    log.error("dropping a corrupt queued message: %s", exc)
+                    self.drops.peer_error(exc, "queued message")
                     self.journal.delivered(row)
                     continue
+                except YarpError as exc:
+                    log.warning("delivering on %s failed, will retry: %s", key, exc)
+                    ok = False
+                except Exception:  # noqa: BLE001 -- our bug: seen, counted, message kept
+                    self.internal_errors += 1
+                    if row not in failing:
+                        failing.add(row)
+                        log.exception("delivering queued message %d on %s failed (a bug); "
+                                      "it stays queued", row, key)
+                    ok = False
                 if ok:
                     self.journal.delivered(row)
                     self.delivered += 1
@@ -270,16 +299,28 @@ class Bridge:
             "undelivered": len(self.journal.undelivered()),
             "refused": self.refused,
             "delivered": self.delivered,
-            "dropped_before_ready": self.dropped_early,
-            "tcp": {k: v for k, v in asdict(stats).items()},
+            "internal_errors": self.internal_errors,
+            "authenticated": self.tcp.key.keyed,
+            "dropped": self._dropped(),
+            "tcp": {**asdict(stats), "drops": dict(self.tcp.drops.counts),
+                    "last_drop": self.tcp.drops.last_error},
         }
         if self.udp is not None:
-            udp = asdict(self.udp.stats)
+            udp = {**asdict(self.udp.stats), "drops": dict(self.udp.drops.counts),
+                   "last_drop": self.udp.drops.last_error}
             udp["flows"] = {name: {**flow, "mean_completeness": round(
                 self.udp.stats.flows[name].mean_completeness, 4)}
                 for name, flow in udp["flows"].items()}
             out["udp"] = udp
         return out
+
+    def _dropped(self) -> Dict[str, int]:
+        """Drops by reason, summed over the channels and the delivery side."""
+        total: Dict[str, int] = {}
+        for ledger in (self.tcp.drops, self.udp.drops if self.udp else None, self.drops):
+            for reason, count in (ledger.counts.items() if ledger else ()):
+                total[reason] = total.get(reason, 0) + count
+        return total
 
     def _status_bottle(self) -> Bottle:
         return status_codec.to_bottle(self.status())

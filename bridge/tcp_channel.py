@@ -8,6 +8,15 @@ dials (either can be chosen).  The connection goes through the phases of
 ``link_timeout`` seconds -- returns it to ``down`` and the dialer tries again
 every second, forever.
 
+Each connection speaks the link protocol of :mod:`bridge.link` (a sans-IO
+:class:`~bridge.link.LinkConnection`): HELLO, mutual authentication with the
+shared key, RESUME, then frames sealed with authentication tags.  This module
+only moves its bytes.  A connection that fails authentication, or later sends
+a frame whose tag is wrong, is dropped and counted (:mod:`bridge.drops`); on
+the listening side each handshake runs in its own thread and an established
+link is only replaced by a connection that has proved the key, so a stranger
+can neither stall the listener nor push the real peer off.
+
 The sender thread writes one frame per period T holding the newest value of
 every streaming flow that changed (older ones are simply overwritten in their
 slot), and writes at once whenever a reliable message is journalled or an ack
@@ -36,10 +45,12 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
-from bridge import compact, frames
+from bridge import compact, drops, frames
+from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeError, BridgeProtocolError
-from bridge.frames import DataFrame, Entry, Hello, Resume
+from bridge.frames import DataFrame, Entry
 from bridge.journal import Journal
+from bridge.link import FrameReceived, LinkConnection, LinkKey, LinkUp, PeerHello
 from bridge.state_codec import StateDecoder, StateEncoder
 
 log = logging.getLogger("bridge.tcp")
@@ -55,6 +66,12 @@ PHASES: Dict[str, Dict[str, str]] = {
 }
 MAX_RELIABLE_PER_FRAME = 256
 KEEPALIVE = 1.0
+#: Seconds a connection has to complete the handshake.
+HANDSHAKE_TIMEOUT = 5.0
+#: Handshakes run at once on the listening side; more connections are refused.
+MAX_HANDSHAKES = 4
+#: Called with ("offered" | "installed", our UDP sending key, our UDP receiving key).
+KeysHook = Callable[[str, bytes, bytes], None]
 
 
 @dataclass(frozen=True)
@@ -77,12 +94,9 @@ class LinkStats:
     payload_in: int = 0
     reliable_sent: int = 0
     reliable_accepted: int = 0
-    duplicates: int = 0
-    bad_frames: int = 0
-    unknown_ids: int = 0
-    rejected_peers: int = 0
     connects: int = 0
-    held_back: int = 0
+    #: exceptions that are our bugs (logged with their traceback), not the peer's
+    internal_errors: int = 0
     last_error: str = ""
     #: payload plus entry header bytes sent, per 8-bit id (frame headers not included)
     bytes_by_id: Dict[int, int] = field(default_factory=dict)
@@ -104,6 +118,7 @@ def _unsent_bytes(sock: socket.socket) -> int:
 class _Connection:
     sock: socket.socket
     peer: str
+    link: LinkConnection
     session: int = 0
     sent_upto: int = 0
     ack_sent: int = -1
@@ -128,8 +143,11 @@ class TcpChannel:
                  journal: Journal, routes: List[Route], period: float,
                  on_message: Callable[[Key, Any], None], on_reliable: Callable[[], None],
                  on_connected: Callable[[], None] = lambda: None,
-                 link_timeout: float = 5.0, bind_host: str = "") -> None:
+                 link_timeout: float = 5.0, bind_host: str = "",
+                 key: Optional[LinkKey] = None, on_keys: Optional[KeysHook] = None) -> None:
         self.side = side
+        self.key = key if key is not None else LinkKey.none()
+        self.on_keys = on_keys
         self.peer_host = peer
         self.port = port
         self.listen = listen
@@ -143,6 +161,7 @@ class TcpChannel:
         self.on_reliable = on_reliable
         self.on_connected = on_connected
         self.stats = LinkStats()
+        self.drops = DropLedger("TCP channel", log)
         self.phase = "down"
         self.phase_since = time.monotonic()
         self._slots: Dict[Key, Any] = {}
@@ -155,6 +174,7 @@ class TcpChannel:
         self._threads: List[threading.Thread] = []
         self._listener: Optional[socket.socket] = None
         self._peer_ips = self._resolve_peer()
+        self._handshakes = threading.BoundedSemaphore(MAX_HANDSHAKES)
 
     # -- public surface ---------------------------------------------------------------
 
@@ -223,21 +243,22 @@ class TcpChannel:
     def _connect_loop(self) -> None:
         announced = False
         while not self._stopping.is_set():
-            if self._connection is not None and not self._connection.closed:
-                if self.listen:
-                    self._accept_once(replace=True)
-                else:
-                    self._stopping.wait(0.5)
+            if self.listen:
+                self._accept_once()
                 continue
-            sock = self._accept_once(replace=False) if self.listen else self._dial()
+            if self._connection is not None and not self._connection.closed:
+                self._stopping.wait(0.5)
+                continue
+            sock = self._dial()
             if sock is None:
-                if not announced and not self.listen:
+                if not announced:
                     log.warning("TCP channel: peer %s:%d unreachable, retrying every second",
                                 self.peer_host, self.port)
                     announced = True
                 continue
             announced = False
-            self._run_handshake(sock)
+            if not self._run_handshake(sock):
+                self._stopping.wait(1.0)
 
     def _dial(self) -> Optional[socket.socket]:
         try:
@@ -248,99 +269,123 @@ class TcpChannel:
             return None
         return sock
 
-    def _accept_once(self, replace: bool) -> Optional[socket.socket]:
+    def _accept_once(self) -> None:
+        """Take one connection; its handshake runs in a thread of its own."""
         assert self._listener is not None
         try:
             sock, address = self._listener.accept()
         except (socket.timeout, OSError):
-            return None
+            return
         self._peer_ips = self._resolve_peer() or self._peer_ips
-        if self._peer_ips and address[0] not in self._peer_ips:
-            self.stats.rejected_peers += 1
-            log.warning("TCP channel: refused a connection from %s (expecting %s)",
-                        address[0], self.peer_host)
+        if not drops.from_peer(address[0], self._peer_ips):
+            self.drops.drop(Reason.STRANGER, f"connection from {address[0]} (expecting "
+                                             f"{self.peer_host})")
             sock.close()
-            return None
-        if replace:
-            log.info("TCP channel: the peer reconnected from %s:%d; dropping the old "
-                     "connection", *address)
-            self._drop("replaced by a new connection")
-            self._run_handshake(sock)
-            return None
-        return sock
+            return
+        if not self._handshakes.acquire(blocking=False):
+            self.drops.drop(Reason.BUSY, f"{MAX_HANDSHAKES} handshakes already running; "
+                                         f"refused {address[0]}:{address[1]}")
+            sock.close()
+            return
 
-    def _run_handshake(self, sock: socket.socket) -> None:
+        def handshake() -> None:
+            try:
+                self._run_handshake(sock)
+            finally:
+                self._handshakes.release()
+
+        self._spawn(handshake, "tcp handshake")
+
+    def _run_handshake(self, sock: socket.socket) -> bool:
+        """Authenticate a new connection; once it is up, it replaces any older one."""
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1)
-        peer = "%s:%d" % sock.getpeername()[:2]
-        self.phase = "down"
-        self._move("connected")
+        try:
+            peer = "%s:%d" % sock.getpeername()[:2]
+        except OSError:
+            sock.close()
+            return False
+        if self.phase == "down":
+            self._move("connected")
         try:
             connection = self._handshake(sock, peer)
         except (OSError, BridgeError) as exc:
-            self._move("failed")
-            message = f"handshake with {peer.rsplit(':', 1)[0]} failed: {exc}"
+            with self._lock:
+                if self.phase == "handshake":
+                    self._move("failed")
+            host = peer.rsplit(":", 1)[0]
+            if isinstance(exc, BridgeProtocolError):
+                self.drops.peer_error(exc, f"handshake with {host}")
+            message = f"handshake with {host} failed: {exc}"
             if message != self.stats.last_error:
-                log.warning("TCP channel: %s (retrying every second)", message)
+                log.warning("TCP channel: %s", message)
             self.stats.last_error = message
             sock.close()
-            self._stopping.wait(1.0)
-            return
+            return False
+        old = self._connection
+        if old is not None and not old.closed:
+            log.info("TCP channel: the peer reconnected from %s; dropping the old connection",
+                     peer)
+            self._drop("replaced by a new authenticated connection")
         with self._wake:
             self._connection = connection
             for key in self._slots:
                 self._dirty[key] = True  # the new connection starts with full values
             self._urgent = True
+            if self.phase == "down":
+                self._move("connected")
             self._move("hello_ok")
             self._wake.notify_all()
         self.stats.connects += 1
         self.stats.last_error = ""
-        log.info("TCP channel up with %s (peer session %x, resending after %d)", peer,
+        log.info("TCP channel up with %s (%s, peer session %x, resending after %d)", peer,
+                 "authenticated" if self.key.keyed else "NOT authenticated: --no-auth",
                  connection.session, connection.sent_upto)
+        self._keys_hook("installed", connection.link)
         self._spawn(lambda: self._receive_loop(connection), "tcp receive")
         try:
             self.on_connected()
-        except Exception:  # noqa: BLE001 -- a hook must not take the link down
+        except Exception:  # noqa: BLE001 -- a hook's bug must not take the link down
+            self.stats.internal_errors += 1
             log.exception("TCP channel: on_connected hook failed")
+        return True
+
+    def _keys_hook(self, event: str, link: LinkConnection) -> None:
+        keys = link.udp_keys
+        if self.on_keys is not None and keys is not None:
+            self.on_keys(event, *keys)
 
     def _handshake(self, sock: socket.socket, peer: str) -> _Connection:
-        sock.settimeout(5.0)
-        sock.sendall(frames.encode_hello(Hello(self.side, self.fingerprint,
-                                               self.journal.session)))
-        decoder = frames.FrameDecoder(max_frame=64)
-        pending: List[Any] = []
-
-        def next_frame() -> Any:
-            while not pending:
+        link = LinkConnection(self.side, self.key, self.fingerprint, self.journal.session)
+        deadline = time.monotonic() + HANDSHAKE_TIMEOUT
+        sock.sendall(link.start())
+        accepted = 0
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise BridgeProtocolError(f"no complete handshake within "
+                                          f"{HANDSHAKE_TIMEOUT:.0f} s")
+            sock.settimeout(remaining)
+            try:
                 data = sock.recv(4096)
-                if not data:
-                    raise BridgeProtocolError("peer closed during the handshake")
-                pending.extend(decoder.feed(data))
-            return pending.pop(0)
-
-        hello = next_frame()
-        if not isinstance(hello, Hello):
-            raise BridgeProtocolError("peer did not start with HELLO")
-        if hello.version != frames.PROTOCOL_VERSION:
-            raise BridgeProtocolError(f"peer speaks bridge protocol {hello.version}, "
-                                      f"we speak {frames.PROTOCOL_VERSION}")
-        if hello.side == self.side:
-            raise BridgeProtocolError(f"peer is also the {self.side} side")
-        if hello.fingerprint != self.fingerprint:
-            raise BridgeProtocolError("peer runs a different bridge configuration "
-                                      "(ids would not match); use the same file on both sides")
-        accepted = self.journal.accepted(hello.session)
-        sock.sendall(frames.encode_resume(Resume(accepted)))
-        resume = next_frame()
-        if not isinstance(resume, Resume):
-            raise BridgeProtocolError("peer did not answer HELLO with RESUME")
-        self.journal.acknowledge(resume.accepted)
-        sock.settimeout(None)
-        connection = _Connection(sock, peer, hello.session, sent_upto=resume.accepted,
-                                 ack_sent=accepted)
-        if pending or decoder.pending:
-            raise BridgeProtocolError("peer sent data before the handshake ended")
-        return connection
+            except socket.timeout:
+                continue
+            if not data:
+                raise BridgeProtocolError("peer closed during the handshake")
+            for event in link.receive_data(data):
+                if isinstance(event, PeerHello):
+                    accepted = self.journal.accepted(event.hello.session)
+                    sock.sendall(link.send_resume(accepted))
+                    self._keys_hook("offered", link)
+                elif isinstance(event, LinkUp):
+                    if link.buffered:
+                        raise BridgeProtocolError("peer sent data before the handshake ended")
+                    sock.settimeout(None)
+                    self.journal.acknowledge(event.peer_accepted)
+                    return _Connection(sock, peer, link, event.peer_session,
+                                       sent_upto=event.peer_accepted, ack_sent=accepted)
+                else:
+                    raise BridgeProtocolError("peer sent data before the handshake ended")
 
     def _drop(self, reason: str) -> None:
         with self._wake:
@@ -361,7 +406,6 @@ class TcpChannel:
     # -- receiving ---------------------------------------------------------------------
 
     def _receive_loop(self, connection: _Connection) -> None:
-        decoder = frames.FrameDecoder()
         sock = connection.sock
         sock.settimeout(0.25)
         while not connection.closed and not self._stopping.is_set():
@@ -381,17 +425,22 @@ class TcpChannel:
             connection.last_rx = time.monotonic()
             self.stats.bytes_in += len(data)
             try:
-                for frame in decoder.feed(data):
-                    self._on_frame(connection, frame)
+                for event in connection.link.receive_data(data):
+                    assert isinstance(event, FrameReceived)
+                    self._on_frame(connection, event.frame)
             except BridgeProtocolError as exc:
-                self.stats.bad_frames += 1
+                self.drops.peer_error(exc, "frame")
                 self.stats.last_error = str(exc)
                 self._drop(f"bad frame from the peer: {exc}")
                 return
+            except Exception:  # noqa: BLE001 -- our bug: seen, counted, and the link re-made
+                self.stats.internal_errors += 1
+                log.exception("TCP channel: receiving failed (a bug); dropping the connection "
+                              "so the link does not claim to be up")
+                self._drop("internal error while receiving")
+                return
 
-    def _on_frame(self, connection: _Connection, frame: Any) -> None:
-        if not isinstance(frame, DataFrame):
-            raise BridgeProtocolError(f"{type(frame).__name__} after the handshake")
+    def _on_frame(self, connection: _Connection, frame: DataFrame) -> None:
         self.stats.frames_in += 1
         if frame.ack is not None:
             self.journal.acknowledge(frame.ack)
@@ -401,9 +450,7 @@ class TcpChannel:
             self.stats.payload_in += len(entry.payload)
             route = self.routes.get((entry.id, entry.kind))
             if route is None:
-                self.stats.unknown_ids += 1
-                log.warning("TCP channel: dropped an entry with unknown id %d kind %d",
-                            entry.id, entry.kind)
+                self.drops.drop(Reason.UNKNOWN_ID, f"entry id {entry.id} kind {entry.kind}")
                 continue
             if route.reliable:
                 if seq is None or entry.delta:
@@ -415,14 +462,18 @@ class TcpChannel:
                     self.stats.reliable_accepted += 1
                     new_reliable = True
                 else:
-                    self.stats.duplicates += 1
+                    self.drops.drop(Reason.DUPLICATE, f"{route.label} #{seq}")
                 seq += 1
                 continue
             try:
                 value = self._decode_streaming(connection, route, entry)
             except BridgeProtocolError as exc:
                 raise BridgeProtocolError(f"{route.label}: {exc}") from None
-            self.on_message(route.key, value)
+            try:
+                self.on_message(route.key, value)
+            except Exception:  # noqa: BLE001 -- a consumer's bug loses one latest-only value
+                self.stats.internal_errors += 1
+                log.exception("TCP channel: delivering %s failed (a bug)", route.label)
         if new_reliable:
             self.kick()  # owe an ack
             self.on_reliable()
@@ -466,6 +517,10 @@ class TcpChannel:
                 self._drop(f"send failed: {exc.strerror or exc}")
             except BridgeError as exc:
                 log.error("TCP channel: %s", exc)
+            except Exception:  # noqa: BLE001 -- our bug: seen, counted, and the link re-made
+                self.stats.internal_errors += 1
+                log.exception("TCP channel: sending failed (a bug); dropping the connection")
+                self._drop("internal error while sending")
 
     def _streaming_entries(self, connection: _Connection) -> List[bytes]:
         with self._lock:
@@ -506,8 +561,8 @@ class TcpChannel:
             self._count(item.id, len(encoded[-1]))
         if with_streams:
             backlog = _unsent_bytes(connection.sock)
-            if backlog > 2048:
-                self.stats.held_back += 1
+            if drops.hold_back(backlog):
+                self.drops.drop(Reason.HELD_BACK, f"{backlog} bytes still unsent")
             else:
                 encoded.extend(self._streaming_entries(connection))
         accepted = self.journal.accepted(connection.session)
@@ -515,7 +570,7 @@ class TcpChannel:
         now = time.monotonic()
         if not encoded and ack is None and now - connection.last_tx < KEEPALIVE:
             return
-        frame = frames.encode_data(ack=ack, seq=seq, encoded=encoded)
+        frame = connection.link.send_data(frames.data_body(ack=ack, seq=seq, encoded=encoded))
         connection.sock.sendall(frame)
         connection.last_tx = now
         connection.ack_sent = accepted

@@ -18,7 +18,13 @@ it can, and publishes a message as soon as every part is there, or ``gather``
 seconds (the paper's delta-t, 0.4 s) after its first part: a tiled message
 then goes out with its missing regions blank or NaN, a sliced one is counted
 lost.  A datagram for a message older than the last one published is stale
-and dropped, which also defeats replays.
+and dropped.
+
+On the wire every datagram is sealed by the link (:mod:`bridge.link`): a
+counter and an authentication tag with the UDP key the TCP handshake derived.
+The channel sends nothing before the first handshake, and drops what fails
+the tag or the replay window; every drop is counted by reason
+(:mod:`bridge.drops`).
 """
 
 from __future__ import annotations
@@ -31,9 +37,11 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable, Deque, Dict, List, Optional, Protocol, Tuple
 
-from bridge import datagrams, fec, tiles
+from bridge import datagrams, drops, fec, tiles
 from bridge.datagrams import BODY_BUDGET, Datagram
+from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeError, BridgeProtocolError
+from bridge.link import DatagramOpener, DatagramSealer
 
 log = logging.getLogger("bridge.udp")
 
@@ -87,16 +95,12 @@ class UdpStats:
     datagrams_in: int = 0
     bytes_out: int = 0
     bytes_in: int = 0
-    bad: int = 0
-    strangers: int = 0
-    unknown_ids: int = 0
-    stale: int = 0
-    bad_tiles: int = 0
     send_errors: int = 0
+    #: exceptions that are our bugs (logged with their traceback), not the peer's
+    internal_errors: int = 0
     #: datagram bytes sent per 8-bit id (IP/UDP headers not included)
     bytes_by_id: Dict[int, int] = field(default_factory=dict)
     flows: Dict[str, FlowStats] = field(default_factory=dict)
-    last_error: str = ""
 
 
 @dataclass
@@ -109,8 +113,7 @@ class _Partial:
     repaired: int = 0
 
 
-def _is_newer(candidate: int, reference: Optional[int]) -> bool:
-    return reference is None or 0 < (candidate - reference) % (1 << 32) < (1 << 31)
+_is_newer = drops.is_newer
 
 
 def message_datagrams(route: UdpRoute, message: int, bodies: List[bytes]) -> List[bytes]:
@@ -142,31 +145,32 @@ def slice_message(data: bytes) -> List[bytes]:
 class Reassembler:
     """Receiving half, sans-IO: feed datagrams and the clock, get finished messages."""
 
-    def __init__(self, routes: Dict[Key, UdpRoute], gather: float, stats: UdpStats) -> None:
+    def __init__(self, routes: Dict[Key, UdpRoute], gather: float, stats: UdpStats,
+                 ledger: Optional[DropLedger] = None) -> None:
         self.routes = routes
         self.gather = gather
         self.stats = stats
+        self.drops = ledger if ledger is not None else DropLedger("UDP channel", log)
         self._partials: Dict[Key, Dict[int, _Partial]] = {}
         self._last: Dict[Key, int] = {}
 
     def feed(self, raw: bytes, now: float) -> List[Tuple[Key, Any]]:
-        stats = self.stats
         try:
             datagram = datagrams.decode(raw)
         except BridgeProtocolError as exc:
-            stats.bad += 1
-            stats.last_error = str(exc)
+            self.drops.peer_error(exc, "datagram")
             return []
         key = (datagram.id, datagram.kind)
         route = self.routes.get(key)
         if route is None:
-            stats.unknown_ids += 1
+            self.drops.drop(Reason.UNKNOWN_ID, f"datagram id {datagram.id} kind {datagram.kind}")
             return []
         if datagram.parts > MAX_PARTS:
-            stats.bad += 1
+            self.drops.drop(Reason.MALFORMED, f"{route.label}: {datagram.parts} parts "
+                                              f"(limit {MAX_PARTS})")
             return []
         if not _is_newer(datagram.message, self._last.get(key)):
-            stats.stale += 1
+            self.drops.drop(Reason.STALE, f"{route.label} message {datagram.message}")
             return []
         pending = self._partials.setdefault(key, {})
         partial = pending.get(datagram.message)
@@ -176,7 +180,10 @@ class Reassembler:
                 self._finish(key, oldest, pending.pop(oldest))
             partial = pending[datagram.message] = _Partial(now, datagram.parts, datagram.group)
         elif (partial.parts, partial.group) != (datagram.parts, datagram.group):
-            stats.bad += 1
+            self.drops.drop(Reason.MALFORMED, f"{route.label} message {datagram.message}: "
+                                              f"{datagram.parts} parts in groups of "
+                                              f"{datagram.group}, earlier parts said "
+                                              f"{partial.parts}/{partial.group}")
             return []
         if datagram.is_repair:
             partial.repairs.setdefault(datagram.index, {})[datagram.repair_row] = datagram.body
@@ -201,8 +208,7 @@ class Reassembler:
         try:
             recovered = fec.recover(k, have, repairs)
         except BridgeProtocolError as exc:
-            self.stats.bad += 1
-            self.stats.last_error = f"repair: {exc}"
+            self.drops.peer_error(exc, "repair")
             partial.repairs.pop(group_index, None)
             return
         for index, body in recovered.items():
@@ -240,8 +246,7 @@ class Reassembler:
             try:
                 value = route.codec.decode(data, 1.0)
             except BridgeProtocolError as exc:
-                self.stats.bad += 1
-                self.stats.last_error = f"{route.label}: {exc}"
+                self.drops.peer_error(exc, route.label)
                 return []
             completeness = 1.0
         self._last[key] = message
@@ -264,8 +269,7 @@ class Reassembler:
                     canvas = tiles.Canvas(tile.header, tile.meta)
                 canvas.paste(tile, codec)
             except BridgeProtocolError as exc:
-                self.stats.bad_tiles += 1
-                self.stats.last_error = f"tile: {exc}"
+                self.drops.peer_error(exc, "tile")
         return canvas
 
 
@@ -282,7 +286,10 @@ class UdpChannel:
         self.rate = rate
         self.on_message = on_message
         self.stats = UdpStats()
-        self.reassembler = Reassembler(self.routes, gather, self.stats)
+        self.drops = DropLedger("UDP channel", log)
+        self.reassembler = Reassembler(self.routes, gather, self.stats, self.drops)
+        self.opener = DatagramOpener()
+        self._sealer: Optional[DatagramSealer] = None
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 << 20)
         self._sock.bind((bind_host, port))
@@ -319,6 +326,21 @@ class UdpChannel:
             thread.join(timeout=3)
         self._sock.close()
 
+    def set_keys(self, event: str, send_key: bytes, receive_key: bytes) -> None:
+        """Keys from the TCP handshake (:data:`bridge.tcp_channel.KeysHook`).
+
+        ``offered``: the peer may already send with ``receive_key``; ``installed``:
+        the peer proved the key, so we send with ``send_key`` from now on.
+        """
+        if event == "offered":
+            self.opener.offer(receive_key)
+            return
+        self.opener.install(receive_key)
+        with self._cond:
+            if self._sealer is None or self._sealer.key != send_key:
+                self._sealer = DatagramSealer(send_key)
+            self._cond.notify_all()
+
     def post(self, key: Key, value: Any) -> None:
         """The newest message of a flow; an older one not yet started is replaced."""
         with self._cond:
@@ -346,7 +368,7 @@ class UdpChannel:
                 bodies = encoded if route.codec.tiled else slice_message(encoded)
                 queue = message_datagrams(route, self._next_message_number(key), bodies)
             except BridgeError as exc:
-                self.stats.last_error = str(exc)
+                self.drops.last_error = str(exc)
                 log.error("UDP channel: cannot send on %s: %s", route.label, exc)
                 continue
             self._queues[key] = deque(queue)
@@ -369,6 +391,10 @@ class UdpChannel:
     def _send_loop(self) -> None:
         address = (self.peer, self.peer_port)
         while not self._stopping.is_set():
+            if self._sealer is None:  # no handshake yet: nothing may leave unsealed
+                with self._cond:
+                    self._cond.wait(0.5)
+                continue
             self._refill()
             active = [key for key, queue in self._queues.items() if queue]
             if not active:
@@ -377,13 +403,13 @@ class UdpChannel:
                         self._cond.wait(0.5)
                 continue
             for key in active:
-                datagram = self._queues[key].popleft()
+                datagram = self._sealer.seal(self._queues[key].popleft())
                 self._pace(len(datagram) + IP_UDP_OVERHEAD)
                 try:
                     self._sock.sendto(datagram, address)
                 except OSError as exc:  # no route while the link is down: that datagram is lost
                     self.stats.send_errors += 1
-                    self.stats.last_error = f"send: {exc.strerror or exc}"
+                    self.drops.last_error = f"send: {exc.strerror or exc}"
                     continue
                 self.stats.datagrams_out += 1
                 self.stats.bytes_out += len(datagram)
@@ -408,18 +434,22 @@ class UdpChannel:
             if raw is not None:
                 self.stats.datagrams_in += 1
                 self.stats.bytes_in += len(raw)
-                if self._peer_ips and host not in self._peer_ips:
-                    self.stats.strangers += 1
-                    if self.stats.strangers in (1, 10, 100, 1000):
-                        log.warning("UDP channel: dropped %d datagram(s) from strangers "
-                                    "(latest from %s)", self.stats.strangers, host)
+                if not drops.from_peer(host, self._peer_ips):
+                    self.drops.drop(Reason.STRANGER, f"datagram from {host}")
                 else:
-                    finished.extend(self.reassembler.feed(raw, now))
+                    try:
+                        inner = self.opener.open(raw)
+                    except BridgeProtocolError as exc:
+                        self.drops.peer_error(exc, f"datagram from {host}")
+                    else:
+                        finished.extend(self.reassembler.feed(inner, now))
             if now >= next_sweep:
                 finished.extend(self.reassembler.expire(now))
                 next_sweep = now + 0.02
             for key, value in finished:
                 try:
                     self.on_message(key, value)
-                except Exception:  # noqa: BLE001 -- a consumer bug must not stop the channel
-                    log.exception("UDP channel: delivering %s failed", self.routes[key].label)
+                except Exception:  # noqa: BLE001 -- a consumer's bug: seen and counted
+                    self.stats.internal_errors += 1
+                    log.exception("UDP channel: delivering %s failed (a bug)",
+                                  self.routes[key].label)

@@ -18,6 +18,7 @@ Logs go to ``--dir`` (one file per program).
 from __future__ import annotations
 
 import argparse
+import os
 import random
 import re
 import signal
@@ -27,9 +28,11 @@ from pathlib import Path
 from typing import Callable, Dict, List, Optional
 
 from system.processes import Proc
-from system.topology import BRIDGE_CONFIG, Pc, bridge_argv, components
+from system.topology import BRIDGE_CONFIG, Pc, bridge_argv, components, ensure_bridge_key
 
 DEFAULT_DIR = Path.home() / ".local" / "state" / "walkman"
+DEFAULT_KEY = Path(os.environ.get("XDG_CONFIG_HOME") or Path.home() / ".config") / "walkman" \
+    / "bridge.key"
 
 
 def say(text: str) -> None:
@@ -80,7 +83,7 @@ def plan(side: str, options: argparse.Namespace) -> Dict[str, List[str]]:
         if component.name.startswith("bridge_"):
             argv = bridge_argv(side, options.config, options.peer, options.bridge_port,
                                options.udp_port, options.peer_udp_port or options.udp_port,
-                               options.udp_rate)
+                               options.key, options.udp_rate)
         else:
             argv = component.command(bag)
         out[component.name] = argv
@@ -104,6 +107,9 @@ def main(argv: Optional[List[str]] = None) -> int:
                         help="perception budget on the link, bit/s (default 600k)")
     parser.add_argument("--config", type=Path, default=BRIDGE_CONFIG,
                         help="bridge configuration (same file on both PCs)")
+    parser.add_argument("--key", type=Path, default=DEFAULT_KEY,
+                        help=f"the bridges' shared key file (same file on both PCs, mode 600; "
+                             f"created if missing; default {DEFAULT_KEY})")
     parser.add_argument("--dir", type=Path, default=None,
                         help=f"logs, name-server state and rosbags (default {DEFAULT_DIR}/<side>)")
     parser.add_argument("--skip", default="", help="programs not to start (comma separated)")
@@ -124,6 +130,11 @@ def main(argv: Optional[List[str]] = None) -> int:
     if not options.config.is_file():
         parser.error(f"--config: no such file {options.config}")
     options.dir = (options.dir or DEFAULT_DIR / options.side).resolve()
+    if options.side != "lab":
+        options.key = options.key.expanduser().resolve()
+        if ensure_bridge_key(options.key):
+            print(f"[{options.side}] created a new bridge key {options.key}: copy it to the "
+                  f"other PC (scp -p {options.key} <other>:{options.key})", flush=True)
     from rosnodes.msgs import generate
 
     generate()

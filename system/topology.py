@@ -88,12 +88,28 @@ def components(kind: str, perception_rate: float = 1.0) -> List[Component]:
 
 
 def bridge_argv(side: str, config: Path, peer: str, tcp_port: int, udp_port: int,
-                peer_udp_port: int, udp_rate: str = "600k") -> List[str]:
+                peer_udp_port: int, key: Path, udp_rate: str = "600k") -> List[str]:
     """``walkman-bridge`` for one side: 0.6 Mbit/s of perception leaves room on a 1 Mbit/s link."""
     return [PYTHON, "-m", "bridge.main", "--side", side, "--config", str(config),
             "--peer", peer, "--port", str(tcp_port), "--udp-port", str(udp_port),
             "--peer-udp-port", str(peer_udp_port), "--udp-rate", udp_rate,
-            "--link-timeout", "5"]
+            "--link-timeout", "5", "--key", str(key)]
+
+
+def ensure_bridge_key(path: Path) -> bool:
+    """Create the bridges' shared key file if there is none; True when it was created.
+
+    Two launchers starting at once on one machine both call this: the file is
+    created exclusively, so the second one finds the first one's key.
+    """
+    from bridge.errors import BridgeUsageError
+    from bridge.link import generate_key_file
+
+    try:
+        generate_key_file(path)
+    except BridgeUsageError:
+        return False
+    return True
 
 
 @dataclass
@@ -209,6 +225,9 @@ class Topology:
                         for side in ("robot", "pilot")}
         self.tcp_port = free_port()
         self.udp_ports = {"robot": free_port(), "pilot": free_port()}
+        self.bridge_key = root / "bridge.key"   # both emulated PCs share this machine's disk
+        if kind == "drc":
+            ensure_bridge_key(self.bridge_key)
 
     @property
     def robot(self) -> Pc:
@@ -232,7 +251,8 @@ class Topology:
             side = component.pc
             other = "pilot" if side == "robot" else "robot"
             return bridge_argv(side, self.bridge_config, self.pcs[other].address,
-                               self.tcp_port, self.udp_ports[side], self.udp_ports[other])
+                               self.tcp_port, self.udp_ports[side], self.udp_ports[other],
+                               self.bridge_key)
         return component.command(self.bag_path)
 
     @property

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
 from bridge.emulation import EmulatedLink
+from bridge.link import generate_key_file
 from system.processes import ROSCORE_READY
 from harness import REPO, Implementation, Proc, YarpWorld, free_port, wait_until
 
@@ -60,6 +61,7 @@ class TwoPCs:
         self.link = link
         self.tcp_port = free_port()
         self.udp_ports = {"robot": free_port(), "pilot": free_port()}
+        self.key = generate_key_file(root / "bridge.key")
         self.sides: Dict[str, Side] = {}
         for name, other in (("robot", "pilot"), ("pilot", "robot")):
             wrap = link.exec_argv(name, []) if link else ()
@@ -90,7 +92,7 @@ class TwoPCs:
                 "--peer", side.peer, "--port", str(self.tcp_port),
                 "--udp-port", str(self.udp_ports[side.name]),
                 "--peer-udp-port", str(self.udp_ports[other]), "--state-dir",
-                str(side.state_dir), "--link-timeout", "3", *extra]
+                str(side.state_dir), "--link-timeout", "3", "--key", str(self.key), *extra]
 
     def start_bridge(self, side: Side, *extra: str, wait: bool = True) -> Proc:
         side.bridge = side.start(self.bridge_argv(side, *extra), f"{side.name} bridge")

@@ -7,7 +7,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from bridge import datagrams
-from bridge.datagrams import MAX_DATAGRAM, Datagram
+from bridge.datagrams import MAX_DATAGRAM, MAX_INNER, Datagram
+from bridge.link import DatagramOpener, DatagramSealer
 from bridge.errors import BridgeProtocolError, BridgeUsageError
 from codec_helpers import FUZZ
 
@@ -25,11 +26,17 @@ def valid(draw):
                     draw(st.integers(0, 127)) if repair else -1)
 
 
+KEY = bytes(range(32))
+
+
 @FUZZ
 @given(valid())
-def test_round_trip_within_one_ethernet_frame(datagram):
+def test_round_trip_within_one_ethernet_frame_once_sealed(datagram):
     wire = datagrams.encode(datagram)
-    assert len(wire) <= MAX_DATAGRAM
+    sealer = DatagramSealer(KEY)
+    sealer.counter = 2 ** 35 - 1  # the largest counter the seal's budget allows for
+    sealed = sealer.seal(wire)
+    assert len(sealed) <= MAX_DATAGRAM
     assert datagrams.decode(wire) == datagram
 
 
@@ -44,12 +51,14 @@ def test_garbage_raises_the_peer_error(data):
 
 @FUZZ
 @given(valid(), st.data())
-def test_a_flipped_byte_is_caught(datagram, data):
-    wire = bytearray(datagrams.encode(datagram))
+def test_a_flipped_byte_is_caught_by_the_seal(datagram, data):
+    opener = DatagramOpener()
+    opener.install(KEY)
+    wire = bytearray(DatagramSealer(KEY).seal(datagrams.encode(datagram)))
     index = data.draw(st.integers(0, len(wire) - 1))
     wire[index] ^= data.draw(st.integers(1, 255))
     with pytest.raises(BridgeProtocolError):
-        datagrams.decode(bytes(wire))
+        datagrams.decode(opener.open(bytes(wire)))
 
 
 @pytest.mark.parametrize("datagram, problem", [
@@ -62,7 +71,7 @@ def test_inconsistent_headers_are_named(datagram, problem):
 
 
 def test_oversized_input_is_refused_both_ways():
-    with pytest.raises(BridgeUsageError):
-        datagrams.encode(Datagram(1, 0, 1, 1, 1, 0, bytes(MAX_DATAGRAM)))
+    with pytest.raises(BridgeUsageError, match="seal"):
+        datagrams.encode(Datagram(1, 0, 1, 1, 1, 0, bytes(MAX_INNER)))
     with pytest.raises(BridgeProtocolError, match="exceeds"):
-        datagrams.decode(bytes([datagrams.MAGIC]) + bytes(MAX_DATAGRAM))
+        datagrams.decode(bytes([datagrams.MAGIC]) + bytes(MAX_INNER))

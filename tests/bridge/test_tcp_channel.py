@@ -1,4 +1,8 @@
-"""The TCP channel in-process on loopback: batching, exactly-once, reconnects, bad peers."""
+"""The TCP channel in-process on loopback: batching, exactly-once, reconnects, bad peers.
+
+The link protocol itself is tested without sockets in test_link.py; here the
+channel's threads and sockets around it: who may connect, who may replace whom.
+"""
 
 from __future__ import annotations
 
@@ -10,12 +14,15 @@ from typing import Any, List, Tuple
 import pytest
 
 from bridge import frames
+from bridge.drops import Reason
 from bridge.journal import Journal
+from bridge.link import LinkKey
 from bridge.tcp_channel import BOTTLE, Route, TcpChannel
 from harness import free_port, wait_until
 from yarp_lite.bottle import Bottle
 
 SWITCH, STATUS = (7, 0), (7, 2)
+KEY = LinkKey(bytes(range(32)), source="test key")
 ROUTES = [Route(SWITCH, "gaze_control/switch", BOTTLE, True),
           Route(STATUS, "gaze_control/status", BOTTLE, False)]
 
@@ -24,7 +31,8 @@ class End:
     """One side: a channel, its journal, and what it received."""
 
     def __init__(self, side: str, port: int, state_dir, listen: bool, peer: str = "127.0.0.1",
-                 config_text: str = "config", period: float = 0.2) -> None:
+                 config_text: str = "config", period: float = 0.2,
+                 key: LinkKey = KEY) -> None:
         self.state_dir = state_dir
         self.journal = Journal(state_dir)
         self.streams: List[Tuple[Any, Any]] = []
@@ -33,7 +41,7 @@ class End:
         self.channel = TcpChannel(side=side, peer=peer, port=port, listen=listen,
                                   config_text=config_text, journal=self.journal, routes=ROUTES,
                                   period=period, on_message=self._on_message,
-                                  on_reliable=self._drain, link_timeout=2.0)
+                                  on_reliable=self._drain, link_timeout=2.0, key=key)
 
     def _on_message(self, key, value) -> None:
         self.streams.append((key, value))
@@ -166,17 +174,124 @@ def test_garbage_and_strangers_do_not_hurt_the_listener(tmp_path):
     picky = End("robot", stranger_port, tmp_path / "s", listen=True, peer="127.0.0.2").start()
     try:
         socket.create_connection(("127.0.0.1", stranger_port)).close()
-        wait_until(lambda: picky.channel.stats.rejected_peers == 1, 5, message="rejection")
+        wait_until(lambda: picky.channel.drops.get(Reason.STRANGER) == 1, 5,
+                   message="rejection")
     finally:
         picky.stop()
 
 
-def test_a_bad_frame_drops_the_connection_and_it_comes_back(pair):
+def test_a_forged_frame_drops_the_connection_and_it_comes_back(pair):
     robot, pilot = pair(period=0.2)
     connection = pilot.channel._connection
-    connection.sock.sendall(frames.encode_data((frames.Entry(7, 2, b"\xff\xff"),)))
-    wait_until(lambda: robot.channel.stats.bad_frames == 1, 5, message="bad frame counted")
+    # A frame with a made-up tag, injected into the live stream as an on-path attacker would.
+    forged = frames.data_body((frames.Entry(SWITCH[0], SWITCH[1], b"\x01\x04stop"),), seq=99)
+    connection.sock.sendall(frames.wrap(forged, b"\0" * 8))
+    wait_until(lambda: robot.channel.drops.get(Reason.FORGED) == 1, 5,
+               message="forged frame counted")
     wait_until(lambda: robot.channel.connected and pilot.channel.connected
                and robot.channel.stats.connects >= 2, 10, message="reconnect")
     pilot.channel.send_reliable(SWITCH, Bottle(["after", 2]))
     wait_until(lambda: robot.reliable, 5)
+
+
+def test_a_peer_with_another_key_is_refused_on_both_sides(tmp_path):
+    port = free_port()
+    robot = End("robot", port, tmp_path / "r", listen=True).start()
+    rogue = End("pilot", port, tmp_path / "p", listen=False,
+                key=LinkKey(b"x" * 32, source="rogue")).start()
+    try:
+        wait_until(lambda: "authentication failed" in rogue.channel.stats.last_error
+                   and robot.channel.drops.get(Reason.UNAUTHENTICATED) >= 1, 10,
+                   message="both sides refuse")
+        assert "does not hold our key" in robot.channel.stats.last_error
+        assert not robot.channel.connected and not rogue.channel.connected
+        rogue.channel.send_reliable(SWITCH, Bottle(["home", 2]))
+        time.sleep(1.0)  # the rogue keeps retrying; nothing may come through meanwhile
+        assert robot.reliable == []
+    finally:
+        rogue.stop()
+        robot.stop()
+
+
+def test_a_keyless_peer_is_named_as_such(tmp_path):
+    port = free_port()
+    robot = End("robot", port, tmp_path / "r", listen=True).start()
+    keyless = End("pilot", port, tmp_path / "p", listen=False, key=LinkKey.none()).start()
+    try:
+        wait_until(lambda: "runs without a key" in robot.channel.stats.last_error, 10,
+                   message="the robot names the keyless peer")
+        wait_until(lambda: "we run with --no-auth" in keyless.channel.stats.last_error, 10,
+                   message="the keyless peer names itself")
+    finally:
+        keyless.stop()
+        robot.stop()
+
+
+def test_strangers_can_neither_stall_the_listener_nor_push_the_pilot_off(pair):
+    robot, pilot = pair(period=0.2)
+    silent = [socket.create_connection(("127.0.0.1", pair.port)) for _ in range(6)]
+    try:
+        # A rogue that speaks a plausible HELLO but cannot prove the key.
+        rogue_link_bytes = frames.wrap(frames.hello_body(frames.Hello(
+            "pilot", robot.channel.fingerprint, 1, bytes(16))))
+        with socket.create_connection(("127.0.0.1", pair.port)) as rogue:
+            rogue.sendall(rogue_link_bytes + frames.wrap(frames.auth_body(frames.Auth(
+                bytes(16)))))
+            wait_until(lambda: robot.channel.drops.get(Reason.UNAUTHENTICATED) >= 1
+                       or robot.channel.drops.get(Reason.BUSY) >= 1, 10,
+                       message="the rogue refused")
+        # The real pilot still commands, and its connection was never replaced.
+        connects = robot.channel.stats.connects
+        pilot.channel.send_reliable(SWITCH, Bottle(["start", 2]))
+        wait_until(lambda: len(robot.reliable) == 1, 5, message="the pilot's command")
+        assert robot.channel.stats.connects == connects and robot.channel.connected
+    finally:
+        for sock in silent:
+            sock.close()
+
+
+def test_a_recorded_connection_replayed_is_refused(pair, tmp_path):
+    robot, pilot = pair(period=0.2)
+    pilot.stop()  # the recording pilot below takes its place
+    # Record what a pilot sends on a fresh connection, through a recording proxy.
+    captured = bytearray()
+    proxy = socket.socket()
+    proxy.bind(("127.0.0.1", 0))
+    proxy.listen(1)
+    recorder = End("pilot", proxy.getsockname()[1], tmp_path / "rec", listen=False)
+
+    def relay() -> None:
+        inbound, _ = proxy.accept()
+        outbound = socket.create_connection(("127.0.0.1", pair.port))
+        inbound.settimeout(0.2)
+        outbound.settimeout(0.2)
+        deadline = time.monotonic() + 3
+        while time.monotonic() < deadline:
+            for src, dst, record in ((inbound, outbound, True), (outbound, inbound, False)):
+                try:
+                    data = src.recv(65536)
+                    if data:
+                        dst.sendall(data)
+                except socket.timeout:
+                    continue
+                except OSError:
+                    break
+                if record:
+                    captured.extend(data)
+        inbound.close()
+        outbound.close()
+
+    thread = threading.Thread(target=relay, daemon=True)
+    thread.start()
+    recorder.start()
+    recorder.channel.send_reliable(SWITCH, Bottle(["recorded", 2]))
+    wait_until(lambda: any(b[0] == "recorded" for b in robot.reliable), 5,
+               message="the recorded command arrives once")
+    thread.join()
+    recorder.stop()
+    before = len(robot.reliable)
+    with socket.create_connection(("127.0.0.1", pair.port)) as replay:
+        replay.sendall(bytes(captured))
+        wait_until(lambda: robot.channel.drops.get(Reason.UNAUTHENTICATED) >= 1, 10,
+                   message="the replay refused")
+    assert len(robot.reliable) == before

@@ -9,7 +9,9 @@ import time
 import numpy as np
 
 from bridge import datagrams, tiles
+from bridge.drops import Reason
 from bridge.endpoints.yarp import BottleUdpCodec
+from bridge.link import DatagramSealer
 from bridge.udp_channel import (Reassembler, UdpChannel, UdpRoute, UdpStats,
                                 message_datagrams, slice_message)
 from harness import free_port, wait_until
@@ -33,6 +35,13 @@ CAMERA = UdpRoute((30, 0), "camera", RasterCodec())
 CAMERA_FEC = UdpRoute((31, 0), "camera_fec", RasterCodec(), fec=0.5)
 BLOB = UdpRoute((9, 0), "blob", BottleUdpCodec())
 ROUTES = {r.key: r for r in (CAMERA, CAMERA_FEC, BLOB)}
+A_TO_B, B_TO_A = b"a" * 32, b"b" * 32
+
+
+def keyed_pair(a: UdpChannel, b: UdpChannel) -> None:
+    """What a TCP handshake gives both ends: each one's sending and receiving key."""
+    a.set_keys("installed", A_TO_B, B_TO_A)
+    b.set_keys("installed", B_TO_A, A_TO_B)
 
 
 def test_a_complete_message_is_published_at_once():
@@ -44,7 +53,7 @@ def test_a_complete_message_is_published_at_once():
         out += reassembler.feed(raw, now=0.0)
     assert len(out) == 1 and out[0][1].completeness == 1.0
     assert np.array_equal(out[0][1].pixels, IMAGE)
-    assert all(len(raw) <= datagrams.MAX_DATAGRAM for raw in wire)
+    assert all(len(raw) <= datagrams.MAX_INNER for raw in wire)
 
 
 def test_a_partial_image_is_published_after_the_gathering_time():
@@ -60,8 +69,8 @@ def test_a_partial_image_is_published_after_the_gathering_time():
     assert np.array_equal(canvas.pixels[canvas.covered], IMAGE[canvas.covered])
     assert stats.flows["camera"].partial == 1
     # Stragglers and replays of a published message are stale.
-    assert reassembler.feed(wire[-1], now=0.5) == [] and stats.stale == 1
-    assert reassembler.feed(wire[0], now=0.5) == [] and stats.stale == 2
+    assert reassembler.feed(wire[-1], now=0.5) == [] and reassembler.drops.get(Reason.STALE) == 1
+    assert reassembler.feed(wire[0], now=0.5) == [] and reassembler.drops.get(Reason.STALE) == 2
 
 
 def test_repair_datagrams_rebuild_lost_tiles():
@@ -105,7 +114,7 @@ def test_newer_messages_supersede_older_ones_and_numbers_wrap():
         assert len(out) == 1
     for raw in message_datagrams(BLOB, near_wrap, slice_message(b"\x01\x00\x02")):
         assert reassembler.feed(raw, now=0.0) == []
-    assert stats.stale == 1
+    assert reassembler.drops.get(Reason.STALE) == 1
 
 
 def test_garbage_and_unknown_ids_are_counted_not_fatal():
@@ -116,7 +125,9 @@ def test_garbage_and_unknown_ids_are_counted_not_fatal():
                             now=0.0) == []
     corrupt_tile = datagrams.encode(datagrams.Datagram(30, 0, 1, 1, 1, 0, b"\x05" * 30))
     assert reassembler.feed(corrupt_tile, now=0.0) == []
-    assert (stats.bad, stats.unknown_ids, stats.bad_tiles) == (1, 1, 1)
+    counts = reassembler.drops
+    assert (counts.get(Reason.MALFORMED), counts.get(Reason.UNKNOWN_ID)) == (2, 1)
+    assert "tile" in counts.last_error
     assert stats.flows["camera"].lost == 1
 
 
@@ -130,17 +141,29 @@ def test_channels_on_sockets_deliver_and_refuse_strangers():
     a.start()
     b.start()
     try:
+        a.post(BLOB.key, Bottle(["before any key", 2]))
+        time.sleep(0.5)  # nothing may leave before the link's handshake gives keys
+        assert a.stats.datagrams_out == 0
+        keyed_pair(a, b)
         a.post(BLOB.key, Bottle(["hello", bytes(3000)]))
-        wait_until(lambda: received, 5, message="the message")
-        assert received[0][0] == "hello"
-        stranger = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        stranger.bind(("127.0.0.2", 0))
+        wait_until(lambda: any(v[0] == "hello" for v in received), 5, message="the message")
+        count = len(received)
         raw = message_datagrams(BLOB, int(time.time() * 1000) & 0xFFFFFFFF,
                                 slice_message(b"\x01\x09\x03bad"))
-        stranger.sendto(raw[0], ("127.0.0.1", port_b))
+        stranger = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        stranger.bind(("127.0.0.2", 0))
+        stranger.sendto(DatagramSealer(A_TO_B).seal(raw[0]), ("127.0.0.1", port_b))
         stranger.close()
-        wait_until(lambda: b.stats.strangers == 1, 5, message="stranger counted")
-        assert len(received) == 1
+        wait_until(lambda: b.drops.get(Reason.STRANGER) == 1, 5, message="stranger counted")
+        # From the peer's own address: a forged tag, then a replay of a genuine datagram.
+        spoof = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        spoof.sendto(DatagramSealer(b"x" * 32).seal(raw[0]), ("127.0.0.1", port_b))
+        wait_until(lambda: b.drops.get(Reason.FORGED) == 1, 5, message="forgery counted")
+        genuine = DatagramSealer(A_TO_B)
+        spoof.sendto(genuine.seal(raw[0]), ("127.0.0.1", port_b))  # counter 0: seen already
+        wait_until(lambda: b.drops.get(Reason.REPLAYED) == 1, 5, message="replay counted")
+        spoof.close()
+        assert len(received) == count
     finally:
         a.stop()
         b.stop()
@@ -152,6 +175,7 @@ def test_pacing_holds_the_configured_rate():
                    on_message=lambda k, v: None, rate=400e3)
     sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sink.bind(("127.0.0.1", port_b))
+    a.set_keys("installed", A_TO_B, B_TO_A)
     a.start()
     try:
         started = time.monotonic()

@@ -1,0 +1,52 @@
+"""The drop ledger: counts by reason, one log line per burst, the shared decisions."""
+
+from __future__ import annotations
+
+import logging
+
+from bridge import drops
+from bridge.drops import DropLedger, Reason
+from bridge.errors import BridgeProtocolError
+from bridge.link import AuthenticationFailed, ForgedInput, ReplayedInput
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_a_burst_is_logged_once_and_summed_up_when_the_next_begins(caplog):
+    clock = Clock()
+    ledger = DropLedger("UDP channel", logging.getLogger("test.drops"), clock)
+    with caplog.at_level(logging.INFO, logger="test.drops"):
+        for _ in range(500):
+            ledger.drop(Reason.FORGED, "datagram from 10.0.0.9")
+            clock.now += 0.01
+        clock.now += drops.BURST_GAP
+        ledger.drop(Reason.FORGED, "again")
+    lines = [r.getMessage() for r in caplog.records]
+    assert len(lines) == 2
+    assert "dropped forged -- datagram from 10.0.0.9 (total 1)" in lines[0]
+    assert "(499 more in the previous burst)" in lines[1] and "total 501" in lines[1]
+    assert ledger.get(Reason.FORGED) == 501 and ledger.get(Reason.STALE) == 0
+
+
+def test_peer_errors_map_to_their_reasons():
+    ledger = DropLedger("TCP channel", logging.getLogger("test.drops"))
+    for error, reason in ((AuthenticationFailed("x"), Reason.UNAUTHENTICATED),
+                          (ForgedInput("x"), Reason.FORGED),
+                          (ReplayedInput("x"), Reason.REPLAYED),
+                          (BridgeProtocolError("x"), Reason.MALFORMED)):
+        assert ledger.peer_error(error, "frame") is reason
+    assert ledger.last_error == "malformed: frame: x"
+
+
+def test_the_shared_decisions():
+    assert drops.from_peer("10.0.0.1", ["10.0.0.1"]) and drops.from_peer("1.2.3.4", [])
+    assert not drops.from_peer("10.0.0.9", ["10.0.0.1"])
+    assert drops.is_newer(0, (1 << 32) - 1) and not drops.is_newer(5, 5)
+    assert drops.is_newer(1, None) and not drops.is_newer(4, 5)
+    assert drops.hold_back(drops.BACKLOG_LIMIT + 1) and not drops.hold_back(0)

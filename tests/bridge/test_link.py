@@ -1,0 +1,243 @@
+"""The link protocol without sockets: handshake, wrong keys, forged and replayed input."""
+
+from __future__ import annotations
+
+import os
+import stat
+from typing import List, Tuple
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from bridge import frames
+from bridge.errors import BridgeProtocolError, BridgeUsageError
+from bridge.frames import DataFrame, Entry
+from bridge.link import (AuthenticationFailed, DatagramOpener, DatagramSealer, ForgedInput,
+                         FrameReceived, LinkConnection, LinkKey, LinkUp, PeerHello,
+                         ReplayedInput, ReplayWindow, generate_key_file)
+from codec_helpers import FUZZ
+
+KEY = LinkKey(bytes(range(32)))
+FINGERPRINT = b"config!!"
+
+
+def link(side: str, key: LinkKey = KEY, **kwargs) -> LinkConnection:
+    return LinkConnection(side, key, kwargs.pop("fingerprint", FINGERPRINT),
+                          kwargs.pop("session", 7 if side == "robot" else 9), **kwargs)
+
+
+def handshake(robot: LinkConnection, pilot: LinkConnection, chunk: int = 0
+              ) -> Tuple[List[object], List[object]]:
+    """Run both handshakes against each other, delivering ``chunk`` bytes at a time."""
+    wires = {robot: robot.start(), pilot: pilot.start()}
+    events = {robot: [], pilot: []}
+    peer = {robot: pilot, pilot: robot}
+    while any(wires.values()):
+        for sender in (robot, pilot):
+            data, wires[sender] = wires[sender], b""
+            step = chunk or max(len(data), 1)
+            for start in range(0, len(data), step):
+                receiver = peer[sender]
+                for event in receiver.receive_data(data[start:start + step]):
+                    events[receiver].append(event)
+                    if isinstance(event, PeerHello):
+                        wires[receiver] += receiver.send_resume(accepted=3)
+    return events[robot], events[pilot]
+
+
+@pytest.mark.parametrize("chunk", [0, 1])
+def test_both_sides_authenticate_and_resume(chunk):
+    robot, pilot = link("robot"), link("pilot")
+    robot_events, pilot_events = handshake(robot, pilot, chunk)
+    assert robot_events[-1] == LinkUp(peer_session=9, peer_accepted=3)
+    assert pilot_events[-1] == LinkUp(peer_session=7, peer_accepted=3)
+    assert robot.established and pilot.established
+    assert robot.udp_keys == tuple(reversed(pilot.udp_keys))
+    body = frames.data_body((Entry(7, 0, b"\x01\x04stop"),), seq=1)
+    assert pilot.receive_data(robot.send_data(body)) == \
+        [FrameReceived(DataFrame((Entry(7, 0, b"\x01\x04stop"),), seq=1))]
+
+
+def test_fresh_nonces_make_every_connection_different():
+    first, second = link("robot"), link("robot")
+    assert first.start() != second.start()
+
+
+@pytest.mark.parametrize("pilot_key, message", [
+    (LinkKey(b"another key, 32 bytes long......"), "does not hold our key"),
+    (LinkKey.none(), "runs without a key"),
+])
+def test_a_wrong_or_missing_key_fails_on_both_sides(pilot_key, message):
+    robot, pilot = link("robot"), link("pilot", pilot_key)
+    with pytest.raises(AuthenticationFailed, match=message):
+        handshake(robot, pilot)
+    robot, pilot = link("robot"), link("pilot", pilot_key)
+    with pytest.raises(AuthenticationFailed):
+        _pilot_first(robot, pilot)
+
+
+def _pilot_first(robot: LinkConnection, pilot: LinkConnection) -> None:
+    """The pilot checks the robot's proof before the robot checks the pilot's."""
+    robot_hello, pilot_hello = robot.start(), pilot.start()
+    (event,) = pilot.receive_data(robot_hello)
+    assert isinstance(event, PeerHello)
+    robot.receive_data(pilot_hello)
+    robot_reply = robot.send_resume(0)
+    pilot.receive_data(robot_reply)
+
+
+def test_other_configuration_and_same_side_are_refused_by_name():
+    with pytest.raises(BridgeProtocolError, match="different bridge configuration"):
+        handshake(link("robot"), link("pilot", fingerprint=b"other!!!"))
+    with pytest.raises(BridgeProtocolError, match="also the robot side"):
+        link("robot").receive_data(link("robot").start())
+
+
+def test_a_recorded_handshake_cannot_be_replayed():
+    robot, pilot = link("robot"), link("pilot")
+    recorded = pilot.start()
+    (event,) = pilot.receive_data(robot.start())
+    assert isinstance(event, PeerHello)
+    recorded += pilot.send_resume(0)
+    # A new robot connection (fresh nonce) is fed the recorded pilot bytes.
+    fresh = link("robot")
+    fresh.start()
+    with pytest.raises(AuthenticationFailed):
+        for event in fresh.receive_data(recorded):
+            if isinstance(event, PeerHello):
+                fresh.send_resume(0)
+
+
+def _hello_of(connection: LinkConnection) -> bytes:
+    return frames.wrap(connection._our_hello_body)
+
+
+def test_tampered_injected_and_reordered_frames_fail_their_tag():
+    robot, pilot = link("robot"), link("pilot")
+    handshake(robot, pilot)
+    one = robot.send_data(frames.data_body(seq=1))
+    two = robot.send_data(frames.data_body(seq=2))
+    with pytest.raises(ForgedInput):
+        pilot.receive_data(two)       # out of order: its counter is not the next one
+    robot, pilot = link("robot"), link("pilot")
+    handshake(robot, pilot)
+    frame = bytearray(robot.send_data(frames.data_body(seq=5)))
+    frame[2] ^= 1
+    with pytest.raises(ForgedInput, match="authentication tag"):
+        pilot.receive_data(bytes(frame))
+    assert one and two
+
+
+def test_frames_before_the_handshake_and_misuse():
+    robot = link("robot")
+    with pytest.raises(BridgeUsageError):
+        robot.send_data(b"\x00")
+    with pytest.raises(BridgeUsageError):
+        robot.send_resume(0)
+    robot.start()
+    with pytest.raises(BridgeProtocolError, match="data frame while idle"):
+        robot.receive_data(frames.wrap(frames.data_body()))
+    with pytest.raises(BridgeUsageError):
+        LinkConnection("both", KEY, FINGERPRINT, 1)
+
+
+@FUZZ
+@given(st.binary(max_size=200), st.booleans())
+def test_any_input_to_a_handshake_completes_or_raises_the_peer_error(data, after_hello):
+    robot = link("robot")
+    robot.start()
+    prefix = _hello_of(link("pilot")) if after_hello else b""
+    try:
+        for event in robot.receive_data(prefix + data):
+            if isinstance(event, PeerHello):
+                robot.send_resume(0)
+    except BridgeProtocolError:
+        pass
+
+
+# -- UDP ---------------------------------------------------------------------------------
+
+
+def test_datagrams_open_once_and_replays_are_refused():
+    sealer, opener = DatagramSealer(b"k" * 32), DatagramOpener()
+    with pytest.raises(ForgedInput, match="no key yet"):
+        opener.open(sealer.seal(b"x"))
+    opener.install(b"k" * 32)
+    first, second = sealer.seal(b"first"), sealer.seal(b"second")
+    assert opener.open(second) == b"second"
+    assert opener.open(first) == b"first"          # reordered inside the window: fine
+    with pytest.raises(ReplayedInput, match="already received"):
+        opener.open(first)
+    tampered = bytearray(sealer.seal(b"third"))
+    tampered[1] ^= 0x20
+    with pytest.raises(ForgedInput):
+        opener.open(bytes(tampered))
+
+
+def test_the_previous_and_pending_keys_are_still_accepted():
+    old, new, pending = DatagramSealer(b"o" * 32), DatagramSealer(b"n" * 32), \
+        DatagramSealer(b"p" * 32)
+    opener = DatagramOpener()
+    opener.install(b"o" * 32)
+    late_old = old.seal(b"in flight")
+    opener.install(b"n" * 32)
+    opener.offer(b"p" * 32)
+    assert opener.open(late_old) == b"in flight"
+    assert opener.open(new.seal(b"now")) == b"now"
+    assert opener.open(pending.seal(b"early")) == b"early"
+    opener.install(b"p" * 32)                     # the oldest key is gone now
+    with pytest.raises(ForgedInput):
+        opener.open(old.seal(b"too late"))
+
+
+def test_the_replay_window_slides():
+    window = ReplayWindow(size=8)
+    for counter in (0, 1, 5, 3):
+        window.accept(counter)
+    with pytest.raises(ReplayedInput):
+        window.accept(3)
+    window.accept(20)
+    with pytest.raises(ReplayedInput, match="older than the replay window"):
+        window.accept(12)
+    window.accept(13)
+    window.accept(1000)
+    with pytest.raises(ReplayedInput):
+        window.accept(13)
+
+
+@FUZZ
+@given(st.binary(max_size=1600))
+def test_any_datagram_opens_or_raises_the_peer_error(data):
+    opener = DatagramOpener()
+    opener.install(b"k" * 32)
+    try:
+        opener.open(data)
+    except BridgeProtocolError:
+        pass
+
+
+# -- keys --------------------------------------------------------------------------------
+
+
+def test_key_files_are_made_private_and_refused_when_not(tmp_path):
+    path = generate_key_file(tmp_path / "keys" / "bridge.key")
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+    assert len(LinkKey.from_file(path).secret) == 32
+    with pytest.raises(BridgeUsageError, match="exists already"):
+        generate_key_file(path)
+    os.chmod(path, 0o644)
+    with pytest.raises(BridgeUsageError, match=r"accessible by others \(mode 0644\).*chmod 600"):
+        LinkKey.from_file(path)
+    with pytest.raises(BridgeUsageError, match="does not exist.*--gen-key"):
+        LinkKey.from_file(tmp_path / "missing.key")
+    bad = tmp_path / "bad.key"
+    bad.write_text("not hex")
+    os.chmod(bad, 0o600)
+    with pytest.raises(BridgeUsageError, match="hex key"):
+        LinkKey.from_file(bad)
+    short = tmp_path / "short.key"
+    short.write_text("abcd")
+    os.chmod(short, 0o600)
+    with pytest.raises(BridgeUsageError, match="at least 16"):
+        LinkKey.from_file(short)
