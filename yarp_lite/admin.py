@@ -14,6 +14,11 @@ Two interfaces reach the port itself rather than its owner:
 This module decides the answers; :mod:`yarp_lite.port` performs the effects
 through the small :class:`PortState` interface, so the rules are testable
 without a network.  Answers reproduce YARP 3.5's text byte for byte.
+
+Both take whatever a peer sent: :func:`admin` answers any Bottle and
+:func:`port_command` any text (unknown commands get YARP's "not understood"
+answers), never raising; the Bottle or line was already bounded by the
+decoder that produced it.
 """
 
 from __future__ import annotations
@@ -170,7 +175,8 @@ def _command_name(value: object) -> str:
     if isinstance(value, str):
         return value
     if isinstance(value, int) and not isinstance(value, bool):
-        return str(Vocab(int(value)))
+        code = (int(value) + (1 << 31)) % (1 << 32) - (1 << 31)  # asVocab32 truncates int64
+        return str(Vocab(code))
     return ""
 
 

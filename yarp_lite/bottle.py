@@ -37,6 +37,12 @@ and either returns a Bottle or raises :class:`RemoteProtocolError` naming the
 offset and the problem.  No length read from the wire is trusted before it is
 checked against the bytes actually present, so a bogus 4 GB length costs
 nothing.
+
+Limits: lists nest at most :data:`MAX_DEPTH` deep; a buffer is decoded
+whole, so its size is bounded by whoever framed it (a connection's
+``max_message``, 256 MiB by default, see :mod:`yarp_lite.framing`), and
+every item costs at least 4 bytes of it, so the decoded Bottle stays
+proportional to the bytes received.
 """
 
 from __future__ import annotations

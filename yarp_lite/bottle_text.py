@@ -17,8 +17,14 @@ surprising and deliberate here:
 * strings are quoted only when they contain anything but letters, ``_`` and
   (after the first character) digits, ``.``, ``-``.
 
-Parsing is total: any text yields a Bottle (an unclosed list is dropped, as
-YARP drops it); :func:`is_complete` says whether more lines are needed.
+Parsing is total up to one limit: any text yields a Bottle (an unclosed list
+is dropped, as YARP drops it) unless lists or blobs nest deeper than
+:data:`~yarp_lite.bottle.MAX_DEPTH`, which raises :class:`RemoteProtocolError`
+(YARP would recurse until its stack overflows).  Every nested list is
+re-read from its text, so the cost is at most ``MAX_DEPTH`` times the
+length, and the length is bounded by whoever read the line (a stream line
+is at most ``yarp_lite.stream.MAX_LINE`` bytes).  :func:`is_complete` says
+whether more lines are needed.
 """
 
 from __future__ import annotations
@@ -26,8 +32,9 @@ from __future__ import annotations
 import math
 from typing import Iterable
 
-from yarp_lite.bottle import (Bottle, Dict, Float32, Int64, Tag, Value, Vocab, tag_of,
-                              vocab_encode)
+from yarp_lite.bottle import (MAX_DEPTH, Bottle, Dict, Float32, Int64, Tag, Value, Vocab,
+                              tag_of, vocab_encode)
+from yarp_lite.errors import RemoteProtocolError
 
 _SEPARATORS = ", \t\n\r"
 _WHITESPACE = " \t\n\r"
@@ -84,7 +91,13 @@ def _tokens(text: str) -> "tuple[list[str], bool]":
 
 def parse(text: str) -> Bottle:
     """Parse one Bottle from its text form (``BottleImpl::fromString``)."""
-    return Bottle(Vocab("null") if token == "null" else _smart_value(token)
+    return _parse(text, 0)
+
+
+def _parse(text: str, depth: int) -> Bottle:
+    if depth > MAX_DEPTH:
+        raise RemoteProtocolError(f"text Bottle nested deeper than {MAX_DEPTH}", "text bottle")
+    return Bottle(Vocab("null") if token == "null" else _smart_value(token, depth)
                   for token in _tokens(text)[0])
 
 
@@ -131,7 +144,7 @@ def _looks_numeric(token: str) -> "tuple[bool, bool]":
     return number_like, has_period_or_e
 
 
-def _smart_value(token: str) -> Value:
+def _smart_value(token: str, depth: int) -> Value:
     ch = token[0]
     number_like, is_float = _looks_numeric(token)
     if number_like and (ch.isdigit() or ch in "+-.in") and (ch != "." or len(token) > 1):
@@ -140,11 +153,11 @@ def _smart_value(token: str) -> Value:
         number = _c_strtoll(token)
         return number if -(1 << 31) <= number < (1 << 31) else Int64(number)
     if ch == "(":
-        return _nested_list(token)
+        return _parse(token[1:len(token) - 1], depth + 1)
     if ch == "[":
         return Vocab(vocab_encode(token[1:len(token) - 1]))
     if ch == "{":
-        return _blob(token)
+        return _blob(token, depth)
     text = _unquote(token)
     if ch != '"':
         if text == "true":
@@ -154,12 +167,8 @@ def _smart_value(token: str) -> Value:
     return text
 
 
-def _nested_list(token: str) -> Bottle:
-    return parse(token[1:len(token) - 1])
-
-
-def _blob(token: str) -> bytes:
-    return bytes(_as_int32(item) & 0xFF for item in parse(token[1:len(token) - 1]))
+def _blob(token: str, depth: int) -> bytes:
+    return bytes(_as_int32(item) & 0xFF for item in _parse(token[1:len(token) - 1], depth + 1))
 
 
 def _as_int32(value: Value) -> int:
@@ -217,7 +226,8 @@ def _c_strtoll(text: str) -> int:
     digits = "0123456789abcdef"[:base]
     value = 0
     while index < length and text[index].lower() in digits:
-        value = value * base + digits.index(text[index].lower())
+        if value < 1 << 64:  # past 64 bits the clamp decides: no quadratic big-int work
+            value = value * base + digits.index(text[index].lower())
         index += 1
     value *= sign
     return max(-(1 << 63), min((1 << 63) - 1, value))

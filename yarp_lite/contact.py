@@ -7,6 +7,10 @@ names must start with ``/``, must not end with ``/`` and contain no spaces
 (``NetworkBase::isValidPortName``).  Names given to ports are adjusted by
 ``YARP_RENAME_<safe name>`` and ``YARP_PORT_PREFIX`` exactly as YARP does, so
 launch scripts written for YARP work unchanged.
+
+``Contact.parse`` reads names and addresses that peers and the name server
+send, so it is total: any text gives a Contact.  A socket number is at most
+five ASCII digits; anything else after ``host:`` makes the text a name.
 """
 
 from __future__ import annotations
@@ -60,7 +64,7 @@ class Contact:
                 if ch == "/":
                     break
                 if mode == 1:
-                    if ch.isdigit():
+                    if ch in "0123456789" and digits < 5:  # ASCII only; atoi's range
                         digits += 1
                         index += 1
                         continue

@@ -21,6 +21,14 @@ the carrier-independent pieces of the binary carriers (tcp, fast_tcp, udp):
 owns no socket: the port feeds it what ``recv`` returned and asks for the next
 event; a half-arrived message is never half-consumed, and any violation raises
 :class:`RemoteProtocolError` saying which field was wrong.
+
+Limits, so a peer cannot make a port hold unbounded memory: a message (the
+sum of its index's blocks) is at most ``max_message`` bytes
+(:data:`DEFAULT_MAX_MESSAGE`, 256 MiB, unless the port sets its own; the
+payload buffer is allocated when the index announces it, so this is also
+what one connection can make the port allocate), an index lists at most
+:data:`MAX_BLOCKS` blocks, and a sender name is at most
+:data:`MAX_SENDER_NAME` bytes.
 """
 
 from __future__ import annotations
@@ -74,10 +82,17 @@ def encode_sender_name(name: str) -> bytes:
     return _S32.pack(len(raw) + 1) + raw + b"\0"
 
 
+#: Longest sender name read from a connection header (YARP clamps it the same way).
+MAX_SENDER_NAME = 1000
+
+
 def sender_name_length(prefix: Buffer) -> int:
     """Bytes the name occupies after its 4-byte length, clamped as YARP clamps it."""
+    if len(prefix) < 4:
+        raise NeedMoreData(f"sender name length needs 4 bytes, got {len(prefix)}",
+                           "connection header")
     declared = _S32.unpack_from(prefix, 0)[0]
-    return min(max(declared, 1), 1000)
+    return min(max(declared, 1), MAX_SENDER_NAME)
 
 
 def decode_sender_name(raw: Buffer) -> str:

@@ -87,3 +87,12 @@ def test_admin_misc():
     assert admin.admin(port, Bottle([Vocab("prop"), Vocab("get"), "k"])) == [5]
     assert admin.admin(port, Bottle(["nonsense"]))[0] == Vocab("fail")
     assert admin.admin(port, Bottle([]))[0] == Vocab("fail")
+
+
+def test_a_command_word_beyond_int32_reads_as_its_truncated_vocab():
+    from yarp_lite.bottle import Int64
+
+    port = FakePort()
+    ver = Vocab("ver").code
+    assert admin.admin(port, Bottle([Int64(ver + (1 << 32))])) == [Vocab("ver"), 1, 2, 3]
+    assert admin.admin(port, Bottle([Int64(1 << 40)]))[0] == Vocab("fail")  # LocalProtocolError before

@@ -110,3 +110,18 @@ def test_printing_then_parsing_gives_the_same_values(items):
             assert after == before
         else:
             assert after == before
+
+
+def test_nesting_deeper_than_binary_bottles_allow_is_a_peer_error():
+    from yarp_lite.bottle import MAX_DEPTH
+    from yarp_lite.errors import RemoteProtocolError
+
+    assert parse("(" * MAX_DEPTH + "x" + ")" * MAX_DEPTH)  # as deep as a binary Bottle
+    for opener, closer in ("()", "{}"):
+        with pytest.raises(RemoteProtocolError, match="nested deeper than"):
+            parse(opener * 5000 + closer * 5000)  # RecursionError before
+
+
+def test_huge_integers_clamp_in_linear_time():
+    assert parse("9" * 200000) == Bottle([Int64((1 << 63) - 1)])
+    assert parse("-0x" + "f" * 8) == Bottle([-(2 ** 32 - 1)])

@@ -11,6 +11,10 @@ from yarp_lite.errors import LocalProtocolError
     ("udp:/read", Contact("/read", "udp")),
     ("tcp://10.0.0.1:10002/", Contact("", "tcp", "10.0.0.1", 10002)),
     ("/10.0.0.1:99/x", Contact("/x", "tcp", "10.0.0.1", 99)),
+    # not socket numbers: names (int() raised ValueError on these before)
+    ("tcp://h:1\u00b2/", Contact("/h:1\u00b2/", "tcp")),
+    ("tcp://h:" + "9" * 5000 + "/", Contact("/h:" + "9" * 5000 + "/", "tcp")),
+    ("tcp://h:123456/", Contact("/h:123456/", "tcp")),
 ])
 def test_parse(text, contact):
     assert Contact.parse(text) == contact

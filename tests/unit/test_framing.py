@@ -147,3 +147,14 @@ def test_ack_is_a_zero_length_yarp_number():
 def test_index_refuses_too_many_blocks():
     with pytest.raises(ValueError):
         encode_index([1] * 256)
+
+
+def test_sender_name_length_is_clamped_and_needs_its_four_bytes():
+    from yarp_lite.errors import NeedMoreData
+    from yarp_lite.framing import MAX_SENDER_NAME, sender_name_length
+
+    assert sender_name_length(REAL_HEADER[8:12]) == 3
+    assert sender_name_length(struct.pack("<i", -5)) == 1
+    assert sender_name_length(struct.pack("<i", 1 << 30)) == MAX_SENDER_NAME
+    with pytest.raises(NeedMoreData):
+        sender_name_length(b"\x03\x00")  # struct.error before
