@@ -17,6 +17,18 @@ sys.path.append(str(Path(__file__).resolve().parent))
 
 from harness import (YarpWorld, dump_outputs_if_failed, lite_implementation,  # noqa: E402
                      missing_reference, real_implementation)
+from requirements import apply_marks  # noqa: E402
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "requires(name, ...): needs root, the reference YARP... "
+                            "(tests/requirements.py): skipped when missing, failed when "
+                            "WALKMAN_REQUIRE_<NAME> is set")
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    apply_marks(item)  # before any fixture builds what the machine may lack
 
 
 @pytest.fixture

@@ -10,7 +10,6 @@ killed with their whole group when the test ends, pass or fail.
 from __future__ import annotations
 
 import os
-import shutil
 import signal
 import socket
 import subprocess
@@ -35,11 +34,9 @@ compile_cpp = reference.compile_cpp
 
 def missing_reference() -> None:
     """Skip the calling test, or fail it when CI demands the reference build."""
-    import pytest
+    from requirements import demand
 
-    if os.environ.get("WALKMAN_REQUIRE_REFERENCE"):
-        pytest.fail(REFERENCE_MISSING + " (WALKMAN_REQUIRE_REFERENCE is set)")
-    pytest.skip(REFERENCE_MISSING)
+    demand("reference")
 
 
 def free_port(span: int = 1) -> int:
@@ -176,7 +173,3 @@ def dump_outputs_if_failed(request, processes) -> None:
     for proc in processes:
         tail = "\n".join(proc.output().splitlines()[-40:])
         print(f"\n----- output of {proc.name} (last 40 lines) -----\n{tail}")
-
-
-def have_root() -> bool:
-    return os.geteuid() == 0 and shutil.which("ip") is not None

@@ -16,13 +16,11 @@ import time
 
 import pytest
 
-from bridge import emulation
 from bridge.emulation import EmulatedLink
 from bridge_harness import HERE, PYTHON, TwoPCs, count_lines
 from harness import wait_until
 
-pytestmark = pytest.mark.skipif(emulation.available() is not None,
-                                reason=str(emulation.available()))
+pytestmark = pytest.mark.requires("root")
 
 CONFIG = """<bridge period="0.5" gather="0.4">
   <modules>

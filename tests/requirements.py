@@ -1,0 +1,87 @@
+"""What a test needs from the machine, and what happens when the machine lacks it.
+
+Each :class:`Requirement` has a name and a check that returns None when the
+machine has it, else the reason it does not.  A test that needs it either
+calls :meth:`Requirement.demand` or carries ``@pytest.mark.requires("name")``
+(``pytestmark`` for a whole module; conftest applies the marks).  Missing, the
+test *skips* with the reason -- on a developer's machine without root or the
+reference YARP -- unless ``WALKMAN_REQUIRE_<NAME>`` is set, as
+``launch_scripts/run_tests.sh`` (CI) does: then it *fails*, because a CI run
+that skipped the interop or emulated-network tests would pass by luck.
+
+A new need (a display for rendering tests, say) is one more entry in
+:data:`REQUIREMENTS`; nothing else changes.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Callable, Dict, Optional
+
+import pytest
+
+
+@dataclass(frozen=True)
+class Requirement:
+    """A named need of some tests; ``check()`` is None when met, else why not."""
+
+    name: str
+    check: Callable[[], Optional[str]]
+
+    @property
+    def variable(self) -> str:
+        """The environment variable that turns "skip when missing" into "fail"."""
+        return f"WALKMAN_REQUIRE_{self.name.upper()}"
+
+    @property
+    def required(self) -> bool:
+        return os.environ.get(self.variable, "") not in ("", "0")
+
+    def demand(self) -> None:
+        """Return when met; otherwise skip the calling test, or fail it when required."""
+        reason = self.check()
+        if reason is None:
+            return
+        if self.required:
+            pytest.fail(f"{reason} ({self.variable} is set: this run must not skip it)",
+                        pytrace=False)
+        pytest.skip(f"{reason} (set {self.variable}=1 to make this a failure)")
+
+
+def _reference_yarp() -> Optional[str]:
+    from yarp_lite import reference
+
+    return None if reference.prefix() is not None else reference.MISSING
+
+
+def _root() -> Optional[str]:
+    from bridge import emulation
+
+    return emulation.available()
+
+
+#: Every requirement by name, as ``@pytest.mark.requires(NAME)`` names it.
+REQUIREMENTS: Dict[str, Requirement] = {
+    requirement.name: requirement for requirement in (
+        Requirement("reference", _reference_yarp),  # the reference YARP 3.5 build
+        Requirement("root", _root),  # network namespaces, tc and nftables: emulated hosts
+    )
+}
+
+
+def demand(name: str) -> None:
+    """:meth:`Requirement.demand` of the requirement called ``name``."""
+    try:
+        requirement = REQUIREMENTS[name]
+    except KeyError:
+        raise ValueError(f"no requirement named {name!r} (known: "
+                         f"{', '.join(REQUIREMENTS)})") from None
+    requirement.demand()
+
+
+def apply_marks(item: pytest.Item) -> None:
+    """Demand what ``@pytest.mark.requires(...)`` marks on ``item`` name (conftest's hook)."""
+    for mark in item.iter_markers("requires"):
+        for name in mark.args:
+            demand(name)
