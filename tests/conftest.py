@@ -63,8 +63,9 @@ def pytest_runtest_makereport(item, call):
 def make_world(tmp_path, request):
     worlds = []
 
-    def factory(server_impl, name: str = "world", start: bool = True) -> YarpWorld:
-        world = YarpWorld(tmp_path / f"{name}{len(worlds)}", server_impl)
+    def factory(server_impl, name: str = "world", start: bool = True,
+                auth_key=None) -> YarpWorld:
+        world = YarpWorld(tmp_path / f"{name}{len(worlds)}", server_impl, auth_key=auth_key)
         worlds.append(world)
         if start:
             world.start_server()

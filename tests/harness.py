@@ -3,7 +3,10 @@
 Every integration test builds a :class:`YarpWorld`: a private
 ``YARP_CONFIG_HOME``/``YARP_DATA_HOME``, a name server (real ``yarpserver`` or
 ``yarp-lite server``) on a free socket, and helpers to start the companion
-tools of either implementation.  Processes run in their own session and are
+tools of either implementation.  A world may require port authentication
+(``auth_key``: an ``auth.conf`` in its configuration folder);
+:meth:`YarpWorld.variant_env` gives a process another key, or none, on the
+same network.  Processes run in their own session and are
 killed with their whole group when the test ends, pass or fail.
 """
 
@@ -11,7 +14,6 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 from dataclasses import dataclass, field
@@ -19,7 +21,9 @@ from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
 from system.processes import Proc, wait_until  # noqa: F401 (re-exported)
-from yarp_lite import freeport, nameconfig, reference
+from yarp_lite import auth, freeport, nameconfig, reference
+from yarp_lite.errors import NetworkError
+from yarp_lite.nameclient import NameClient
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -68,6 +72,16 @@ def real_implementation() -> Optional[Implementation]:
                           [*line_buffered, str(prefix / "bin" / "yarp")])
 
 
+def write_auth_conf(directory: Path, key: Optional[str]) -> Optional[Path]:
+    """An ``auth.conf`` holding ``key`` in ``directory`` (none when ``key`` is None)."""
+    if key is None:
+        return None
+    directory.mkdir(parents=True, exist_ok=True)
+    path = directory / auth.FILE_NAME
+    path.write_text(f"[{auth.GROUP}]\nkey {key}\n")
+    return path
+
+
 @dataclass
 class YarpWorld:
     """An isolated YARP network: config dirs, one name server, and child processes."""
@@ -82,12 +96,15 @@ class YarpWorld:
     wrap: Sequence[str] = ()
     #: Address the name server announces (another host's processes may use it).
     ip: str = "127.0.0.1"
+    #: Key every process of this world authenticates with (None: no auth.conf).
+    auth_key: Optional[str] = None
 
     def __post_init__(self) -> None:
         self.config = self.root / "config"
         self.data = self.root / "data"
         self.config.mkdir(parents=True, exist_ok=True)
         self.data.mkdir(parents=True, exist_ok=True)
+        write_auth_conf(self.config, self.auth_key)
         if not self.socket_number:
             # the server hands out the numbers after its own: room for a robot's ports
             self.socket_number = free_port(span=400)
@@ -102,6 +119,21 @@ class YarpWorld:
         if self.namespace != "/root":
             env["YARP_NAMESPACE"] = self.namespace
         return env
+
+    def variant_env(self, name: str, auth_key: Optional[str]) -> Dict[str, str]:
+        """The environment of a process on this network with another key (None: none).
+
+        Its configuration folder links to this world's ``yarp.conf``, so it
+        finds the same name server, and holds its own ``auth.conf``.
+        """
+        folder = self.root / f"variant-{name}"
+        folder.mkdir(parents=True, exist_ok=True)
+        link = folder / nameconfig.config_file(self.namespace, self.env).name
+        if not link.is_symlink():
+            link.symlink_to(nameconfig.config_file(self.namespace, self.env))
+        (folder / auth.FILE_NAME).unlink(missing_ok=True)
+        write_auth_conf(folder, auth_key)
+        return {**self.env, "YARP_CONFIG_HOME": str(folder)}
 
     def apply_to_process(self, monkeypatch) -> None:
         """Point in-process yarp_lite code at this world (via monkeypatch)."""
@@ -127,12 +159,11 @@ class YarpWorld:
         if not conf.is_file() or not conf.read_text().split():
             return False
         host = conf.read_text().split()[0]
-        try:
-            with socket.create_connection((host, self.socket_number), timeout=1) as sock:
-                sock.sendall(f"NAME_SERVER query {self.namespace}\n".encode())
-                sock.settimeout(2)
-                return f"registration name {self.namespace}".encode() in sock.recv(4096)
-        except OSError:
+        client = NameClient(self.namespace, nameconfig.ServerAddress(host, self.socket_number),
+                            timeout=2.0, environ=self.env)
+        try:  # through yarp_lite, so an authenticating server is asked with the world's key
+            return client.query(self.namespace) is not None
+        except NetworkError:
             return False
 
     def stop_server(self) -> None:
@@ -147,13 +178,17 @@ class YarpWorld:
         self.processes.append(proc)
         return proc
 
-    def tool(self, impl: Implementation, *args: str, stdin: bool = False) -> Proc:
-        return self.start([*impl.tool, *args], f"{impl.name} {' '.join(args)}", stdin=stdin)
+    def tool(self, impl: Implementation, *args: str, stdin: bool = False,
+             env: Optional[Dict[str, str]] = None) -> Proc:
+        return self.start([*impl.tool, *args], f"{impl.name} {' '.join(args)}", stdin=stdin,
+                          env=env)
 
     def run_tool(self, impl: Implementation, *args: str, timeout: float = 20.0,
-                 input_text: Optional[str] = None) -> subprocess.CompletedProcess:
-        return subprocess.run([*self.wrap, *impl.tool, *args], env=self.env, capture_output=True,
-                              text=True, timeout=timeout, input=input_text, cwd=str(REPO))
+                 input_text: Optional[str] = None, env: Optional[Dict[str, str]] = None,
+                 cwd: Optional[Path] = None) -> subprocess.CompletedProcess:
+        return subprocess.run([*self.wrap, *impl.tool, *args], env=env or self.env,
+                              capture_output=True, text=True, timeout=timeout, input=input_text,
+                              cwd=str(cwd or REPO))
 
     def close(self) -> None:
         for proc in reversed(self.processes):

@@ -23,7 +23,7 @@ from yarp_lite.bottle_text import format_bottle
 from yarp_lite.carriers import BottlePayload
 from yarp_lite.connection import OutgoingConnection
 from yarp_lite.contact import Contact
-from yarp_lite.errors import LocalProtocolError, NetworkError, YarpError
+from yarp_lite.errors import AuthenticationError, LocalProtocolError, NetworkError, YarpError
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
 
@@ -237,7 +237,10 @@ def cmd_clean(args: List[str], admin: bool) -> int:
             continue
         out(f"Testing {contact.name} at {contact.uri()}")
         try:
-            OutgoingConnection.open(contact, "admin", "text", timeout=timeout).abort()
+            OutgoingConnection.open(contact, "admin", "text", timeout=timeout,
+                                    retry_refused=0.0).abort()
+        except AuthenticationError as exc:
+            log.error("%s answers but refused our key, keeping it: %s", contact.name, exc)
         except YarpError:
             out(f"* No response, removing port {contact.name}")
             client.unregister(contact.name)

@@ -4,6 +4,10 @@ An :class:`OutgoingConnection` is what a port's output, an RPC client, the
 name client and the ``yarp-lite`` tools all use to talk to a remote port.  It
 is a thin layer: the carrier does the rituals, the stream does the I/O.  One
 connection is used by one thread at a time (a lock makes that so).
+
+:func:`open_stream` is YARP's ``TcpFace::write``, the one way yarp_lite opens
+a TCP connection to a port or a name server: connect, then authenticate when
+an ``auth.conf`` holds a key (:mod:`yarp_lite.auth`).
 """
 
 from __future__ import annotations
@@ -11,11 +15,34 @@ from __future__ import annotations
 import threading
 from typing import Optional
 
+from yarp_lite import auth
 from yarp_lite.bottle import Bottle
 from yarp_lite.carriers import Carrier, Payload, make_carrier
 from yarp_lite.contact import Contact
-from yarp_lite.errors import LocalProtocolError, NetworkError, YarpError
-from yarp_lite.stream import SocketStream, Stream
+from yarp_lite.errors import LocalProtocolError, NetworkError, RemoteProtocolError, YarpError
+from yarp_lite.stream import SocketStream, Stream, authenticate
+
+#: How long a refused connection to a registered port is retried, in seconds.
+#: Real YARP registers a port before its socket listens, so a port that has
+#: just appeared in the name server may refuse connections for a moment.
+REFUSED_RETRY = 1.5
+
+
+def open_stream(host: str, port: int, *, where: str, credentials: auth.AuthConfig,
+                timeout: Optional[float] = 10.0, retry_refused: float = 0.0) -> SocketStream:
+    """Connect to ``host:port`` and authenticate as the connecting side.
+
+    ``retry_refused`` is passed to :meth:`SocketStream.connect`: only a
+    refused connection is retried.  Authentication failures never are.
+    """
+    stream = SocketStream.connect(host, port, timeout=timeout, where=where,
+                                  retry_refused=retry_refused)
+    try:
+        authenticate(stream, auth.Role.CONNECTOR, credentials)
+    except YarpError:
+        stream.close()
+        raise
+    return stream
 
 
 class OutgoingConnection:
@@ -31,19 +58,32 @@ class OutgoingConnection:
 
     @classmethod
     def open(cls, contact: Contact, sender: str, carrier: str = "",
-             timeout: Optional[float] = 10.0) -> "OutgoingConnection":
-        """Connect to ``contact`` and complete the header phase."""
+             timeout: Optional[float] = 10.0, retry_refused: float = REFUSED_RETRY,
+             credentials: Optional[auth.AuthConfig] = None) -> "OutgoingConnection":
+        """Connect to ``contact`` and complete the header phase.
+
+        A refused connection is retried for ``retry_refused`` seconds (see
+        :data:`REFUSED_RETRY`; only ECONNREFUSED, never a timeout or an
+        authentication failure); probes asking whether a port is alive *now*
+        pass 0.  ``credentials`` default to what :func:`yarp_lite.auth.load`
+        finds, looked up per connection as YARP does.
+        """
         if not contact.valid or not contact.host:
             raise NetworkError(f"no address known for {contact.name or contact}")
         chosen = make_carrier(carrier or contact.carrier or "tcp")
-        stream: Stream = SocketStream.connect(
-            contact.host, contact.port, timeout=timeout,
+        credentials = credentials if credentials is not None else auth.load()
+        stream: Stream = open_stream(
+            contact.host, contact.port, timeout=timeout, retry_refused=retry_refused,
+            credentials=credentials,
             where=f"{chosen.name} {sender} -> {contact.name or contact.uri()}")
         try:
             if timeout:
                 stream.set_timeout(timeout)
             chosen.send_header(stream, sender)
-            stream = chosen.expect_header_reply(stream)
+            try:
+                stream = chosen.expect_header_reply(stream)
+            except RemoteProtocolError as exc:
+                raise auth.unexpected_answer(credentials, "", str(exc)) from exc
             if isinstance(stream, SocketStream):
                 stream.set_timeout(None)
         except YarpError:

@@ -8,6 +8,8 @@ three kinds, so callers can tell whose fault it is:
 * :class:`RemoteProtocolError` -- a peer sent bytes that break the YARP
   protocol (a bad header, a bogus length, a truncated Bottle).  The connection
   that carried them is dropped; the port keeps serving everyone else.
+  :class:`AuthenticationError`, one of them, is what a wrong or missing
+  ``auth.conf`` key gives.
 * :class:`NetworkError` -- the network or the name server did not answer
   (refused, timed out, not registered).  Usually worth retrying.
 
@@ -31,6 +33,16 @@ class RemoteProtocolError(YarpError):
     def __init__(self, message: str, where: str = "") -> None:
         super().__init__(f"{where}: {message}" if where else message)
         self.where = where
+
+
+class AuthenticationError(RemoteProtocolError):
+    """A connection failed YARP's port authentication (``auth.conf``, AuthHMAC).
+
+    The peer signed with another key, did not sign at all, or did not answer
+    within YARP's 2 s.  The connection is dropped on both sides; the message
+    says which ``auth.conf`` this side used (or that it found none).
+    Retrying does not help: the keys must match.
+    """
 
 
 class NeedMoreData(RemoteProtocolError):

@@ -10,6 +10,8 @@ server understands them and each answers in its usual form:
 
 The server's address comes from ``yarp.conf`` (see :mod:`yarp_lite.nameconfig`)
 and is re-read on every call, so a restarted server at a new address is found.
+Every request authenticates first when an ``auth.conf`` holds a key
+(:mod:`yarp_lite.auth`), looked up in the client's environment.
 """
 
 from __future__ import annotations
@@ -18,14 +20,14 @@ import os
 import socket
 from typing import List, Mapping, Optional, Sequence
 
+from yarp_lite import auth
 from yarp_lite.bottle import Bottle
 from yarp_lite.bottle_text import format_value
 from yarp_lite.carriers import BottlePayload, SUPPORTED
-from yarp_lite.connection import OutgoingConnection
+from yarp_lite.connection import OutgoingConnection, open_stream
 from yarp_lite.contact import Contact
 from yarp_lite.errors import NetworkError
 from yarp_lite.nameconfig import ServerAddress, namespace, read_server_address
-from yarp_lite.stream import SocketStream
 
 DEFAULT_TIMEOUT = 10.0
 
@@ -97,11 +99,19 @@ class NameClient:
         (as YARP's client reads it) or when the server hangs up.
         """
         address = self.server_address()
-        stream = SocketStream.connect(address.host, address.port, timeout=self.timeout,
-                                      where=f"name server {address.host}:{address.port}")
+        credentials = self.credentials()
+        stream = open_stream(address.host, address.port, timeout=self.timeout,
+                             credentials=credentials,
+                             where=f"name server {address.host}:{address.port}")
         try:
             stream.set_timeout(self.timeout)
             stream.write(f"NAME_SERVER {command}\n".encode("utf-8", "surrogateescape"))
+            first = stream.read_some()
+            if not auth.is_text(first):
+                raise auth.unexpected_answer(
+                    credentials, stream.where,
+                    f"the name server answered {len(first)} bytes that are not text")
+            stream.unread(first)
             lines: List[str] = []
             while True:
                 try:
@@ -117,12 +127,17 @@ class NameClient:
         finally:
             stream.close()
 
+    def credentials(self) -> auth.AuthConfig:
+        """The key for talking to the server (``auth.conf`` in this client's environment)."""
+        return auth.load(self.environ)
+
     def bottle(self, command: Sequence, timeout: Optional[float] = None) -> Bottle:
         """Send a Bottle over tcp and return the server's Bottle reply."""
         address = self.server_address()
         contact = Contact(self.namespace, "tcp", address.host, address.port)
         connection = OutgoingConnection.open(contact, "admin", "tcp",
-                                             timeout=timeout or self.timeout)
+                                             timeout=timeout or self.timeout, retry_refused=0.0,
+                                             credentials=self.credentials())
         try:
             reply = connection.send("d", BottlePayload(Bottle(command)), want_reply=True,
                                     timeout=timeout or self.timeout)

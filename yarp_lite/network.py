@@ -16,9 +16,9 @@ from typing import Callable, Optional, Sequence
 
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.carriers import BottlePayload
-from yarp_lite.connection import OutgoingConnection
+from yarp_lite.connection import REFUSED_RETRY, OutgoingConnection
 from yarp_lite.contact import Contact, is_valid_port_name
-from yarp_lite.errors import NetworkError, YarpError
+from yarp_lite.errors import AuthenticationError, NetworkError, YarpError
 from yarp_lite.nameclient import NameClient
 
 Resolver = Callable[[str], Optional[Contact]]
@@ -47,14 +47,17 @@ def _resolver(client: Optional[NameClient], resolve: Optional[Resolver]) -> Reso
 
 
 def request(target: Contact, command: Sequence, admin: bool = False, carrier: str = "",
-            sender: str = "admin", timeout: float = 10.0) -> Bottle:
+            sender: str = "admin", timeout: float = 10.0,
+            retry_refused: float = REFUSED_RETRY) -> Bottle:
     """Send one Bottle to a port and return its reply (``NetworkBase::write``).
 
     Admin requests use ``text_ack`` by default, as YARP's tools do, so they
-    also work against ports that only speak text.
+    also work against ports that only speak text.  A refused connection is
+    retried for ``retry_refused`` seconds (a port registers before it listens).
     """
     chosen = carrier or ("text_ack" if admin else target.carrier or "tcp")
-    connection = OutgoingConnection.open(target, sender, chosen, timeout=timeout)
+    connection = OutgoingConnection.open(target, sender, chosen, timeout=timeout,
+                                         retry_refused=retry_refused)
     try:
         reply = connection.send("a" if admin else "d", BottlePayload(Bottle(command)),
                                 want_reply=True, timeout=timeout)
@@ -140,6 +143,8 @@ def connection_carrier(source: str, target: str, *, client: Optional[NameClient]
         reply = request(found_source, [Vocab("list"), Vocab("out"),
                                        Contact.parse(target).name or target],
                         admin=True, timeout=5.0)
+    except AuthenticationError:
+        raise  # not "no connection": nobody can tell until the keys match
     except YarpError:
         return None
     carrier = reply.find("carrier")
@@ -152,18 +157,28 @@ def is_connected(source: str, target: str, **kwargs) -> bool:
 
 def exists(name: str, *, client: Optional[NameClient] = None, timeout: float = 5.0,
            check_version: bool = True) -> bool:
-    """Is ``name`` registered and answering (``NetworkBase::exists``)?"""
+    """Is ``name`` registered and answering now (``NetworkBase::exists``)?
+
+    A refusal is not retried: this asks about the present (callers that
+    wait, like :func:`wait_for_port`, poll).  A port that refuses our key
+    raises :class:`AuthenticationError` instead of answering no.
+    """
     contact = _resolver(client, None)(name)
     if contact is None:
         return False
     if not check_version:
         try:
-            OutgoingConnection.open(contact, "admin", "text", timeout=timeout).abort()
+            OutgoingConnection.open(contact, "admin", "text", timeout=timeout,
+                                    retry_refused=0.0).abort()
             return True
+        except AuthenticationError:
+            raise  # something answers, but not to us: say so rather than "no"
         except YarpError:
             return False
     try:
-        reply = request(contact, [Vocab("ver")], admin=True, timeout=timeout)
+        reply = request(contact, [Vocab("ver")], admin=True, timeout=timeout, retry_refused=0.0)
+    except AuthenticationError:
+        raise
     except YarpError:
         return False
     return bool(reply) and str(reply[0]) in ("ver", "dict")

@@ -4,8 +4,10 @@ Theory of operation
 -------------------
 A port owns a listening TCP socket registered with the name server.  The
 listener thread accepts connections; each accepted connection gets its own
-input thread, which reads the 8-byte carrier magic, lets the carrier finish
-the handshake, then loops over messages:
+input thread, which authenticates the peer when the port found a key in
+``auth.conf`` as it opened (:mod:`yarp_lite.auth`, 2 s at most, so a silent
+peer only holds its own thread), reads the 8-byte carrier magic, lets the
+carrier finish the handshake, then loops over messages:
 
 * data (``d``/``D``) goes to the port's owner through :meth:`Port._deliver`
   (a callback, a blocking :meth:`Port.read`, or a subclass's buffer);
@@ -36,17 +38,18 @@ import threading
 import time
 from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
 
-from yarp_lite import admin
+from yarp_lite import admin, auth
 from yarp_lite.admin import Route
 from yarp_lite.bottle import Bottle
 from yarp_lite.carriers import (PROTOCOL_NOT_FOUND, SUPPORTED, BottlePayload, Carrier,
                                 Incoming, Payload, carrier_for_header)
 from yarp_lite.connection import OutgoingConnection
 from yarp_lite.contact import Contact, apply_environment, check_port_name
-from yarp_lite.errors import LocalProtocolError, NetworkError, RemoteProtocolError, YarpError
+from yarp_lite.errors import (AuthenticationError, LocalProtocolError, NetworkError,
+                              RemoteProtocolError, YarpError)
 from yarp_lite.framing import DEFAULT_MAX_MESSAGE
 from yarp_lite.nameclient import NameClient
-from yarp_lite.stream import SocketStream, Stream
+from yarp_lite.stream import SocketStream, Stream, authenticate
 
 log = logging.getLogger("yarp_lite.port")
 
@@ -103,6 +106,8 @@ class _InputUnit:
 
     def _handshake(self) -> bool:
         port = self.port
+        if isinstance(self.stream, SocketStream):
+            authenticate(self.stream, auth.Role.ACCEPTOR, port.credentials)
         header = self.stream.read_exact(8)
         carrier = carrier_for_header(header)
         if carrier is None:
@@ -293,6 +298,8 @@ class Port:
         self.name = ""
         self.address = Contact()
         self.properties: Dict[str, object] = {}
+        #: The key accepted connections must prove (read from auth.conf at open).
+        self.credentials = auth.DISABLED
         self.envelope = ""
         self._admin_view = _AdminView(self)
         self._lock = threading.RLock()
@@ -326,6 +333,7 @@ class Port:
         name = check_port_name(apply_environment(name))
         if wait and self.register:
             self._wait_for_name_server(name, wait)
+        self.credentials = auth.load(self.nameclient.environ)
         listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
@@ -452,6 +460,8 @@ class Port:
             return False, "RPC output already connected"
         try:
             address = requested if requested.host else self.nameclient.query(requested.name)
+        except AuthenticationError as exc:
+            return False, f"Cannot connect to {spec}: {exc}"
         except NetworkError:
             address = None
         if address is None or not address.valid:
@@ -464,6 +474,9 @@ class Port:
         try:
             connection = OutgoingConnection.open(address, self.name, carrier,
                                                  timeout=self.timeout or 10.0)
+        except AuthenticationError as exc:
+            log.error("%s: cannot connect to %s: %s", self.name, spec, exc)
+            return False, f"Cannot connect to {spec}: {exc}"
         except YarpError as exc:
             log.debug("%s: cannot connect to %s: %s", self.name, spec, exc)
             return False, f"Cannot connect to {spec}"

@@ -7,6 +7,8 @@ a 1 MB blob leave in one ``sendmsg`` without being joined first).
 :class:`DatagramStream` (in :mod:`yarp_lite.carriers.udp`) offers the same
 interface over UDP.  Every read raises :class:`NetworkError` when the peer goes
 away, so callers never see ``OSError`` or a silent short read.
+:func:`authenticate` drives the sans-IO :class:`yarp_lite.auth.Handshake` over
+a fresh socket, for both the side that connected and the side that accepted.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import socket
 import time
 from typing import Iterable, Optional, Tuple, Union
 
+from yarp_lite import auth
 from yarp_lite.errors import NetworkError, RemoteProtocolError
 from yarp_lite.lines import split_line
 
@@ -92,12 +95,29 @@ class SocketStream(Stream):
 
     @classmethod
     def connect(cls, host: str, port: int, timeout: Optional[float] = 10.0,
-                where: str = "") -> "SocketStream":
-        try:
-            sock = socket.create_connection((host, port), timeout=timeout)
-        except OSError as exc:
-            raise NetworkError(f"cannot connect to {host}:{port}: {exc.strerror or exc}") \
-                from exc
+                where: str = "", retry_refused: float = 0.0) -> "SocketStream":
+        """Connect; a *refused* connection is tried again for ``retry_refused`` seconds.
+
+        Only ECONNREFUSED retries (pauses of 20 ms doubling to 250 ms): it is
+        what a port that registered but does not listen yet answers.  An
+        unreachable host or a timeout fails at once.
+        """
+        deadline = time.monotonic() + retry_refused
+        pause = 0.02
+        while True:
+            try:
+                sock = socket.create_connection((host, port), timeout=timeout)
+                break
+            except ConnectionRefusedError as exc:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise NetworkError(f"cannot connect to {host}:{port}: "
+                                       f"{exc.strerror or exc}") from exc
+                time.sleep(min(pause, remaining))
+                pause = min(pause * 2, 0.25)
+            except OSError as exc:
+                raise NetworkError(f"cannot connect to {host}:{port}: {exc.strerror or exc}") \
+                    from exc
         sock.settimeout(None)
         return cls(sock, where or f"tcp {host}:{port}")
 
@@ -260,6 +280,50 @@ class SocketStream(Stream):
     @property
     def remote_address(self) -> Address:
         return self._remote
+
+
+def authenticate(stream: SocketStream, role: auth.Role, config: auth.AuthConfig) -> None:
+    """YARP's AuthHMAC exchange on a fresh connection, before any carrier byte.
+
+    A no-op when ``config`` has no key.  Each awaited message must arrive
+    within :data:`yarp_lite.auth.TIMEOUT` (YARP's 2 s; a whole message, so a
+    peer dripping bytes cannot hold us longer).  Raises
+    :class:`~yarp_lite.errors.AuthenticationError`; the caller closes.
+    """
+    if not config.enabled:
+        return
+    machine = auth.Handshake(role, config, stream.where)
+    previous = stream.sock.gettimeout()
+    try:
+        while True:
+            pending = machine.data_to_send()
+            if pending:
+                stream.set_timeout(auth.TIMEOUT)
+                stream.write(pending)
+            if machine.done:
+                break
+            deadline = time.monotonic() + auth.TIMEOUT
+            awaited = machine.state
+            while machine.state is awaited:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise machine.failure(f"nothing more within {auth.TIMEOUT:g} s")
+                stream.set_timeout(remaining)
+                try:
+                    machine.receive_data(stream.read_some())
+                except NetworkError as exc:
+                    if time.monotonic() >= deadline:
+                        raise machine.failure(f"no answer within {auth.TIMEOUT:g} s") from exc
+                    raise machine.failure(_without_where(exc, stream)) from exc
+    except NetworkError as exc:  # a write failed
+        raise machine.failure(_without_where(exc, stream)) from exc
+    if machine.trailing:
+        stream.unread(machine.trailing)
+    stream.set_timeout(previous)
+
+
+def _without_where(exc: NetworkError, stream: Stream) -> str:
+    return str(exc).removeprefix(f"{stream.where}: ")
 
 
 def write_all(stream: Stream, chunks: Iterable[Buffer]) -> None:
