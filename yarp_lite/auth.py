@@ -47,7 +47,7 @@ from pathlib import Path
 from typing import Callable, Dict, List, Mapping, Optional, Set, Tuple
 
 from yarp_lite.bottle import Bottle, Vocab
-from yarp_lite.bottle_text import format_value, is_complete, parse
+from yarp_lite.bottle_text import format_bottle, format_value, is_complete, parse
 from yarp_lite.errors import AuthenticationError, LocalProtocolError, RemoteProtocolError
 from yarp_lite.lines import split_line
 
@@ -209,8 +209,7 @@ def _lookup(name: str, env: Environ, known: Dict[str, list]) -> str:
     """``Property::expand``'s value of ``$name``: environment, CONFIG_PATH, earlier keys."""
     value = env.get(name, "") if name else ""
     if not value and name in known and len(known[name]) > 1:
-        item = known[name][1]
-        value = item if isinstance(item, str) else format_value(item)
+        value = _as_text(known[name][1])
     if not value and name == "__YARP__":
         value = "1"
     return value.replace("\\", "\\\\")
@@ -327,15 +326,25 @@ def key_of(sections: Dict[str, list]) -> Tuple[Optional[str], str]:
         elif _as_text(item) == "key":
             value = group[index + 1] if index + 1 < len(group) else None
             break
-    if isinstance(value, str) and value:
-        return value, ""
+    text = _as_string(value)
+    if text:
+        return text, ""
     return None, f'no "key" found in "{GROUP}" group'
 
 
 def _as_text(value: object) -> str:
-    if isinstance(value, str):
-        return value
-    return format_value(value) if not isinstance(value, (list, Bottle)) else ""
+    """``Value::toString``: strings bare, vocabs without brackets, lists unwrapped."""
+    if isinstance(value, (list, Bottle)):
+        return format_bottle(value)
+    text = format_value(value)
+    if isinstance(value, Vocab):
+        return text[1:-1] if text.startswith("[") else text  # true / false stay words
+    return value if isinstance(value, str) else text
+
+
+def _as_string(value: object) -> str:
+    """``Value::asString``: the text of a string or a vocab, else empty (numbers too)."""
+    return _as_text(value) if isinstance(value, str) else ""
 
 
 def parse_auth_conf(text: str, environ: Optional[Environ] = None,
