@@ -284,3 +284,22 @@ def test_a_real_port_refuses_a_lite_direct_connection_with_another_key(world, im
     port_proc.wait_for("Receiving input from /a/ok to /a/direct")
     writer.send("still served\n")
     port_proc.wait_for("^still served$")
+
+
+CROSS = [("yarp", "yarp_lite"), ("yarp_lite", "yarp")]
+
+
+@pytest.mark.parametrize("writer, reader", CROSS, ids=[ids(p) for p in CROSS])
+@pytest.mark.parametrize("carrier", ["tcp", "fast_tcp", "udp", "text", "text_ack"])
+def test_every_carrier_authenticates_first(make_world, implementations, lite, writer, reader,
+                                           carrier):
+    world = make_world(lite, auth_key=KEY)
+    read_proc = world.tool(pick(implementations, reader), "read", "/c/r")
+    read_proc.wait_for("Port /c/r active")
+    write_proc = world.tool(pick(implementations, writer), "write", "/c/w", stdin=True)
+    write_proc.wait_for("Port /c/w active")
+    connect = world.run_tool(pick(implementations, reader), "connect", "/c/w", "/c/r", carrier)
+    assert connect.returncode == 0, connect.stdout + connect.stderr
+    read_proc.wait_for(f"Receiving input from /c/w to /c/r using {carrier}")
+    write_proc.send("over the carrier\n")
+    read_proc.wait_for("^over the carrier$")
