@@ -3,7 +3,9 @@
 ``python pilot_sender.py TARGET FIRST LAST [INTERVAL]`` sends ``(count N) N``
 for N in FIRST..LAST to TARGET (e.g. ``/counter/command:i``) over tcp, which
 YARP acknowledges; when a write fails it reconnects and sends the same N again,
-as a pilot GUI would.  Prints ``sent N`` after each acknowledged write.
+as a pilot GUI would.  Prints ``sent N`` after each acknowledged write, and
+``not accepted N`` once when N first fails (tests wait for it to know the
+pilot noticed an outage).
 """
 
 import sys
@@ -18,17 +20,18 @@ def main() -> int:
     interval = float(sys.argv[4]) if len(sys.argv) > 4 else 0.05
     port = Port()
     port.open(f"/test/sender{first}", wait=60)
-    number = first
+    number, refused = first, None
     while number <= last:
-        if port.output_count == 0 and not port.add_output(target, quiet=True):
-            time.sleep(0.2)
-            continue
-        if port.write(Bottle([Bottle(["count", number]), number])) and port.output_count:
+        if (port.output_count or port.add_output(target, quiet=True)) and \
+                port.write(Bottle([Bottle(["count", number]), number])) and port.output_count:
             print(f"sent {number}", flush=True)
             number += 1
             time.sleep(interval)
-        else:
-            time.sleep(0.2)
+            continue
+        if refused != number:
+            print(f"not accepted {number}", flush=True)
+            refused = number
+        time.sleep(0.2)
     port.close()
     return 0
 

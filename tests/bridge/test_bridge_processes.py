@@ -9,13 +9,12 @@ killed and restarted while commands keep coming, and none is lost or run twice.
 from __future__ import annotations
 
 import signal
-import time
-from pathlib import Path
 
 import pytest
 
-from bridge_harness import HERE, PYTHON, TwoPCs, count_lines
+from bridge_harness import PYTHON, TwoPCs
 from harness import wait_until
+from pilot_side import bridge_status, executed, exists, send, switch, wait_nothing_in_flight
 
 CONFIG = """<bridge period="0.2" gather="0.4">
   <modules>
@@ -47,21 +46,6 @@ def counter_env(pcs, tmp_path, monkeypatch):
     log = tmp_path / "executed.log"
     monkeypatch.setenv("COUNTER_LOG", str(log))
     return log
-
-
-def executed(log: Path):
-    return [int(line.split()[2]) for line in count_lines(log, r"^executed count ")]
-
-
-def send(pcs: TwoPCs, first: int, last: int, interval: float = 0.05):
-    return pcs.pilot.python(str(HERE / "pilot_sender.py"), "/counter/command:i", str(first), str(last),
-                            str(interval), name=f"sender {first}-{last}")
-
-
-def switch(pcs: TwoPCs, lite, word: str, seq: int) -> None:
-    result = pcs.pilot.world.run_tool(lite, "write", f"/test/switch{seq}", "/counter/switch:i",
-                                      input_text=f"{word} {seq}\n")
-    assert result.returncode == 0, result.stdout + result.stderr
 
 
 @pytest.mark.parametrize("order", ["bridges-first", "modules-first"])
@@ -103,8 +87,7 @@ def test_the_robot_state_crosses_in_the_table_1_codec(pcs, lite):
     values = [float(v) for v in line.string.split()]
     assert len(values) == 3 + 4 * 2       # seq time N q[2] qdot[2] tau[2] temperature[2]
     assert 20 < values[-1] < 90            # a plausible board temperature
-    state = pcs.pilot.world.run_tool(lite, "rpc", "/bridge/pilot/rpc:i", input_text="status\n")
-    assert "(link up)" in state.stdout
+    assert "(link up)" in bridge_status(pcs.pilot, lite)
 
 
 def test_no_command_lost_or_run_twice_through_kills_and_restarts(pcs, lite, counter_env):
@@ -125,7 +108,8 @@ def test_no_command_lost_or_run_twice_through_kills_and_restarts(pcs, lite, coun
     # The robot's bridge dies; the pilot keeps commanding; the commands wait, then run.
     pcs.kill_bridge(pcs.robot)
     assert send(pcs, 11, 20).wait(60) == 0
-    time.sleep(0.5)
+    wait_until(lambda: "(queued_commands 10)" in bridge_status(pcs.pilot, lite), 30,
+               message="the pilot's bridge holding the 10 commands")
     assert len(executed(counter_env)) == 10
     pcs.start_bridge(pcs.robot)
     progress(20)
@@ -133,8 +117,10 @@ def test_no_command_lost_or_run_twice_through_kills_and_restarts(pcs, lite, coun
     # The pilot's bridge dies in the middle of a burst; the pilot insists until accepted.
     sender = send(pcs, 21, 40, interval=0.05)
     sender.wait_for("sent 25", 30)
+    refusals = sum(line.startswith("not accepted") for line in sender.lines)
     pcs.kill_bridge(pcs.pilot)
-    time.sleep(1.0)
+    # Down until the pilot has seen a command refused; it insists while the bridge restarts.
+    sender.wait_for(r"^not accepted \d+", 30, count=refusals + 1)
     pcs.start_bridge(pcs.pilot)
     assert sender.wait(90) == 0, sender.output()
     progress(40)
@@ -147,16 +133,15 @@ def test_no_command_lost_or_run_twice_through_kills_and_restarts(pcs, lite, coun
 
     # The module dies; commands sent meanwhile wait in the bridge for its return.
     module.kill(signal.SIGKILL)
-    time.sleep(0.5)
+    wait_until(lambda: not exists(pcs.robot, lite, "/counter/command:i"), 30,
+               message="the module's command port gone with it")
     assert send(pcs, 46, 50).wait(60) == 0
     start_counter(pcs).wait_for("ready for the pilot", 60)
     switch(pcs, lite, "start", 3)
     progress(50, timeout=60)
 
-    time.sleep(1.0)
+    wait_nothing_in_flight(pcs, lite)
     assert executed(counter_env) == list(range(1, 51))
-    status = pcs.pilot.world.run_tool(lite, "rpc", "/bridge/pilot/rpc:i", input_text="status\n")
-    assert "(queued_commands 0)" in status.stdout
 
 
 def test_a_real_yarp_pilot_and_name_server_see_no_difference(tmp_path, reference, lite,
@@ -177,11 +162,13 @@ def test_a_real_yarp_pilot_and_name_server_see_no_difference(tmp_path, reference
         reader = pcs.pilot.world.tool(reference, "read", "/test/status", "/counter/status:o")
         writer = pcs.pilot.world.tool(reference, "write", "/test/w", "/counter/switch:i",
                                       stdin=True)
-        time.sleep(1.5)
+        wait_until(lambda: exists(pcs.pilot, lite, "/test/w", "/counter/switch:i"), 30,
+                   message="yarp write connected to the switch port")
         writer.send("start 2\n")
         commands = pcs.pilot.world.tool(reference, "write", "/test/c", "/counter/command:i",
                                         stdin=True)
-        time.sleep(1.5)
+        wait_until(lambda: exists(pcs.pilot, lite, "/test/c", "/counter/command:i"), 30,
+                   message="yarp write connected to the command port")
         commands.send("(count 1) 1\n")
         commands.send("(count 2) 2\n")
         wait_until(lambda: executed(log) == [1, 2], 20, message="commands via real yarp write")

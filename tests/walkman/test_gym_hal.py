@@ -177,14 +177,14 @@ def test_stop_and_quit_win_over_a_hanging_or_throwing_module(lite_world, lite):
         pilot.send(lite, "switch", "start")
         pilot.wait_state("ok")
         pilot.send(lite, "command", "hang")
-        time.sleep(0.5)
+        module.wait_for("misbehaving: command hang", count=1)  # run() took it: hanging now
         pilot.send(lite, "switch", "stop")
         module.wait_for("starting a fresh one, stopped", timeout=30)
         pilot.wait_state("stopped", timeout=60)
         pilot.send(lite, "switch", "start")
         pilot.wait_state("ok")
         pilot.send(lite, "command", "hang")
-        time.sleep(0.5)
+        module.wait_for("misbehaving: command hang", count=2)  # in the restarted process
         pilot.send(lite, "switch", "quit")
         assert module.wait(timeout=30) == 0
     finally:
@@ -217,7 +217,7 @@ def test_bad_input_is_refused_and_the_robot_holds(lite_world, probe, lite):
         # The neck travels to its limit (0.6109 rad) and stops there, not at 5 rad.
         wait_until(lambda: abs(robot.sense_position()[neck_yaw] - 0.6109) < 0.02, 20,
                    message="neck yaw settles at its limit")
-        time.sleep(0.5)
+        time.sleep(0.5)  # under test: it stays there (no sleep-free way to see "nothing moves")
         assert robot.sense_position()[neck_yaw] == pytest.approx(0.6109, abs=0.02)
         # A malformed message straight at the HAL is refused there too.
         hal_port = NameClient().query("/walkman/head/command:i")
