@@ -16,6 +16,13 @@ carry the same name).  Latched topics keep their last message, which is sent
 again when the link comes back and every few seconds, and the receiving side
 publishes it latched -- once, unless it changed.
 
+rospy reads the handshake of every inbound connection in its accept thread,
+with no deadline and no size limit: one silent client stalls every topic and
+service of the node, and a header that declares 2 GB is buffered until it
+arrives.  :func:`guard_tcpros` (installed by :class:`RosNode`) gives each
+handshake a thread of its own (at most :data:`MAX_HANDSHAKES` at once), a
+deadline and a size limit, so our nodes keep serving under hostile peers.
+
 Images and point clouds are tiled (:mod:`bridge.tiles`): a partial frame is
 published with its missing regions black (images), NaN (float images) or NaN
 points (clouds, marked ``is_dense = False``).  Every other type travels as its
@@ -190,6 +197,71 @@ def codec_for(channel: Channel) -> Any:
 # -- the node ------------------------------------------------------------------------
 
 
+#: A TCPROS handshake must complete within this many seconds and bytes.
+HANDSHAKE_TIMEOUT = 5.0
+MAX_HANDSHAKE_BYTES = 1 << 20
+#: Inbound handshakes read at once; further connections are closed at once.
+MAX_HANDSHAKES = 64
+
+
+class _HandshakeBudget:
+    """A socket seen by rospy's header reader: its ``recv`` stops at the byte limit."""
+
+    def __init__(self, sock: Any) -> None:
+        self._sock = sock
+        self.received = 0
+
+    def recv(self, size: int) -> bytes:
+        from rosgraph.network import ROSHandshakeException
+
+        data = self._sock.recv(size)
+        self.received += len(data)
+        if self.received > MAX_HANDSHAKE_BYTES:
+            raise ROSHandshakeException(f"handshake header over {MAX_HANDSHAKE_BYTES} bytes: "
+                                        f"refused")
+        return data
+
+
+def guard_tcpros() -> None:
+    """Bound rospy's inbound TCPROS handshakes in time, size and threads (idempotent)."""
+    from rosgraph import network
+    from rospy.impl import tcpros_base
+
+    if getattr(tcpros_base, "_walkman_guarded", False):
+        return
+    read_header = network.read_ros_handshake_header
+    serve = tcpros_base.TCPROSServer._tcp_server_callback
+    slots = threading.BoundedSemaphore(MAX_HANDSHAKES)
+
+    def bounded_read(sock: Any, buffer: Any, buff_size: int) -> Dict[str, str]:
+        previous = sock.gettimeout()
+        sock.settimeout(HANDSHAKE_TIMEOUT if previous is None
+                        else min(previous, HANDSHAKE_TIMEOUT))
+        try:
+            return read_header(_HandshakeBudget(sock), buffer, buff_size)
+        finally:
+            sock.settimeout(previous)
+
+    def threaded(server: Any, sock: Any, address: Any) -> None:
+        if not slots.acquire(blocking=False):
+            log.warning("TCPROS: %d handshakes already running; refused %s:%s",
+                        MAX_HANDSHAKES, *address[:2])
+            sock.close()
+            return
+
+        def run() -> None:
+            try:
+                serve(server, sock, address)   # rospy logs and closes on any failure
+            finally:
+                slots.release()
+
+        threading.Thread(target=run, name="tcpros handshake", daemon=True).start()
+
+    tcpros_base.read_ros_handshake_header = bounded_read
+    tcpros_base.TCPROSServer._tcp_server_callback = threaded
+    tcpros_base._walkman_guarded = True
+
+
 class RosNode:
     """rospy's node for this process: started when the master answers, kept registered."""
 
@@ -224,6 +296,7 @@ class RosNode:
             self._stop.wait(1.0)
         if self._stop.is_set():
             return
+        guard_tcpros()
         rospy.init_node(self.name, anonymous=False, disable_signals=True)
         self._master_pid = self._pid()
         log.info("ROS node %s registered with %s", rospy.get_name(), rosgraph.get_master_uri())
