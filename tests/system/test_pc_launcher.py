@@ -35,9 +35,14 @@ def test_launchers_bring_up_both_pcs_and_a_plain_shell_pilots_the_robot(tmp_path
                  "--yarp-port", str(free_port()), "--ros-port", str(free_port()),
                  "--bridge-port", str(bridge), "--udp-port", str(udp[side]),
                  "--peer-udp-port", str(udp[other]), "--dir", str(tmp_path / side),
-                 "--shuffle"], dict(os.environ), f"{side} PC")
+                 "--key", str(tmp_path / "bridge.key"), "--shuffle"], dict(os.environ),
+                f"{side} PC")
         for proc in launchers.values():
             proc.wait_for(r"all up", 240)
+        # The first launcher made the shared key, private, and said to copy it.
+        assert oct((tmp_path / "bridge.key").stat().st_mode & 0o777) == "0o600"
+        assert "created a new bridge key" in launchers["robot"].output() + \
+            launchers["pilot"].output()
         shell = subprocess.run(
             ["bash", "-c", f"source {tmp_path / 'pilot' / 'pilot.env'} && "
              "rostopic pub -1 /gaze_control/switch walkman_msgs/Switch 'command: start'"],
