@@ -193,9 +193,6 @@ class ModuleRunner:
         self._status_at_pause: Optional[Tuple[str, list]] = None
 
     def _make_thread(self) -> GenericThread:
-        if issubclass(self.module_class, ControlThread):
-            return self.module_class(self.name, self.config, self.interfaces,
-                                     on_status_change=self.wake.set)
         return self.module_class(self.name, self.config, self.interfaces,
                                  on_status_change=self.wake.set)
 
