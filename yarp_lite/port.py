@@ -43,7 +43,7 @@ from yarp_lite.admin import Route
 from yarp_lite.bottle import Bottle
 from yarp_lite.carriers import (PROTOCOL_NOT_FOUND, SUPPORTED, BottlePayload, Carrier,
                                 Incoming, Payload, carrier_for_header)
-from yarp_lite.connection import OutgoingConnection
+from yarp_lite.connection import REFUSED_RETRY, OutgoingConnection
 from yarp_lite.contact import Contact, apply_environment, check_port_name
 from yarp_lite.errors import (AuthenticationError, LocalProtocolError, NetworkError,
                               RemoteProtocolError, YarpError)
@@ -440,20 +440,26 @@ class Port:
     def add_output(self, target: str, carrier: str = "", quiet: bool = False) -> bool:
         """Connect this port's output to ``target`` (``/name`` or ``udp://name``).
 
-        ``quiet`` leaves a failure unlogged, for callers that retry on their own.
+        ``quiet`` is for callers that retry on their own: a failure is not
+        logged, and a refused connection is not retried either (a loop over
+        many stale registrations would otherwise wait on each of them).
         """
         ok, message = self._add_output(f"{carrier}:/{target}" if carrier else target,
-                                       only_if_needed=True)
+                                       only_if_needed=True,
+                                       retry_refused=0.0 if quiet else REFUSED_RETRY)
         if not ok and not quiet:
             log.warning("%s", message)
         return ok
 
-    def _add_output(self, spec: str, only_if_needed: bool = False) -> Tuple[bool, str]:
+    def _add_output(self, spec: str, only_if_needed: bool = False,
+                    retry_refused: float = REFUSED_RETRY) -> Tuple[bool, str]:
         """Connect to ``spec``; a connection to the same port is replaced.
 
         ``only_if_needed`` keeps an existing connection with the right carrier
         (``Port::addOutput``); the admin ``[add]`` and ``/port`` commands always
         reconnect, as in YARP, which also clears a connection to a dead peer.
+        A refused connection is retried for ``retry_refused`` seconds: the
+        target may have registered without listening yet.
         """
         requested = Contact.parse(spec)
         if self.rpc and self._outputs and requested.name not in self._outputs:
@@ -473,9 +479,9 @@ class Port:
         self.remove_output(address.name, quiet=True)
         try:
             connection = OutgoingConnection.open(address, self.name, carrier,
-                                                 timeout=self.timeout or 10.0)
+                                                 timeout=self.timeout or 10.0,
+                                                 retry_refused=retry_refused)
         except AuthenticationError as exc:
-            log.error("%s: cannot connect to %s: %s", self.name, spec, exc)
             return False, f"Cannot connect to {spec}: {exc}"
         except YarpError as exc:
             log.debug("%s: cannot connect to %s: %s", self.name, spec, exc)
