@@ -117,8 +117,7 @@ def _dirs_from(env: Environ, key: str, alt_key: str, alt_default: str) -> List[s
 
 
 def _search_dirs(env: Environ) -> Tuple[List[str], List[str]]:
-    """(user and sysadmin dirs, installed dirs): ``$YARP_CONFIG_HOME``, ``$YARP_DATA_HOME``,
-    each of ``$YARP_CONFIG_DIRS``; then each of ``$YARP_DATA_DIRS``."""
+    """([config home, data home, *config dirs], [*data dirs]): user+sysadmin, installed."""
     home = env.get("HOME", "")
     config_home = _dir_from(env, "YARP_CONFIG_HOME", "XDG_CONFIG_HOME", home + "/.config")
     data_home = _dir_from(env, "YARP_DATA_HOME", "XDG_DATA_HOME", home + "/.local/share")
@@ -176,7 +175,7 @@ def _read_config(path: Path) -> str:
     if path.is_dir():
         parts = []
         for entry in sorted(path.iterdir(), key=lambda item: item.name.encode()):
-            if entry.name.endswith(".ini") and len(entry.name) >= 4:
+            if entry.name.endswith(".ini"):
                 parts.append(entry.read_text("utf-8", "surrogateescape") + "\n[]\n")
         return "".join(parts)
     return path.read_text("utf-8", "surrogateescape")

@@ -307,7 +307,7 @@ def authenticate(stream: SocketStream, role: auth.Role, config: auth.AuthConfig)
             while machine.state is awaited:
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
-                    raise machine.failure(f"nothing more within {auth.TIMEOUT:g} s")
+                    raise machine.failure(f"no answer within {auth.TIMEOUT:g} s")
                 stream.set_timeout(remaining)
                 try:
                     machine.receive_data(stream.read_some())
