@@ -58,7 +58,10 @@ def oracle() -> Path:
     return compile_cpp(ORACLE, "auth_oracle")
 
 
-def real_lookup(oracle: Path, env: Dict[str, str], cwd: Path) -> Tuple[Optional[str], Optional[bytes]]:
+Lookup = Tuple[Optional[str], Optional[bytes]]
+
+
+def real_lookup(oracle: Path, env: Dict[str, str], cwd: Path) -> Lookup:
     lines = subprocess.run([str(oracle)], env=env, cwd=cwd, capture_output=True, text=True,
                            check=True, timeout=20).stdout.splitlines()
     path = lines[0][len("path "):] or None
@@ -66,7 +69,7 @@ def real_lookup(oracle: Path, env: Dict[str, str], cwd: Path) -> Tuple[Optional[
     return path, key or None
 
 
-def lite_lookup(env: Dict[str, str], cwd: Path) -> Tuple[Optional[str], Optional[bytes]]:
+def lite_lookup(env: Dict[str, str], cwd: Path) -> Lookup:
     config = auth.load(env, str(cwd))
     return (str(config.path) if config.path else None), config.key
 
