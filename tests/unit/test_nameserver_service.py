@@ -121,3 +121,16 @@ def test_registry_full_is_reported_not_fatal():
         registry.register("/c", "tcp", "h", -1)
     registry.unregister("/a")
     assert registry.register("/c", "tcp", "h", -1).port == 10002  # freed number reused
+
+
+@pytest.mark.parametrize("command", [
+    Bottle(["register", "/a\udcff"]),                      # fuzz: registry.py:76
+    Bottle(["set", "/a", "ips", Bottle(["\udcc3"])]),      # nested text reaches SQLite too
+    Bottle(["subscribe", Vocab(0xE9), "/b"]),               # a vocab of a non-UTF-8 byte
+])
+def test_text_that_is_not_utf8_is_a_peer_error_not_a_database_crash(service, command):
+    from yarp_lite.errors import RemoteProtocolError
+
+    with pytest.raises(RemoteProtocolError, match="is not UTF-8"):
+        service.apply(command, "10.0.0.7")  # UnicodeEncodeError from sqlite3 before
+    assert lines(apply(service, "register /a"))[0].startswith("registration name /a ")

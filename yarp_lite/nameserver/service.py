@@ -17,6 +17,13 @@ Applying a command also yields *events* (``[add] /port``, ``[del] /port``,
 broadcast to whoever listens to the server port) and *actions*: connections
 the server must make or break for persistent connections.  The service does
 no I/O; :mod:`yarp_lite.nameserver.server` performs events and actions.
+
+Commands come from any client, so :meth:`NameService.apply` answers any
+Bottle (unknown commands get an empty reply, as from yarpserver) except one
+whose text is not UTF-8 (a peer's raw bytes decoded with surrogate escapes):
+the registry's SQLite tables cannot hold it, so that is a
+:class:`RemoteProtocolError` and the server drops the connection.  A command
+is bounded by the line or message limit of the connection that carried it.
 """
 
 from __future__ import annotations
@@ -25,9 +32,10 @@ import logging
 from dataclasses import dataclass, field
 from typing import List, Optional, Sequence, Union
 
-from yarp_lite.bottle import Bottle, Vocab
+from yarp_lite.bottle import Bottle, Vocab, iter_leaves
 from yarp_lite.bottle_text import format_bottle, format_value, parse
 from yarp_lite.carriers import Payload
+from yarp_lite.errors import RemoteProtocolError
 from yarp_lite.nameserver.registry import Registry, RegistryFull
 from yarp_lite.nameserver.subscriptions import Action, Subscriptions, split_name
 
@@ -111,6 +119,7 @@ class NameService:
     # -- entry point ---------------------------------------------------------------------
 
     def apply(self, command: Bottle, remote_host: str = "") -> Outcome:
+        _check_text(command)
         self._log(command)
         key = _word(command, 0)
         handler = _SUBSCRIBER_COMMANDS.get(key)
@@ -329,6 +338,17 @@ class NameService:
         if bottle_mode:
             return Outcome(Bottle(HELP))
         return Outcome(OldReply(["Here are some ways to use the name server:", *HELP]))
+
+
+def _check_text(command: Bottle) -> None:
+    """Refuse text SQLite cannot store: lone surrogates from a peer's non-UTF-8 bytes."""
+    for leaf in iter_leaves(command):
+        if isinstance(leaf, str):
+            try:
+                leaf.encode("utf-8")
+            except UnicodeEncodeError:
+                raise RemoteProtocolError(f"command text {leaf[:40]!r} is not UTF-8",
+                                          "name server") from None
 
 
 def _old_line(entry: Optional[Bottle]) -> str:
