@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Callable, Dict, List, Optional, Tuple, TypeVar, Union
 
@@ -116,7 +117,9 @@ class BridgeConfig:
         return None
 
 
+@lru_cache(maxsize=1)
 def _schema() -> etree.XMLSchema:
+    """The schema, parsed once (it is fixed; parsing it cost more than a config)."""
     return etree.XMLSchema(etree.parse(str(SCHEMA_PATH)))
 
 

@@ -1,0 +1,1 @@
+"""Coverage-guided fuzzing of every decoder: targets, a runner, found crashers (see README.md)."""
