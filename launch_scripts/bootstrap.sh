@@ -40,7 +40,7 @@ if [[ ! -x $VENV/bin/python ]]; then
   /usr/bin/python3 -m venv --system-site-packages "$VENV"
 fi
 
-PY_PACKAGES=(numpy mujoco pin lxml opencv-python-headless pytest hypothesis matplotlib)
+PY_PACKAGES=(numpy mujoco pin lxml opencv-python-headless pytest hypothesis matplotlib atheris)
 stamp=$VENV/.walkman-installed
 want="$(sha256sum setup.py | cut -d' ' -f1) ${PY_PACKAGES[*]}"
 if [[ ! -f $stamp || "$(cat "$stamp")" != "$want" ]]; then

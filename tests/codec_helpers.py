@@ -7,7 +7,8 @@ from hypothesis import strategies as st
 
 from yarp_lite.bottle import Bottle, Float32, Int8, Int16, Int64, Vocab
 
-FUZZ = settings(max_examples=300, deadline=None,
+# At least 300 examples; more under the long "fuzz" profile (tests/conftest.py).
+FUZZ = settings(max_examples=max(300, settings.default.max_examples), deadline=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
 

@@ -3,15 +3,29 @@
 from __future__ import annotations
 
 import logging
+import os
 import sys
 from pathlib import Path
 
 import pytest
-from hypothesis import settings
+from hypothesis import HealthCheck, settings
 
-# Two busy cores: a generated case may take longer than hypothesis' 200 ms default.
-settings.register_profile("walkman", deadline=None)
-settings.load_profile("walkman")
+# Hypothesis profiles.  Two busy cores: a generated case may take longer than the 200 ms
+# default deadline, so none has one.
+#   dev  -- the default: randomised, the example database remembers failures.
+#   ci   -- derandomised (the same examples every run, so a red CI is reproducible and a
+#           green one is not luck), no database; chosen when CI is set.
+#   fuzz -- many more randomised examples, for a long hand run (fuzz/README.md).
+# WALKMAN_HYPOTHESIS_PROFILE (or HYPOTHESIS_PROFILE) names one explicitly.
+settings.register_profile("dev", deadline=None)
+settings.register_profile("ci", deadline=None, derandomize=True, database=None,
+                          print_blob=True)
+settings.register_profile("fuzz", deadline=None, max_examples=20_000,
+                          suppress_health_check=[HealthCheck.too_slow,
+                                                 HealthCheck.data_too_large])
+settings.load_profile(os.environ.get("WALKMAN_HYPOTHESIS_PROFILE")
+                      or os.environ.get("HYPOTHESIS_PROFILE")
+                      or ("ci" if os.environ.get("CI") else "dev"))
 
 sys.path.append(str(Path(__file__).resolve().parent))
 
