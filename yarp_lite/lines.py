@@ -5,6 +5,10 @@ are dropped, and a backslash right before the newline continues the line (the
 backslash vanishes, other backslashes are kept).  :func:`split_line` finds one
 such line at the start of a buffer without any I/O, so the socket layer and
 the tests share one definition.
+
+It is total (any bytes give a line or None, never an exception) and keeps no
+state; the limit on how much a peer may send without a newline belongs to
+the reader that buffers it (``yarp_lite.stream.MAX_LINE``, 1 MiB).
 """
 
 from __future__ import annotations

@@ -13,6 +13,10 @@ The receiver checks CRC and number; the first bad one makes it drop the
 partial message and wait for the next datagram numbered 0, which is what
 makes a lost datagram cost exactly one message.  A datagram numbered -1 is
 YARP's "wake up" packet and is ignored.
+
+Both functions are total: any datagram is accepted, ignored or counted as
+dropped, never an exception, and the assembler holds no bytes itself (the
+message decoder behind it bounds the message, see :mod:`yarp_lite.framing`).
 """
 
 from __future__ import annotations
