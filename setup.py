@@ -30,6 +30,7 @@ setup(
             "walkman-compare=system.compare:main",
             "walkman-pc=system.pc:main",
             "walkman-main-job=system.mainjob:main",
+            "walkman-chaos=system.chaos:main",
         ],
     },
 )

@@ -18,7 +18,7 @@ import subprocess
 import threading
 import time
 from pathlib import Path
-from typing import Dict, List, Optional, Sequence
+from typing import Dict, List, Optional, Sequence, Tuple
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -46,6 +46,20 @@ def descendants(pid: int) -> List[int]:
             found.append(child)
             todo.append(child)
     return found
+
+
+def usage(pid: int) -> Optional[Tuple[int, int]]:
+    """``(resident KiB, open file descriptors)`` of a living process; None once it is gone.
+
+    Read from /proc, so a soak can sample every program without its cooperation.
+    """
+    try:
+        with open(f"/proc/{pid}/status") as status:
+            rss = next((int(line.split()[1]) for line in status if line.startswith("VmRSS:")),
+                       0)  # a zombie has no VmRSS line
+        return rss, len(os.listdir(f"/proc/{pid}/fd"))
+    except (FileNotFoundError, ProcessLookupError):
+        return None
 
 
 class WaitTimeout(AssertionError):

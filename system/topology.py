@@ -39,6 +39,8 @@ from system.processes import REPO, ROSCORE_READY, Proc, WaitTimeout
 from yarp_lite.freeport import free_port, release
 
 PYTHON = sys.executable
+#: The line ``yarp-lite server`` prints once it answers.
+YARP_SERVER_READY = r"Ready"
 BRIDGE_CONFIG = REPO / "models" / "bridge_drc.xml"
 GENERATED = REPO / "build" / "ros" / "lib"
 
@@ -125,6 +127,8 @@ class Pc:
     ros_port: int = field(default_factory=free_port)
     processes: Dict[str, Proc] = field(default_factory=dict)
     log_dir: Optional[Path] = None   # when set, each program's output also goes to a file
+    #: set in every program's environment last (a run's marker, a module's log file...)
+    extra_env: Dict[str, str] = field(default_factory=dict)
 
     @property
     def env(self) -> Dict[str, str]:
@@ -143,6 +147,7 @@ class Pc:
                                                  str(REPO / "build" / "ros" / "share"),
                                                  "/usr/share"]),
         })
+        env.update(self.extra_env)
         return env
 
     #: What a shell needs to act as a program of this PC (see :meth:`write_env_file`).
@@ -178,12 +183,17 @@ class Pc:
         return proc
 
     def start_name_servers(self) -> None:
-        (self.root / "yarp").mkdir(parents=True, exist_ok=True)
-        server = self.start("yarp-server", [PYTHON, "-m", "yarp_lite", "server", "--socket",
-                                            str(self.yarp_port), "--ip", "127.0.0.1", "--write"])
+        server = self.start_yarp_server()
         roscore = self.start_roscore()
-        server.wait_for(r"Ready", 30)
+        server.wait_for(YARP_SERVER_READY, 30)
         roscore.wait_for(ROSCORE_READY, 60)
+
+    def start_yarp_server(self) -> Proc:
+        """Start this PC's ``yarp-lite server`` without waiting; it is usable once it prints
+        :data:`YARP_SERVER_READY`."""
+        (self.root / "yarp").mkdir(parents=True, exist_ok=True)
+        return self.start("yarp-server", [PYTHON, "-m", "yarp_lite", "server", "--socket",
+                                          str(self.yarp_port), "--ip", "127.0.0.1", "--write"])
 
     def start_roscore(self) -> Proc:
         """Start this PC's ``roscore`` without waiting; it is usable once it prints
@@ -207,7 +217,10 @@ class Topology:
 
     def __init__(self, kind: str, root: Path, link=None, profile: str = "lab",
                  loss: Optional[float] = None, perception_rate: float = 1.0,
-                 bridge_config: Path = BRIDGE_CONFIG) -> None:
+                 bridge_config: Path = BRIDGE_CONFIG, extra: Sequence[Component] = (),
+                 extra_env: Optional[Dict[str, str]] = None) -> None:
+        """``extra`` components join the table (a test's witness module); ``extra_env`` goes
+        into every program's environment."""
         if kind not in ("lab", "drc"):
             raise ValueError(f"topology must be lab or drc, not {kind!r}")
         self.kind = kind
@@ -215,13 +228,16 @@ class Topology:
         self.link = link
         self.profile, self.loss = profile, loss
         self.bridge_config = bridge_config
-        self.table = {c.name: c for c in components(kind, perception_rate)}
+        self.table = {c.name: c for c in [*components(kind, perception_rate), *extra]
+                      if kind in c.topologies}
+        env = dict(extra_env or {})
         if kind == "lab":
-            lab = Pc("lab", root / "lab", link.exec_argv("robot", []) if link else ())
+            lab = Pc("lab", root / "lab", link.exec_argv("robot", []) if link else (),
+                     extra_env=env)
             self.pcs = {"robot": lab, "pilot": lab}
         else:
             self.pcs = {side: Pc(side, root / side, link.exec_argv(side, []) if link else (),
-                                 link.address(side) if link else "127.0.0.1")
+                                 link.address(side) if link else "127.0.0.1", extra_env=env)
                         for side in ("robot", "pilot")}
         self.tcp_port = free_port()
         self.udp_ports = {"robot": free_port(), "pilot": free_port()}
@@ -253,6 +269,8 @@ class Topology:
             return bridge_argv(side, self.bridge_config, self.pcs[other].address,
                                self.tcp_port, self.udp_ports[side], self.udp_ports[other],
                                self.bridge_key)
+        if component.name == "gateway":  # the modules the bridges carry, from the same file
+            return [*component.command(self.bag_path), "--config", str(self.bridge_config)]
         return component.command(self.bag_path)
 
     @property
