@@ -21,6 +21,26 @@ before IP reassembles fragments), so senders see a lossy wire, not an error,
 and a 60 kB datagram dies of any one of its 45 fragments, as on a radio.  ``flap`` takes the link down and up
 (``ip link``), which senders do see.  This kernel has no ``netem``, hence no
 delay emulation.  Everything needs root; :func:`available` says why not.
+
+An intruder
+-----------
+``add_intruder`` puts a third host, ``<prefix>_rogue`` at 169.254.<subnet>.3,
+on the same radio: an attacker on the DRC wireless.  A radio is a broadcast
+medium, so the robot's end of the cable becomes a port of a Linux bridge
+(``<prefix>b0``, in the robot's namespace) that learns no addresses and so
+floods every frame to every port, like a hub::
+
+    pilot p0 ==veth== r0 -+- b0 -+- rb ==veth== ri  robot (.1)
+                          |      +- x1 ==veth== x0  rogue (.3, promiscuous)
+
+The robot's address moves from ``r0`` to ``ri`` (the bridge delivers frames
+for an address on itself only locally, and the rogue would not hear them).
+``r0`` and ``p0`` keep the profile -- shaping on egress, loss on ingress -- so
+the robot and the pilot still talk over the bad link, and the rogue hears
+exactly what reached the robot (the pilot's frames after the loss) and what the
+robot sent.  The rogue's own path to the robot is unshaped and lossless: an
+attacker close to the robot, whose every attempt arrives (so a test can count
+them).  Add it before starting programs on the robot: its address moves.
 """
 
 from __future__ import annotations
@@ -41,6 +61,9 @@ PROFILES = {
     "degraded": {"rate": "9600bit", "loss": 0.0},
 }
 SIDES = ("robot", "pilot")
+#: The last byte of each host's address; "rogue" exists after :meth:`EmulatedLink.add_intruder`.
+HOSTS = {"robot": 1, "pilot": 2, "rogue": 3}
+DEVICES = {"robot": "r0", "pilot": "p0", "rogue": "x0"}
 TABLE = "wmnetem"
 
 
@@ -82,10 +105,11 @@ class EmulatedLink:
         return f"{self.prefix}_{side}"
 
     def device(self, side: str) -> str:
-        return f"{self.prefix}{side[0]}0"
+        """A host's interface on the radio (robot and pilot: the cable's ends, shaped)."""
+        return f"{self.prefix}{DEVICES[side]}"
 
     def address(self, side: str) -> str:
-        return f"169.254.{self.subnet}.{1 if side == 'robot' else 2}"
+        return f"169.254.{self.subnet}.{HOSTS[side]}"
 
     def exec_argv(self, side: str, argv: Sequence[str]) -> List[str]:
         return ["ip", "netns", "exec", self.namespace(side), *argv]
@@ -120,8 +144,51 @@ class EmulatedLink:
                      f"policy accept; }}")
 
     def down(self) -> None:
-        for side in SIDES:
-            _run(["ip", "netns", "del", self.namespace(side)], check=False)
+        for host in HOSTS:
+            _run(["ip", "netns", "del", self.namespace(host)], check=False)
+
+    # -- the intruder --------------------------------------------------------------
+
+    def has_intruder(self) -> bool:
+        return self.namespace("rogue") in _run(["ip", "netns", "list"]).stdout.split()
+
+    def add_intruder(self) -> None:
+        """The rogue host on the robot/pilot radio (see the module's docstring)."""
+        if not self.exists():
+            raise EmulationError(f"no emulated link {self.prefix!r} to intrude on; "
+                                 f"bring it up first")
+        if self.has_intruder():
+            raise EmulationError(f"link {self.prefix!r} already has an intruder")
+        hub, cable = f"{self.prefix}b0", self.device("robot")
+        inner, inner_port = f"{self.prefix}ri", f"{self.prefix}rb"
+        rogue, rogue_port = self.device("rogue"), f"{self.prefix}x1"
+        robot = f"{self.address('robot')}/24"
+        _run(["ip", "netns", "add", self.namespace("rogue")])
+        self._ns("robot", "ip", "link", "add", hub, "type", "bridge")
+        # The hub holds no address, but the namespace's kernel would answer the pilot's ARP
+        # for the robot on it too (any local address, any interface), with the hub's MAC: the
+        # pilot's frames would then stop at the hub, unheard by the rogue.
+        self._ns("robot", "ip", "link", "set", hub, "arp", "off")
+        self._ns("robot", "ip", "link", "add", inner, "type", "veth", "peer", "name",
+                 inner_port)
+        self._ns("robot", "ip", "link", "add", rogue_port, "type", "veth", "peer", "name",
+                 rogue, "netns", self.namespace("rogue"))
+        self._ns("robot", "ip", "addr", "del", robot, "dev", cable)
+        for port in (cable, inner_port, rogue_port):
+            self._ns("robot", "ip", "link", "set", port, "master", hub)
+            # A switch would learn where each address is and stop showing the rogue the
+            # others' unicast frames; a radio cannot.
+            self._ns("robot", "ip", "link", "set", port, "type", "bridge_slave", "learning",
+                     "off")
+            self._ns("robot", "ip", "link", "set", port, "up")
+        self._ns("robot", "ip", "addr", "add", robot, "dev", inner)
+        for device in (inner, hub):
+            self._ns("robot", "ip", "link", "set", device, "up")
+        self._ns("pilot", "ip", "neigh", "flush", "dev", self.device("pilot"))
+        self._ns("rogue", "ip", "addr", "add", f"{self.address('rogue')}/24", "dev", rogue)
+        for device in ("lo", rogue):
+            self._ns("rogue", "ip", "link", "set", device, "up")
+        self._ns("rogue", "ip", "link", "set", rogue, "promisc", "on")
 
     # -- shaping -----------------------------------------------------------------------
 
@@ -205,6 +272,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     black.add_argument("durations", type=float, nargs="*", help="seconds (default: 1-30 s)")
     black.add_argument("--gap", type=float, default=10.0, help="seconds of link between")
     black.add_argument("--count", type=int, default=5)
+    sub.add_parser("intruder", help="add a rogue host on the same radio (prefix_rogue, .3)")
     sub.add_parser("addresses", help="print the two addresses")
     options = parser.parse_args(argv)
     link = EmulatedLink(options.prefix, options.subnet)
@@ -215,6 +283,10 @@ def main(argv: Optional[List[str]] = None) -> int:
                   f"pilot {link.namespace('pilot')} {link.address('pilot')}")
         elif options.verb == "down":
             link.down()
+        elif options.verb == "intruder":
+            link.add_intruder()
+            print(f"rogue {link.namespace('rogue')} {link.address('rogue')} on "
+                  f"{link.device('rogue')}, hearing everything the robot hears")
         elif options.verb == "profile":
             link.apply(options.name, options.loss, options.rate)
         elif options.verb == "flap":
