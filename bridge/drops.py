@@ -18,9 +18,9 @@ A bridge drops input for few reasons, and each is a decision of this module:
 
 Reliable messages (pilot commands, warnings) are never dropped by policy: they
 wait in the journal.  Every drop is counted in a :class:`DropLedger` by
-:class:`Reason` (the bridge status shows the counts) and logged once per burst:
-the first drop of a reason is logged at once, later ones are summed up when
-they recur after a quiet spell, so a flood cannot flood the log.
+:class:`Reason` (the bridge status shows the counts) and logged by yarp_lite's
+burst rule (:class:`~yarp_lite.bursts.Burst`: the 1st, 10th, 100th ... of a
+burst, a new burst after a quiet spell), so a flood cannot flood the log.
 """
 
 from __future__ import annotations
@@ -33,9 +33,7 @@ from typing import Callable, Dict, Iterable, Optional
 
 from bridge.errors import BridgeProtocolError
 from bridge.link import AuthenticationFailed, ForgedInput, ReplayedInput
-
-#: Seconds without a drop of a reason after which the next one starts a new burst.
-BURST_GAP = 10.0
+from yarp_lite.bursts import Burst
 #: Unsent bytes in the kernel above which a frame's streaming part is held back.
 BACKLOG_LIMIT = 2048
 
@@ -83,7 +81,7 @@ def hold_back(unsent_bytes: int) -> bool:
 
 
 class DropLedger:
-    """Counts drops by reason and logs each reason once per burst (thread-safe)."""
+    """Counts drops by reason and logs each reason by the burst rule (thread-safe)."""
 
     def __init__(self, channel: str, logger: logging.Logger,
                  clock: Callable[[], float] = time.monotonic) -> None:
@@ -93,27 +91,21 @@ class DropLedger:
         self.counts: Dict[str, int] = {}
         self.last_error = ""
         self._lock = threading.Lock()
-        self._burst_start: Dict[Reason, int] = {}
-        self._last_at: Dict[Reason, float] = {}
+        self._bursts: Dict[Reason, Burst] = {}
 
     def drop(self, reason: Reason, detail: str = "", count: int = 1) -> None:
-        now = self.clock()
         with self._lock:
             total = self.counts.get(reason.value, 0) + count
             self.counts[reason.value] = total
             if detail:
                 self.last_error = f"{reason.value}: {detail}"
-            last = self._last_at.get(reason)
-            self._last_at[reason] = now
-            if last is not None and now - last < BURST_GAP:
-                return
-            since = total - count - self._burst_start.get(reason, 0)  # unlogged ones
-            self._burst_start[reason] = total
-        summary = f" ({since} more in the previous burst)" if since > 0 else ""
+            burst = self._bursts.setdefault(reason, Burst(clock=self.clock))
+        if not burst.record(count):
+            return
         level = logging.WARNING if reason not in (Reason.HELD_BACK, Reason.NOT_READY) \
             else logging.INFO
-        self.log.log(level, "%s: dropped %s%s%s (total %d)", self.channel, reason.value,
-                     f" -- {detail}" if detail else "", summary, total)
+        self.log.log(level, "%s: dropped %s%s (%d in this burst, %d in all)", self.channel,
+                     reason.value, f" -- {detail}" if detail else "", burst.count, total)
 
     def peer_error(self, error: BridgeProtocolError, where: str = "") -> Reason:
         """Count a peer error as its drop reason; return the reason."""

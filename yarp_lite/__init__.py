@@ -16,12 +16,12 @@ __version__ = "0.1.0"
 from yarp_lite.bottle import (Bottle, Dict, Float32, Float64, Int8, Int16, Int32, Int64,  # noqa: E402
                               Vocab)
 from yarp_lite.contact import Contact  # noqa: E402
-from yarp_lite.errors import (LocalProtocolError, NetworkError, RemoteProtocolError,  # noqa: E402
-                              YarpError)
+from yarp_lite.errors import (AuthenticationError, LocalProtocolError, NetworkError,  # noqa: E402
+                              RemoteProtocolError, YarpError)
 
 __all__ = ["Bottle", "Dict", "Float32", "Float64", "Int8", "Int16", "Int32", "Int64", "Vocab",
            "Contact", "YarpError", "LocalProtocolError", "RemoteProtocolError", "NetworkError",
-           "Port", "BufferedPort", "RpcClient", "RpcServer", "NameClient", "__version__"]
+           "AuthenticationError", "Port", "BufferedPort", "RpcClient", "RpcServer", "NameClient", "__version__"]
 
 
 def __getattr__(name: str):

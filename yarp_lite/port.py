@@ -41,6 +41,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
 from yarp_lite import admin, auth
 from yarp_lite.admin import Route
 from yarp_lite.bottle import Bottle
+from yarp_lite.bursts import Burst
 from yarp_lite.carriers import (PROTOCOL_NOT_FOUND, SUPPORTED, BottlePayload, Carrier,
                                 Incoming, Payload, carrier_for_header)
 from yarp_lite.connection import REFUSED_RETRY, OutgoingConnection
@@ -54,6 +55,9 @@ from yarp_lite.stream import SocketStream, Stream, authenticate
 log = logging.getLogger("yarp_lite.port")
 
 Reply = Optional[Union[Bottle, Sequence]]
+#: accept() failures that pass: out of descriptors or memory, a connection aborted early.
+_ACCEPT_TRANSIENT = {errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM,
+                     errno.ECONNABORTED, errno.EPROTO}
 Reader = Callable[[Bottle], Reply]
 
 
@@ -307,7 +311,8 @@ class Port:
         self._outputs: Dict[str, _OutputUnit] = {}
         self._listener: Optional[socket.socket] = None
         self.max_inputs = 512
-        self._refused = 0
+        self._refused = Burst()
+        self._accept_errors = Burst()
         self._accept_thread: Optional[threading.Thread] = None
         self._handoff = _Handoff()
         self._used_for_read = reader is not None
@@ -352,6 +357,9 @@ class Port:
                 listener.bind((host, socket_number))
                 contact = Contact(name, "tcp", host or "127.0.0.1", listener.getsockname()[1])
             listener.listen(64)
+        except OSError as exc:  # no socket to listen on: the machine's fault, not the caller's
+            listener.close()
+            raise NetworkError(f"{name}: cannot listen: {exc.strerror or exc}") from exc
         except BaseException:
             listener.close()
             raise
@@ -648,8 +656,15 @@ class Port:
         while self._open and listener is not None:
             try:
                 sock, _ = listener.accept()
-            except OSError:
-                break
+            except OSError as exc:
+                if not self._open or exc.errno not in _ACCEPT_TRANSIENT:
+                    break
+                # Out of file descriptors (a flood): keep the listener, try again shortly.
+                if self._accept_errors.record():
+                    log.warning("%s: cannot accept connections: %s (%d in this burst)",
+                                self.name, exc.strerror or exc, self._accept_errors.count)
+                time.sleep(0.05)
+                continue
             with self._lock:
                 if not self._open:
                     sock.close()
@@ -657,10 +672,9 @@ class Port:
                 if len(self._inputs) >= self.max_inputs:
                     # Flooded: keep serving the connections we have.
                     sock.close()
-                    self._refused += 1
-                    if self._refused in (1, 10, 100) or self._refused % 1000 == 0:
+                    if self._refused.record():
                         log.warning("%s: %d connections refused, %d already open",
-                                    self.name, self._refused, len(self._inputs))
+                                    self.name, self._refused.count, len(self._inputs))
                     continue
                 unit = _InputUnit(self, sock)
                 self._inputs[unit.id] = unit

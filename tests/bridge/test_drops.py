@@ -18,19 +18,20 @@ class Clock:
         return self.now
 
 
-def test_a_burst_is_logged_once_and_summed_up_when_the_next_begins(caplog):
+def test_a_flood_is_logged_by_the_burst_rule_with_its_counts(caplog):
     clock = Clock()
     ledger = DropLedger("UDP channel", logging.getLogger("test.drops"), clock)
     with caplog.at_level(logging.INFO, logger="test.drops"):
         for _ in range(500):
             ledger.drop(Reason.FORGED, "datagram from 10.0.0.9")
             clock.now += 0.01
-        clock.now += drops.BURST_GAP
+        clock.now += 60
         ledger.drop(Reason.FORGED, "again")
     lines = [r.getMessage() for r in caplog.records]
-    assert len(lines) == 2
-    assert "dropped forged -- datagram from 10.0.0.9 (total 1)" in lines[0]
-    assert "(499 more in the previous burst)" in lines[1] and "total 501" in lines[1]
+    assert len(lines) == 4   # the 1st, 10th and 100th of the flood, then a new burst
+    assert "dropped forged -- datagram from 10.0.0.9 (1 in this burst, 1 in all)" in lines[0]
+    assert "(100 in this burst, 100 in all)" in lines[2]
+    assert "again (1 in this burst, 501 in all)" in lines[3]
     assert ledger.get(Reason.FORGED) == 501 and ledger.get(Reason.STALE) == 0
 
 

@@ -14,7 +14,7 @@ import pytest
 
 from yarp_lite.bottle import Bottle, decode, encode
 from yarp_lite.carriers.datagram import pack_message
-from yarp_lite.carriers.udp import Burst, DatagramMessageSource, DatagramStream, InputCounters
+from yarp_lite.carriers.udp import DatagramMessageSource, DatagramStream, InputCounters
 from yarp_lite.framing import encode_message
 
 SENDER = "/robot/state:o"
@@ -109,18 +109,3 @@ def test_lost_and_corrupt_datagrams_are_counted_as_dropped(link):
     link.send_bottle(["whole"])
     assert link.receive() == ["whole"]
     assert link.source.counters == InputCounters(messages=1, dropped_datagrams=1)
-
-
-def test_burst_restarts_after_a_quiet_spell():
-    now = [0.0]
-    burst = Burst(quiet=10.0, clock=lambda: now[0])
-    logged = []
-    for i in range(1, 101):
-        now[0] += 0.01
-        if burst.record():
-            logged.append(i)
-    assert logged == [1, 10, 100]
-    now[0] += 11.0
-    assert burst.record() and burst.count == 1  # a new burst: told at once
-    now[0] += 1.0
-    assert not burst.record()

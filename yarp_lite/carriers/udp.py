@@ -22,12 +22,13 @@ import logging
 import socket
 import time
 from dataclasses import dataclass
-from typing import Callable, List, Tuple, Union
+from typing import List, Tuple, Union
 
 from yarp_lite.bottle import Bottle
 from yarp_lite.carriers.base import Incoming, MessageSource
 from yarp_lite.carriers.binary import BinaryCarrier
 from yarp_lite.carriers.datagram import MAX_DATAGRAM, DatagramAssembler, pack_message
+from yarp_lite.bursts import Burst
 from yarp_lite.errors import LocalProtocolError, NetworkError, RemoteProtocolError
 from yarp_lite.framing import MessageDecoder, expect_yarp_number, yarp_number
 from yarp_lite.stream import Address, Stream
@@ -39,7 +40,6 @@ _SPECIFIER_BASE = 7777
 #: YARP waits ~1 ms after a nearly full datagram so receivers keep up; so do we.
 _PACING_SECONDS = 0.001
 #: A burst of failures ends after this many seconds without one; the next is logged at once.
-BURST_QUIET_SECONDS = 10.0
 
 
 class UdpCarrier(BinaryCarrier):
@@ -169,33 +169,6 @@ class InputCounters:
     malformed: int = 0
     #: Messages our decoding failed on with an unexpected exception (our bug), dropped.
     failures: int = 0
-
-
-class Burst:
-    """When a recurring problem deserves a log line: the 1st, 10th, 100th ... of a burst.
-
-    A burst ends after ``quiet`` seconds without the problem, so a new one
-    after a calm spell is reported at once instead of at the next power of ten.
-    """
-
-    def __init__(self, quiet: float = BURST_QUIET_SECONDS,
-                 clock: Callable[[], float] = time.monotonic) -> None:
-        self.quiet = quiet
-        self.clock = clock
-        self.count = 0
-        self._last = -float("inf")
-
-    def record(self) -> bool:
-        """Count one occurrence; True when this one should be logged."""
-        now = self.clock()
-        if now - self._last > self.quiet:
-            self.count = 0
-        self._last = now
-        self.count += 1
-        count = self.count
-        while count % 10 == 0:
-            count //= 10
-        return count == 1
 
 
 class DatagramMessageSource(MessageSource):
