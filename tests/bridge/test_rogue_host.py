@@ -189,4 +189,7 @@ def test_a_rogue_on_the_radio_gets_nothing_executed(pcs: TwoPCs, lite, link: Emu
     assert sender.wait(120) == 0, sender.output()
     wait_nothing_in_flight(pcs, lite)
     assert executed_lines(pcs.log) == [f"executed count {n}" for n in range(1, COMMANDS + 1)]
-    print(f"\nthe robot bridge dropped, in all: {status(pcs.robot, lite)['dropped']}")
+    final = status(pcs.robot, lite)
+    assert (final["internal_errors"], final["tcp"]["internal_errors"],
+            final["udp"]["internal_errors"]) == (0, 0, 0), "the attack hit a bug in the bridge"
+    print(f"\nthe robot bridge dropped, in all: {final['dropped']}")
