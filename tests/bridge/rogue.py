@@ -218,17 +218,17 @@ class Capture:
     """What the rogue heard: the pilot's TCP stream from its first byte, its datagrams."""
 
     stream: bytes
-    datagrams: List[Tuple[int, bytes]]   # (source port, sealed datagram)
+    udp: List[Tuple[int, bytes]]   # (source port, sealed datagram)
 
     def save(self, path: Path) -> None:
-        path.write_text(json.dumps({"stream": self.stream.hex(), "datagrams": [
-            [port, data.hex()] for port, data in self.datagrams]}))
+        path.write_text(json.dumps({"stream": self.stream.hex(), "udp": [
+            [port, data.hex()] for port, data in self.udp]}))
 
     @classmethod
     def load(cls, path: Path) -> "Capture":
         saved = json.loads(path.read_text())
         return cls(bytes.fromhex(saved["stream"]),
-                   [(port, bytes.fromhex(data)) for port, data in saved["datagrams"]])
+                   [(port, bytes.fromhex(data)) for port, data in saved["udp"]])
 
     @property
     def records(self) -> List[Record]:
@@ -380,7 +380,7 @@ def udp_attacks(options: argparse.Namespace) -> int:
     loot = Capture.load(Path(options.file))
     robot = (options.robot, options.udp_port)
     plain = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    for _, data in loot.datagrams[:options.stranger]:
+    for _, data in loot.udp[:options.stranger]:
         plain.sendto(data, robot)
     say(f"udp from our own address: {options.stranger} captured datagrams")
     raw = raw_sender()
@@ -389,7 +389,7 @@ def udp_attacks(options: argparse.Namespace) -> int:
         raw.sendto(udp_packet(options.pilot, sport, options.robot, options.udp_port, payload),
                    (options.robot, 0))
 
-    port, first = loot.datagrams[0]
+    port, first = loot.udp[0]
     counter, inner = opened(first)
     half = options.forged // 2
     for number in range(half):  # forged commands, with counters the receiver has not seen
@@ -397,13 +397,13 @@ def udp_attacks(options: argparse.Namespace) -> int:
             options.module_id, 1, number, 1, 1, 0, ROGUE_COMMAND))
         as_pilot(port, varint(counter + 100000 + number) + command + os.urandom(TAG_SIZE))
     for number in range(options.forged - half):  # real datagrams, one body byte flipped
-        _, data = loot.datagrams[number % len(loot.datagrams)]
+        _, data = loot.udp[number % len(loot.udp)]
         tampered = bytearray(data)
         tampered[-TAG_SIZE - 1] ^= 0x01
         as_pilot(port, bytes(tampered))
     say(f"udp as the pilot: {half} forged commands (id {options.module_id}, kind 1, "
         f"random tags), {options.forged - half} captured datagrams with a byte flipped")
-    replayed = loot.datagrams[:options.replays]
+    replayed = loot.udp[:options.replays]
     for sport, data in replayed:
         as_pilot(sport, data)
     say(f"udp as the pilot: {len(replayed)} captured datagrams replayed (flow "
