@@ -14,8 +14,13 @@ Handshake (each side runs the same code, whichever dialled)::
     -> HELLO  side, config fingerprint, journal session, 16-byte fresh nonce
     <- HELLO  (the peer's)
     -> AUTH   proof = HMAC(session key, "proof" + our side)
+    <- AUTH   (the peer's, checked)
     -> RESUME highest reliable number accepted from the peer's session  [sealed]
-    <- AUTH, RESUME (the peer's)                                          [checked]
+    <- RESUME (the peer's)                                                [checked]
+
+Nothing about our state (not even how many commands we accepted) leaves before
+the peer has proved the key, and UDP keys are only offered to the datagram
+receiver then, so a stranger's handshake cannot displace the real peer's.
 
 The session key is HKDF-SHA256 (RFC 5869) of the shared key over both HELLOs
 (so over both nonces): a proof is only valid for this connection, a recorded
@@ -195,9 +200,16 @@ def frame_tag(key: bytes, counter: int, body: Buffer) -> bytes:
 
 @dataclass(frozen=True)
 class PeerHello:
-    """The peer's HELLO checked: call :meth:`LinkConnection.send_resume` next."""
+    """The peer's HELLO checked: call :meth:`LinkConnection.send_auth` next."""
 
     hello: Hello
+
+
+@dataclass(frozen=True)
+class PeerAuthenticated:
+    """The peer proved the key: call :meth:`LinkConnection.send_resume` next."""
+
+    session: int
 
 
 @dataclass(frozen=True)
@@ -213,12 +225,13 @@ class FrameReceived:
     frame: DataFrame
 
 
-Event = Union[PeerHello, LinkUp, FrameReceived]
+Event = Union[PeerHello, PeerAuthenticated, LinkUp, FrameReceived]
 
 #: Both halves of a connection, as h11 has them: what we sent, what the peer sent.
 OUR_PHASES: Dict[str, Dict[str, str]] = {
     "idle": {"send_hello": "hello_sent"},
-    "hello_sent": {"send_resume": "up"},
+    "hello_sent": {"send_auth": "auth_sent"},
+    "auth_sent": {"send_resume": "up"},
     "up": {},
 }
 THEIR_PHASES: Dict[str, Dict[str, str]] = {
@@ -272,13 +285,13 @@ class LinkConnection:
 
     @property
     def udp_keys(self) -> Optional[Tuple[bytes, bytes]]:
-        """(our sending key, our receiving key), known from the peer's HELLO on.
+        """(our sending key, our receiving key), once the peer proved the key.
 
-        Offer the receiving key to the :class:`DatagramOpener` at :class:`PeerHello`
-        (the peer may send with it before our side is up) and install both at
-        :class:`LinkUp`, once the peer has proved the key.
+        Offer the receiving key to the :class:`DatagramOpener` at
+        :class:`PeerAuthenticated` (the peer may send with it before our side is
+        up) and install both at :class:`LinkUp`.
         """
-        if self._keys is None:
+        if self._keys is None or self.their_phase not in ("authenticated", "up"):
             return None
         peer = "pilot" if self.side == "robot" else "robot"
         return self._keys.udp[_direction(self.side)], self._keys.udp[_direction(peer)]
@@ -294,14 +307,20 @@ class LinkConnection:
         self._ours("send_hello")
         return frames.wrap(self._our_hello_body)
 
-    def send_resume(self, accepted: int) -> bytes:
-        """AUTH and the sealed RESUME, once the peer's HELLO is known."""
+    def send_auth(self) -> bytes:
+        """Our proof of the key, once the peer's HELLO is known."""
         if self._keys is None:
-            raise BridgeUsageError("link: RESUME before the peer's HELLO")
-        self._ours("send_resume")
+            raise BridgeUsageError("link: AUTH before the peer's HELLO")
+        self._ours("send_auth")
         proof = self._keys.proof_robot if self.side == "robot" else self._keys.proof_pilot
-        return frames.wrap(frames.auth_body(Auth(proof))) + \
-            self._seal(frames.resume_body(Resume(accepted)))
+        return frames.wrap(frames.auth_body(Auth(proof)))
+
+    def send_resume(self, accepted: int) -> bytes:
+        """The sealed RESUME, once the peer proved the key."""
+        if self.their_phase not in ("authenticated", "up"):
+            raise BridgeUsageError("link: RESUME before the peer proved the key")
+        self._ours("send_resume")
+        return self._seal(frames.resume_body(Resume(accepted)))
 
     def send_data(self, body: bytes) -> bytes:
         """Seal one data frame body (from :func:`bridge.frames.data_body`)."""
@@ -360,7 +379,7 @@ class LinkConnection:
             expected = self._keys.proof_pilot if self.side == "robot" else self._keys.proof_robot
             if not hmac.compare_digest(expected, frame.proof):
                 raise AuthenticationFailed(self._why_auth_failed(self._peer_hello))
-            return None
+            return PeerAuthenticated(self._peer_hello.session)
         if isinstance(frame, Resume):
             self._theirs("resume", "RESUME")
             assert self._peer_hello is not None

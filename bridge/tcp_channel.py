@@ -50,7 +50,8 @@ from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeError, BridgeProtocolError
 from bridge.frames import DataFrame, Entry
 from bridge.journal import Journal
-from bridge.link import FrameReceived, LinkConnection, LinkKey, LinkUp, PeerHello
+from bridge.link import (FrameReceived, LinkConnection, LinkKey, LinkUp, PeerAuthenticated,
+                         PeerHello)
 from bridge.state_codec import StateDecoder, StateEncoder
 
 log = logging.getLogger("bridge.tcp")
@@ -370,11 +371,13 @@ class TcpChannel:
                 data = sock.recv(4096)
             except socket.timeout:
                 continue
-            if not data:
-                raise BridgeProtocolError("peer closed during the handshake")
+            if not data:  # not a drop: usually the peer refusing us, and saying so itself
+                raise ConnectionAbortedError("peer closed during the handshake")
             for event in link.receive_data(data):
                 if isinstance(event, PeerHello):
-                    accepted = self.journal.accepted(event.hello.session)
+                    sock.sendall(link.send_auth())
+                elif isinstance(event, PeerAuthenticated):
+                    accepted = self.journal.accepted(event.session)
                     sock.sendall(link.send_resume(accepted))
                     self._keys_hook("offered", link)
                 elif isinstance(event, LinkUp):

@@ -14,8 +14,8 @@ from bridge import frames
 from bridge.errors import BridgeProtocolError, BridgeUsageError
 from bridge.frames import DataFrame, Entry
 from bridge.link import (AuthenticationFailed, DatagramOpener, DatagramSealer, ForgedInput,
-                         FrameReceived, LinkConnection, LinkKey, LinkUp, PeerHello,
-                         ReplayedInput, ReplayWindow, generate_key_file)
+                         FrameReceived, LinkConnection, LinkKey, LinkUp, PeerAuthenticated,
+                         PeerHello, ReplayedInput, ReplayWindow, generate_key_file)
 from codec_helpers import FUZZ
 
 KEY = LinkKey(bytes(range(32)))
@@ -41,9 +41,17 @@ def handshake(robot: LinkConnection, pilot: LinkConnection, chunk: int = 0
                 receiver = peer[sender]
                 for event in receiver.receive_data(data[start:start + step]):
                     events[receiver].append(event)
-                    if isinstance(event, PeerHello):
-                        wires[receiver] += receiver.send_resume(accepted=3)
+                    wires[receiver] += respond(receiver, event)
     return events[robot], events[pilot]
+
+
+def respond(connection: LinkConnection, event: object) -> bytes:
+    """What a channel sends on each handshake event."""
+    if isinstance(event, PeerHello):
+        return connection.send_auth()
+    if isinstance(event, PeerAuthenticated):
+        return connection.send_resume(accepted=3)
+    return b""
 
 
 @pytest.mark.parametrize("chunk", [0, 1])
@@ -83,8 +91,7 @@ def _pilot_first(robot: LinkConnection, pilot: LinkConnection) -> None:
     (event,) = pilot.receive_data(robot_hello)
     assert isinstance(event, PeerHello)
     robot.receive_data(pilot_hello)
-    robot_reply = robot.send_resume(0)
-    pilot.receive_data(robot_reply)
+    pilot.receive_data(robot.send_auth())
 
 
 def test_other_configuration_and_same_side_are_refused_by_name():
@@ -96,17 +103,34 @@ def test_other_configuration_and_same_side_are_refused_by_name():
 
 def test_a_recorded_handshake_cannot_be_replayed():
     robot, pilot = link("robot"), link("pilot")
+    handshake_events = []
     recorded = pilot.start()
-    (event,) = pilot.receive_data(robot.start())
-    assert isinstance(event, PeerHello)
-    recorded += pilot.send_resume(0)
-    # A new robot connection (fresh nonce) is fed the recorded pilot bytes.
+    robot_bytes = robot.start()
+    for event in pilot.receive_data(robot_bytes):
+        recorded += respond(pilot, event)
+    robot_bytes = b""
+    for event in robot.receive_data(recorded):
+        robot_bytes += respond(robot, event)
+        handshake_events.append(event)
+    for event in pilot.receive_data(robot_bytes):
+        recorded += respond(pilot, event)
+    assert any(isinstance(e, PeerAuthenticated) for e in handshake_events)
+    # A new robot connection (fresh nonce) is fed everything the pilot sent.
     fresh = link("robot")
     fresh.start()
     with pytest.raises(AuthenticationFailed):
         for event in fresh.receive_data(recorded):
-            if isinstance(event, PeerHello):
-                fresh.send_resume(0)
+            respond(fresh, event)
+
+
+def test_nothing_about_our_state_leaves_before_the_peer_proves_the_key():
+    robot, stranger = link("robot"), link("pilot", LinkKey(b"s" * 32))
+    robot.start()
+    (event,) = robot.receive_data(stranger.start())
+    assert isinstance(event, PeerHello) and robot.udp_keys is None
+    robot.send_auth()
+    with pytest.raises(BridgeUsageError, match="RESUME before the peer proved the key"):
+        robot.send_resume(5)
 
 
 def _hello_of(connection: LinkConnection) -> bytes:
@@ -134,7 +158,7 @@ def test_frames_before_the_handshake_and_misuse():
     with pytest.raises(BridgeUsageError):
         robot.send_data(b"\x00")
     with pytest.raises(BridgeUsageError):
-        robot.send_resume(0)
+        robot.send_auth()
     robot.start()
     with pytest.raises(BridgeProtocolError, match="data frame while idle"):
         robot.receive_data(frames.wrap(frames.data_body()))
@@ -150,8 +174,7 @@ def test_any_input_to_a_handshake_completes_or_raises_the_peer_error(data, after
     prefix = _hello_of(link("pilot")) if after_hello else b""
     try:
         for event in robot.receive_data(prefix + data):
-            if isinstance(event, PeerHello):
-                robot.send_resume(0)
+            respond(robot, event)
     except BridgeProtocolError:
         pass
 

@@ -200,10 +200,10 @@ def test_a_peer_with_another_key_is_refused_on_both_sides(tmp_path):
     rogue = End("pilot", port, tmp_path / "p", listen=False,
                 key=LinkKey(b"x" * 32, source="rogue")).start()
     try:
-        wait_until(lambda: "authentication failed" in rogue.channel.stats.last_error
+        wait_until(lambda: "authentication failed" in rogue.channel.drops.last_error
                    and robot.channel.drops.get(Reason.UNAUTHENTICATED) >= 1, 10,
                    message="both sides refuse")
-        assert "does not hold our key" in robot.channel.stats.last_error
+        assert "does not hold our key" in robot.channel.drops.last_error
         assert not robot.channel.connected and not rogue.channel.connected
         rogue.channel.send_reliable(SWITCH, Bottle(["home", 2]))
         time.sleep(1.0)  # the rogue keeps retrying; nothing may come through meanwhile
@@ -218,9 +218,9 @@ def test_a_keyless_peer_is_named_as_such(tmp_path):
     robot = End("robot", port, tmp_path / "r", listen=True).start()
     keyless = End("pilot", port, tmp_path / "p", listen=False, key=LinkKey.none()).start()
     try:
-        wait_until(lambda: "runs without a key" in robot.channel.stats.last_error, 10,
+        wait_until(lambda: "runs without a key" in robot.channel.drops.last_error, 10,
                    message="the robot names the keyless peer")
-        wait_until(lambda: "we run with --no-auth" in keyless.channel.stats.last_error, 10,
+        wait_until(lambda: "we run with --no-auth" in keyless.channel.drops.last_error, 10,
                    message="the keyless peer names itself")
     finally:
         keyless.stop()
