@@ -390,10 +390,16 @@ class TcpChannel:
                 else:
                     raise BridgeProtocolError("peer sent data before the handshake ended")
 
-    def _drop(self, reason: str) -> None:
+    def _drop(self, reason: str, which: Optional[_Connection] = None) -> None:
+        """Close the current connection -- or only ``which``, if it is still the current one
+        (a receive loop noticing its old connection die must not close its successor)."""
         with self._wake:
             connection = self._connection
-            if connection is None or connection.closed:
+            if connection is None or connection.closed or \
+                    (which is not None and which is not connection):
+                if which is not None and not which.closed:
+                    which.closed = True
+                    which.sock.close()
                 return
             connection.closed = True
             self._connection = None
@@ -416,14 +422,14 @@ class TcpChannel:
                 data = sock.recv(65536)
             except socket.timeout:
                 if time.monotonic() - connection.last_rx > self.link_timeout:
-                    self._drop(f"nothing heard for {self.link_timeout:.0f} s")
+                    self._drop(f"nothing heard for {self.link_timeout:.0f} s", connection)
                     return
                 continue
             except OSError as exc:
-                self._drop(f"receive failed: {exc.strerror or exc}")
+                self._drop(f"receive failed: {exc.strerror or exc}", connection)
                 return
             if not data:
-                self._drop("peer closed the connection")
+                self._drop("peer closed the connection", connection)
                 return
             connection.last_rx = time.monotonic()
             self.stats.bytes_in += len(data)
@@ -434,13 +440,13 @@ class TcpChannel:
             except BridgeProtocolError as exc:
                 self.drops.peer_error(exc, "frame")
                 self.stats.last_error = str(exc)
-                self._drop(f"bad frame from the peer: {exc}")
+                self._drop(f"bad frame from the peer: {exc}", connection)
                 return
             except Exception:  # noqa: BLE001 -- our bug: seen, counted, and the link re-made
                 self.stats.internal_errors += 1
                 log.exception("TCP channel: receiving failed (a bug); dropping the connection "
                               "so the link does not claim to be up")
-                self._drop("internal error while receiving")
+                self._drop("internal error while receiving", connection)
                 return
 
     def _on_frame(self, connection: _Connection, frame: DataFrame) -> None:
@@ -517,13 +523,13 @@ class TcpChannel:
             try:
                 self._send_frame(connection, with_streams=tick)
             except OSError as exc:
-                self._drop(f"send failed: {exc.strerror or exc}")
+                self._drop(f"send failed: {exc.strerror or exc}", connection)
             except BridgeError as exc:
                 log.error("TCP channel: %s", exc)
             except Exception:  # noqa: BLE001 -- our bug: seen, counted, and the link re-made
                 self.stats.internal_errors += 1
                 log.exception("TCP channel: sending failed (a bug); dropping the connection")
-                self._drop("internal error while sending")
+                self._drop("internal error while sending", connection)
 
     def _streaming_entries(self, connection: _Connection) -> List[bytes]:
         with self._lock:
