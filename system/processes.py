@@ -93,8 +93,10 @@ class Proc:
             line = line.rstrip("\n")
             self.lines.append(line)
             self._queue.put(line)
-            if self.log is not None:
-                self.log.write(line + "\n")
+            if self.log is not None:  # stamped, to line up with other programs and events
+                now = time.time()
+                self.log.write(f"{time.strftime('%H:%M:%S', time.localtime(now))}"
+                               f".{int(now % 1 * 1000):03d} {line}\n")
 
     def send(self, text: str) -> None:
         assert self.popen.stdin is not None
