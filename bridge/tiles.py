@@ -223,6 +223,8 @@ def _encode_region(header: RasterHeader, region: np.ndarray) -> Tuple[int, bytes
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: Start-of-frame markers other than baseline SOF0: progressive, lossless, arithmetic...
 _OTHER_SOF = frozenset(range(0xC1, 0xD0)) - {0xC4, 0xC8, 0xCC}
+#: Markers without a length: TEM and the restart markers.
+_STANDALONE = frozenset((0x01, *range(0xD0, 0xD8)))
 
 
 def _declared_size(codec: int, data: bytes) -> Optional[Tuple[int, int, int]]:
@@ -243,8 +245,14 @@ def _declared_size(codec: int, data: bytes) -> Optional[Tuple[int, int, int]]:
     pos, size = 2, None
     while pos + 4 <= len(data) and data[pos] == 0xFF:
         marker = data[pos + 1]
+        if marker == 0xFF:  # a fill byte, as libjpeg skips it: walk the markers it walks
+            pos += 1
+            continue
+        if marker in _STANDALONE:
+            pos += 2
+            continue
         length = int.from_bytes(data[pos + 2:pos + 4], "big")
-        if marker in _OTHER_SOF:
+        if marker in _OTHER_SOF or marker in (0xD8, 0xD9):
             return None
         if marker == 0xC0:
             if size is not None or length < 8 or pos + 10 > len(data):

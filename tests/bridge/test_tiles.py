@@ -204,3 +204,18 @@ def test_an_embedded_image_must_declare_the_tiles_size_before_decoding(codec):
     tile, got = tiles.decode_tile(other)
     with pytest.raises(BridgeProtocolError, match="declares None"):
         tiles.Canvas(tile.header, tile.meta).paste(tile, got)
+
+
+def test_the_size_check_walks_jpeg_markers_as_libjpeg_does():
+    import cv2
+
+    image = camera_image(16, 16)
+    data = cv2.imencode(".jpg", image)[1].tobytes()
+    sof = data.index(b"\xff\xc0")
+    padded = data[:sof] + b"\xff\xff" + data[sof:]  # fill bytes before SOF0 (legal JPEG)
+    header = tiles.header_for(image, tiles.JPEG)
+    tile, codec = tiles.decode_tile(tiles.encode_tile(
+        tiles.Tile(header, b"", 0, 0, 16, 16, padded), tiles.JPEG_FULL))
+    canvas = tiles.Canvas(tile.header, tile.meta)
+    canvas.paste(tile, codec)
+    assert canvas.completeness == 1.0
