@@ -27,7 +27,7 @@ import math
 import random
 import statistics
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Callable, Dict, Iterable, List, Optional, Sequence, Tuple
 
 LINK = "link"
 #: How a process dies: the whole program (its group and children) gets SIGKILL.
@@ -167,19 +167,22 @@ class Growth:
     percent: float
 
 
-def growth(samples: Sequence[Tuple[float, float]], warm_up: float) -> Optional[Growth]:
+def growth(samples: Sequence[Tuple[float, float]], warm_up: float,
+           statistic: Callable[[Iterable[float]], float] = statistics.median
+           ) -> Optional[Growth]:
     """How much a sampled value grew from after ``warm_up`` s to the end of the samples.
 
-    Medians over windows of a tenth of the span (three samples at least), so one
-    garbage collection or one open connection at the wrong moment does not count.
+    ``statistic`` (median, or min for a floor) over windows of a tenth of the
+    span (three samples at least), so one garbage collection or one open
+    connection at the wrong moment does not count.
     """
     if not samples:
         return None
     first_t = samples[0][0]
     settled = [(t, v) for t, v in samples if t - first_t >= warm_up] or list(samples)
     width = max(3, len(settled) // 10)
-    start = statistics.median(v for _, v in settled[:width])
-    end = statistics.median(v for _, v in settled[-width:])
+    start = statistic([v for _, v in settled[:width]])
+    end = statistic([v for _, v in settled[-width:]])
     percent = 100.0 * (end - start) / start if start else (0.0 if end == start else math.inf)
     return Growth(start, end, percent)
 

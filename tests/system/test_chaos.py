@@ -100,6 +100,8 @@ def test_growth_after_the_warm_up_and_bounded_sizes():
     assert figures.growth(flat, warm_up=20.0).percent == 0.0   # the warm-up does not count
     leaking = [(float(t), 100.0 + t) for t in range(100)]
     assert figures.growth(leaking, warm_up=0.0).percent > 50.0
+    files = [(float(t), 5.0 + (t % 2)) for t in range(100)]   # a query open now and then
+    assert figures.growth(files, warm_up=0.0, statistic=min).percent == 0.0
     assert figures.bounded([(float(t), min(t, 20) * 1e6) for t in range(100)])
     assert not figures.bounded([(float(t), t * 1e6) for t in range(100)])
 
