@@ -603,12 +603,15 @@ def summarize(chaos: Chaos, leaked: Dict[str, list], elapsed: float,
     sent = chaos.sent()
     counted = figures.commands(sent, [a["seq"] for a in record.accepted], record.executed)
     seen = [r.seen_s for r in record.rounds if r.seen_s is not None]
+    # the whole outage as the pilot lived it: the fault's own length plus the recovery
+    outage = [r.back_at - r.killed_at + r.seen_s for r in record.rounds if r.seen_s is not None]
     for cut in record.cuts:
         if "back" in cut:
             times = [figures.first_fresh(record.statuses[m], m, cut["back"]) for m in MODULES]
             cut["seen_s"] = (max(times) - cut["back"]) if None not in times else None
             if cut["seen_s"] is not None:
                 seen.append(cut["seen_s"])
+                outage.append(cut["back"] - cut["at"] + cut["seen_s"])
     soak = soak_figures(record.samples, chaos.options.sample_every) if record.samples else None
     options = chaos.options
     completed = (record.soak_s >= options.soak * 60.0 - 1.0 if options.soak else
@@ -622,6 +625,8 @@ def summarize(chaos: Chaos, leaked: Dict[str, list], elapsed: float,
         "faults": len(record.rounds) + len(record.cuts),
         "seen_median_s": figures.percentile(seen, 0.5),
         "seen_p99_s": figures.percentile(seen, 0.99),
+        "outage_median_s": figures.percentile(outage, 0.5),
+        "outage_p99_s": figures.percentile(outage, 0.99),
         "unrecovered_rounds": len([r for r in record.rounds if r.problem]),
         "unexpected_exits": len(record.exits),
         "leaked_processes": len(leaked["processes"]), "leaked_ports": len(leaked["ports"]),
@@ -713,6 +718,8 @@ def table(summary: dict) -> str:
             ("pilot sees the modules again, median", _fmt(f["seen_median_s"], " s"), "", ""),
             ("pilot sees the modules again, p99", _fmt(f["seen_p99_s"], " s"), "<= 10 s",
              mark("seen_p99_s")),
+            ("  (from the fault's start: median, p99)",
+             f"{_fmt(f['outage_median_s'])}, {_fmt(f['outage_p99_s'], ' s')}", "", ""),
             ("rounds not recovered", _fmt(f["unrecovered_rounds"]), "0",
              mark("every_round_recovered")),
             ("leaked processes", _fmt(f["leaked_processes"]), "0", mark("leaked_processes")),
@@ -730,7 +737,7 @@ def table(summary: dict) -> str:
              ("executed, never acknowledged", _fmt(f["unacknowledged"]), "", ""),
              ("pilot retries that ran twice", _fmt(f["retried_twice"]), "", "")]
     width = max(len(r[0]) for r in rows)
-    lines = [f"{'figure':<{width}}  {'value':>12}  {'goal':<8}  ",
+    lines = [f"{'figure':<{width}}  {'value':>12}  goal",
              f"{'-' * width}  {'-' * 12}  {'-' * 8}  {'-' * 6}"]
     lines += [f"{name:<{width}}  {value:>12}  {goal:<8}  {verdict}".rstrip()
               for name, value, goal, verdict in rows]
@@ -747,7 +754,13 @@ def markdown(summary: dict) -> str:
         out += ["**Interrupted** before the end: the figures cover what ran.", ""]
     if summary.get("failure"):
         out += [f"**Failed**: {summary['failure']}", ""]
-    out += ["```", table(summary), "```", ""]
+    out += ["```", table(summary), "```", "",
+            "*Lost*: logged as sent by the gateway (the bridge acknowledged it), never executed "
+            "by the witness; *duplicated*: executed twice; *out of order*: executed after a "
+            "command sent later.  *Seen again*: from the end of the fault (the program started "
+            "again, the link back) until the pilot has a status of every module newer than the "
+            "last one before; the line below counts from the fault's start.  *Usable*: every "
+            "module running and the first command accepted after the fault executed.", ""]
     if summary["rounds"]:
         out += ["## Rounds", "",
                 "| # | at | fault | down s | pid | up s | seen s | usable s | problem |",
@@ -835,14 +848,17 @@ def run(options: argparse.Namespace, progress: Callable[[str], None] = say) -> d
         failure = str(exc)
         progress(f"FAILED: {failure}")
     finally:
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not
-        try:                                                     # leave processes behind
+        # A second Ctrl-C (or a SIGTERM) must not cut the cleanup short.
+        previous = {sig: signal.signal(sig, signal.SIG_IGN)
+                    for sig in (signal.SIGINT, signal.SIGTERM)}
+        try:
             if chaos.topology is not None:
                 chaos.poll()
             progress("stopping every program; then counting what is left")
             leaked = chaos.close()
         finally:
-            signal.signal(signal.SIGINT, previous)
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
     summary = summarize(chaos, leaked, time.monotonic() - began, interrupted, failure)
     (out / "report.json").write_text(json.dumps(summary, indent=1, default=str))
     (out / "report.md").write_text(markdown(summary))

@@ -37,6 +37,8 @@ START_RETRY = 3.0  # s between two starts of one module (a start crosses the lin
 
 
 class Pilot:
+    """What the pilot knows (each module's last state, the next N) and does."""
+
     def __init__(self, modules: List[str], command_module: str, interval: float,
                  first: int) -> None:
         self.modules = modules
