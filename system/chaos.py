@@ -62,6 +62,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
+from bridge.emulation import EmulatedLink, EmulationError
 from system import chaos_figures as figures
 from system.chaos_figures import LINK, Fault
 from system.processes import (REPO, ROSCORE_READY, Proc, WaitTimeout, descendants, usage,
@@ -844,7 +845,8 @@ def run(options: argparse.Namespace, progress: Callable[[str], None] = say) -> d
     except KeyboardInterrupt:
         interrupted = True
         progress("interrupted: stopping everything")
-    except (ChaosError, WaitTimeout) as exc:  # the machine, or a system that did not come up
+    except (ChaosError, EmulationError, WaitTimeout) as exc:
+        # the machine (no emulated hosts), or a system that did not come up or back
         failure = str(exc)
         progress(f"FAILED: {failure}")
     finally:
@@ -935,6 +937,10 @@ def parse_args(argv: Optional[List[str]] = None) -> argparse.Namespace:
     if unknown or WITNESS.name in options.skip:
         parser.error(f"--skip: cannot skip {', '.join(unknown or [WITNESS.name])} (programs: "
                      f"{', '.join(n for n in known if n != WITNESS.name)})")
+    try:
+        EmulatedLink(options.netns_prefix, options.subnet)
+    except EmulationError as exc:
+        parser.error(f"--netns-prefix/--subnet: {exc}")
     possible = victims([*components("drc"), WITNESS], link=True)
     wrong = [v for v in options.victims if v not in possible]
     if wrong:
