@@ -340,6 +340,7 @@ class Port:
             self._wait_for_name_server(name, wait)
         self.credentials = auth.load(self.nameclient.environ)
         listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        listener.settimeout(None)   # accept blocks, whatever socket.setdefaulttimeout() says
         listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             if self.register:
@@ -676,7 +677,12 @@ class Port:
                         log.warning("%s: %d connections refused, %d already open",
                                     self.name, self._refused.count, len(self._inputs))
                     continue
-                unit = _InputUnit(self, sock)
+                try:
+                    unit = _InputUnit(self, sock)
+                except NetworkError as exc:  # the peer reset before we could look at it
+                    sock.close()
+                    log.debug("%s: a connection ended before it started: %s", self.name, exc)
+                    continue
                 self._inputs[unit.id] = unit
             unit.start()
 

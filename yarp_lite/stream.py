@@ -77,6 +77,11 @@ class SocketStream(Stream):
     """A connected TCP socket with buffered reads and gathered writes."""
 
     def __init__(self, sock: socket.socket, where: str = "tcp") -> None:
+        # Blocking, whatever socket.setdefaulttimeout() says: rospy sets 60 s process-wide
+        # when a subscriber connects, and an accepted socket would inherit it -- an input
+        # idle for a minute (a module's warning port) was then dropped while its sender
+        # still believed it connected.  Reads that want a deadline set one themselves.
+        sock.settimeout(None)
         self.sock = sock
         self.where = where
         self._buffer = bytearray()

@@ -302,3 +302,24 @@ def test_a_flood_of_registrations_and_connections(lite_world, ports):
     finally:
         for sock in idle:
             sock.close()
+
+
+def test_an_idle_input_survives_a_process_wide_socket_timeout(lite_world, ports):
+    """rospy sets socket.setdefaulttimeout(60) when a subscriber connects: our sockets must
+    not inherit it (an idle warning port was dropped after a minute of silence)."""
+    received = []
+    previous = socket.getdefaulttimeout()
+    socket.setdefaulttimeout(0.3)
+    try:
+        port = ports(Port, "/idle/in", reader=received.append)
+        out = ports(Port, "/idle/out")
+        assert out.add_output("/idle/in")
+        out.write(Bottle(["before"]))
+        wait_until(lambda: received == [["before"]], 5, message="the first message")
+        time.sleep(1.0)  # the thing under test: silence longer than the default timeout
+        out.write(Bottle(["after"]))
+        wait_until(lambda: received == [["before"], ["after"]], 5,
+                   message="a message after the silence")
+        assert port.input_count == 1
+    finally:
+        socket.setdefaulttimeout(previous)

@@ -71,6 +71,7 @@ class DatagramStream(Stream):
     """One end of a udp connection, with the Stream interface the carriers use."""
 
     def __init__(self, sock: socket.socket, where: str) -> None:
+        sock.settimeout(None)  # blocking whatever the process default (see SocketStream)
         self.sock = sock
         self.where = where
         self._pending: List[Buffer] = []
