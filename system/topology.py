@@ -98,6 +98,22 @@ def bridge_argv(side: str, config: Path, peer: str, tcp_port: int, udp_port: int
             "--link-timeout", "5", "--key", str(key)]
 
 
+def udp_budget(profile: str) -> str:
+    """The bridges' UDP pacing for a link profile: 60 % of the link, leaving room for TCP.
+
+    Perception paced at 600 kbit/s into a 9600 bit/s radio starved the TCP channel (a
+    reconnect's handshake timed out after a blackout; found by walkman-chaos --soak).
+    """
+    from bridge.emulation import PROFILES
+    from bridge.main import parse_rate
+
+    rate = PROFILES.get(profile, {}).get("rate")
+    if rate is None:
+        return "600k"      # lab: the link is fast; pace to what a DRC radio would carry
+    bits = parse_rate(rate.replace("bit", ""))
+    return f"{bits * 0.6:.0f}"
+
+
 def ensure_bridge_key(path: Path) -> bool:
     """Create the bridges' shared key file if there is none; True when it was created.
 
@@ -268,7 +284,7 @@ class Topology:
             other = "pilot" if side == "robot" else "robot"
             return bridge_argv(side, self.bridge_config, self.pcs[other].address,
                                self.tcp_port, self.udp_ports[side], self.udp_ports[other],
-                               self.bridge_key)
+                               self.bridge_key, udp_budget(self.profile))
         if component.name == "gateway":  # the modules the bridges carry, from the same file
             return [*component.command(self.bag_path), "--config", str(self.bridge_config)]
         return component.command(self.bag_path)
