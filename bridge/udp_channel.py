@@ -236,7 +236,12 @@ class Reassembler:
             if canvas is None:
                 flow.lost += 1
                 return []
-            value = route.codec.decode(canvas, canvas.completeness)
+            try:
+                value = route.codec.decode(canvas, canvas.completeness)
+            except BridgeProtocolError as exc:
+                self.drops.peer_error(exc, route.label)
+                flow.lost += 1
+                return []
             completeness = canvas.completeness
         else:
             if not complete:
@@ -418,6 +423,16 @@ class UdpChannel:
 
     # -- receiving ---------------------------------------------------------------------
 
+    def _guarded(self, step: Callable[..., List[Tuple[Key, Any]]], *args: Any
+                 ) -> List[Tuple[Key, Any]]:
+        """Run a reassembly step; a bug in it is logged and counted, the thread lives on."""
+        try:
+            return step(*args)
+        except Exception:  # noqa: BLE001 -- our bug: seen and counted, never silent
+            self.stats.internal_errors += 1
+            log.exception("UDP channel: reassembly failed (a bug); the datagram is lost")
+            return []
+
     def _receive_loop(self) -> None:
         next_sweep = time.monotonic()
         while not self._stopping.is_set():
@@ -442,9 +457,9 @@ class UdpChannel:
                     except BridgeProtocolError as exc:
                         self.drops.peer_error(exc, f"datagram from {host}")
                     else:
-                        finished.extend(self.reassembler.feed(inner, now))
+                        finished.extend(self._guarded(self.reassembler.feed, inner, now))
             if now >= next_sweep:
-                finished.extend(self.reassembler.expire(now))
+                finished.extend(self._guarded(self.reassembler.expire, now))
                 next_sweep = now + 0.02
             for key, value in finished:
                 try:

@@ -112,7 +112,8 @@ class ImageCodec:
     def decode(self, canvas: tiles.Canvas, completeness: float) -> Any:
         from sensor_msgs.msg import Image
 
-        secs, nsecs, frame_id, encoding, seq = compact.decode(canvas.meta)
+        secs, nsecs, frame_id, encoding, seq = header_fields(canvas.meta, "image", (
+            _UINT32, _UINT32, str, str, _UINT32))
         msg = Image()
         msg.header.seq, msg.header.frame_id = int(seq), str(frame_id)
         msg.header.stamp.secs, msg.header.stamp.nsecs = int(secs), int(nsecs)
@@ -122,6 +123,29 @@ class ImageCodec:
         msg.step = msg.width * canvas.header.channels * pixels.dtype.itemsize
         msg.data = pixels.tobytes()
         return msg
+
+
+_UINT32 = "uint32"
+_FLAG = "flag"
+
+
+def header_fields(meta: bytes, what: str, shape: Tuple[Any, ...]) -> List[Any]:
+    """A tiled message's metadata, checked field by field (a peer's bytes)."""
+    values = compact.decode(meta)
+    if not isinstance(values, list) or len(values) != len(shape):
+        raise BridgeProtocolError(f"{what} metadata holds {str(values)[:80]}, not "
+                                  f"{len(shape)} fields")
+    for index, (value, kind) in enumerate(zip(values, shape)):
+        if kind == _UINT32:
+            ok = isinstance(value, int) and 0 <= value < 1 << 32
+        elif kind == _FLAG:
+            ok = value in (0, 1) and isinstance(value, int)
+        else:
+            ok = isinstance(value, kind)
+        if not ok:
+            raise BridgeProtocolError(f"{what} metadata field {index} is {value!r}, not a "
+                                      f"{getattr(kind, '__name__', kind)}")
+    return values
 
 
 class CloudCodec:
@@ -150,7 +174,12 @@ class CloudCodec:
     def decode(self, canvas: tiles.Canvas, completeness: float) -> Any:
         from sensor_msgs.msg import PointCloud2, PointField
 
-        secs, nsecs, frame_id, bigendian, dense, seq, fields = compact.decode(canvas.meta)
+        secs, nsecs, frame_id, bigendian, dense, seq, fields = header_fields(
+            canvas.meta, "cloud", (_UINT32, _UINT32, str, _FLAG, _FLAG, _UINT32, list))
+        if not all(isinstance(f, list) and len(f) == 4 and isinstance(f[0], str) and
+                   all(isinstance(v, int) and 0 <= v < 1 << 32 for v in f[1:]) for f in fields):
+            raise BridgeProtocolError(f"cloud metadata: fields {str(fields)[:80]} are not "
+                                      f"(name offset datatype count) lists")
         msg = PointCloud2()
         msg.header.seq, msg.header.frame_id = int(seq), str(frame_id)
         msg.header.stamp.secs, msg.header.stamp.nsecs = int(secs), int(nsecs)

@@ -187,3 +187,21 @@ def test_pacing_holds_the_configured_rate():
     finally:
         a.stop()
         sink.close()
+
+
+def test_a_tile_whose_metadata_has_the_wrong_shape_is_dropped_not_raised():
+    """Found by fuzzing: a valid compact Bottle of the wrong shape as an image's metadata
+    raised ValueError out of the receive loop (a peer holding the key could stop it)."""
+    from bridge.endpoints.ros import ImageCodec
+
+    image = UdpRoute((30, 0), "image", ImageCodec(80))
+    body = bytes.fromhex(
+        "02020100500003010002000002020389504e470d0a1a0a0000000d49484452000000020000000208"
+        "0000000057dd52f80000000b494441540899636000010000060001e687fe7f0000000049454e44ae"
+        "426082")
+    reassembler = Reassembler({image.key: image}, 0.4, UdpStats())
+    assert reassembler.feed(datagrams.encode(datagrams.Datagram(30, 0, 1, 1, 1, 0, body)),
+                            now=0.0) == []
+    assert reassembler.drops.get(Reason.MALFORMED) == 1
+    assert "image metadata" in reassembler.drops.last_error
+    assert reassembler.stats.flows["image"].lost == 1

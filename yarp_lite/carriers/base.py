@@ -19,7 +19,7 @@ from typing import ClassVar, List, Optional, Sequence, Union
 
 from yarp_lite.bottle import Bottle, decode, encode_chunks
 from yarp_lite.bottle_text import format_bottle, is_complete, parse
-from yarp_lite.errors import LocalProtocolError
+from yarp_lite.errors import LocalProtocolError, RemoteProtocolError
 from yarp_lite.framing import envelope_of, wants_reply
 from yarp_lite.stream import Stream
 
@@ -194,16 +194,30 @@ class TextMessageSource(MessageSource):
         return Incoming(command, line, where=self.where)
 
 
+#: A text Bottle continued over several lines: at most this many lines and characters
+#: (one line alone may be MAX_LINE long); each new line rescans the text, so both are small.
+MAX_CONTINUATION_LINES = 256
+MAX_CONTINUED_TEXT = 64 * 1024
+
+
 def read_text_bottle(stream: Stream) -> str:
     """Read the lines of one text Bottle (``BottleImpl::read`` in text mode)."""
     text = stream.read_line()
+    lines = 1
     while text:
         if text.endswith("\\"):
-            text = text[:-1] + stream.read_line()
+            text = text[:-1]
         elif is_complete(text):
             break
         else:
-            text += "\n" + stream.read_line()
+            text += "\n"
+        if lines >= MAX_CONTINUATION_LINES or len(text) > MAX_CONTINUED_TEXT:
+            raise RemoteProtocolError(
+                f"text Bottle continued over {lines} lines and {len(text)} characters "
+                f"(limits {MAX_CONTINUATION_LINES} and {MAX_CONTINUED_TEXT}; an unclosed list?)",
+                stream.where)
+        text += stream.read_line()
+        lines += 1
     return text
 
 
