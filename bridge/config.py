@@ -20,6 +20,9 @@ The file lists modules by 8-bit id (0..255, unique across every section):
   the UDP channel only: "TCP-ROS is unsupported: ROS data would saturate the
   channel", as the paper says.
 
+``<bridge key="bridge.key">`` names the key file both bridges share (relative
+to the XML file; ``--key`` on the command line wins), see :mod:`bridge.link`.
+
 Every channel gets ``(id, kind)``: the module id and which of its flows it
 is.  The file is checked against ``bridge.xsd`` and then for what a schema
 cannot say; every error names the file, the line and the problem.
@@ -103,6 +106,7 @@ class BridgeConfig:
     gym_modules: Dict[str, Tuple[str, ...]] = field(default_factory=dict)  # name -> states
     robot_state: Optional[Tuple[int, str, str]] = None  # (id, robot name, transport)
     state_rate: float = DEFAULT_STATE_RATE                 # Hz the robot state is sampled
+    key_file: Optional[Path] = None      # the shared key, if the file names one
 
     def sending(self, side: str) -> List[Channel]:
         return [c for c in self.channels if c.source == side]
@@ -173,6 +177,12 @@ def parse(text: Union[str, bytes], where: str = "<bridge config>") -> BridgeConf
     config = BridgeConfig(path=where,
                           period=_positive(root, "period", DEFAULT_PERIOD, where),
                           gather=_positive(root, "gather", DEFAULT_GATHER, where))
+    key = root.get("key")
+    if key is not None:
+        if not key.strip():
+            raise ConfigError(f"{where}:{root.sourceline}: key names no file")
+        config.key_file = (Path(where).parent / Path(key).expanduser()) \
+            if not Path(key).expanduser().is_absolute() else Path(key).expanduser()
     ids: Dict[int, int] = {}
     claimed: Dict[Tuple[str, str], int] = {}
 

@@ -161,19 +161,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                                         ("--peer", options.peer)) if not value]
     if missing:
         parser.error(f"missing {', '.join(missing)}")
-    if not options.key and not options.no_auth:
-        parser.error("missing --key FILE (create one with --gen-key FILE and copy it to the "
-                     "other PC), or --no-auth to run unauthenticated")
-    try:
-        key = LinkKey.none() if options.no_auth else LinkKey.from_file(options.key)
-    except BridgeUsageError as exc:
-        print(f"walkman-bridge: {exc}", file=sys.stderr)
-        return 1
     configure_logging(options.side, options.verbose)
-    if not key.keyed:
-        logging.getLogger("bridge").warning(
-            "running WITHOUT authentication (--no-auth): anyone on the link can command "
-            "the robot")
     try:
         text = options.config.read_text()
         config = bridge_config.parse(text, str(options.config))
@@ -183,6 +171,20 @@ def main(argv: Optional[List[str]] = None) -> int:
     except ConfigError as exc:
         print(f"walkman-bridge: {exc}", file=sys.stderr)
         return 1
+    key_file = options.key or config.key_file
+    if not key_file and not options.no_auth:
+        parser.error("missing --key FILE (create one with --gen-key FILE and copy it to the "
+                     "other PC; or key=\"FILE\" in the XML), or --no-auth to run "
+                     "unauthenticated")
+    try:
+        key = LinkKey.none() if options.no_auth else LinkKey.from_file(key_file)
+    except BridgeUsageError as exc:
+        print(f"walkman-bridge: {exc}", file=sys.stderr)
+        return 1
+    if not key.keyed:
+        logging.getLogger("bridge").warning(
+            "running WITHOUT authentication (--no-auth): anyone on the link can command "
+            "the robot")
     from bridge.node import Bridge
 
     try:

@@ -135,3 +135,30 @@ def test_command_line_mistakes_are_named(capsys):
     with pytest.raises(SystemExit):
         bridge_main(["--side", "robot", "--config", "x", "--peer", "h", "--udp-rate", "fast"])
     assert "'fast' is not a rate" in capsys.readouterr().err
+
+
+def test_the_xml_may_name_the_key_file_relative_to_itself(tmp_path):
+    text = '<bridge key="keys/bridge.key"><modules><module name="m" id="1"/></modules></bridge>'
+    assert config.parse(text, str(tmp_path / "b.xml")).key_file == tmp_path / "keys/bridge.key"
+    assert config.parse(text.replace("keys/", "/etc/walkman/"), "b.xml").key_file == \
+        Path("/etc/walkman/bridge.key")
+    assert config.parse("<modules/>", "b.xml").key_file is None
+    with pytest.raises(ConfigError, match="b.xml:1: key names no file"):
+        config.parse('<bridge key=" "><modules/></bridge>', "b.xml")
+
+
+def test_the_bridge_refuses_to_start_without_a_key_or_with_a_shared_one(tmp_path, capsys):
+    xml = tmp_path / "b.xml"
+    xml.write_text('<bridge key="bridge.key"><modules><module name="m" id="1"/></modules>'
+                   '</bridge>')
+    argv = ["--side", "robot", "--config", str(xml), "--peer", "127.0.0.1"]
+    assert bridge_main(argv) == 1
+    assert "does not exist; create one with 'walkman-bridge --gen-key" in capsys.readouterr().err
+    assert bridge_main(["--gen-key", str(tmp_path / "bridge.key")]) == 0
+    (tmp_path / "bridge.key").chmod(0o640)
+    assert bridge_main(argv) == 1
+    assert "accessible by others (mode 0640)" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        bridge_main(["--side", "robot", "--config", str(MODELS / "bridge_paper.xml"),
+                     "--peer", "127.0.0.1"])
+    assert "missing --key FILE" in capsys.readouterr().err
