@@ -18,7 +18,7 @@ from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 
-from bridge import compact, config, datagrams, fec, frames, state_codec, status, tiles
+from bridge import compact, config, datagrams, fec, frames, link, state_codec, status, tiles
 from bridge.config import ConfigError
 from bridge.errors import BridgeProtocolError
 from fuzz.harness import Target, attempt, join_records, split_records
@@ -305,6 +305,41 @@ def bridge_datagrams(data: bytes) -> None:
     datagrams.decode(data)
 
 
+_LINK_KEY = link.LinkKey(bytes(range(32)))
+
+
+def _peer_hello() -> bytes:
+    """A genuine pilot HELLO for the robot under test (same key, same configuration)."""
+    return link.LinkConnection("pilot", _LINK_KEY, b"fuzzcfg!", 2, nonce=bytes(16)).start()
+
+
+def bridge_link(data: bytes) -> None:
+    """bridge.link.LinkConnection (robot side) fed a stream in pieces, handshake included;
+    half the inputs start after a genuine peer HELLO so the fuzzer reaches AUTH and beyond."""
+    robot = link.LinkConnection("robot", _LINK_KEY, b"fuzzcfg!", 1, nonce=bytes(16))
+    robot.start()
+    stream = (_peer_hello() if data and data[0] & 1 else b"") + data[1:]
+    piece = 1 + (data[0] >> 1) % 17 if data else 1
+    for pos in range(0, len(stream), piece):
+        for event in robot.receive_data(stream[pos:pos + piece]):
+            if isinstance(event, link.PeerHello):
+                robot.send_auth()
+            elif isinstance(event, link.PeerAuthenticated):
+                robot.send_resume(0)
+
+
+def bridge_sealed_datagrams(data: bytes) -> None:
+    """bridge.link.DatagramOpener over a run of datagrams, some sealed with the right key."""
+    opener = link.DatagramOpener()
+    opener.install(b"k" * 32)
+    sealer = link.DatagramSealer(b"k" * 32)
+    for index, raw in enumerate(split_records(data)):
+        sealed = sealer.seal(raw) if index % 2 else raw
+        inner = attempt(BRIDGE, opener.open, sealed)
+        if inner is not None:
+            attempt(BRIDGE, datagrams.decode, inner)
+
+
 #: Canvas ceiling for the tile target: the checks are the same, the fuzzer stays fast.
 TILE_MAX_BYTES = 1 << 20
 
@@ -459,6 +494,24 @@ def _datagram_seeds() -> List[bytes]:
             datagrams.encode(datagrams.Datagram(3, 0, 1, 4, 2, 1, bytes(30), repair_row=0))]
 
 
+def _link_seeds() -> List[bytes]:
+    """What the genuine pilot sends after its HELLO: AUTH, RESUME and a data frame."""
+    robot = link.LinkConnection("robot", _LINK_KEY, b"fuzzcfg!", 1, nonce=bytes(16))
+    pilot = link.LinkConnection("pilot", _LINK_KEY, b"fuzzcfg!", 2, nonce=bytes(16))
+    robot_hello, pilot_hello = robot.start(), pilot.start()
+    pilot.receive_data(robot_hello)
+    auth = pilot.send_auth()
+    robot.receive_data(pilot_hello + auth)
+    pilot.receive_data(robot.send_auth() + robot.send_resume(0))
+    resume = pilot.send_resume(4)
+    data = pilot.send_data(frames.data_body((frames.Entry(7, 0, b"\x01\x04stop"),), seq=1))
+    return [b"\x01" + auth + resume + data, b"\x03" + auth, b"\x00" + pilot_hello]
+
+
+def _sealed_seeds() -> List[bytes]:
+    return [join_records(_datagram_seeds() * 2)]
+
+
 def _tile_seeds() -> List[bytes]:
     rng = np.random.default_rng(0)
     image = rng.integers(0, 256, (24, 32, 3), dtype=np.uint8)
@@ -540,6 +593,10 @@ TARGETS: Dict[str, Target] = {target.name: target for target in (
            doc="bridge.frames: FrameSplitter, parse_body"),
     Target("bridge_datagrams", bridge_datagrams, BRIDGE, _datagram_seeds,
            doc="bridge.datagrams.decode"),
+    Target("bridge_link", bridge_link, BRIDGE, _link_seeds,
+           doc="bridge.link.LinkConnection: handshake, tags, frames"),
+    Target("bridge_sealed_datagrams", bridge_sealed_datagrams, BRIDGE, _sealed_seeds,
+           doc="bridge.link.DatagramOpener: counters, tags, replay window"),
     Target("tiles", tiles_target, BRIDGE, _tile_seeds, doc="bridge.tiles: decode_tile, Canvas"),
     Target("state_codec", state_target, BRIDGE, _state_seeds,
            doc="bridge.state_codec.StateDecoder"),
