@@ -43,6 +43,8 @@ _S32 = struct.Struct("<i")
 _INDEX_HEADER_LENGTH = 10
 #: Largest payload accepted from a peer unless a port raises it.
 DEFAULT_MAX_MESSAGE = 256 * 1024 * 1024
+#: First allocation for a payload; the buffer doubles as the payload arrives.
+INITIAL_PAYLOAD = 1 << 20
 #: Most blocks an index can list (its count is a single byte).
 MAX_BLOCKS = 255
 
@@ -210,6 +212,11 @@ class MessageDecoder:
     parsed, :meth:`payload_window` exposes the unfilled part of the payload
     buffer, the caller ``recv_into``-s it and calls :meth:`commit`, so a 1 MB
     message is copied once, from the kernel into its final buffer.
+
+    The payload buffer grows as bytes arrive (doubling from
+    :data:`INITIAL_PAYLOAD`), never to more than what the index announced: an
+    index alone, 26 bytes, cannot make a port allocate ``max_message`` bytes.
+    A caller must release a window before asking for the next one.
     """
 
     def __init__(self, where: str = "connection", max_message: int = DEFAULT_MAX_MESSAGE) -> None:
@@ -218,11 +225,22 @@ class MessageDecoder:
         self._buffer = bytearray()
         self._start = 0
         self._payload: Optional[bytearray] = None
+        self._length = 0          # what the index announced for the current payload
         self._filled = 0
 
+    def _make_room(self, wanted: int) -> None:
+        """Grow the payload buffer to hold ``wanted`` bytes (doubling, capped)."""
+        assert self._payload is not None
+        size = len(self._payload)
+        if wanted <= size:
+            return
+        new_size = min(self._length, max(wanted, size * 2))
+        self._payload.extend(bytes(new_size - size))
+
     def feed(self, data: Buffer) -> None:
-        if self._payload is not None and self._filled < len(self._payload):
-            take = min(len(data), len(self._payload) - self._filled)
+        if self._payload is not None and self._filled < self._length:
+            take = min(len(data), self._length - self._filled)
+            self._make_room(self._filled + take)
             self._payload[self._filled:self._filled + take] = data[:take]
             self._filled += take
             data = data[take:]
@@ -239,9 +257,10 @@ class MessageDecoder:
         return self._payload is None and self.buffered == 0
 
     def payload_window(self) -> Optional[memoryview]:
-        """The unfilled tail of the current payload, or None outside a payload."""
-        if self._payload is None or self._filled >= len(self._payload):
+        """The unfilled tail of the payload buffer (grown if full), or None outside one."""
+        if self._payload is None or self._filled >= self._length:
             return None
+        self._make_room(self._filled + 1)
         return memoryview(self._payload)[self._filled:]
 
     def commit(self, count: int) -> None:
@@ -253,6 +272,7 @@ class MessageDecoder:
         self._buffer.clear()
         self._start = 0
         self._payload = None
+        self._length = 0
         self._filled = 0
 
     def next_message(self) -> Optional[Message]:
@@ -260,14 +280,15 @@ class MessageDecoder:
             length = self._parse_index()
             if length is None:
                 return None
-            self._payload = bytearray(length)
             take = min(length, self.buffered)
+            self._payload = bytearray(min(length, max(take, INITIAL_PAYLOAD)))
+            self._length = length
             self._payload[:take] = self._buffer[self._start:self._start + take]
             self._consume(take)
             self._filled = take
-        if self._filled < len(self._payload):
+        if self._filled < self._length:
             return None
-        payload, self._payload, self._filled = self._payload, None, 0
+        payload, self._payload, self._filled, self._length = self._payload, None, 0, 0
         return parse_payload(payload, self.where)
 
     def _parse_index(self) -> Optional[int]:

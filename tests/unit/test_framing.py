@@ -158,3 +158,41 @@ def test_sender_name_length_is_clamped_and_needs_its_four_bytes():
     assert sender_name_length(struct.pack("<i", 1 << 30)) == MAX_SENDER_NAME
     with pytest.raises(NeedMoreData):
         sender_name_length(b"\x03\x00")  # struct.error before
+
+
+def test_an_index_alone_cannot_make_the_decoder_allocate_what_it_announces():
+    import tracemalloc
+
+    from yarp_lite.framing import INITIAL_PAYLOAD, encode_index
+
+    decoder = MessageDecoder(max_message=256 << 20)
+    tracemalloc.start()
+    try:
+        decoder.feed(encode_index([8, 200 << 20]) + b"\0\0\0\0~D\0\x01" + b"x" * 10)
+        assert decoder.next_message() is None
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 2 * INITIAL_PAYLOAD
+
+
+def test_a_payload_received_through_growing_windows_is_whole():
+    from yarp_lite.framing import INITIAL_PAYLOAD, encode_message
+
+    data = bytes(range(256)) * ((3 * INITIAL_PAYLOAD) // 256 + 7)
+    wire = b"".join(bytes(chunk) for chunk in encode_message("D", [data]))
+    decoder = MessageDecoder()
+    decoder.feed(wire[:100])
+    assert decoder.next_message() is None
+    pos, message = 100, None
+    while message is None:
+        window = decoder.payload_window()
+        assert window is not None and len(window) <= len(data)
+        with window:
+            count = min(len(window), len(wire) - pos, 700_000)
+            window[:count] = wire[pos:pos + count]
+            decoder.commit(count)
+        pos += count
+        decoder.feed(b"")  # a feed between windows must not trip over a released view
+        message = decoder.next_message()
+    assert pos == len(wire) and bytes(message.payload) == data

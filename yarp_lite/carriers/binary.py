@@ -71,9 +71,12 @@ class BinaryMessageSource(MessageSource):
                                 where=self.where)
             window = decoder.payload_window()
             if window is not None and len(window) > _DIRECT_RECEIVE:
-                self.stream.read_into(window)
-                decoder.commit(len(window))
+                with window:  # released before the decoder may grow its buffer again
+                    self.stream.read_into(window)
+                    decoder.commit(len(window))
             else:
+                if window is not None:
+                    window.release()
                 decoder.feed(self.stream.read_some())
 
 
