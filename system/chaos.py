@@ -68,7 +68,7 @@ from system.chaos_figures import LINK, Fault
 from system.processes import (REPO, ROSCORE_READY, Proc, WaitTimeout, descendants, usage,
                               wait_until)
 from system.topology import (BRIDGE_CONFIG, PYTHON, YARP_SERVER_READY, Component, Topology,
-                             components)
+                             add_link_arguments, components)
 
 MARKER = "WALKMAN_CHAOS_RUN"
 WITNESS = Component("counter", "robot", (PYTHON, "-m", "walkman.gym.supervisor",
@@ -898,12 +898,7 @@ def parse_args(argv: Optional[List[str]] = None) -> argparse.Namespace:
     parser.add_argument("--rounds", type=int, default=100, help="rounds of faults (default 100)")
     parser.add_argument("--soak", type=float, metavar="MINUTES",
                         help="no kills: pilot for MINUTES with blackouts, sampling /proc")
-    parser.add_argument("--profile", default="drc", choices=["lab", "drc", "degraded"],
-                        help="link between the emulated PCs (default drc: 1 Mbit/s, 5 %% loss; "
-                             "degraded: 9600 bit/s)")
-    parser.add_argument("--loss", type=float, help="override the profile's loss (percent)")
-    parser.add_argument("--loopback", action="store_true",
-                        help="both PCs on loopback even when root (no link cuts then)")
+    add_link_arguments(parser, "drc", " (no link cuts then)")
     parser.add_argument("--victims", default="",
                         help="only these (comma separated, e.g. pilot:gateway,link; default: "
                              "both name servers, both roscores, the HAL, the modules, both "

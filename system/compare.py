@@ -35,7 +35,7 @@ from typing import Dict, List, Optional, Tuple
 
 from system.session import CANCELLED_COMMAND, MODULES, SessionRecord
 from system.session import run as run_session
-from system.topology import BRIDGE_CONFIG, REPO, Topology
+from system.topology import BRIDGE_CONFIG, REPO, Topology, add_link_arguments
 
 CONTRACT_TOPICS = {
     "/gaze_control/status": "walkman_msgs/Status", "/gaze_control/switch": "walkman_msgs/Switch",
@@ -403,11 +403,7 @@ def open_link(loopback: bool, progress, prefix: str = "wc", subnet: int = 60):
 
 def main(argv: Optional[List[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="walkman-compare", description=__doc__.split("\n")[0])
-    parser.add_argument("--profile", default="lab", choices=["lab", "drc", "degraded"],
-                        help="link profile of the DRC run on emulated hosts (default lab)")
-    parser.add_argument("--loss", type=float, help="random loss in percent on the DRC link")
-    parser.add_argument("--loopback", action="store_true",
-                        help="run the DRC topology on loopback even when root")
+    add_link_arguments(parser, "lab")
     parser.add_argument("--out", type=Path, help="report folder (default out/compare-<time>)")
     options = parser.parse_args(argv)
     out = options.out or REPO / "out" / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"

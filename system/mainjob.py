@@ -28,7 +28,7 @@ from typing import List, Optional
 from system import compare
 from system.pc import serve
 from system.session import STEPS
-from system.topology import REPO, Topology
+from system.topology import REPO, Topology, add_link_arguments
 
 
 def say(text: str) -> None:
@@ -83,12 +83,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="walkman-main-job", description=__doc__.split("\n")[0])
     parser.add_argument("--interactive", action="store_true",
                         help="keep the DRC topology up and print the lines to pilot it")
-    parser.add_argument("--profile", default="drc", choices=["lab", "drc", "degraded"],
-                        help="link profile between the emulated PCs (default drc: 1 Mbit/s, "
-                             "5 %% loss)")
-    parser.add_argument("--loss", type=float, help="override the profile's loss (percent)")
-    parser.add_argument("--loopback", action="store_true",
-                        help="both PCs on loopback even when root")
+    add_link_arguments(parser, "drc")
     parser.add_argument("--out", type=Path, help="report folder (default out/compare-<time>)")
     options = parser.parse_args(argv)
     if options.loss is not None and not 0 <= options.loss <= 100:

@@ -98,6 +98,18 @@ def bridge_argv(side: str, config: Path, peer: str, tcp_port: int, udp_port: int
             "--link-timeout", "5", "--key", str(key)]
 
 
+def add_link_arguments(parser: argparse.ArgumentParser, default_profile: str = "drc",
+                       loopback_note: str = "") -> None:
+    """``--profile``, ``--loss``, ``--loopback``: the link between the emulated PCs, one
+    spelling for every tool that builds a topology (main job, compare, chaos)."""
+    parser.add_argument("--profile", default=default_profile, choices=["lab", "drc", "degraded"],
+                        help=f"link profile between the emulated PCs (default {default_profile}; "
+                             f"drc: 1 Mbit/s, 5 %% loss; degraded: 9600 bit/s)")
+    parser.add_argument("--loss", type=float, help="override the profile's loss (percent)")
+    parser.add_argument("--loopback", action="store_true",
+                        help="both PCs on loopback even when root" + loopback_note)
+
+
 def udp_budget(profile: str) -> str:
     """The bridges' UDP pacing for a link profile: 60 % of the link, leaving room for TCP.
 

@@ -43,6 +43,19 @@ def missing_reference() -> None:
     demand("reference")
 
 
+def pick(implementations: dict, name: str) -> "Implementation":
+    """One implementation of an interop pairing; the reference one must be built."""
+    impl = implementations[name]
+    if impl is None:
+        missing_reference()
+    return impl
+
+
+def pair_id(pair) -> str:
+    """A readable test id for a pairing, e.g. ``yarp-yarp_lite``."""
+    return "-".join(pair)
+
+
 def free_port(span: int = 1) -> int:
     return freeport.free_port(span)
 

@@ -21,7 +21,7 @@ from typing import Dict, Optional, Tuple
 
 import pytest
 
-from harness import compile_cpp, missing_reference, write_auth_conf
+from harness import compile_cpp, missing_reference, pair_id, pick, write_auth_conf
 from yarp_lite import auth
 from yarp_lite.auth import AuthConfig, Handshake, Role
 from yarp_lite.errors import AuthenticationError
@@ -35,15 +35,6 @@ REFUSAL = {"yarp": "Authentication failed.", "yarp_lite": "authentication failed
 ORACLE = Path(__file__).parent / "cpp" / "auth_oracle.cpp"
 
 
-def pick(implementations, name):
-    impl = implementations[name]
-    if impl is None:
-        missing_reference()
-    return impl
-
-
-def ids(pair):
-    return "-".join(pair)
 
 
 # -- where the key comes from ---------------------------------------------------------------
@@ -230,7 +221,7 @@ def world(request, make_world, implementations):
     return make_world(pick(implementations, request.param), auth_key=KEY)
 
 
-@pytest.mark.parametrize("writer, reader", PAIRS, ids=[ids(p) for p in PAIRS])
+@pytest.mark.parametrize("writer, reader", PAIRS, ids=[pair_id(p) for p in PAIRS])
 def test_keyed_read_write_across_implementations(world, implementations, writer, reader):
     read_proc = world.tool(pick(implementations, reader), "read", "/a/r")
     read_proc.wait_for("Port /a/r active")
@@ -292,7 +283,7 @@ def test_a_real_port_refuses_a_lite_direct_connection_with_another_key(world, im
 CROSS = [("yarp", "yarp_lite"), ("yarp_lite", "yarp")]
 
 
-@pytest.mark.parametrize("writer, reader", CROSS, ids=[ids(p) for p in CROSS])
+@pytest.mark.parametrize("writer, reader", CROSS, ids=[pair_id(p) for p in CROSS])
 @pytest.mark.parametrize("carrier", ["tcp", "fast_tcp", "udp", "text", "text_ack"])
 def test_every_carrier_authenticates_first(make_world, implementations, lite, writer, reader,
                                            carrier):

@@ -14,7 +14,7 @@ import re
 
 import pytest
 
-from harness import missing_reference, wait_until
+from harness import pair_id, pick, wait_until
 from yarp_lite.bottle import (Bottle, Dict, Float32, Int8, Int16, Int64, Vocab, encode)
 
 IMPLS = ["yarp", "yarp_lite"]
@@ -23,15 +23,6 @@ CARRIERS = ["tcp", "fast_tcp", "udp", "text", "text_ack"]
 LINES = ["1 2 3", 'hello "a b" 3.5 (x y) [vo] {1 2}', "(nested (list 1.5)) [ok] last"]
 
 
-def pick(implementations, name):
-    impl = implementations[name]
-    if impl is None:
-        missing_reference()
-    return impl
-
-
-def ids(pair):
-    return "-".join(pair)
 
 
 @pytest.fixture(params=IMPLS, ids=lambda name: f"server={name}")
@@ -39,7 +30,7 @@ def world(request, make_world, implementations):
     return make_world(pick(implementations, request.param))
 
 
-@pytest.mark.parametrize("writer, reader", PAIRS, ids=[ids(p) for p in PAIRS])
+@pytest.mark.parametrize("writer, reader", PAIRS, ids=[pair_id(p) for p in PAIRS])
 @pytest.mark.parametrize("carrier", CARRIERS)
 def test_read_write_every_carrier(world, implementations, writer, reader, carrier):
     write_impl, read_impl = pick(implementations, writer), pick(implementations, reader)
@@ -75,7 +66,7 @@ def test_name_list_and_query_see_the_other_implementation(world, implementations
     assert "/seen" in ping.stdout and "There are no outgoing connections" in ping.stdout
 
 
-@pytest.mark.parametrize("client, server", PAIRS, ids=[ids(p) for p in PAIRS])
+@pytest.mark.parametrize("client, server", PAIRS, ids=[pair_id(p) for p in PAIRS])
 def test_rpc(world, implementations, client, server):
     server_proc = world.tool(pick(implementations, server), "rpcserver", "--echo", "/echo")
     server_proc.wait_for("Port /echo active|Waiting for a message")
@@ -85,7 +76,7 @@ def test_rpc(world, implementations, client, server):
     assert "Response: (a b) 2.5" in result.stdout
 
 
-@pytest.mark.parametrize("tool, port", PAIRS, ids=[ids(p) for p in PAIRS])
+@pytest.mark.parametrize("tool, port", PAIRS, ids=[pair_id(p) for p in PAIRS])
 def test_admin_rpc(world, implementations, tool, port):
     port_proc = world.tool(pick(implementations, port), "read", "/adm")
     port_proc.wait_for("Port /adm active")
@@ -94,7 +85,7 @@ def test_admin_rpc(world, implementations, tool, port):
     assert "Response: [ver] 1 2 3" in result.stdout, result.stdout + result.stderr
 
 
-@pytest.mark.parametrize("connector, ports", PAIRS, ids=[ids(p) for p in PAIRS])
+@pytest.mark.parametrize("connector, ports", PAIRS, ids=[pair_id(p) for p in PAIRS])
 def test_persistent_connection_made_when_ports_appear_and_after_restart(
         world, implementations, connector, ports):
     port_impl = pick(implementations, ports)
