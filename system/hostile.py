@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Dict, Iterator, List, Optional, Sequence
 
-from system.processes import Proc, WaitTimeout
+from system.processes import Proc, WaitTimeout, usage
 from system.topology import PYTHON, Pc, Topology
 
 #: A program may grow this much (RSS) over the whole campaign against it.
@@ -104,13 +104,9 @@ def oversized(protocol: str) -> bytes:
 
 
 def rss_kib(pid: int) -> int:
-    try:
-        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1])
-    except OSError:
-        pass
-    return 0
+    """Resident memory of a program, 0 once it is gone."""
+    sample = usage(pid)
+    return sample[0] if sample else 0
 
 
 def _send_and_close(target: Target, data: bytes, linger: float = 1.0) -> None:
