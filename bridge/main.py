@@ -161,7 +161,6 @@ def main(argv: Optional[List[str]] = None) -> int:
                                         ("--peer", options.peer)) if not value]
     if missing:
         parser.error(f"missing {', '.join(missing)}")
-    configure_logging(options.side, options.verbose)
     try:
         text = options.config.read_text()
         config = bridge_config.parse(text, str(options.config))
@@ -181,6 +180,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     except BridgeUsageError as exc:
         print(f"walkman-bridge: {exc}", file=sys.stderr)
         return 1
+    # Only now: a refused start must leave the process's logging as it found it.
+    configure_logging(options.side, options.verbose)
     if not key.keyed:
         logging.getLogger("bridge").warning(
             "running WITHOUT authentication (--no-auth): anyone on the link can command "

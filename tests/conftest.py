@@ -102,3 +102,17 @@ def lite_world(make_world, lite, monkeypatch):
 @pytest.fixture(autouse=True)
 def _quiet_logs(caplog):
     caplog.set_level(logging.INFO, logger="yarp_lite")
+
+
+@pytest.fixture(autouse=True)
+def _our_loggers_restored():
+    """A program's main() run in-process (walkman-bridge's configure_logging) gives our
+    loggers their own handler and stops propagation: later tests' caplog would see nothing."""
+    names = ("bridge", "yarp_lite", "walkman")
+    saved = {name: (list(logging.getLogger(name).handlers), logging.getLogger(name).propagate,
+                    logging.getLogger(name).level) for name in names}
+    yield
+    for name, (handlers, propagate, level) in saved.items():
+        logger = logging.getLogger(name)
+        logger.handlers[:] = handlers
+        logger.propagate, logger.level = propagate, level
