@@ -127,6 +127,10 @@ class ModuleLink:
                  keeper: ConnectionKeeper, on_status, on_warning) -> None:
         self.module = module
         self.statuses = statuses
+        # Everything the readers touch exists before a port opens: a message may arrive at once.
+        self.last_status: Optional[Tuple[int, str, list, Bottle]] = None
+        self.changed = threading.Condition()
+        self.warnings: List[str] = []
         base = f"{prefix}/{module}"
         self.switch = Port(nameclient=nameclient).open(f"{base}/switch:o", wait=math.inf)
         self.command = Port(nameclient=nameclient).open(f"{base}/command:o", wait=math.inf)
@@ -140,9 +144,6 @@ class ModuleLink:
         keeper.want(f"/{module}/status:o", self.status.name, self.status, ours_is_source=False)
         keeper.want(f"/{module}/warning:o", self.warning.name, self.warning,
                     ours_is_source=False)
-        self.last_status: Optional[Tuple[int, str, list, Bottle]] = None
-        self.changed = threading.Condition()
-        self.warnings: List[str] = []
 
     def send(self, port: Port, bottle: Bottle) -> Tuple[bool, str]:
         if port.output_count == 0:

@@ -127,11 +127,13 @@ class YarpSink:
     def __init__(self, channel: Channel, nameclient: NameClient, keeper: ConnectionKeeper,
                  submit: Callable[[Channel, Bottle], None]) -> None:
         self.channel = channel
+        # Set before the port opens: a writer may connect and send at once (a pilot command
+        # taken between the two was acknowledged and lost; found by walkman-chaos).
+        self._submit = submit
         self.port = Port(nameclient=nameclient, reader=self._on_bottle)
         self.port.open(channel.listen_port, wait=math.inf)
         if channel.feed_port:
             keeper.want(channel.feed_port, self.port.name, self.port, ours_is_source=False)
-        self._submit = submit
 
     def _on_bottle(self, bottle: Bottle) -> None:
         self._submit(self.channel, bottle)
