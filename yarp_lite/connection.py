@@ -12,6 +12,7 @@ an ``auth.conf`` holds a key (:mod:`yarp_lite.auth`).
 
 from __future__ import annotations
 
+import socket
 import threading
 from typing import Optional
 
@@ -142,6 +143,29 @@ class OutgoingConnection:
                 except NetworkError:
                     pass
             return lines
+
+    def peer_closed(self) -> bool:
+        """Whether the peer has closed or reset this idle connection.
+
+        A port learns that a reader died only when it next writes; until then
+        ``[list] [out]`` would still name the dead reader, and a name server
+        asking "already connected?" before reconnecting a persistent
+        connection would leave it broken.  One non-blocking peek answers;
+        a connection busy sending, or not over a socket, counts as alive.
+        """
+        if self.closed:
+            return True
+        if self.carrier.connectionless or not isinstance(self.stream, SocketStream) \
+                or not self.lock.acquire(blocking=False):
+            return False
+        try:
+            return self.stream.sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) == b""
+        except (BlockingIOError, InterruptedError):
+            return False
+        except OSError:
+            return True
+        finally:
+            self.lock.release()
 
     def abort(self) -> None:
         """Drop the connection without saying goodbye."""

@@ -482,6 +482,7 @@ class Port:
         if address is None or not address.valid:
             return False, f"Do not know how to connect to {spec}"
         carrier = requested.carrier or address.carrier or "tcp"
+        self._remove_closed_outputs()
         existing = self._outputs.get(address.name)
         if only_if_needed and existing is not None and existing.route.carrier == carrier:
             return True, f"Desired connection already present from {self.name} to {spec}"
@@ -548,8 +549,16 @@ class Port:
             return [unit.route for unit in self._inputs.values() if unit.carrier is not None]
 
     def output_routes(self) -> List[Route]:
+        """The live output connections (one whose reader has gone is removed first)."""
+        self._remove_closed_outputs()
         with self._lock:
             return [unit.route for unit in self._outputs.values()]
+
+    def _remove_closed_outputs(self) -> None:
+        with self._lock:
+            gone = [unit for unit in self._outputs.values() if unit.connection.peer_closed()]
+        for unit in gone:
+            self._drop_output(unit)
 
     @property
     def input_count(self) -> int:
@@ -557,8 +566,7 @@ class Port:
 
     @property
     def output_count(self) -> int:
-        with self._lock:
-            return len(self._outputs)
+        return len(self.output_routes())
 
     def wait_for_inputs(self, count: int = 1, timeout: float = 10.0) -> bool:
         deadline = time.monotonic() + timeout
@@ -607,10 +615,12 @@ class Port:
 
     def _drop_output(self, unit: _OutputUnit) -> None:
         with self._lock:
-            if self._outputs.get(unit.route.target) is unit:
+            removed = self._outputs.get(unit.route.target) is unit
+            if removed:
                 del self._outputs[unit.route.target]
-        self._log_output_removed(unit)
         unit.connection.abort()
+        if removed:
+            self._log_output_removed(unit)
 
     # -- reading -----------------------------------------------------------------
 

@@ -170,6 +170,22 @@ def test_admin_interface(lite_world, ports):
     assert network.request(contact, ["bogus"], admin=True)[0] == Vocab("fail")
 
 
+def test_a_reader_that_vanished_is_not_listed_as_an_output(lite_world, lite, ports):
+    """No write needed: ``[list] [out]`` is what a name server asks before it
+    reconnects a persistent connection, so a dead reader must not be named."""
+    reader = lite_world.tool(lite, "read", "/gone/in")
+    reader.wait_for("Port /gone/in active")
+    writer = ports(Port, "/gone/out")
+    assert network.connect("/gone/out", "/gone/in").ok
+    reader.wait_for("Receiving input from /gone/out")
+    contact = NameClient().query("/gone/out")
+    assert network.request(contact, [Vocab("list"), Vocab("out")], admin=True) == ["/gone/in"]
+    reader.kill()  # SIGKILL: the sockets close, nobody says goodbye or unregisters
+    wait_until(lambda: network.request(contact, [Vocab("list"), Vocab("out")],
+                                       admin=True) == [], message="dead output removed")
+    assert writer.output_count == 0
+
+
 def test_describe_lists_connections(lite_world, ports):
     ports(Port, "/d/in", reader=lambda b: None)
     ports(Port, "/d/out")
