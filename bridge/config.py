@@ -7,7 +7,9 @@ The file lists modules by 8-bit id (0..255, unique across every section):
 * ``<modules><module name="gaze_control" id="7"/>`` -- a standard GYM module
   on the robot: its ``switch`` and ``command`` go pilot->robot (reliable:
   never dropped, never duplicated, in order, sent at once), its ``status``
-  (latest only, batched every period) and ``warning`` (reliable) go
+  (latest only, batched every period, but at once when it answers a pilot's
+  command or its state changes: :class:`bridge.node.StatusEvents`) and
+  ``warning`` (reliable) go
   robot->pilot;
 * ``<custom_modules>`` -- explicit ``<connection port_to_open source_port
   target_port location direction>``, names relative to ``/<module>``: the
@@ -90,6 +92,8 @@ class Channel:
     fec: float = 0.0
     statuses: Tuple[str, ...] = ()
     line: int = 0
+    #: a GYM status: a change of its ``seq state`` head is an event that leaves at once
+    status_events: bool = False
 
     @property
     def key(self) -> Tuple[int, int]:
@@ -222,7 +226,8 @@ def parse(text: Union[str, bytes], where: str = "<bridge config>") -> BridgeConf
             config.channels.append(Channel(module_id, kind, f"{name}/{flow}", source,
                                            destination, "yarp", "tcp", reliable, listen, feed,
                                            emit, deliver, statuses=statuses,
-                                           line=element.sourceline))
+                                           line=element.sourceline,
+                                           status_events=flow == "status"))
     for element in root.iterfind("custom_modules/module"):
         name, module_id = element.get("name"), take_id(element)
         _check_name(name, element, where)

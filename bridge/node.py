@@ -28,7 +28,7 @@ import threading
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 from bridge import compact
 from bridge import status as status_codec
@@ -48,6 +48,39 @@ from yarp_lite.rpc import RpcServer
 log = logging.getLogger("bridge")
 
 Key = Tuple[int, int]
+
+
+#: Seconds after a pilot's command reaches a module during which its status changes are events.
+COMMAND_WINDOW = 1.0
+
+
+class StatusEvents:
+    """Which GYM statuses leave at once (events) instead of with the next period.
+
+    A status (``seq state data...``; the seq counts messages) is an event when
+    its state changed, or when its state or data changed within
+    :data:`COMMAND_WINDOW` of a switch or command delivered to that module:
+    what a pilot waits to see.  Data that changes by itself (temperatures,
+    positions) keeps the period, so a robot left alone costs what it did.
+    """
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self._clock = clock
+        self._previous: Dict[int, Tuple[Any, ...]] = {}
+        self._commanded: Dict[int, float] = {}
+
+    def commanded(self, module_id: int) -> None:
+        self._commanded[module_id] = self._clock()
+
+    def is_event(self, module_id: int, status: Any) -> bool:
+        body = tuple(status[1:]) if isinstance(status, Bottle) else ()
+        previous = self._previous.get(module_id)
+        self._previous[module_id] = body
+        if previous is None or body == previous:
+            return False
+        if body[:1] != previous[:1]:
+            return True
+        return self._clock() - self._commanded.get(module_id, -math.inf) < COMMAND_WINDOW
 
 
 class Bridge:
@@ -71,6 +104,7 @@ class Bridge:
         self.drops = DropLedger("bridge", log)
         self._sources: Dict[Key, Any] = {}
         self._sinks: List[Any] = []
+        self.status_events = StatusEvents()
         self._ros_sinks: List[Any] = []
         self._stop = threading.Event()
         self._deliver_wake = threading.Event()
@@ -207,6 +241,9 @@ class Bridge:
                 except QueueFull as exc:
                     self.refused += 1
                     log.error("refused a message on %s: %s", channel.label, exc)
+            elif channel.status_events:
+                self.tcp.post(channel.key, value,
+                              event=self.status_events.is_event(channel.id, value))
             else:
                 self.tcp.post(channel.key, value)
         elif self.udp is not None:
@@ -273,6 +310,7 @@ class Bridge:
                 if ok:
                     self.journal.delivered(row)
                     self.delivered += 1
+                    self.status_events.commanded(ident)
                 else:
                     blocked.add(key)
 

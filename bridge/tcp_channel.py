@@ -20,7 +20,12 @@ can neither stall the listener nor push the real peer off.
 The sender thread writes one frame per period T holding the newest value of
 every streaming flow that changed (older ones are simply overwritten in their
 slot), and writes at once whenever a reliable message is journalled or an ack
-is owed.  Reliable messages come from the :class:`~bridge.journal.Journal`:
+is owed.  A streaming value posted as an *event* (a module's status answering
+a pilot's command, or with a new state: what the pilot waits to see) leaves at once
+too, alone or with other events, at most once per :data:`EVENT_MIN_GAP` per
+flow (later ones are coalesced in the slot), so a pilot's command shows its
+effect within a round trip instead of the next period, and a robot standing
+still sends exactly what the periodic frames send.  Reliable messages come from the :class:`~bridge.journal.Journal`:
 after a reconnect the peer's RESUME says what it already has and the rest is
 sent again, in order.  When the kernel still holds unsent bytes (the link is
 slower than we write), the streaming part of a frame is held back rather than
@@ -37,6 +42,7 @@ from __future__ import annotations
 import fcntl
 import hashlib
 import logging
+import math
 import socket
 import struct
 import termios
@@ -66,6 +72,8 @@ PHASES: Dict[str, Dict[str, str]] = {
     "up": {"failed": "down"},
 }
 MAX_RELIABLE_PER_FRAME = 256
+#: Shortest time between two event sends of one flow; more frequent events wait (coalesced).
+EVENT_MIN_GAP = 0.05
 KEEPALIVE = 1.0
 #: Seconds a connection has to complete the handshake.
 HANDSHAKE_TIMEOUT = 5.0
@@ -170,6 +178,8 @@ class TcpChannel:
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
         self._urgent = False
+        self._events: Dict[Key, float] = {}       # flows with an event waiting -> due time
+        self._event_sent: Dict[Key, float] = {}   # flow -> when its last event left
         self._connection: Optional[_Connection] = None
         self._stopping = threading.Event()
         self._threads: List[threading.Thread] = []
@@ -200,11 +210,18 @@ class TcpChannel:
         for thread in self._threads:
             thread.join(timeout=3)
 
-    def post(self, key: Key, value: Any) -> None:
-        """The newest value of a streaming flow; it leaves with the next period's frame."""
-        with self._lock:
+    def post(self, key: Key, value: Any, event: bool = False) -> None:
+        """The newest value of a streaming flow; it leaves with the next period's frame.
+
+        An ``event`` leaves at once (see the module docstring), or when the
+        flow's :data:`EVENT_MIN_GAP` has passed since its last event.
+        """
+        with self._wake:
             self._slots[key] = value
             self._dirty[key] = True
+            if event and key not in self._events:
+                self._events[key] = self._event_sent.get(key, -math.inf) + EVENT_MIN_GAP
+                self._wake.notify_all()
 
     def send_reliable(self, key: Key, bottle: Any) -> int:
         """Journal a reliable Bottle (raises :class:`~bridge.journal.QueueFull`); send at once."""
@@ -508,20 +525,26 @@ class TcpChannel:
         while not self._stopping.is_set():
             with self._wake:
                 while not self._urgent and not self._stopping.is_set():
-                    remaining = next_tick - time.monotonic()
+                    wake_at = min([next_tick, *self._events.values()])
+                    remaining = wake_at - time.monotonic()
                     if remaining <= 0:
                         break
                     self._wake.wait(remaining)
                 self._urgent = False
                 connection = self._connection
-            now = time.monotonic()
-            tick = now >= next_tick
+                now = time.monotonic()
+                tick = now >= next_tick
+                due = set(self._events) if tick else \
+                    {key for key, when in self._events.items() if when <= now}
+                for key in due:
+                    del self._events[key]
+                    self._event_sent[key] = now
             if tick:
                 next_tick = max(next_tick + self.period, now)
             if connection is None or connection.closed:
                 continue
             try:
-                self._send_frame(connection, with_streams=tick)
+                self._send_frame(connection, streams=None if tick else due)
             except OSError as exc:
                 self._drop(f"send failed: {exc.strerror or exc}", connection)
             except BridgeError as exc:
@@ -531,9 +554,11 @@ class TcpChannel:
                 log.exception("TCP channel: sending failed (a bug); dropping the connection")
                 self._drop("internal error while sending", connection)
 
-    def _streaming_entries(self, connection: _Connection) -> List[bytes]:
+    def _streaming_entries(self, connection: _Connection,
+                           only: Optional[set] = None) -> List[bytes]:
         with self._lock:
-            ready = [(key, self._slots[key]) for key, dirty in self._dirty.items() if dirty]
+            ready = [(key, self._slots[key]) for key, dirty in self._dirty.items()
+                     if dirty and (only is None or key in only)]
             for key, _ in ready:
                 self._dirty[key] = False
         out = []
@@ -559,7 +584,9 @@ class TcpChannel:
     def _count(self, ident: int, size: int) -> None:
         self.stats.bytes_by_id[ident] = self.stats.bytes_by_id.get(ident, 0) + size
 
-    def _send_frame(self, connection: _Connection, with_streams: bool) -> None:
+    def _send_frame(self, connection: _Connection, streams: Optional[set]) -> None:
+        """One frame: what the journal owes, the ack, and the streaming flows
+        ``streams`` names (``None``: every changed flow, the periodic frame)."""
         encoded: List[bytes] = []
         reliable = self.journal.unacknowledged(after=connection.sent_upto,
                                                limit=MAX_RELIABLE_PER_FRAME)
@@ -568,12 +595,12 @@ class TcpChannel:
             encoded.append(frames.entry_bytes(Entry(item.id, item.kind, item.payload)))
             self.stats.payload_out += len(item.payload)
             self._count(item.id, len(encoded[-1]))
-        if with_streams:
+        if streams is None or streams:
             backlog = _unsent_bytes(connection.sock)
             if drops.hold_back(backlog):
                 self.drops.drop(Reason.HELD_BACK, f"{backlog} bytes still unsent")
             else:
-                encoded.extend(self._streaming_entries(connection))
+                encoded.extend(self._streaming_entries(connection, only=streams))
         accepted = self.journal.accepted(connection.session)
         ack = accepted if accepted != connection.ack_sent else None
         now = time.monotonic()

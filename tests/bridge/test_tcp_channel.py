@@ -107,6 +107,22 @@ def test_streams_keep_only_the_latest_value_per_period(pair):
     assert robot.channel.stats.payload_out < 20  # the second one went as a 3-byte delta
 
 
+def test_a_status_event_leaves_at_once_and_a_flood_of_them_is_coalesced(pair):
+    robot, pilot = pair(period=30.0)  # no periodic frame within this test
+    robot.channel.post(STATUS, Bottle([2, "a", 0.5]))  # data changed only: waits for T
+    robot.channel.post(STATUS, Bottle([3, "b", 0.5]), event=True)
+    wait_until(lambda: pilot.streams, 3, message="the event")
+    assert [value for _, value in pilot.streams] == [Bottle([3, "b", 0.5])]
+    for seq in range(4, 104):
+        robot.channel.post(STATUS, Bottle([seq, "c", 0.5]), event=True)
+    wait_until(lambda: pilot.streams[-1][1][0] == 103, 3, message="the newest event")
+    # 100 events posted within a few EVENT_MIN_GAPs: a few sends, never 100.
+    assert len(pilot.streams) <= 6, [value[0] for _, value in pilot.streams]
+    robot.channel.post(STATUS, Bottle([103, "c", 0.75]))  # not an event
+    time.sleep(0.5)  # the thing under test: many gaps pass and it still waits for T
+    assert pilot.streams[-1][1] == Bottle([103, "c", 0.5])
+
+
 def test_a_dropped_connection_loses_and_repeats_nothing(pair):
     robot, pilot = pair(period=0.2)
     pilot.channel.send_reliable(SWITCH, Bottle(["start", 2]))
