@@ -18,7 +18,8 @@ without a network.  Answers reproduce YARP 3.5's text byte for byte.
 Both take whatever a peer sent: :func:`admin` answers any Bottle and
 :func:`port_command` any text (unknown commands get YARP's "not understood"
 answers), never raising; the Bottle or line was already bounded by the
-decoder that produced it.
+decoder that produced it.  What a peer may store in a port (``[prop] [set]``)
+is bounded too: :data:`MAX_PROPERTY_BYTES` per port.
 """
 
 from __future__ import annotations
@@ -26,8 +27,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Dict, List, Optional, Protocol, Sequence, Tuple
 
-from yarp_lite.bottle import Bottle, Dict as DictValue, Vocab
+from yarp_lite.bottle import Bottle, Dict as DictValue, Vocab, encode
 from yarp_lite.contact import Contact
+
+
+#: Encoded bytes of the properties one port keeps from ``[prop] [set]``; more is refused.
+MAX_PROPERTY_BYTES = 64 * 1024
 
 
 @dataclass(frozen=True)
@@ -296,6 +301,12 @@ def _prop(port: PortState, command: Bottle) -> Bottle:
         return Bottle([] if value is None else [value])
     if action == "set":
         if len(command) > 3:
+            kept = {k: v for k, v in properties.items() if k != key}
+            size = len(encode(Bottle([Bottle([k, v]) for k, v in kept.items()]
+                                     + [Bottle([key, command[3]])])))
+            if size > MAX_PROPERTY_BYTES:
+                return Bottle([Vocab("fail"), f"properties would take {size} bytes "
+                                              f"(limit {MAX_PROPERTY_BYTES})"])
             properties[key] = command[3]
         return Bottle([Vocab("ok")])
     return Bottle([Vocab("fail"), "property action not known"])

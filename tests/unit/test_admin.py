@@ -89,6 +89,19 @@ def test_admin_misc():
     assert admin.admin(port, Bottle([]))[0] == Vocab("fail")
 
 
+def test_properties_a_peer_stores_in_a_port_are_bounded():
+    port = FakePort()
+    chunk = b"\0" * 1000
+    for index in range(100):
+        reply = admin.admin(port, Bottle([Vocab("prop"), Vocab("set"), f"k{index}", chunk]))
+        if reply != [Vocab("ok")]:
+            break
+    assert 50 < index < 70 and reply[0] == Vocab("fail")
+    assert f"(limit {admin.MAX_PROPERTY_BYTES})" in reply[1]
+    assert f"k{index}" not in port.props and len(port.props) == index
+    assert admin.admin(port, Bottle([Vocab("prop"), Vocab("set"), "k0", 1])) == [Vocab("ok")]
+
+
 def test_a_command_word_beyond_int32_reads_as_its_truncated_vocab():
     from yarp_lite.bottle import Int64
 

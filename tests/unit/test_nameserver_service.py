@@ -6,7 +6,7 @@ import pytest
 
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.bottle_text import parse
-from yarp_lite.nameserver.registry import Registry, RegistryFull
+from yarp_lite.nameserver.registry import MAX_PROPERTY_BYTES, Registry, RegistryFull
 from yarp_lite.nameserver.service import NameService, OldReply
 from yarp_lite.nameserver.subscriptions import Action, Subscriptions
 
@@ -59,6 +59,21 @@ def test_properties_sorted_like_yarpserver(service):
     assert lines(apply(service, "check /p accepts udp"))[0] == \
         "port /p property accepts value udp present true"
     assert apply(service, "bot get /p accepts").reply == ["fast_tcp", "tcp", "udp"]
+
+
+def test_properties_of_one_port_are_bounded(service, caplog):
+    apply(service, "register /a")
+    apply(service, "set /a small 1")
+    chunk = "x" * 1000
+    stored = 0
+    while lines(apply(service, f"set /a key{stored} {chunk}"))[0].startswith("port /a"):
+        stored += 1
+        assert stored < 100, "no limit"
+    assert stored == (MAX_PROPERTY_BYTES - len("small1")) // (len("key00") + 1000)
+    assert "refused set /a key" in caplog.text and "limit 65536" in caplog.text
+    # Nothing was half-stored, and what is there can still be replaced.
+    assert lines(apply(service, f"get /a key{stored}"))[0] == f"port /a property key{stored} ="
+    assert lines(apply(service, "set /a small 2"))[0] == "port /a property small = 2"
 
 
 def test_bot_mode(service):

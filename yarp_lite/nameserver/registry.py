@@ -19,6 +19,9 @@ from yarp_lite.contact import Contact
 
 MIN_OFFSET = 2
 MAX_OFFSET = 9999
+#: Bytes of properties (keys and values) one port may hold: ``set`` beyond it is refused,
+#: so a peer repeating ``set`` with new keys cannot grow the server without bound.
+MAX_PROPERTY_BYTES = 64 * 1024
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS ports (
@@ -36,6 +39,10 @@ CREATE TABLE IF NOT EXISTS anonymous (name TEXT PRIMARY KEY, in_use INTEGER);
 
 class RegistryFull(Exception):
     """Every socket number of the server's range is in use."""
+
+
+class PropertyLimit(Exception):
+    """A ``set`` would make one port's properties larger than :data:`MAX_PROPERTY_BYTES`."""
 
 
 @dataclass(frozen=True)
@@ -135,9 +142,21 @@ class Registry:
         return existing
 
     def set_property(self, name: str, key: str, values: List[str]) -> bool:
+        """Replace ``key``'s values; False when ``name`` is not registered.
+
+        Raises :class:`PropertyLimit` when the port's properties would exceed
+        :data:`MAX_PROPERTY_BYTES` (nothing is changed then).
+        """
         with self.lock:
             if self.get(name) is None:
                 return False
+            (held,) = self.db.execute(
+                "SELECT COALESCE(SUM(LENGTH(key) + LENGTH(value)), 0) FROM properties "
+                "WHERE name = ? AND key != ?", (name, key)).fetchone()
+            wanted = held + sum(len(key) + len(value) for value in values)
+            if wanted > MAX_PROPERTY_BYTES:
+                raise PropertyLimit(f"properties of {name} would take {wanted} bytes "
+                                    f"(limit {MAX_PROPERTY_BYTES})")
             self.db.execute("DELETE FROM properties WHERE name = ? AND key = ?", (name, key))
             for value in values:
                 self.db.execute("INSERT INTO properties VALUES (?, ?, ?, ?)",

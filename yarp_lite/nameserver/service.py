@@ -36,7 +36,8 @@ from yarp_lite.bottle import Bottle, Vocab, iter_leaves
 from yarp_lite.bottle_text import format_bottle, format_value, parse
 from yarp_lite.carriers import Payload
 from yarp_lite.errors import RemoteProtocolError
-from yarp_lite.nameserver.registry import Registry, RegistryFull
+from yarp_lite.bursts import Burst
+from yarp_lite.nameserver.registry import PropertyLimit, Registry, RegistryFull
 from yarp_lite.nameserver.subscriptions import Action, Subscriptions, split_name
 
 log = logging.getLogger("yarp_lite.nameserver")
@@ -101,6 +102,7 @@ class NameService:
                  server_host: str, server_port: int, silent: bool = False) -> None:
         self.registry = registry
         self.subscriptions = subscriptions
+        self._refused_sets = Burst()
         self.server_host = server_host
         self.server_port = server_port
         self.silent = silent
@@ -302,7 +304,14 @@ class NameService:
     def _set(self, command: Bottle, bottle_mode: bool, remote: str) -> Outcome:
         name, key = _word(command, 1), _text(command, 2)
         values = [_text(command, index) for index in range(3, len(command))]
-        if not self.registry.set_property(name, key, values):
+        try:
+            stored = self.registry.set_property(name, key, values)
+        except PropertyLimit as exc:
+            if self._refused_sets.record():
+                log.warning("refused set %s %s from %s: %s (%d refused in this burst)",
+                            name, key, remote, exc, self._refused_sets.count)
+            stored = False
+        if not stored:
             return Outcome(Bottle() if bottle_mode else OldReply([]))
         return self._get(Bottle(["get", name, key]), bottle_mode, remote)
 
