@@ -112,9 +112,11 @@ def test_gym_module_and_perception_over_a_drc_link(pcs, lite, link):
                                               probe.lines) if m]
     images = [float(m.group(1)) for m in map(re.compile(r"^image \d+ ([\d.]+)").search,
                                               probe.lines) if m]
-    assert any(0 < fraction < 1 for fraction in clouds), clouds  # partial clouds published
-    assert sum(1 - f for f in clouds) / len(clouds) > 0.75
-    assert images and sum(1 - f for f in images) / len(images) > 0.75
+    seen = (f"clouds (missing share) {clouds}\nimages {images}\n"
+            f"pilot {bridge_status(pcs.pilot, lite)}\nrobot {bridge_status(pcs.robot, lite)}")
+    assert any(0 < fraction < 1 for fraction in clouds), seen  # partial clouds published
+    assert sum(1 - f for f in clouds) / len(clouds) > 0.75, seen
+    assert images and sum(1 - f for f in images) / len(images) > 0.75, seen
     latched = pcs.pilot.start(["rostopic", "echo", "-n", "1", "/robot_description_semantic"],
                               "latched echo")
     latched.wait_for("walkman", 30)

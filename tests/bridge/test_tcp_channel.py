@@ -6,6 +6,7 @@ channel's threads and sockets around it: who may connect, who may replace whom.
 
 from __future__ import annotations
 
+import select
 import socket
 import threading
 import time
@@ -276,33 +277,36 @@ def test_a_recorded_connection_replayed_is_refused(pair, tmp_path):
     proxy.listen(1)
     recorder = End("pilot", proxy.getsockname()[1], tmp_path / "rec", listen=False)
 
+    done = threading.Event()
+
     def relay() -> None:
         inbound, _ = proxy.accept()
         outbound = socket.create_connection(("127.0.0.1", pair.port))
-        inbound.settimeout(0.2)
-        outbound.settimeout(0.2)
-        deadline = time.monotonic() + 3
-        while time.monotonic() < deadline:
-            for src, dst, record in ((inbound, outbound, True), (outbound, inbound, False)):
-                try:
+        ends = {inbound: (outbound, True), outbound: (inbound, False)}
+        try:
+            while not done.is_set():
+                readable, _, _ = select.select(list(ends), [], [], 0.1)
+                for src in readable:
+                    dst, record = ends[src]
                     data = src.recv(65536)
-                    if data:
-                        dst.sendall(data)
-                except socket.timeout:
-                    continue
-                except OSError:
-                    break
-                if record:
-                    captured.extend(data)
-        inbound.close()
-        outbound.close()
+                    if not data:
+                        return
+                    dst.sendall(data)
+                    if record:
+                        captured.extend(data)
+        except OSError:
+            pass
+        finally:
+            inbound.close()
+            outbound.close()
 
     thread = threading.Thread(target=relay, daemon=True)
     thread.start()
     recorder.start()
     recorder.channel.send_reliable(SWITCH, Bottle(["recorded", 2]))
-    wait_until(lambda: any(b[0] == "recorded" for b in robot.reliable), 5,
+    wait_until(lambda: any(b[0] == "recorded" for b in robot.reliable), 15,
                message="the recorded command arrives once")
+    done.set()
     thread.join()
     recorder.stop()
     before = len(robot.reliable)

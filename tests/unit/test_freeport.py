@@ -20,6 +20,17 @@ def test_a_run_given_out_is_not_given_again_until_released(monkeypatch):
     assert freeport.free_port(**window) == first
 
 
+def test_runs_are_found_while_single_ports_are_scattered(monkeypatch):
+    monkeypatch.setattr(freeport, "_given", [])
+    monkeypatch.setattr(freeport, "is_free", lambda port, host="": True)
+    singles = [freeport.free_port() for _ in range(1000)]  # never released, as in a test run
+    assert all(11000 <= port < 11000 + freeport.SINGLES for port in singles)
+    assert len(set(singles)) == 1000
+    runs = [freeport.free_port(span=400) for _ in range(45)]  # every run of the region
+    assert len({range(r, r + 400) for r in runs}) == 45
+    assert all(not set(range(r, r + 400)) & set(singles) for r in runs)
+
+
 def test_ports_in_use_are_skipped():
     with socket.socket() as held:
         held.bind(("127.0.0.1", 0))
