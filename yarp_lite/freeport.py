@@ -15,9 +15,10 @@ from __future__ import annotations
 import random
 import socket
 import threading
-from typing import List
+from typing import Dict, List, Tuple
 
 _given: List[range] = []
+_cursor: Dict[Tuple[int, int], int] = {}   # region -> where the next search starts
 _lock = threading.Lock()
 
 
@@ -39,19 +40,36 @@ SINGLES = 3000
 def free_port(span: int = 1, start: int = 11000, end: int = 32000) -> int:
     """A port such that ``port .. port + span - 1`` are free and not given out before.
 
-    Every candidate of the region is tried once, in random order (runs at
-    multiples of ``span``), so a free run is found whenever one exists.
+    Next fit from where this process last gave out (first from a random
+    point), wrapping around: one process packs its runs side by side (random
+    bases fragment the range until no run of 400 fits), another process most
+    likely starts elsewhere, and every base is reachable, so a free run is
+    found whenever one exists.  A number still in TIME_WAIT
+    after its server stopped only rules out the runs that contain it.
     """
     if end - start > 2 * SINGLES:
         start, end = (start, start + SINGLES) if span == 1 else (start + SINGLES, end)
-    candidates = list(range(start, end - span + 1, span))
-    random.shuffle(candidates)
+    last = end - span - 1          # the highest base (``end`` itself is never given)
+    if last < start:
+        raise RuntimeError(f"no run of {span} free TCP ports between {start} and {end}")
     with _lock:
-        for base in candidates:
-            if any(base < taken.stop and taken.start < base + span for taken in _given):
-                continue
-            if all(is_free(base + offset) for offset in range(span)):
+        first = _cursor.get((start, end), random.randint(start, last))
+        first = first if start <= first <= last else start
+        for lo, hi in ((first, last), (start, first - 1)):
+            base = lo
+            while base <= hi:
+                clash = next((taken for taken in _given
+                              if base < taken.stop and taken.start < base + span), None)
+                if clash is not None:
+                    base = clash.stop
+                    continue
+                busy = next((base + offset for offset in range(span)
+                             if not is_free(base + offset)), None)
+                if busy is not None:
+                    base = busy + 1
+                    continue
                 _given.append(range(base, base + span))
+                _cursor[start, end] = base + span
                 return base
     raise RuntimeError(f"no run of {span} free TCP ports between {start} and {end}")
 
