@@ -2,7 +2,7 @@
 """The bridge's three benchmarks, on emulated robot and pilot PCs (needs root).
 
 1. **Table 1 bandwidth** -- robot to pilot at T = 1 s: 33 joints (a synthetic
-   HAL streaming stateExt, standing still or moving every joint), 7
+   HAL streaming stateSI, standing still or moving every joint), 7
    temperatures per second, 5 GYM module statuses (real modules).  Bits per
    second of bridge frames (payload and framing, no TCP/IP), then on the veth
    with TCP/IP headers.  References: the paper's 2400 bit/s, and what YARP's
@@ -90,9 +90,9 @@ TABLE_1_CONFIG = """<bridge period="1.0" gather="0.4">
 
 
 def direct_yarp_bits() -> float:
-    """What YARP's tcp carrier sends for one stateExt per chain and 5 statuses (one second)."""
+    """What YARP's tcp carrier sends for one stateSI per chain and 5 statuses (one second)."""
     from walkman.hal.config import load_config
-    from walkman.hal.protocol import ChainState, encode_state_ext
+    from walkman.hal.protocol import ChainState, encode_state_si
     from yarp_lite.bottle import Bottle, encode
     from yarp_lite.framing import encode_message
 
@@ -100,7 +100,7 @@ def direct_yarp_bits() -> float:
     for joints in load_config(ROOT / "models" / "hal_chains.ini").chains.values():
         n = len(joints)
         state = ChainState(1, 1.0, (0.1,) * n, (0.0,) * n, (1.0,) * n, (35.0,) * n)
-        total += len(b"".join(encode_message("D", [encode(encode_state_ext(state))])))
+        total += len(b"".join(encode_message("D", [encode(encode_state_si(state))])))
     for _ in range(5):
         total += len(b"".join(encode_message("D", [encode(Bottle([1234, "a"]))])))
     return total * 8.0

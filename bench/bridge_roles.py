@@ -4,7 +4,7 @@
 
 * ``hal MODE`` -- a synthetic HAL: answers ``/walkman/rpc:i [get] chains`` with
   the grouping of ``models/hal_chains.ini`` and streams every chain's
-  ``stateExt:o`` at 100 Hz; MODE ``still`` (a robot standing, sensor noise
+  ``stateSI:o`` at 100 Hz; MODE ``still`` (a robot standing, sensor noise
   below one encoder step) or ``moving`` (every joint swinging);
 * ``ping-sender TARGET COUNT RATE`` -- writes ``(ping <time>) seq`` over tcp;
 * ``ping-receiver PORT`` -- prints ``latency_ms <x>`` for each ping;
@@ -36,7 +36,7 @@ def hal(mode: str) -> None:
     chains = config.chains
     RpcServer(protocol.robot_rpc_name("walkman"),
               handler=lambda _: Bottle([Bottle([name, *joints]) for name, joints in chains.items()]))
-    ports = {name: Port(protocol.port_names("walkman", name)["state_ext"]) for name in chains}
+    ports = {name: Port(protocol.port_names("walkman", name)["state_si"]) for name in chains}
     rng = np.random.default_rng(0)
     started, seq = time.monotonic(), 0
     print("ready", flush=True)
@@ -56,7 +56,7 @@ def hal(mode: str) -> None:
                 qdot = np.zeros(n)
                 tau = 5 * np.ones(n) + rng.normal(0, 0.01, n)
             temperature = 35 + 0.05 * t / 60 + 0.1 * index % 3 + rng.normal(0, 0.002, n)
-            ports[name].write(protocol.encode_state_ext(ChainState(
+            ports[name].write(protocol.encode_state_si(ChainState(
                 seq, t, tuple(q), tuple(qdot), tuple(tau), tuple(temperature))))
             offset += n
         time.sleep(0.01)

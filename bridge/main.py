@@ -118,7 +118,7 @@ def describe(config: bridge_config.BridgeConfig) -> str:
     if config.robot_state:
         state_id, robot, transport = config.robot_state
         lines.append(f"{state_id:>3} {0:>4}  {robot + '/state':<34} {'robot':<6} "
-                     f"{transport:<4} {'latest':<9} /{robot}/<chain>/stateExt:o, "
+                     f"{transport:<4} {'latest':<9} /{robot}/<chain>/stateSI:o, "
                      f"{config.state_rate:g} Hz")
     return "\n".join(lines)
 

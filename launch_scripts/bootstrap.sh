@@ -14,7 +14,7 @@ DEBIAN_PACKAGES=(
   python3-rosservice python3-roslaunch
   ros-std-msgs ros-sensor-msgs ros-geometry-msgs python3-tf2-msgs
   libosmesa6 nftables iproute2 python3-venv python3-dev g++ cmake make curl
-  ycm-cmake-modules libsqlite3-dev
+  ycm-cmake-modules libsqlite3-dev libeigen3-dev
 )
 
 missing=()

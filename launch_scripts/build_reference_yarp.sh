@@ -4,7 +4,9 @@
 #
 # Usage: launch_scripts/build_reference_yarp.sh [--print-prefix]
 # Result: $WALKMAN_YARP_PREFIX (default ~/.cache/walkman/yarp-3.5.0) holds bin/yarp,
-# bin/yarpserver and the libraries; tests find it there (see tests/conftest.py).
+# bin/yarpserver, bin/yarpdev, the libraries and the device plugins the HAL is compared
+# with (controlboardwrapper2 + fakeMotionControl, remote_controlboard, analogServer,
+# inertial + fakeIMU); tests find it there (see tests/requirements.py).
 set -euo pipefail
 
 VERSION=3.5.0
@@ -14,14 +16,16 @@ PREFIX="${WALKMAN_YARP_PREFIX:-$CACHE/yarp-$VERSION}"
 
 if [[ "${1:-}" == "--print-prefix" ]]; then echo "$PREFIX"; exit 0; fi
 
-if [[ -x "$PREFIX/bin/yarpserver" && -x "$PREFIX/bin/yarp" && -f "$PREFIX/.complete" ]]; then
+# What the build holds; a cached build made with another list is rebuilt (incrementally).
+FEATURES="core devices:controlboardwrapper2,fakeMotionControl,remote_controlboard,analogServer,fakeAnalogSensor,inertial,fakeIMU"
+if [[ -x "$PREFIX/bin/yarpserver" && -x "$PREFIX/bin/yarpdev" && "$(cat "$PREFIX/.complete" 2>/dev/null)" == "$FEATURES" ]]; then
   echo "reference YARP $VERSION already built in $PREFIX"
   exit 0
 fi
 
 say() { echo "[build_reference_yarp] $*"; }
 need=()
-for pkg in cmake g++ make ycm-cmake-modules; do
+for pkg in cmake g++ make ycm-cmake-modules libeigen3-dev; do
   dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
 done
 if ((${#need[@]})); then
@@ -61,10 +65,11 @@ mkdir -p "$build"
 say "configuring (log: $build/configure.log)"
 cmake -S "$src" -B "$build" -DCMAKE_BUILD_TYPE=Release -DCMAKE_INSTALL_PREFIX="$PREFIX" \
   -DSKIP_ACE=ON -DYARP_COMPILE_BINDINGS=OFF -DYARP_COMPILE_GUIS=OFF -DYARP_COMPILE_TESTS=OFF \
-  -DYARP_COMPILE_EXAMPLES=OFF -DYARP_COMPILE_UNMAINTAINED=OFF -DYARP_COMPILE_DEVICE_PLUGINS=OFF \
-  -DYARP_COMPILE_CARRIER_PLUGINS=OFF -DYARP_COMPILE_libYARP_math=OFF \
+  -DYARP_COMPILE_EXAMPLES=OFF -DYARP_COMPILE_UNMAINTAINED=OFF -DYARP_COMPILE_DEVICE_PLUGINS=ON \
+  -DYARP_COMPILE_libYARP_math=ON -DENABLE_yarpmod_fakeMotionControl=ON -DENABLE_yarpmod_fakeIMU=ON \
+  -DENABLE_yarpmod_fakeAnalogSensor=ON -DYARP_COMPILE_CARRIER_PLUGINS=OFF \
   -DCMAKE_CXX_FLAGS="$includes" >"$build/configure.log" 2>&1 || { tail -30 "$build/configure.log"; exit 1; }
-say "compiling with $(nproc) jobs, about 8 minutes on 2 cores (log: $build/build.log)"
+say "compiling with $(nproc) jobs, about 15 minutes on 2 cores (log: $build/build.log)"
 start=$SECONDS
 cmake --build "$build" -j"$(nproc)" >"$build/build.log" 2>&1 &
 pid=$!
@@ -75,5 +80,5 @@ while kill -0 "$pid" 2>/dev/null; do
 done
 wait "$pid" || { tail -40 "$build/build.log"; exit 1; }
 cmake --install "$build" >"$build/install.log" 2>&1 || { tail -20 "$build/install.log"; exit 1; }
-touch "$PREFIX/.complete"
+echo "$FEATURES" > "$PREFIX/.complete"
 say "done in $((SECONDS - start)) s: $PREFIX/bin/yarpserver"

@@ -51,7 +51,7 @@ CONTRACT_TOPICS = {
 }
 CONTRACT_PORTS = [f"/{m}/{p}" for m in MODULES
                   for p in ("switch:i", "command:i", "status:o", "warning:o")] + \
-    ["/walkman/rpc:i"] + [f"/walkman/{chain}/stateExt:o" for chain in
+    ["/walkman/rpc:i"] + [f"/walkman/{chain}/stateSI:o" for chain in
                           ("torso", "head", "left_arm", "right_arm", "left_leg", "right_leg",
                            "left_hand", "right_hand")]
 CONTRACT_SERVICES = [f"/{m}/{s}" for m in MODULES

@@ -108,8 +108,8 @@ class OutgoingConnection:
         if want_reply and not self.carrier.supports_reply:
             raise LocalProtocolError(
                 f"carrier {self.carrier.name} cannot carry replies (try tcp or text_ack)")
-        if command == "d" and not want_reply:
-            command = "D"
+        if command[:1] == "d" and not want_reply:
+            command = "D" + command[1:]
         with self.lock:
             if timeout is not None and isinstance(self.stream, SocketStream):
                 self.stream.set_timeout(timeout)

@@ -348,8 +348,17 @@ __all__ = ["yarp_number", "parse_yarp_number", "encode_sender_name", "encode_ind
            "NeedMoreData", "DATA_REPLY", "DATA_NO_REPLY", "ADMIN_DATA", "ACK"]
 
 
+def is_data_command(command: str) -> bool:
+    """``d``/``D``/``a``, or data with an envelope: ``d <envelope>``/``D <envelope>``."""
+    return command in ("d", "D", "a") or command[:2] in ("d ", "D ")
+
+
 def command_header(command: str) -> bytes:
-    """The bytes that open a payload for a data command or a textual command."""
+    """The bytes that open a payload for a data command or a textual command.
+
+    Data with an envelope (a timestamp, say) travels as the textual command
+    ``D <envelope>``, as YARP's PortCoreOutputUnit sends it.
+    """
     if command == "d":
         return DATA_REPLY
     if command == "D":
@@ -369,6 +378,6 @@ def encode_message(command: str, chunks: Sequence[Buffer] = ()) -> list:
     head = command_header(command)
     data_length = sum(len(chunk) if type(chunk) is bytes else memoryview(chunk).nbytes
                       for chunk in chunks)
-    if command in ("d", "D", "a"):
+    if is_data_command(command):
         return [encode_index([len(head), data_length]), head, *chunks]
     return [encode_index([len(head) + data_length]), head, *chunks]

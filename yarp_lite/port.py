@@ -580,15 +580,20 @@ class Port:
 
     # -- writing -----------------------------------------------------------------
 
-    def write(self, bottle: Union[Bottle, Sequence, Payload]) -> bool:
-        """Send to every output; False if any output failed (and was dropped)."""
+    def write(self, bottle: Union[Bottle, Sequence, Payload], envelope: str = "") -> bool:
+        """Send to every output; False if any output failed (and was dropped).
+
+        ``envelope`` travels beside the data, as YARP's ``Port::setEnvelope``
+        sends it (a Stamp is ``"count time"``); readers see it as ``envelope``.
+        """
         payload = bottle if isinstance(bottle, Payload) else BottlePayload(bottle)
+        command = f"D {envelope}" if envelope else "D"
         with self._lock:
             outputs = list(self._outputs.values())
         all_ok = True
         for unit in outputs:
             try:
-                unit.connection.send("D", payload, timeout=self.timeout)
+                unit.connection.send(command, payload, timeout=self.timeout)
             except YarpError as exc:
                 all_ok = False
                 log.info("%s: output to %s failed (%s); removing it", self.name,

@@ -14,9 +14,11 @@ them twice a second -- locally, on the bridge's own port, so checking costs no
 traffic -- and remakes any that is missing: after a module, a name server or
 the bridge itself restarted, connections come back without anyone asking.
 
-:class:`RobotStateSink` gathers the HAL's per-chain ``stateExt:o`` into one
+:class:`RobotStateSink` gathers the HAL's per-chain ``stateSI:o`` into one
 whole-robot reading; :class:`RobotStateSource` republishes it on the pilot
-side as ``/<robot>/<chain>/stateExt:o`` and ``state:o``.
+side as ``/<robot>/<chain>/stateSI:o`` and, for YARP's own tools, as the
+control board's ``state:o`` and ``stateExt:o`` (positions, velocities and
+torques; control modes unknown, so marked invalid).
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from bridge.config import Channel
 from bridge.state_codec import Layout, RobotState, StateDecoder, StateEncoder, split_by_chain
 from walkman.hal import protocol
 from walkman.hal.protocol import ChainState, HalProtocolError
+from walkman.hal.controlboard import JointData, Stamp, encode_joint_data
 from yarp_lite import network
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.buffered_port import BufferedPort
@@ -254,14 +257,14 @@ class RobotStateSink:
                                 on_read=lambda b, chain=chain: self._on_state(chain, b))
             port.open(f"/bridge/robot/state/{chain}:i")
             self._ports.append(port)
-            self.keeper.want(protocol.port_names(self.robot, chain)["state_ext"], port.name,
+            self.keeper.want(protocol.port_names(self.robot, chain)["state_si"], port.name,
                              port, ours_is_source=False, carrier="fast_tcp")
         log.info("robot state: %d chains, %d joints", len(layout.chains), layout.joints)
 
     def _on_state(self, chain: str, bottle: Bottle) -> None:
         start, count = self._offsets.get(chain, (0, 0))
         try:
-            state = protocol.decode_state_ext(bottle, count)
+            state = protocol.decode_state_si(bottle, count)
         except HalProtocolError as exc:
             log.warning("robot state: %s: %s", chain, exc)
             return
@@ -305,19 +308,19 @@ class RobotStateSource:
         self.robot = robot
         self.nameclient = nameclient
         self.layout: Optional[Layout] = None
-        self._ports: Dict[str, Tuple[Port, Port]] = {}
+        self._ports: Dict[str, Tuple[Port, Port, Port]] = {}
         self._rpc: Optional[RpcServer] = None
         self._previous: Optional[RobotState] = None
-        self._seq = 0
+        self._stamp = Stamp()
         self.received = 0
 
     def _adopt(self, layout: Layout) -> None:
         self.close()
         for chain, _ in layout.chains:
             names = protocol.port_names(self.robot, chain)
-            state = Port(nameclient=self.nameclient).open(names["state"], wait=math.inf)
-            ext = Port(nameclient=self.nameclient).open(names["state_ext"], wait=math.inf)
-            self._ports[chain] = (state, ext)
+            self._ports[chain] = tuple(  # type: ignore[assignment]
+                Port(nameclient=self.nameclient).open(names[key], wait=math.inf)
+                for key in ("state", "state_ext", "state_si"))
         self.layout = layout  # before the rpc port opens: its first caller gets the answer
         self._previous = None
         # The HAL's grouping, for whole-body readers on this side (read only: no commands).
@@ -338,23 +341,27 @@ class RobotStateSource:
         if previous is not None and state.time > previous.time:
             qdot = (state.q - previous.q) / (state.time - previous.time)
         self._previous = state
-        self._seq += 1
+        envelope = self._stamp.update(time.time()).envelope()
         self.received += 1
         pieces = zip(split_by_chain(state.layout, state.q), split_by_chain(state.layout, qdot),
                      split_by_chain(state.layout, state.tau),
                      split_by_chain(state.layout, state.temperature))
         for (chain, q), (_, dq), (_, tau), (_, temperature) in pieces:
-            state_port, ext_port = self._ports[chain]
-            state_port.write(protocol.encode_state(q.tolist()))
-            ext_port.write(protocol.encode_state_ext(ChainState(
-                self._seq, state.time, tuple(q.tolist()), tuple(dq.tolist()),
+            state_port, ext_port, si_port = self._ports[chain]
+            q_deg = np.degrees(q)
+            state_port.write(Bottle(q_deg.tolist()), envelope)
+            ext_port.write(encode_joint_data(JointData(
+                tuple(q_deg.tolist()), tuple(np.degrees(dq).tolist()), None,
+                tuple(tau.tolist())), len(q)), envelope)
+            si_port.write(protocol.encode_state_si(ChainState(
+                self._stamp.count, state.time, tuple(q.tolist()), tuple(dq.tolist()),
                 tuple(tau.tolist()), tuple(temperature.tolist()))))
         return True
 
     def close(self) -> None:
-        for state, ext in self._ports.values():
-            state.close()
-            ext.close()
+        for ports in self._ports.values():
+            for port in ports:
+                port.close()
         self._ports = {}
         if self._rpc is not None:
             self._rpc.close()

@@ -80,9 +80,9 @@ def test_the_robot_state_crosses_in_the_table_1_codec(pcs, lite):
     pcs.start_bridge(pcs.robot)
     pcs.start_bridge(pcs.pilot)
     pcs.wait_linked()
-    wait_until(lambda: pcs.pilot.world.run_tool(lite, "exists", "/walkman/head/stateExt:o")
+    wait_until(lambda: pcs.pilot.world.run_tool(lite, "exists", "/walkman/head/stateSI:o")
                .returncode == 0, 30, message="the HAL's ports republished on the pilot side")
-    reader = pcs.pilot.world.tool(lite, "read", "/test/head", "/walkman/head/stateExt:o")
+    reader = pcs.pilot.world.tool(lite, "read", "/test/head", "/walkman/head/stateSI:o")
     line = reader.wait_for(r"^\s*\d+(\.\d+)? [\d.]+ 2(\.0)? ", 30)
     values = [float(v) for v in line.string.split()]
     assert len(values) == 3 + 4 * 2       # seq time N q[2] qdot[2] tau[2] temperature[2]

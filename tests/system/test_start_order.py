@@ -63,7 +63,7 @@ def test_every_start_order_converges_to_the_same_graph(tmp_path, request, kind, 
                 pilot = seen["pilot" if kind == "drc" else "lab"]
                 assert pilot["topics"]["/gaze_control/status"]["pub"], pilot["topics"]
                 assert "/gaze_control/send_command" in pilot["services"]
-                assert "/walkman/head/stateExt:o" in pilot["ports"]
+                assert "/walkman/head/stateSI:o" in pilot["ports"]
             else:
                 try:
                     wait_until(lambda: observe_both(topology) == reference, 60, interval=2.0,

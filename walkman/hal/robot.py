@@ -2,15 +2,35 @@
 
 Upper tier of the HAL (the paper's *WholeBodyInterface*): modules call
 ``sense_position()`` and ``move(q)`` on 33-element vectors in the model's
-joint order and never see how the HAL groups joints into chains, nor YARP.
-The grouping is asked of the HAL (``/<robot>/rpc:i [get] [chains]``) when
-the interface connects, so regrouping the HAL changes nothing here.
+joint order and never see how the robot groups joints into chains, nor YARP.
+
+Theory of operation
+-------------------
+Any YARP robot will do: each chain is a YARP control board
+(:mod:`walkman.hal.controlboard`), the client of ``remote_controlboard``
+written on yarp_lite.  The grouping is found at connection time:
+
+* a Walk-Man HAL (or the bridge's copy of it) answers ``[get] chains`` on
+  ``/<robot>/rpc:i`` with every chain and its joints, and streams the compact
+  SI state ``stateSI:o`` (with the HAL's temperatures and a state count), so
+  that is what we read;
+* any other YARP robot is found chain by chain (``/<robot>/<chain>/rpc:i``
+  for the chains of :data:`CHAINS`): ``[get] [axes]``, ``[get] [name] j``;
+  its state is the standard ``stateExt:o`` (``jointData``, degrees) and its
+  motor temperatures are asked with ``[get] [tmps]`` once a second.
+
+Commands are YARP's streaming position-direct commands (``[dpos]``,
+``[dpog]`` on ``command:i``); the joints a module commands are switched to
+position-direct mode (``[set] [icmd] [cmog]``) the first time, and again
+after the robot was away.  The head of each command also carries ``(seq N)``,
+the state count it answers, which the HAL uses to measure sense->move
+latency and any other robot ignores.
 
 Connections are persistent (made by the name server), so a module can start
-before the HAL, and survives the HAL restarting.  ``move`` refuses what would
-be unsafe -- wrong length, NaN -- with :class:`HalUsageError`, clamps
+before the robot, and survives the robot restarting.  ``move`` refuses what
+would be unsafe -- wrong length, NaN -- with :class:`HalUsageError`, clamps
 references to the joint limits and reports it, and sends nothing when the
-HAL is not there.
+robot is not there.
 """
 
 from __future__ import annotations
@@ -19,14 +39,16 @@ import logging
 import math
 import threading
 import time
-from typing import Dict, List, Optional, Sequence, Tuple
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Sequence, Set, Tuple
 
 import numpy as np
 
-from walkman.hal import protocol
-from walkman.hal.protocol import Command, HalProtocolError, HalUsageError
+from walkman.hal import controlboard, protocol
+from walkman.hal.controlboard import ControlBoardError
+from walkman.hal.protocol import HalProtocolError, HalUsageError
+from walkman.model.description import CHAINS, walkman
 from walkman.model.description import Robot as RobotModel
-from walkman.model.description import walkman
 from yarp_lite import network
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.buffered_port import BufferedPort
@@ -53,8 +75,19 @@ def check_reference(q: Sequence[float], names: Sequence[str], lower: np.ndarray,
     return np.clip(values, lower, upper)
 
 
+@dataclass
+class _ChainLink:
+    name: str
+    indices: List[int]
+    command: Port
+    rpc: str                                    # the chain's rpc:i port name
+    direct: Set[int] = field(default_factory=set)  # joints switched to position direct
+    asked_at: float = -1e9                         # when we last asked for position direct
+    reported: bool = False
+
+
 class Robot:
-    """Whole-body access to a HAL, for one module (``owner`` prefixes its ports)."""
+    """Whole-body access to a robot, for one module (``owner`` prefixes its ports)."""
 
     def __init__(self, owner: str, robot: str = "walkman", model: Optional[RobotModel] = None,
                  nameclient: Optional[NameClient] = None, connect_timeout: float = 30.0,
@@ -74,42 +107,51 @@ class Robot:
         self._tau = np.zeros(count)
         self._temperature = np.zeros(count)
         self._seen = np.zeros(count, dtype=bool)
-        self._stamp: Dict[str, Tuple[int, float]] = {}
         self._updated = 0.0
         self._lock = threading.Lock()
         self._ft: Dict[str, np.ndarray] = {}
         self._imu: Optional[Tuple[List[float], List[float], List[float]]] = None
         self.chains: Dict[str, List[int]] = {}
+        self._links: Dict[str, _ChainLink] = {}
         self._ports: List[Port] = []
-        self._command_ports: Dict[str, Port] = {}
+        self._subs: List[Tuple[str, str]] = []
+        self.standard = False  # True: a plain YARP robot (no stateSI:o, no [get] chains)
         self.clamped = 0
         self.last_seq = 0
         self._hal_warnings: List[str] = []
+        self._away_since = 0.0
+        self._stop = threading.Event()
         self._connect(connect_timeout)
 
     # -- connecting ----------------------------------------------------------------------
 
     def _connect(self, timeout: float) -> None:
-        grouping = self._ask_grouping(timeout)
+        grouping = self._find_grouping(timeout)
         for chain, joints in grouping.items():
             unknown = [j for j in joints if j not in self.index]
             if unknown:
-                raise HalProtocolError(f"HAL chain {chain} has joints this model lacks: {unknown}")
+                raise HalProtocolError(f"robot chain {chain} has joints this model lacks: "
+                                       f"{unknown}")
             self.chains[chain] = [self.index[j] for j in joints]
         missing = set(self.joint_names) - {j for joints in grouping.values() for j in joints}
-        if missing:
+        if missing and not self.standard:
             raise HalProtocolError(f"the HAL does not expose joints {sorted(missing)}")
+        if missing:
+            log.info("%s: this robot has no %s; those joints stay unseen", self.owner,
+                     ", ".join(sorted(missing)))
+            self._seen[[self.index[j] for j in missing]] = True
         for chain, indices in self.chains.items():
             names = protocol.port_names(self.robot, chain)
-            state = BufferedPort(nameclient=self.nameclient,
-                                 on_read=lambda b, chain=chain, idx=indices: self._on_state(
-                                     chain, idx, b))
+            reader = self._on_state_ext if self.standard else self._on_state_si
+            state = BufferedPort(nameclient=self.nameclient)
+            state.on_read = lambda b, chain=chain, idx=indices, port=state: reader(
+                chain, idx, b, port.envelope)
             state.open(f"{self.owner}/robot/{chain}/state:i")
             command = Port(nameclient=self.nameclient)
             command.open(f"{self.owner}/robot/{chain}/command:o")
             self._ports += [state, command]
-            self._command_ports[chain] = command
-            self._persist(names["state_ext"], state.name)
+            self._links[chain] = _ChainLink(chain, indices, command, names["rpc"])
+            self._persist(names["state_ext" if self.standard else "state_si"], state.name)
             self._persist(command.name, names["command"])
         for sensor in (s.name for s in self.model.sensors if s.kind == "ft"):
             port = BufferedPort(nameclient=self.nameclient,
@@ -117,17 +159,22 @@ class Robot:
             port.open(f"{self.owner}/robot/{sensor}:i")
             self._ports.append(port)
             self._persist(protocol.ft_port_name(self.robot, sensor), port.name)
+        imu = BufferedPort(nameclient=self.nameclient, on_read=self._on_imu)
+        imu.open(f"{self.owner}/robot/inertial:i")
+        self._ports.append(imu)
+        self._persist(protocol.imu_port_name(self.robot), imu.name)
+        if self.standard:
+            threading.Thread(target=self._poll_temperatures, daemon=True,
+                             name=f"{self.owner} temperatures").start()
+            return
         warnings = BufferedPort(nameclient=self.nameclient, strict=True,
                                 on_read=self._on_hal_warning)
         warnings.open(f"{self.owner}/robot/warning:i")
         self._ports.append(warnings)
         self._persist(protocol.hal_warning_port_name(self.robot), warnings.name)
-        imu = BufferedPort(nameclient=self.nameclient, on_read=self._on_imu)
-        imu.open(f"{self.owner}/robot/inertial:i")
-        self._ports.append(imu)
-        self._persist(protocol.imu_port_name(self.robot), imu.name)
 
-    def _ask_grouping(self, timeout: float) -> Dict[str, List[str]]:
+    def _find_grouping(self, timeout: float) -> Dict[str, List[str]]:
+        """Ask the HAL for its chains; failing that, find a plain YARP robot's parts."""
         deadline = time.monotonic() + timeout
         said = 0.0
         answer = ""
@@ -143,27 +190,54 @@ class Robot:
                         return grouping
                     # A HAL (or a bridge's copy of it) that is not ready yet: ask again.
                     answer = f"; it answered {str(reply)[:120]}"
+                else:
+                    parts = self._find_parts()
+                    if parts:
+                        self.standard = True
+                        return parts
             except YarpError:
                 pass
             now = time.monotonic()
             if now > deadline:
-                raise NetworkError(f"no HAL answered at {rpc_name} within {timeout:g} s")
+                raise NetworkError(f"no robot answered at {rpc_name} nor at "
+                                   f"/{self.robot}/<chain>/rpc:i within {timeout:g} s")
             if now - said > 5:
-                log.info("%s: waiting for the HAL (%s)%s", self.owner, rpc_name, answer)
+                log.info("%s: waiting for the robot (%s)%s", self.owner, rpc_name, answer)
                 said = now
             time.sleep(0.3)
 
+    def _find_parts(self) -> Dict[str, List[str]]:
+        """A plain YARP robot: its control boards named after our chains, joints by name
+        (``[get] [name] j``) or, when the names are not ours, by our order."""
+        parts: Dict[str, List[str]] = {}
+        for chain in CHAINS:
+            contact = self.nameclient.query(protocol.port_names(self.robot, chain)["rpc"])
+            if contact is None:
+                continue
+            ours = [j.name for j in self.model.joints if j.chain == chain]
+            axes = network.request(contact, [Vocab("get"), Vocab("axes")], timeout=5)
+            if len(axes) < 3 or str(axes[-1]) != "ok" or not isinstance(axes[2], int):
+                raise HalProtocolError(f"/{self.robot}/{chain}: [get] [axes] answered {axes}")
+            names = []
+            for axis in range(int(axes[2])):
+                reply = network.request(contact, [Vocab("get"), Vocab("name"), axis], timeout=5)
+                names.append(str(reply[2]) if len(reply) > 2 and str(reply[-1]) == "ok" else "")
+            if all(name in self.index for name in names):
+                parts[chain] = names
+            elif len(names) == len(ours):
+                log.info("%s: /%s/%s names its axes %s; taking them as %s", self.owner,
+                         self.robot, chain, names, ours)
+                parts[chain] = ours
+            else:
+                raise HalProtocolError(f"/{self.robot}/{chain} has {len(names)} axes {names}; "
+                                       f"the model's {chain} has {len(ours)}: {ours}")
+        return parts
+
     def _persist(self, source: str, target: str) -> None:
-        """Ask the name server to keep this connection up (HAL restarts included)."""
+        """Ask the name server to keep this connection up (robot restarts included)."""
         if not self.nameclient.subscribe(source, f"{self.carrier}:/{target}"):
             raise NetworkError(f"name server refused the connection {source} -> {target}")
-        self._subscriptions.append((source, f"{self.carrier}:/{target}"))
-
-    @property
-    def _subscriptions(self) -> List[Tuple[str, str]]:
-        if not hasattr(self, "_subs"):
-            self._subs: List[Tuple[str, str]] = []
-        return self._subs
+        self._subs.append((source, f"{self.carrier}:/{target}"))
 
     def wait_until_ready(self, timeout: float = 10.0) -> bool:
         """Block until every joint has been seen at least once."""
@@ -176,7 +250,8 @@ class Robot:
         return False
 
     def close(self) -> None:
-        for source, target in self._subscriptions:
+        self._stop.set()
+        for source, target in self._subs:
             try:
                 self.nameclient.unsubscribe(source, target)
             except YarpError:
@@ -186,21 +261,68 @@ class Robot:
 
     # -- incoming state --------------------------------------------------------------------
 
-    def _on_state(self, chain: str, indices: List[int], bottle: Bottle) -> None:
+    def _on_state_si(self, chain: str, indices: List[int], bottle: Bottle,
+                     envelope: str = "") -> None:
         try:
-            state = protocol.decode_state_ext(bottle, len(indices))
+            state = protocol.decode_state_si(bottle, len(indices))
         except HalProtocolError as exc:
             log.warning("%s: bad state from the HAL on %s: %s", self.owner, chain, exc)
             return
+        self._store(indices, state.seq, state.q, state.qdot, state.tau, state.temperature)
+
+    def _on_state_ext(self, chain: str, indices: List[int], bottle: Bottle,
+                      envelope: str = "") -> None:
+        try:
+            data = controlboard.decode_joint_data(bottle)
+            if data.position is None or len(data.position) != len(indices):
+                raise ControlBoardError(f"positions for {len(indices)} joints expected")
+        except ControlBoardError as exc:
+            log.warning("%s: bad stateExt from %s: %s", self.owner, chain, exc)
+            return
+        stamp = controlboard.Stamp.from_envelope(envelope)
+        zeros = [0.0] * len(indices)
+        self._store(indices, stamp.count if stamp else 0, np.radians(data.position),
+                    np.radians(data.velocity) if data.velocity else zeros,
+                    data.torque or zeros, None)
+
+    def _store(self, indices: List[int], seq: int, q: Sequence[float], qdot: Sequence[float],
+               tau: Sequence[float], temperature: Optional[Sequence[float]]) -> None:
         with self._lock:
-            self._q[indices] = state.q
-            self._qdot[indices] = state.qdot
-            self._tau[indices] = state.tau
-            self._temperature[indices] = state.temperature
+            self._q[indices] = q
+            self._qdot[indices] = qdot
+            self._tau[indices] = tau
+            if temperature is not None:
+                self._temperature[indices] = temperature
             self._seen[indices] = True
-            self._stamp[chain] = (state.seq, state.time)
-            self.last_seq = max(self.last_seq, state.seq)
+            self.last_seq = seq
             self._updated = time.monotonic()
+
+    def _poll_temperatures(self) -> None:
+        """A plain YARP robot streams no temperatures: ask for them once a second."""
+        while not self._stop.wait(1.0):
+            for link in list(self._links.values()):
+                reply = self._rpc(link, [Vocab("get"), Vocab("tmps")])
+                if reply is not None and len(reply) > 2 and isinstance(reply[2], list) and \
+                        len(reply[2]) == len(link.indices):
+                    with self._lock:
+                        self._temperature[link.indices] = [float(v) for v in reply[2]]
+
+    def _rpc(self, link: _ChainLink, request: Sequence) -> Optional[Bottle]:
+        """One request to a chain's rpc:i; None (logged once) if it failed."""
+        try:
+            contact = self.nameclient.query(link.rpc)
+            reply = network.request(contact, request, timeout=2) if contact else None
+        except YarpError as exc:
+            reply, why = None, str(exc)
+        else:
+            why = "no answer" if reply is None else f"answered {reply.to_text()[:80]}"
+        if reply is not None and len(reply) and str(reply[-1]) == "ok":
+            link.reported = False
+            return reply
+        if not link.reported:
+            link.reported = True
+            log.info("%s: %s %s: %s", self.owner, link.rpc, Bottle(request).to_text(), why)
+        return None
 
     def _on_ft(self, sensor: str, bottle: Bottle) -> None:
         if len(bottle) >= 6:
@@ -272,37 +394,48 @@ class Robot:
 
     def move(self, q: Sequence[float], mode: str = "pos",
              joints: Optional[Sequence[str]] = None) -> bool:
-        """Stream a whole-body position reference (rad).  False if the HAL is away.
+        """Stream a whole-body position reference (rad).  False if the robot is away.
 
         With ``joints`` only those joints are commanded (the values for the
         others in ``q`` are ignored), so modules sharing the robot do not
         overwrite each other's joints.
         """
+        if mode != "pos":
+            raise HalUsageError(f"move streams positions (mode 'pos'), not {mode!r}")
         values = self.check(q)
+        if not self.connected:
+            self._away_since = self._away_since or time.monotonic()
+            return False
+        if self._away_since:
+            for link in self._links.values():  # a robot back from away boots in position mode
+                link.direct.clear()
+            self._away_since = 0.0
         selected = None if joints is None else {self.index[name] for name in joints}
         sent = True
-        for chain, indices in self.chains.items():
-            if selected is None:
-                command = Command(mode, tuple(values[indices]), self.last_seq or None)
-            else:
-                mine = [k for k, index in enumerate(indices) if index in selected]
-                if not mine:
-                    continue
-                command = Command("pjnt", tuple(values[[indices[k] for k in mine]]),
-                                  self.last_seq or None, tuple(mine))
-            sent = self._command_ports[chain].write(protocol.encode_command(command)) and sent
-        return sent and self.connected
+        for chain, link in self._links.items():
+            mine = [k for k, index in enumerate(link.indices)
+                    if selected is None or index in selected]
+            if not mine:
+                continue
+            if not set(mine) <= link.direct:
+                self._switch_to_direct(link, mine)
+            refs = np.degrees(values[[link.indices[k] for k in mine]])
+            bottle = controlboard.encode_stream(
+                "direct", refs, None if len(mine) == len(link.indices) else mine,
+                self.last_seq or None)
+            sent = link.command.write(bottle) and sent
+        return sent
 
-    def move_to(self, q: Sequence[float]) -> bool:
-        """Go to ``q`` at the reference speed (the HAL interpolates)."""
-        return self.move(q, mode="move")
-
-    def set_ref_speed(self, speed: float) -> None:
-        for chain, indices in self.chains.items():
-            contact = self.nameclient.query(protocol.port_names(self.robot, chain)["rpc"])
-            if contact is not None:
-                network.request(contact, [Vocab("set"), Vocab("vels"),
-                                          Bottle([float(speed)] * len(indices))])
+    def _switch_to_direct(self, link: _ChainLink, joints: List[int]) -> None:
+        """Position-direct mode for these joints (YARP boards refuse [dpos] otherwise)."""
+        now = time.monotonic()
+        if now - link.asked_at < 1.0:
+            return  # asked a moment ago (and failed): do not stall the control loop
+        link.asked_at = now
+        reply = self._rpc(link, [Vocab("set"), Vocab("icmd"), Vocab("cmog"), len(joints),
+                                 Bottle(joints), Bottle(Vocab("posd") for _ in joints)])
+        if reply is not None:
+            link.direct.update(joints)
 
     def hold(self) -> bool:
         """Keep the current position (the safe answer to anything unexpected)."""

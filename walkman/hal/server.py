@@ -28,17 +28,19 @@ import sys
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Deque, Dict, List, Optional, Tuple
 
 import numpy as np
 
 from walkman.hal import protocol
+from walkman.hal import controlboard
 from walkman.hal.arbitration import Conflict, JointArbiter, owner_of
-from walkman.hal.backend import DEFAULT_REF_SPEED, Backend
+from walkman.hal.backend import Backend
+from walkman.hal.chain import ChainBoard
 from walkman.hal.config import HalConfig, load_config
-from walkman.hal.protocol import ChainState, Command, HalProtocolError
+from walkman.hal.controlboard import ControlBoardError, JointData, Stamp
+from walkman.hal.protocol import ChainState
 from walkman.model.mjcf import STATIONS
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.nameclient import NameClient
@@ -53,32 +55,19 @@ STATUS_PERIOD_S = 5.0
 PUBLISHED_HISTORY = 2048  # state publications remembered for latency (2 s at 1 kHz)
 
 
-@dataclass
-class _Chain:
-    name: str
-    joints: List[str]
-    indices: np.ndarray
-    ports: Dict[str, Port] = field(default_factory=dict)
-    pending: List[Command] = field(default_factory=list)  # since the last step, in order
-    targets: Optional[np.ndarray] = None     # [move] goals, reached at the reference speed
-    ref_speed: Optional[np.ndarray] = None
-    commands: int = 0
-    refused: int = 0
-
-
 class Publisher(threading.Thread):
     """Writes snapshots to ports; the physics thread never blocks on a socket."""
 
     def __init__(self) -> None:
         super().__init__(daemon=True, name="hal publisher")
         self.cond = threading.Condition()
-        self.pending: Dict[int, Tuple[Port, Bottle]] = {}
+        self.pending: Dict[int, Tuple[Port, Bottle, str]] = {}
         self.running = True
         self.sent = 0
 
-    def publish(self, port: Port, bottle: Bottle) -> None:
+    def publish(self, port: Port, bottle: Bottle, envelope: str = "") -> None:
         with self.cond:
-            self.pending[id(port)] = (port, bottle)
+            self.pending[id(port)] = (port, bottle, envelope)
             self.cond.notify()
 
     def run(self) -> None:
@@ -89,8 +78,8 @@ class Publisher(threading.Thread):
                 if not self.running:
                     return
                 batch, self.pending = list(self.pending.values()), {}
-            for port, bottle in batch:
-                port.write(bottle)
+            for port, bottle, envelope in batch:
+                port.write(bottle, envelope)
                 self.sent += 1
 
     def stop(self) -> None:
@@ -108,17 +97,20 @@ class HalServer:
         self.nameclient = nameclient or NameClient()
         self.realtime = realtime
         self.lock = threading.Lock()
-        self.chains: Dict[str, _Chain] = {
-            name: _Chain(name, joints, np.array([backend.index[j] for j in joints]))
-            for name, joints in config.chains.items()}
-        self.ports: List[Port] = []
         self.arbiter = JointArbiter(backend.joint_names, config.policy, config.priorities,
                                     config.release_after)
+        self.chains: Dict[str, ChainBoard] = {
+            name: ChainBoard(name, joints, backend, self._arbitrate, self._on_command_seq)
+            for name, joints in config.chains.items()}
+        self.chain_ports: Dict[str, Dict[str, Port]] = {name: {} for name in self.chains}
+        self.rpc_stamps: Dict[str, Stamp] = {name: Stamp() for name in self.chains}
+        self.state_stamp = Stamp()
+        self.sensor_stamp = Stamp()
+        self.ports: List[Port] = []
         self.warning_port: Optional[Port] = None
         self._warning_seq = 1
         self.publisher = Publisher()
         self.running = False
-        self.seq = 0
         # When each state seq went out, as a ring indexed by seq (written by the loop,
         # read by command readers without a lock: one float store, no iteration).
         self.published_at = np.zeros(PUBLISHED_HISTORY)
@@ -141,17 +133,18 @@ class HalServer:
                                        protocol.hal_warning_port_name(self.robot))
         for chain in self.chains.values():
             names = protocol.port_names(self.robot, chain.name)
-            chain.ports["state"] = self._open(Port(nameclient=self.nameclient), names["state"])
-            chain.ports["state_ext"] = self._open(Port(nameclient=self.nameclient),
-                                                  names["state_ext"])
-            chain.ports["command"] = self._open(
+            ports = self.chain_ports[chain.name]
+            for key in ("state", "state_ext", "state_si"):
+                ports[key] = self._open(Port(nameclient=self.nameclient), names[key])
+            ports["command"] = self._open(
                 Port(nameclient=self.nameclient, reader_wants_source=True,
                      reader=lambda bottle, source, chain=chain: self._on_command(chain, bottle,
                                                                                  source)),
                 names["command"])
-            chain.ports["rpc"] = self._open(
-                RpcServer(nameclient=self.nameclient,
-                          handler=lambda bottle, chain=chain: self._chain_rpc(chain, bottle)),
+            ports["rpc"] = self._open(
+                RpcServer(nameclient=self.nameclient, reader_wants_source=True,
+                          handler=lambda bottle, source, chain=chain: self._chain_rpc(
+                              chain, bottle, source)),
                 names["rpc"])
         for sensor in self.backend.ft_sensors:
             self.ft_ports[sensor] = self._open(Port(nameclient=self.nameclient),
@@ -179,46 +172,30 @@ class HalServer:
 
     # -- incoming ----------------------------------------------------------------------
 
-    def _on_command(self, chain: _Chain, bottle: Bottle, source: str = "") -> None:
+    def _on_command(self, chain: ChainBoard, bottle: Bottle, source: str = "") -> None:
+        """A streaming command (``command:i``): refused with a log line when malformed."""
         try:
-            command = protocol.decode_command(bottle, len(chain.joints))
-        except HalProtocolError as exc:
+            command = controlboard.decode_stream(bottle, chain.axes())
+            chain.command(command.what, command.joints, command.values,
+                          owner_of(source) if source else "?", command.seq)
+        except ControlBoardError as exc:
             chain.refused += 1
             if chain.refused in (1, 10, 100) or chain.refused % 1000 == 0:
                 log.warning("%s: refused command #%d from %s: %s", chain.name, chain.refused,
                             source or "?", exc)
-            return
-        command = self._arbitrate(chain, command, owner_of(source) if source else "?")
-        if command is None:
-            return
-        now = time.perf_counter()
-        with self.lock:
-            if command.mode in ("pjnt", "pos") and chain.pending and \
-                    chain.pending[-1].mode in ("pjnt", "pos"):
-                # Partial commands of several modules in one step all count.
-                chain.pending = chain.pending[-7:] + [command] if command.mode == "pjnt" \
-                    else [command]
-            else:
-                chain.pending = [command]
-            chain.commands += 1
-            if command.seq is not None and 0 <= self.seq - command.seq < PUBLISHED_HISTORY:
-                self.latencies.append(now - self.published_at[command.seq % PUBLISHED_HISTORY])
 
-    def _arbitrate(self, chain: _Chain, command: Command, owner: str) -> Optional[Command]:
-        """The part of ``command`` its owner may apply (see :mod:`walkman.hal.arbitration`)."""
-        local = list(command.joints) if command.mode == "pjnt" else list(range(len(chain.joints)))
-        decision = self.arbiter.filter(owner, [int(chain.indices[k]) for k in local],
-                                       time.monotonic())
+    def _on_command_seq(self, seq: int) -> None:
+        """Sense->move latency: a command names the state publication it answers."""
+        now = time.perf_counter()
+        if 0 <= self.state_stamp.count - seq < PUBLISHED_HISTORY:
+            self.latencies.append(now - self.published_at[seq % PUBLISHED_HISTORY])
+
+    def _arbitrate(self, owner: str, joints: List[int]) -> set:
+        """The joints ``owner`` may command (see :mod:`walkman.hal.arbitration`)."""
+        decision = self.arbiter.filter(owner, joints, time.monotonic())
         for conflict in decision.conflicts:
             self._report(conflict)
-        if len(decision.allowed) == len(local):
-            return command
-        if not decision.allowed or command.mode in ("move", "idle"):
-            return None  # whole-chain modes are all or nothing
-        allowed = set(decision.allowed)
-        keep = [k for k, joint in enumerate(local) if int(chain.indices[joint]) in allowed]
-        return Command("pjnt", tuple(command.values[k] for k in keep), command.seq,
-                       tuple(local[k] for k in keep))
+        return set(decision.allowed)
 
     def _report(self, conflict: Conflict) -> None:
         text = conflict.text()
@@ -228,35 +205,11 @@ class HalServer:
             self.warning_port.write(Bottle([self._warning_seq, text, conflict.owner,
                                             conflict.holder, conflict.action]))
 
-    def _chain_rpc(self, chain: _Chain, request: Bottle) -> Bottle:
-        verb = str(request[0]) if request else ""
-        what = str(request[1]) if len(request) > 1 else ""
-        lower = self.backend.lower[chain.indices]
-        upper = self.backend.upper[chain.indices]
-        if verb == "get" and what == "jnts":
-            return Bottle([len(chain.joints)])
-        if verb == "get" and what == "names":
-            return Bottle([Bottle(chain.joints)])
-        if verb == "get" and what == "lims":
-            return Bottle([Bottle([float(lo), float(hi)]) for lo, hi in zip(lower, upper)])
-        if verb == "set" and what == "vels" and len(request) > 2 and isinstance(request[2], list):
-            speeds = [float(v) for v in request[2]]
-            if len(speeds) != len(chain.joints) or not all(v > 0 and math.isfinite(v)
-                                                          for v in speeds):
-                return Bottle([Vocab("fail"), f"need {len(chain.joints)} positive speeds"])
-            with self.lock:
-                chain.ref_speed = np.array(speeds)
-            return Bottle([Vocab("ok")])
-        if verb == "set" and what == "mode" and len(request) > 2:
-            mode = str(request[2])
-            if mode not in ("pos", "idle"):
-                return Bottle([Vocab("fail"), "mode must be [pos] or [idle]"])
-            with self.lock:
-                chain.pending = [Command("idle") if mode == "idle" else
-                                 Command("pos", tuple(self.backend.positions()[chain.indices]))]
-            return Bottle([Vocab("ok")])
-        return Bottle([Vocab("fail"), "unknown request; try [get] [jnts]|[names]|[lims], "
-                                      "[set] [vels] (...), [set] [mode] [pos]|[idle]"])
+    def _chain_rpc(self, chain: ChainBoard, request: Bottle, source: str = "") -> Bottle:
+        """``rpc:i``: YARP's control-board requests (:func:`controlboard.respond`)."""
+        return controlboard.respond(
+            chain, request, self.rpc_stamps[chain.name], time.time(), owner_of(source) if source else "?",
+            on_error=lambda text: log.info("%s rpc from %s: %s", chain.name, source or "?", text))
 
     def _robot_rpc(self, request: Bottle) -> Bottle:
         verb = str(request[0]) if request else ""
@@ -283,59 +236,44 @@ class HalServer:
     # -- the loop ----------------------------------------------------------------------------
 
     def _apply_commands(self) -> None:
-        backend = self.backend
-        with self.lock:
-            for chain in self.chains.values():
-                commands, chain.pending = chain.pending, []
-                for command in commands:
-                    self._apply(chain, command)
-            moving = [chain for chain in self.chains.values() if chain.targets is not None]
-        for chain in moving:
-            current = backend.reference[chain.indices]
-            speed = chain.ref_speed if chain.ref_speed is not None else DEFAULT_REF_SPEED
-            step = np.clip(chain.targets - current, -speed * backend.dt, speed * backend.dt)
-            backend.set_references(chain.indices, current + step)
-            if np.allclose(current + step, chain.targets):
-                chain.targets = None
-
-    def _apply(self, chain: _Chain, command: Command) -> None:
-        backend = self.backend
-        if command.mode == "idle":
-            backend.set_idle(chain.indices)
-            chain.targets = None
-        elif command.mode == "pos":
-            backend.set_references(chain.indices, command.values)
-            chain.targets = None
-        elif command.mode == "pjnt":
-            backend.set_references(chain.indices[list(command.joints)], command.values)
-        else:
-            chain.targets = np.array(command.values)
+        for chain in self.chains.values():
+            chain.step(self.backend.dt)
 
     def _publish_state(self) -> None:
+        """Every chain's state, as YARP's wrapper streams it and in SI for the bridge."""
         backend = self.backend
-        self.seq += 1
+        envelope = self.state_stamp.update(time.time()).envelope()
+        seq = self.state_stamp.count
         q, qdot, tau = backend.positions(), backend.velocities(), backend.torques()
         temperature = backend.temperatures()
         now = time.perf_counter()
         for chain in self.chains.values():
-            idx = chain.indices
-            state_ext = chain.ports["state_ext"]
-            if state_ext.output_count:
-                state = ChainState(self.seq, backend.time, q[idx].tolist(), qdot[idx].tolist(),
+            idx, ports = chain.indices, self.chain_ports[chain.name]
+            if ports["state_si"].output_count:
+                state = ChainState(seq, backend.time, q[idx].tolist(), qdot[idx].tolist(),
                                    tau[idx].tolist(), temperature[idx].tolist())
-                self.publisher.publish(state_ext, protocol.encode_state_ext(state))
-            if chain.ports["state"].output_count:
-                self.publisher.publish(chain.ports["state"], protocol.encode_state(q[idx]))
-        self.published_at[self.seq % PUBLISHED_HISTORY] = now
+                self.publisher.publish(ports["state_si"], protocol.encode_state_si(state))
+            q_deg = np.degrees(q[idx])
+            if ports["state_ext"].output_count:
+                data = JointData(tuple(q_deg.tolist()), tuple(np.degrees(qdot[idx]).tolist()),
+                                 tuple([0.0] * len(idx)), tuple(tau[idx].tolist()),
+                                 tuple(chain.control_modes()),
+                                 tuple(chain.interaction_modes()))
+                self.publisher.publish(ports["state_ext"],
+                                       controlboard.encode_joint_data(data, len(idx)), envelope)
+            if ports["state"].output_count:
+                self.publisher.publish(ports["state"], Bottle(q_deg.tolist()), envelope)
+        self.published_at[seq % PUBLISHED_HISTORY] = now
 
     def _publish_sensors(self) -> None:
+        envelope = self.sensor_stamp.update(time.time()).envelope()
         for sensor, port in self.ft_ports.items():
             if port.output_count:
-                self.publisher.publish(port, protocol.encode_ft(self.backend.ft(sensor)))
+                self.publisher.publish(port, protocol.encode_ft(self.backend.ft(sensor)), envelope)
         if self.imu_port is not None and self.imu_port.output_count:
             imu = self.backend.imu()
             self.publisher.publish(self.imu_port, protocol.encode_inertial(
-                imu.rpy, imu.acceleration, imu.gyro))
+                imu.rpy, imu.acceleration, imu.gyro), envelope)
 
     def _publish_world(self) -> None:
         if self.world_port is not None and self.world_port.output_count:

@@ -15,6 +15,7 @@ from yarp_lite.bottle_text import parse
 from yarp_lite.carriers.base import (Carrier, MessageSource, Payload, TextMessageSource,
                                      read_text_bottle, require_text, text_line)
 from yarp_lite.stream import Stream
+from yarp_lite.framing import is_data_command
 
 
 class TextCarrier(Carrier):
@@ -39,7 +40,7 @@ class TextCarrier(Carrier):
         return stream
 
     def write_message(self, stream: Stream, command: str, payload: Optional[Payload]) -> None:
-        if command in ("d", "D", "a"):
+        if is_data_command(command):
             stream.write(text_line(command) + text_line(require_text(payload, self.name)))
         else:
             stream.write(text_line(command))
