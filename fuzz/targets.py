@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import struct
 import zlib
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -22,6 +22,8 @@ from bridge import compact, config, datagrams, fec, frames, link, state_codec, s
 from bridge.config import ConfigError
 from bridge.errors import BridgeProtocolError
 from fuzz.harness import Target, attempt, join_records, split_records
+from walkman.hal import controlboard
+from walkman.hal.controlboard import ControlBoardDevice, ControlBoardError
 from yarp_lite import admin as port_admin
 from yarp_lite import bottle, bottle_text, framing
 from yarp_lite.bottle import Bottle, Dict as DictValue, Float32, Int8, Int16, Int64, Vocab
@@ -478,6 +480,71 @@ def _admin_seeds() -> List[bytes]:
     return _command_seeds(["/x", "!/x", "~/in", "*", "?", "q", "[list] [out]"], bottles)
 
 
+class MemoryBoard(ControlBoardDevice):
+    """A two-axis control board in memory: what the control-board parser is fuzzed
+    (and unit-tested) against."""
+
+    def __init__(self) -> None:
+        self.modes = ["pos", "pos"]
+        self.commands: List[Tuple[str, List[int], List[float], str]] = []
+
+    def axes(self) -> int:
+        return 2
+
+    def vector(self, name: str) -> List[float]:
+        return {"encoders": [10.0, 20.0], "temperatures": [30.0, 31.0]}.get(name, [0.0, 0.0])
+
+    def axis_name(self, axis: int) -> str:
+        return f"j{axis}"
+
+    def limits(self, axis: int) -> Tuple[float, float]:
+        return (-90.0, 90.0)
+
+    def torques(self) -> List[float]:
+        return [1.0, -1.0]
+
+    def control_modes(self) -> List[str]:
+        return list(self.modes)
+
+    def set_control_modes(self, joints: Sequence[int], modes: Sequence[str],
+                          owner: str = "") -> None:
+        for joint, mode in zip(joints, modes):
+            self.modes[joint] = mode
+
+    def pid(self, pid_type: str, axis: int) -> List[float]:
+        return [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
+
+    def motion_done(self, joints: Sequence[int]) -> bool:
+        return True
+
+    def command(self, what: str, joints: Sequence[int], values: Sequence[float],
+                owner: str = "", seq: Optional[int] = None) -> None:
+        self.commands.append((what, list(joints), list(values), owner))
+
+
+def controlboard_target(data: bytes) -> None:
+    """A HAL chain's rpc:i and command:i: any Bottle is answered or refused, never a crash."""
+    request = bottle.decode(data)
+    reply = controlboard.respond(MemoryBoard(), request, controlboard.Stamp(), 1.0)
+    if not reply or str(reply[-1]) not in ("ok", "fail", "nak"):
+        raise AssertionError(f"the wrapper's answer must end in ok/fail/nak: {reply}")
+    attempt((ControlBoardError,), controlboard.decode_stream, request, 2)
+    attempt((ControlBoardError,), controlboard.decode_joint_data, request)
+
+
+def _controlboard_seeds() -> List[bytes]:
+    from yarp_lite.bottle_text import parse
+
+    requests = ["[get] [axes]", "get encs", "get enc 1", "[set] [posg] 1 (1) (2.0)",
+                "[get] [icmd] [cmog] 2 (0 1)", "[set] [icmd] [cmds] ([posd] [pos])",
+                "[get] [intm] [mods]", "[get] [pid] [pid] [pos] 0", "[get] [torq] [rngs]",
+                "([dpog] 1 (1) (seq 3)) (5.0)", "([dpos]) (1.0 2.0)"]
+    seeds = [bottle.encode(parse(text)) for text in requests]
+    data = controlboard.JointData((1.0, 2.0), (0.0, 0.0), None, (0.5, 0.5), ("pos", "posd"))
+    seeds.append(bottle.encode(controlboard.encode_joint_data(data, 2)))
+    return seeds
+
+
 def _frame_seeds() -> List[bytes]:
     entries = (frames.Entry(7, 2, b"\x01\x00"), frames.Entry(9, 1, bytes(40), delta=True))
     tag = bytes(8)
@@ -605,6 +672,8 @@ TARGETS: Dict[str, Target] = {target.name: target for target in (
     Target("compact", compact_target, BRIDGE, _compact_seeds,
            doc="bridge.compact: decode, decode_delta"),
     Target("fec", fec_target, BRIDGE, _fec_seeds, doc="bridge.fec.recover"),
+    Target("controlboard", controlboard_target, YARP, _controlboard_seeds,
+           doc="walkman.hal.controlboard: respond, decode_stream, decode_joint_data"),
     Target("config", config_target, (ConfigError,), _config_seeds, max_len=8192,
            doc="bridge.config.parse (XML)"),
 )}

@@ -55,6 +55,12 @@ def _reference_yarp() -> Optional[str]:
     return None if reference.prefix() is not None else reference.MISSING
 
 
+def _reference_devices() -> Optional[str]:
+    from yarp_lite import reference
+
+    return None if reference.devices() is not None else reference.DEVICES_MISSING
+
+
 def _root() -> Optional[str]:
     from bridge import emulation
 
@@ -65,6 +71,8 @@ def _root() -> Optional[str]:
 REQUIREMENTS: Dict[str, Requirement] = {
     requirement.name: requirement for requirement in (
         Requirement("reference", _reference_yarp),  # the reference YARP 3.5 build
+        # ... with its device plugins: yarpdev, controlboardwrapper2, fakeMotionControl
+        Requirement("reference_devices", _reference_devices),
         Requirement("root", _root),  # network namespaces, tc and nftables: emulated hosts
     )
 }

@@ -57,9 +57,15 @@ class Decision:
 
 
 def owner_of(source: str) -> str:
-    """The module behind a command port: ``/drc_door/robot/left_arm/command:o`` -> ``/drc_door``."""
+    """The module behind a command port: ``/drc_door/robot/left_arm/command:o`` -> ``/drc_door``;
+    a YARP remote_controlboard's ``<local>/command:o`` and ``<local>/rpc:o`` -> ``<local>``."""
     head, marker, _ = source.partition("/robot/")
-    return head if marker and head else source
+    if marker and head:
+        return head
+    for suffix in ("/command:o", "/rpc:o"):
+        if source.endswith(suffix) and len(source) > len(suffix):
+            return source[:-len(suffix)]
+    return source
 
 
 class JointArbiter:

@@ -130,11 +130,20 @@ class ChainBoard(cb.ControlBoardDevice):
 
     # -- commanding (ControlBoardDevice) ---------------------------------------------------
 
-    def set_control_modes(self, joints: Sequence[int], modes: Sequence[str]) -> None:
+    def set_control_modes(self, joints: Sequence[int], modes: Sequence[str],
+                          owner: str = "") -> None:
+        """Change modes; a joint another module holds is refused, like any command."""
         unknown = [m for m in modes if m not in SETTABLE_MODES]
         if unknown:
             raise cb.ControlBoardError(f"{self.name}: control mode {unknown[0]!r} is not offered; "
                                        f"try {', '.join(sorted(SETTABLE_MODES))}")
+        joints = list(joints)
+        if owner:
+            allowed = self.arbitrate(owner, [int(self.indices[j]) for j in joints])
+            held = [self.joints[j] for j in joints if int(self.indices[j]) not in allowed]
+            if held:
+                raise cb.ControlBoardError(f"{self.name}: {owner} may not change the mode of "
+                                           f"{', '.join(held)}: another module holds it")
         now_q = np.degrees(self.backend.positions()[self.indices])
         with self.lock:
             for joint, mode in zip(joints, modes):

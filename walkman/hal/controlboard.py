@@ -141,7 +141,8 @@ class ControlBoardDevice(ABC):
     def control_modes(self) -> List[str]: ...
 
     @abstractmethod
-    def set_control_modes(self, joints: Sequence[int], modes: Sequence[str]) -> None: ...
+    def set_control_modes(self, joints: Sequence[int], modes: Sequence[str],
+                          owner: str = "") -> None: ...
 
     def interaction_modes(self) -> List[str]:
         return [INTERACTION_STIFF] * self.axes()
@@ -167,7 +168,7 @@ class ControlBoardDevice(ABC):
 # -- the rpc:i parser --------------------------------------------------------------------
 
 
-class _Malformed(Exception):
+class _Malformed(ControlBoardError):
     """The request's shape is wrong (answered [fail], reported)."""
 
 
@@ -254,7 +255,7 @@ def _respond(device: ControlBoardDevice, request: Bottle, stamp: Stamp, now: flo
     if interface == "prot":
         return Bottle([Vocab("prot"), *PROTOCOL_VERSION]) if code == "get" else None
     if interface == "icmd":
-        return _control_mode(device, request, code, stamp, now)
+        return _control_mode(device, request, code, stamp, now, owner)
     if interface == "intm":
         return _interaction_mode(device, request, code, stamp, now)
     if interface == "torq":
@@ -339,18 +340,16 @@ def _modes(request: Bottle, index: int, length: int) -> List[str]:
 
 
 def _control_mode(device: ControlBoardDevice, request: Bottle, code: str, stamp: Stamp,
-                  now: float) -> Optional[Bottle]:
+                  now: float, owner: str) -> Optional[Bottle]:
     method, axes = _vocab(request, 2), device.axes()
     if code == "set":
-        if method == "cmod":
-            device.set_control_modes([_axis(device, request, 3)], [_vocab(request, 4)])
-        elif method == "cmog":
+        if method == "cmog":
             joints = _group(device, request, 3)
-            device.set_control_modes(joints, _modes(request, 5, len(joints)))
+            device.set_control_modes(joints, _modes(request, 5, len(joints)), owner)
         elif method == "cmds":
-            device.set_control_modes(range(axes), _modes(request, 3, axes))
-        else:  # the legacy form [set] [icmd] <anything> j mode
-            device.set_control_modes([_axis(device, request, 3)], [_vocab(request, 4)])
+            device.set_control_modes(range(axes), _modes(request, 3, axes), owner)
+        else:  # cmod, and the legacy form [set] [icmd] <anything> j mode
+            device.set_control_modes([_axis(device, request, 3)], [_vocab(request, 4)], owner)
         return Bottle()
     if code != "get":
         return None

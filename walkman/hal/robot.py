@@ -192,7 +192,9 @@ class Robot:
                     answer = f"; it answered {str(reply)[:120]}"
                 else:
                     parts = self._find_parts()
-                    if parts:
+                    # Our HAL registers /<robot>/rpc:i before its chains: a chain seen
+                    # without it is a plain YARP robot's, not a HAL half started.
+                    if parts and self.nameclient.query(rpc_name) is None:
                         self.standard = True
                         return parts
             except YarpError:
@@ -311,7 +313,10 @@ class Robot:
         """One request to a chain's rpc:i; None (logged once) if it failed."""
         try:
             contact = self.nameclient.query(link.rpc)
-            reply = network.request(contact, request, timeout=2) if contact else None
+            # Named as our command port's module, so the HAL's arbitration sees one owner.
+            reply = network.request(contact, request, timeout=2,
+                                    sender=f"{self.owner}/robot/{link.name}/rpc:o") \
+                if contact else None
         except YarpError as exc:
             reply, why = None, str(exc)
         else:
