@@ -45,6 +45,7 @@ from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 from bridge import config as bridge_config
 from bridge.endpoints.yarp import ConnectionKeeper
 from rosnodes.timed import CANCELLED, SENT, Countdowns
+from walkman.gym.lifecycle import TARGET, lifecycle_of_status
 from walkman.gym.interfaces import (InterfaceError, PilotCommand, decode_command, decoder_for,
                                     decode_status, encode_command)
 from yarp_lite.bottle import Bottle
@@ -55,10 +56,8 @@ from yarp_lite.port import Port
 log = logging.getLogger("walkman.gateway")
 
 DEFAULT_CONFIG = Path(__file__).resolve().parents[1] / "models" / "bridge_drc.xml"
-LIFECYCLE_WORDS = {"initializing": "constructor", "waiting_hal": "constructor",
-                   "paused": "paused", "stopped": "stopped", "destructor": "destructor"}
-EXPECTED = {"start": "running", "resume": "running", "pause": "paused", "stop": "stopped",
-            "quit": "destructor"}
+#: The lifecycle state each switch word leads to (walkman.gym.lifecycle owns the table).
+EXPECTED = {switch.value: state.value for switch, state in TARGET.items()}
 
 
 class GatewayError(Exception):
@@ -87,7 +86,7 @@ def command_decoder(name: str) -> Callable[[Bottle], PilotCommand]:
 
 
 def lifecycle_of(state: str) -> str:
-    return LIFECYCLE_WORDS.get(state, "running")
+    return lifecycle_of_status(state).value
 
 
 class SequenceNumbers:

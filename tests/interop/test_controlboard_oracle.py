@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Dict, List
+from typing import Dict, List, Tuple
 
 import pytest
 
@@ -255,3 +255,53 @@ def test_arbitration_holds_when_one_commander_is_a_real_yarp_client(world, tmp_p
         stop.set()
         holder.join(timeout=5)
         robot.close()
+
+
+def real_device(world: YarpWorld, name: str, *args: str) -> Proc:
+    """A real YARP sensor wrapper (analogServer, inertial) with a fake subdevice."""
+    part = world.start(["stdbuf", "-oL", "-eL", str(reference_build.prefix() / "bin" / "yarpdev"),
+                        *args], f"yarpdev {name}", env=devices_env(world))
+    part.wait_for("device active in background", timeout=30)
+    return part
+
+
+def one_message(world: YarpWorld, reference_impl, port: str) -> Tuple[str, Bottle]:
+    """(envelope, data) of one message read by the real ``yarp read ... envelope``,
+    which prints the envelope on a line of its own, then the data."""
+    reader = world.tool(reference_impl, "read", f"/test/read{abs(hash(port)) % 10000}", port,
+                        "envelope")
+    envelope = reader.wait_for(r"^\d+ [\d.e+-]+ *$", 20).string
+    wait_until(lambda: envelope in reader.lines[:-1], 20, message=f"data after {envelope!r}")
+    lines = list(reader.lines)
+    reader.kill()
+    return envelope.strip(), parse(lines[lines.index(envelope) + 1])
+
+
+def test_the_ft_sensors_and_the_imu_stream_as_yarps_wrappers_do(world, reference, tmp_path):
+    start_hal(world)
+    real_device(world, "analogServer", "--device", "analogServer", "--subdevice",
+                "fakeAnalogSensor", "--name", "/fake/ft/analog:o", "--period", "10",
+                "--channels", "6")
+    real_device(world, "inertial", "--device", "inertial", "--subdevice", "fakeIMU", "--name",
+                "/fake/inertial")
+    for ours, theirs, size in (("/walkman/l_leg_ft/analog:o", "/fake/ft/analog:o", 6),
+                               ("/walkman/inertial", "/fake/inertial", 12)):
+        (our_envelope, our_data), (their_envelope, their_data) = (
+            one_message(world, reference, ours), one_message(world, reference, theirs))
+        # Both are float64 Vectors (fakeAnalogSensor streams one channel, the HAL six).
+        assert all(isinstance(v, float) for v in [*our_data, *their_data])
+        assert len(our_data) == size
+        # The envelope is a Stamp: an int32 count and a float64 time, like theirs.
+        for envelope in (our_envelope, their_envelope):
+            count, time_s = envelope.split()
+            assert int(count) >= 0 and float(time_s) > 1e9
+    # Calibration (tare) over the wrapper's rpc port, answered as analogServer answers it.
+    for port in ("/walkman/l_leg_ft/analog:o/rpc:i", "/fake/ft/analog:o/rpc:i"):
+        assert rpc_script_one(world, reference, port, "iana cal") == Bottle([0]), port
+        assert rpc_script_one(world, reference, port, "iana fly") == Bottle([Vocab("fail")])
+    # Offsets set over rpc (as YARP's analogsensorclient sends them: one list) shift the stream.
+    _, before = one_message(world, reference, "/walkman/l_leg_ft/analog:o")
+    assert rpc_script_one(world, reference, "/walkman/l_leg_ft/analog:o/rpc:i",
+                          "iana cal (0 0 1000 0 0 0)") == Bottle([0])
+    _, after = one_message(world, reference, "/walkman/l_leg_ft/analog:o")
+    assert abs(before[2] - after[2] - 1000.0) < 200.0, (before, after)

@@ -169,3 +169,19 @@ def test_a_pose_may_name_its_frame_and_an_unknown_frame_is_refused():
     world.step(0.1)
     assert len(module.warnings) == warnings, module.warnings[warnings:]
     assert module.interfaces.data == pytest.approx(moved.tolist(), abs=1e-4)
+
+
+def test_the_temperature_module_runs_offline_and_warns_when_a_motor_is_hot():
+    """It reads sense_temperature() of the shared whole-body interface, like any module."""
+    from walkman.modules import temperature
+
+    world = OfflineWorld(SimBackend(scene=False))
+    module = world.add(temperature.Module, "temperature",
+                       {"thread_period": 1000, "warning_threshold": 20.0})
+    assert module.switch("start")
+    world.step(1.5)
+    assert module.state == "hot"                    # every motor is above 20 C at rest
+    assert any("temperature: " in w and "(limit 20 C)" in w for w in module.warnings)
+    data = module.interfaces.data
+    assert len(data) == 14 and all(200 < t < 1000 for t in data[1::2])  # 0.1 C units
+    assert module.switch("stop") and module.state == "stopped"

@@ -9,12 +9,19 @@
 The table is the whole truth: :func:`next_state` either returns the new
 state or raises :class:`IllegalTransition` naming the module, the state and
 the command, which the watchdog reports to the pilot on the warning port.
+Each switch runs one hook of the module (:data:`HOOKS`, :func:`run_hook`);
+``stop`` and ``quit`` release only what ``custom_init`` set up
+(:func:`releases`).  The process runner (:mod:`walkman.gym.runner`), the
+offline runner (:mod:`walkman.gym.offline`) and the pilot gateway, which
+waits for the state a switch leads to (:data:`TARGET`) and reads the
+lifecycle from a status word (:func:`lifecycle_of_status`), all use this
+file, so the three cannot disagree.
 """
 
 from __future__ import annotations
 
 from enum import Enum
-from typing import Dict
+from typing import Any, Dict
 
 
 class State(str, Enum):
@@ -42,6 +49,35 @@ TRANSITIONS: Dict[State, Dict[Switch, State]] = {
     State.STOPPED: {Switch.START: State.RUNNING, Switch.QUIT: State.DESTRUCTOR},
     State.DESTRUCTOR: {},
 }
+
+
+#: The state each switch leads to, from wherever it is legal.
+TARGET: Dict[Switch, State] = {switch: target for moves in TRANSITIONS.values()
+                               for switch, target in moves.items()}
+#: The module hook each switch runs (``custom_<hook>``).
+HOOKS: Dict[Switch, str] = {Switch.START: "init", Switch.PAUSE: "pause",
+                            Switch.RESUME: "resume", Switch.STOP: "release",
+                            Switch.QUIT: "release"}
+#: Status words a module says outside ``running`` (the runner sets them), by lifecycle.
+STATUS_WORDS: Dict[str, State] = {"initializing": State.CONSTRUCTOR,
+                                  "waiting_hal": State.CONSTRUCTOR, "paused": State.PAUSED,
+                                  "stopped": State.STOPPED, "destructor": State.DESTRUCTOR}
+
+
+def lifecycle_of_status(word: str) -> State:
+    """The lifecycle behind a status word: a module's own words mean ``running``."""
+    return STATUS_WORDS.get(word, State.RUNNING)
+
+
+def releases(before: State) -> bool:
+    """Whether ``stop``/``quit`` from ``before`` must undo ``custom_init`` (it is in force)."""
+    return before in (State.RUNNING, State.PAUSED)
+
+
+def run_hook(thread: Any, hook: str) -> bool:
+    """Call ``custom_<hook>`` of a module; ``release`` has no verdict and counts as done."""
+    result = getattr(thread, f"custom_{hook}")()
+    return True if hook == "release" else bool(result)
 
 
 class IllegalTransition(Exception):

@@ -21,18 +21,19 @@ import numpy as np
 
 from walkman.control.kinematics import Kinematics
 from walkman.gym.interfaces import RecordingInterfaces
-from walkman.gym.lifecycle import IllegalTransition, State, next_state
+from walkman.gym.lifecycle import (HOOKS, IllegalTransition, State, Switch, next_state,
+                                   parse_switch, releases, run_hook)
 from walkman.gym.thread import ControlThread
 from walkman.hal.arbitration import JointArbiter
 from walkman.hal.backend import Backend
-from walkman.hal.robot import check_reference
+from walkman.hal.robot import WholeBody, check_reference
 from yarp_lite.bottle_text import parse
 
 
-class SimulatedRobot:
-    """The whole-body interface of :class:`walkman.hal.robot.Robot`, straight on a backend."""
+class SimulatedRobot(WholeBody):
+    """The whole-body interface (:class:`walkman.hal.robot.WholeBody`), straight on a backend."""
 
-    connected = True
+    connected = True  # type: ignore[assignment]  # the simulator is always there
 
     def __init__(self, world: "OfflineWorld", owner: str) -> None:
         backend = world.backend
@@ -50,6 +51,9 @@ class SimulatedRobot:
 
     def sense_torque(self) -> np.ndarray:
         return self.world.backend.torques()
+
+    def sense_temperature(self) -> np.ndarray:
+        return self.world.backend.temperatures()
 
     def sense_ft(self, sensor: str) -> np.ndarray:
         return self.world.backend.ft(sensor)
@@ -69,9 +73,6 @@ class SimulatedRobot:
         if decision.allowed:
             self.world.backend.set_references(decision.allowed, values[decision.allowed])
         return True
-
-    def hold(self) -> bool:
-        return self.move(self.sense_position())
 
     def take_hal_warnings(self) -> List[str]:
         warnings, self.warnings = self.warnings, []
@@ -108,17 +109,16 @@ class OfflineModule:
         except IllegalTransition as exc:
             self.interfaces.warn(str(exc))
             return False
-        if command == "pause":  # as the runner: run() goes on until a safe pause
+        switch = parse_switch(command)
+        if switch == Switch.PAUSE:  # as the runner: run() goes on until a safe pause
             self.thread.pause_requested = True
             self.world.run_until(self.thread.ready_to_pause, 5.0, f"{self.name}: a safe pause")
-        elif command == "resume":
+        elif switch == Switch.RESUME:
             self.thread.pause_requested = False
-        hook = {"start": self.thread.custom_init, "pause": self.thread.custom_pause,
-                "resume": self.thread.custom_resume}.get(command)
-        if command in ("stop", "quit"):
-            self.thread.custom_release()
-        elif hook is not None and not hook():
-            self.interfaces.warn(f"{self.name}: custom_{command}() failed")
+        hook = HOOKS[switch]
+        skip = hook == "release" and not releases(self.lifecycle)
+        if not skip and not run_hook(self.thread, hook):
+            self.interfaces.warn(f"{self.name}: custom_{hook}() failed")
             return False
         self.lifecycle = target
         if target != State.RUNNING:

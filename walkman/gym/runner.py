@@ -46,7 +46,8 @@ from typing import Any, Dict, List, Optional, Tuple, Type
 
 from walkman.gym import inifile
 from walkman.gym.interfaces import PilotInterfaces, decoder_for
-from walkman.gym.lifecycle import IllegalTransition, State, Switch, next_state, parse_switch
+from walkman.gym.lifecycle import (HOOKS, IllegalTransition, State, Switch, next_state,
+                                   parse_switch, releases, run_hook)
 from walkman.gym.thread import ControlThread, GenericThread
 from walkman.hal.protocol import HalProtocolError, HalUsageError
 from yarp_lite.errors import NetworkError
@@ -276,19 +277,11 @@ class ModuleRunner:
                     return False
                 if isinstance(thread, ControlThread) and self.robot is not None:
                     self.robot.wait_until_ready(5.0)
-                return bool(thread.custom_init())
-            if hook == "pause":
-                return bool(thread.custom_pause())
-            if hook == "resume":
-                return bool(thread.custom_resume())
-            if hook == "release":
-                thread.custom_release()
-                return True
+            return run_hook(thread, hook)
         except Exception as exc:  # the module's hook failed: its bug, told with the traceback
             self.warn(f"{self.name}: custom_{hook}() raised {type(exc).__name__}: {exc}",
                       exc_info=True)
             return False
-        return False
 
     def robot_alive(self) -> bool:
         """False (and said once) while a ControlThread's HAL is silent."""
@@ -385,7 +378,7 @@ class ModuleRunner:
             log.info("%s: start requested; waiting for the robot (HAL) first", self.name)
             return False
         self.start_pending = False
-        if not self.loop.ask("init", timeout=30):
+        if not self.loop.ask(HOOKS[Switch.START], timeout=30):
             self.warn(f"{self.name}: custom_init() failed, the module stays {self.state.value}")
             self._set_lifecycle_status()
             return False
@@ -401,14 +394,14 @@ class ModuleRunner:
             raise
         # What the module was saying, told again on resume (run() may not repeat it).
         self._status_at_pause = (self.interfaces.state, list(self.interfaces.data))
-        if self.loop.ask("pause") is None:
+        if self.loop.ask(HOOKS[Switch.PAUSE]) is None:
             self.warn(f"{self.name}: custom_pause() did not return")
         self._set_lifecycle_status()
         return True
 
     def _resume(self) -> bool:
         self.thread.pause_requested = False
-        if not self.loop.ask("resume"):
+        if not self.loop.ask(HOOKS[Switch.RESUME]):
             self.warn(f"{self.name}: custom_resume() failed, staying paused")
             return False
         self._transition(Switch.RESUME)
@@ -420,8 +413,8 @@ class ModuleRunner:
         """``stop`` or ``quit``: the state changes first, so run() is not called again."""
         before, _ = self._transition(switch)
         # custom_init in force (running or paused): undo it once, and hold what it drove.
-        active = before in (State.RUNNING, State.PAUSED)
-        if active and self.loop.ask("release") is None:
+        active = releases(before)
+        if active and self.loop.ask(HOOKS[switch]) is None:
             self.warn(f"{self.name}: run() does not give control back; restarting the "
                       f"module process ({switch.value})")
             self.exit_code = EXIT_QUIT if switch == Switch.QUIT else EXIT_ESCALATED

@@ -39,6 +39,7 @@ import logging
 import math
 import threading
 import time
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Sequence, Set, Tuple
 
@@ -75,6 +76,69 @@ def check_reference(q: Sequence[float], names: Sequence[str], lower: np.ndarray,
     return np.clip(values, lower, upper)
 
 
+class WholeBody(ABC):
+    """What a GYM module sees of the robot, in the model's joint order and SI units.
+
+    :class:`Robot` (over YARP, any robot) and
+    :class:`walkman.gym.offline.SimulatedRobot` (straight on a simulator) both
+    implement it, so every module runs in either without knowing which.
+    """
+
+    joint_names: List[str]
+    index: Dict[str, int]
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @property
+    @abstractmethod
+    def connected(self) -> bool:
+        """True while the robot's state is fresh."""
+
+    @property
+    def state_age(self) -> float:
+        return 0.0 if self.connected else math.inf
+
+    @abstractmethod
+    def sense_position(self) -> np.ndarray: ...
+
+    @abstractmethod
+    def sense_velocity(self) -> np.ndarray: ...
+
+    @abstractmethod
+    def sense_torque(self) -> np.ndarray: ...
+
+    @abstractmethod
+    def sense_temperature(self) -> np.ndarray:
+        """Motor (board) temperatures, deg C."""
+
+    @abstractmethod
+    def sense_ft(self, sensor: str) -> np.ndarray: ...
+
+    @abstractmethod
+    def sense_imu(self) -> Optional[Tuple[List[float], List[float], List[float]]]: ...
+
+    @abstractmethod
+    def move(self, q: Sequence[float], mode: str = "pos",
+             joints: Optional[Sequence[str]] = None) -> bool:
+        """Stream a whole-body position reference (rad); False when the robot is away."""
+
+    def hold(self) -> bool:
+        """Keep the current position (the safe answer to anything unexpected)."""
+        if not self.connected:
+            return False
+        return self.move(np.clip(self.sense_position(), self.lower, self.upper))
+
+    @abstractmethod
+    def take_hal_warnings(self) -> List[str]:
+        """What the robot refused or overrode of our commands since last asked."""
+
+    def wait_until_ready(self, timeout: float = 10.0) -> bool:
+        return True
+
+    def close(self) -> None:
+        """Release ports and connections."""
+
+
 @dataclass
 class _ChainLink:
     name: str
@@ -86,7 +150,7 @@ class _ChainLink:
     reported: bool = False
 
 
-class Robot:
+class Robot(WholeBody):
     """Whole-body access to a robot, for one module (``owner`` prefixes its ports)."""
 
     def __init__(self, owner: str, robot: str = "walkman", model: Optional[RobotModel] = None,
@@ -442,8 +506,3 @@ class Robot:
         if reply is not None:
             link.direct.update(joints)
 
-    def hold(self) -> bool:
-        """Keep the current position (the safe answer to anything unexpected)."""
-        if not self.connected:
-            return False
-        return self.move(np.clip(self.sense_position(), self.lower, self.upper))

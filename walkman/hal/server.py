@@ -9,13 +9,17 @@ Snapshots go to a single publisher thread that writes the ports, so a slow
 reader can never stall the physics (streams are latest-only: a snapshot not
 yet sent is replaced by a newer one).
 
-Per chain, like YARP's control-board wrapper: ``/<robot>/<chain>/state:o``
-(degrees), ``stateExt:o`` (SI, with stamp, velocities, spring torques and
-board temperatures), ``command:i`` and ``rpc:i``; per sensor
-``/<robot>/<ft>/analog:o``; ``/<robot>/inertial``; ``/<robot>/rpc:i`` tells
-clients how joints are grouped, so the grouping can change without touching
-a module.  Malformed commands are refused with a log line naming the chain
-and the problem; chains without commands hold their last reference.
+Each chain is a YARP control board (``controlboardwrapper2``'s protocol,
+:mod:`walkman.hal.controlboard`, device :mod:`walkman.hal.chain`):
+``/<robot>/<chain>/rpc:i``, ``command:i``, ``state:o`` and ``stateExt:o``
+(degrees, Stamp envelopes), plus ``stateSI:o`` (SI, with the state count and
+board temperatures: what the bridge carries).  Each F/T sensor is an
+``analogServer`` (``/<robot>/<ft>/analog:o`` and its ``/rpc:i``,
+:mod:`walkman.hal.analog`), the IMU a ``ServerInertial``
+(``/<robot>/inertial``).  ``/<robot>/rpc:i`` tells clients how joints are
+grouped, so the grouping can change without touching a module.  Malformed
+requests are refused with a log line naming the chain and the problem;
+chains without commands hold their last reference.
 """
 
 from __future__ import annotations
@@ -34,7 +38,7 @@ from typing import Deque, Dict, List, Optional, Tuple
 import numpy as np
 
 from walkman.hal import protocol
-from walkman.hal import controlboard
+from walkman.hal import analog, controlboard
 from walkman.hal.arbitration import Conflict, JointArbiter, owner_of
 from walkman.hal.backend import Backend
 from walkman.hal.chain import ChainBoard
@@ -120,6 +124,7 @@ class HalServer:
         self.started_at = 0.0
         self.steps = 0
         self.ft_ports: Dict[str, Port] = {}
+        self.ft_offsets: Dict[str, analog.AnalogOffsets] = {}  # tare, set on <ft>/analog:o/rpc:i
         self.imu_port: Optional[Port] = None
         self.world_port: Optional[Port] = None
 
@@ -147,8 +152,14 @@ class HalServer:
                               chain, bottle, source)),
                 names["rpc"])
         for sensor in self.backend.ft_sensors:
-            self.ft_ports[sensor] = self._open(Port(nameclient=self.nameclient),
-                                               protocol.ft_port_name(self.robot, sensor))
+            name = protocol.ft_port_name(self.robot, sensor)
+            self.ft_ports[sensor] = self._open(Port(nameclient=self.nameclient), name)
+            self.ft_offsets[sensor] = analog.AnalogOffsets(6)
+            self._open(RpcServer(nameclient=self.nameclient, handler=lambda request, sensor=sensor:
+                                 analog.respond(request, self.ft_offsets[sensor],
+                                                lambda: self.backend.ft(sensor),
+                                                lambda text: log.info("%s rpc: %s", sensor, text))),
+                       analog.rpc_name(name))
         self.imu_port = self._open(Port(nameclient=self.nameclient),
                                    protocol.imu_port_name(self.robot))
         if getattr(self.backend, "plant", None) is not None:
@@ -269,7 +280,8 @@ class HalServer:
         envelope = self.sensor_stamp.update(time.time()).envelope()
         for sensor, port in self.ft_ports.items():
             if port.output_count:
-                self.publisher.publish(port, protocol.encode_ft(self.backend.ft(sensor)), envelope)
+                wrench = self.ft_offsets[sensor].apply(self.backend.ft(sensor))
+                self.publisher.publish(port, protocol.encode_ft(wrench), envelope)
         if self.imu_port is not None and self.imu_port.output_count:
             imu = self.backend.imu()
             self.publisher.publish(self.imu_port, protocol.encode_inertial(
