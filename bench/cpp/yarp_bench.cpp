@@ -1,7 +1,8 @@
 // Reference benchmark peer: real YARP 3.5 C++, the numbers yarp_lite is compared with.
 //
 //   yarp_bench rpc-server NAME                  reply to every request with the request
-//   yarp_bench rpc-client TARGET N              N round trips of a 10-int Bottle;
+//   yarp_bench rpc-client TARGET N [REQUEST]    N round trips of a 10-int Bottle (or of
+//                                               REQUEST, a Bottle in text: "[get] [encs]");
 //                                               prints "rpc median_us p99_us"
 //   yarp_bench sink NAME N                      receive N Bottles; prints "sink MB/s"
 //   yarp_bench source NAME TARGET N BYTES       send N Bottles holding one BYTES-long blob
@@ -81,7 +82,11 @@ int main(int argc, char** argv) {
         if (!Network::connect(client.getName(), argv[2])) { return 1; }
         int n = std::atoi(argv[3]);
         Bottle request, reply;
-        for (int i = 0; i < 10; i++) { request.addInt32(i); }
+        if (argc > 4) {
+            request.fromString(argv[4]);  // e.g. "[get] [encs]" for a control board
+        } else {
+            for (int i = 0; i < 10; i++) { request.addInt32(i); }
+        }
         for (int i = 0; i < 200; i++) { client.write(request, reply); }
         std::vector<double> samples;
         for (int i = 0; i < n; i++) {

@@ -148,3 +148,27 @@ def test_every_bottle_type_round_trips_bit_identically(world, implementations, m
         assert encode(client.call(big, timeout=20)) == encode(big)
     finally:
         client.close()
+
+
+@pytest.mark.parametrize("reader", IMPLS)
+@pytest.mark.parametrize("carrier", ["tcp", "fast_tcp", "udp", "text"])
+def test_an_envelope_written_by_yarp_lite_reaches_either_reader(world, implementations,
+                                                                monkeypatch, reader, carrier):
+    """``Port.write(bottle, envelope)``: what ``Port::setEnvelope`` + ``write`` send in YARP."""
+    from yarp_lite.port import Port
+
+    world.apply_to_process(monkeypatch)
+    read_impl = pick(implementations, reader)
+    read_proc = world.tool(read_impl, "read", "/r", "envelope")
+    read_proc.wait_for("Port /r active")
+    port = Port()
+    port.open("/w")
+    try:
+        assert port.add_output("/r", carrier)
+        read_proc.wait_for(f"Receiving input from /w to /r using {carrier}")
+        port.write(Bottle([1.5, 2.5]), "17 1795456583.25")
+        # Real YARP prints the envelope on a line of its own, yarp-lite before the data.
+        read_proc.wait_for(r"^17 1795456583\.25")
+        read_proc.wait_for(r"1\.5 2\.5$")
+    finally:
+        port.close()

@@ -12,6 +12,9 @@ JOINTS = ["WaistLat", "WaistSag", "LShSag", "LHipSag"]
 def test_owner_is_the_module_behind_the_command_port():
     assert owner_of("/drc_door/robot/torso/command:o") == "/drc_door"
     assert owner_of("/me/cmd") == "/me/cmd"  # not a module's robot port: the port itself
+    # A YARP remote_controlboard opened with local=/gui/head: its rpc and command ports.
+    assert owner_of("/gui/head/command:o") == owner_of("/gui/head/rpc:o") == "/gui/head"
+    assert owner_of("/command:o") == "/command:o"
 
 
 def test_refuse_keeps_the_first_holder_and_applies_the_rest():
