@@ -9,8 +9,8 @@
   locally and makes no round trip; ``[get] [encs]`` is what ``yarp rpc`` and any
   client asking the board directly pay.)
 * ``state:o`` of all 8 chains streamed at 1 kHz (``period_ms 1``), each read by a C++
-  sink: the HAL process's CPU (% of one core) per backend, beside the same HAL with
-  no reader.
+  sink over tcp and over udp: the HAL process's CPU (% of one core) per backend,
+  beside the same HAL with no reader.
 
 Usage: ``.venv/bin/python bench/bench_hal.py [--quick]``.  Needs the reference
 build with its devices (``launch_scripts/build_reference_yarp.sh``).
@@ -36,6 +36,9 @@ from yarp_lite import reference  # noqa: E402
 from yarp_lite.freeport import free_port  # noqa: E402
 
 PYTHON = sys.executable
+#: How the readers connect: tcp (an acknowledgement per message, ``yarp read``'s
+#: default) and udp (``remote_controlboard``'s default for its state ports).
+CARRIERS = ("tcp", "udp")
 TICKS = os.sysconf("SC_CLK_TCK")
 
 
@@ -56,16 +59,19 @@ class Bench:
         self.children: List[subprocess.Popen] = []
 
     def spawn(self, argv: List, ready: str = "") -> subprocess.Popen:
-        child = subprocess.Popen([str(a) for a in argv], env=self.env, stdout=subprocess.PIPE,
-                                 stderr=subprocess.STDOUT, text=True)
+        """Start a child whose output goes to a log file (a pipe nobody reads would fill
+        and stall it); wait until the log shows ``ready``."""
+        log = self.tmp / f"child{len(self.children)}.log"
+        # stdbuf: YARP's programs print through stdio, fully buffered otherwise.
+        with open(log, "w") as out:
+            child = subprocess.Popen(["stdbuf", "-oL", "-eL", *map(str, argv)], env=self.env,
+                                     stdout=out, stderr=subprocess.STDOUT, text=True)
         self.children.append(child)
         deadline = time.time() + 90
-        while ready:
-            line = child.stdout.readline()
-            if ready in line:
-                break
-            if not line or time.time() > deadline:
-                raise RuntimeError(f"{argv[:3]} did not print {ready!r}")
+        while ready and ready not in log.read_text(errors="replace"):
+            if child.poll() is not None or time.time() > deadline:
+                raise RuntimeError(f"{argv[:3]} did not print {ready!r}:\n{log.read_text()}")
+            time.sleep(0.1)
         return child
 
     def stop(self, child: subprocess.Popen) -> None:
@@ -138,18 +144,20 @@ class Bench:
             f"{name} {' '.join(joints)}\n" for name, joints in chains.items()))
         hal = self.hal(backend, config)
         time.sleep(2.0)
-        idle = self.cpu_percent(hal.pid)
-        sinks = []
-        for chain in chains:
-            sinks.append(self.spawn([self.cpp, "sink", f"/bench/sink/{chain}", 10 ** 9],
-                                    ready="ready"))
-            self.tool("connect", f"/walkman/{chain}/state:o", f"/bench/sink/{chain}")
-        time.sleep(2.0)
-        streaming = self.cpu_percent(hal.pid)
-        for sink in sinks:
-            self.stop(sink)
+        figures = {"idle": self.cpu_percent(hal.pid)}
+        for carrier in CARRIERS:
+            sinks = []
+            for chain in chains:
+                sink = f"/bench/sink/{carrier}/{chain}"
+                sinks.append(self.spawn([self.cpp, "sink", sink, 10 ** 9], ready="ready"))
+                self.tool("connect", f"/walkman/{chain}/state:o", sink, carrier)
+            time.sleep(2.0)
+            figures[carrier] = self.cpu_percent(hal.pid)
+            for sink in sinks:
+                self.stop(sink)
+            time.sleep(1.0)
         self.stop(hal)
-        return {"idle": idle, "streaming": streaming}
+        return figures
 
 
 def machine() -> str:
@@ -181,10 +189,12 @@ def main() -> int:
     print(f"  ratio HAL / real YARP: {ratio:.2f} (goal <= 1.0)")
     print()
     print(f"HAL process CPU, % of one core over {bench.cpu_seconds:g} s, state:o of 8 chains "
-          f"at 1 kHz to 8 C++ readers")
-    print(f"  {'backend':<12}{'no reader':>12}{'8 readers':>12}")
+          f"at 1 kHz to 8 C++ readers (8000 messages/s)")
+    print(f"  {'backend':<12}{'no reader':>12}" + "".join(f"{c + ' readers':>14}"
+                                                          for c in CARRIERS))
     for backend, figures in cpu.items():
-        print(f"  {backend:<12}{figures['idle']:>11.0f}%{figures['streaming']:>11.0f}%")
+        print(f"  {backend:<12}{figures['idle']:>11.0f}%" +
+              "".join(f"{figures[c]:>13.0f}%" for c in CARRIERS))
     print(f"machine after: {machine()}")
     return 0
 

@@ -64,6 +64,8 @@ JOINT_VECTORS = {
     "acc": ("accs", "accg", "ref_accelerations"),
     "tmp": ("tmps", None, "temperatures"),
 }
+_EVERY = {every: vector for every, _, vector in JOINT_VECTORS.values()}
+_GROUPS = {group: vector for _, group, vector in JOINT_VECTORS.values() if group}
 #: ``[set] X j v`` / ``[set] Xs (v...)`` / ``[set] Xg n (j...) (v...)``: position
 #: moves, relative moves, reference speeds and accelerations (IPositionControl).
 SETTERS = {
@@ -244,7 +246,8 @@ def _group(device: ControlBoardDevice, request: Bottle, index: int) -> List[int]
 
 def _stamped(reply: Bottle, stamp: Stamp, now: float) -> Bottle:
     stamp.update(now)
-    return reply + Bottle([TIMESTAMP, stamp.count, stamp.time])
+    reply.extend((TIMESTAMP, stamp.count, stamp.time))
+    return reply
 
 
 def _respond(device: ControlBoardDevice, request: Bottle, stamp: Stamp, now: float,
@@ -275,15 +278,12 @@ def _get(device: ControlBoardDevice, request: Bottle, what: str, stamp: Stamp,
          now: float) -> Optional[Bottle]:
     reply = Bottle([IS, request[1]])
     axes = device.axes()
-    single = {key: value for key, value in JOINT_VECTORS.items()}
-    every = {value[0]: value[2] for value in JOINT_VECTORS.values()}
-    groups = {value[1]: value[2] for value in JOINT_VECTORS.values() if value[1]}
-    if what in single:
-        reply.append(float(device.vector(single[what][2])[_axis(device, request, 2)]))
-    elif what in every:
-        reply.append(Bottle(float(v) for v in device.vector(every[what])))
-    elif what in groups:
-        vector = device.vector(groups[what])
+    if what in JOINT_VECTORS:
+        reply.append(float(device.vector(JOINT_VECTORS[what][2])[_axis(device, request, 2)]))
+    elif what in _EVERY:
+        reply.append(Bottle(float(v) for v in device.vector(_EVERY[what])))
+    elif what in _GROUPS:
+        vector = device.vector(_GROUPS[what])
         reply.append(Bottle(float(vector[j]) for j in _group(device, request, 2)))
     elif what == "axes":
         reply.append(axes)

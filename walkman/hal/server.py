@@ -70,9 +70,14 @@ class Publisher(threading.Thread):
         self.sent = 0
 
     def publish(self, port: Port, bottle: Bottle, envelope: str = "") -> None:
+        """Queue one message; it leaves at the next :meth:`flush` (one wake-up per tick)."""
         with self.cond:
             self.pending[id(port)] = (port, bottle, envelope)
-            self.cond.notify()
+
+    def flush(self) -> None:
+        with self.cond:
+            if self.pending:
+                self.cond.notify()
 
     def run(self) -> None:
         while True:
@@ -318,6 +323,7 @@ class HalServer:
                 self._publish_sensors()
             if self.steps % world_every == 0:
                 self._publish_world()
+            self.publisher.flush()
             for event in getattr(backend, "events", []):
                 log.info("%s", event)
             if getattr(backend, "events", None):
