@@ -33,9 +33,10 @@ GAZE_STATUSES = ["ready", "moving", "tracking", "unreachable"]
 
 #: What a YARP user types at ``yarp rpc /<robot>/<chain>/rpc:i`` (the issue's examples first).
 RPC_SCRIPT = [
+    "set icmd cmds (pos pos)",  # the HAL boots in position direct, fakeMotionControl in position
     "get axes", "get encs", "get enc 0", "set pos 0 10", "get name 1", "get prot",
     "[get] [axes]", "[get] [encs]", "get esps", "get icmd cmds", "get icmd cmod 1",
-    "get icmd cmog 1 (1)", "set icmd cmod 1 posd", "get icmd cmod 1", "set icmd cmod 1 pos",
+    "get icmd cmog 1 (1)", "get icmd what", "set icmd cmod 1 posd", "get icmd cmod 1", "set icmd cmod 1 pos",
     "set vels (10 10)", "get vels", "get vel 0", "get poss", "get type 0", "set posg 1 (0) (5)",
     "get torq trqs", "get torq axes", "get torq trq 1", "get pid pid pos 0",
     "get dpos", "get vmos",
@@ -221,7 +222,7 @@ def test_an_unchanged_gym_module_moves_a_real_yarp_robot(world, reference, tmp_p
 
 def test_arbitration_holds_when_one_commander_is_a_real_yarp_client(world, tmp_path):
     """A module's whole-body interface streams to the neck; a C++ remote_controlboard
-    asking for the same joints is refused (its mode change and its moves), and said so."""
+    asking for the same joints is refused (its mode change, hence its moves), and said so."""
     import threading
 
     from walkman.hal.robot import Robot
@@ -245,9 +246,11 @@ def test_arbitration_holds_when_one_commander_is_a_real_yarp_client(world, tmp_p
                           env=devices_env(world))
         assert run.wait(timeout=60) == 1, run.output()
         assert "not reached position" in run.output()
-        wait_until(lambda: "/cpp/intruder may not command NeckYawj" in hal.output(), 10,
-                   message="the HAL refused the intruder and said so")
-        assert "/cpp/intruder may not change the mode of NeckYawj" in hal.output()
+        # Its mode change is refused (the holder holds the joint), so its positionMove finds
+        # the joint in position direct and is skipped; both said in the HAL's log.
+        wait_until(lambda: "/cpp/intruder may not change the mode of NeckYawj" in hal.output(),
+                   10, message="the HAL refused the intruder's mode change and said so")
+        assert "position_move from /cpp/intruder skipped for NeckYawj" in hal.output()
         # The holder kept its joints: the neck stayed where it holds it.
         yaw = robot.index["NeckYawj"]
         assert abs(robot.sense_position()[yaw] - reference_q[yaw]) < 0.02

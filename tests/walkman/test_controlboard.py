@@ -43,6 +43,7 @@ def ask(board: MemoryBoard, text: str, errors: list = None) -> Bottle:
     ("get icmd cmds", "[is] [cmds] ([pos] [pos]) [tsta] 1 1000.0 [ok]"),
     ("get icmd cmod 1", "[is] 1 [pos] [tsta] 1 1000.0 [ok]"),
     ("get icmd cmog 1 (1)", "[is] [cmog] ([pos]) [tsta] 1 1000.0 [ok]"),
+    ("get icmd what", "[tsta] 1 1000.0 [ok]"),          # sic: the real wrapper's answer
     ("get intm mods", "([stif] [stif]) [tsta] 1 1000.0 [ok]"),
     ("get torq trqs", "[is] torq (1.0 -1.0) [tsta] 1 1000.0 [ok]"),
     ("get pid pid pos 0", "[is] pid (1.0 0.0 0.0 0.0 0.0 0.0 1.0 0.0 0.0 0.0) [ok]"),
@@ -153,6 +154,8 @@ def test_joint_data_is_the_22_fields_of_jointData_thrift():
     (Bottle([1.0] * 21), "22 fields"),
     (Bottle([Bottle([1.0]), Vocab("maybe")] * 11), "malformed"),
     (Bottle([Bottle(["x"]), Vocab("ok")] * 11), "float64"),
+    (Bottle([Bottle([1.0, 2.0]), Vocab("ok"), Bottle([1.0]), Vocab("ok")] +
+            [Bottle([1.0, 2.0]), Vocab("ok")] * 9), "jointVelocity has 1 values"),
 ])
 def test_a_malformed_joint_data_is_refused(bottle, problem):
     with pytest.raises(ControlBoardError, match=problem):
@@ -185,7 +188,9 @@ def run(board, backend, seconds: float) -> None:
 def test_a_chain_moves_by_control_mode_as_a_motor_board(backend):
     from walkman.hal.chain import ChainBoard
 
-    board = ChainBoard("head", ["NeckYawj", "NeckPitchj"], backend)
+    assert ChainBoard("head", ["NeckYawj", "NeckPitchj"], backend).control_modes() == \
+        ["posd", "posd"]                          # Walk-Man's boards: position servos
+    board = ChainBoard("head", ["NeckYawj", "NeckPitchj"], backend, boot_mode="pos")
     assert board.control_modes() == ["pos", "pos"]
     board.command("set_ref_speeds", [0], [60.0])
     board.command("position_move", [0], [20.0], "/a")
@@ -231,3 +236,36 @@ def test_arbitration_decides_before_a_command_is_recorded(backend):
     board.command("direct", [0], [5.0], "/holder")
     assert board.vector("direct_references")[0] == 5.0
     assert np.isfinite(board.vector("encoders")).all()
+
+
+def test_a_command_in_the_wrong_mode_is_told_to_its_sender_and_claims_nothing(backend):
+    from walkman.hal.chain import ChainBoard
+
+    told, claimed = [], []
+    board = ChainBoard("head", ["NeckYawj", "NeckPitchj"], backend,
+                       arbitrate=lambda owner, joints: claimed.append((owner, joints))
+                       or set(joints),
+                       on_refused=lambda owner, text: told.append((owner, text)),
+                       boot_mode="pos")
+    board.command("direct", [0, 1], [1.0, 2.0], "/gaze")     # both joints boot in pos
+    assert told and told[0][0] == "/gaze" and "not in [posd] mode but [pos], [pos]" in told[0][1]
+    assert claimed == []                                      # arbitration never asked
+    for _ in range(20):                                       # a flood is told once per burst
+        board.command("direct", [0, 1], [1.0, 2.0], "/gaze")
+    assert len(told) == 2 and "#10 of this burst" in told[1][1]
+    board.command("set_ref_speeds", [1], [5.0], "/gui")       # speeds are commands too
+    assert claimed[-1] == ("/gui", [backend.index["NeckPitchj"]])
+
+
+def test_stop_holds_the_servo_reference(backend):
+    from walkman.hal.chain import ChainBoard
+
+    board = ChainBoard("head", ["NeckYawj", "NeckPitchj"], backend, boot_mode="pos")
+    board.command("set_ref_speeds", [0], [100.0])
+    board.command("position_move", [0], [30.0])
+    run(board, backend, 0.1)
+    board.command("stop", [0], [])
+    reference = math.degrees(backend.reference[backend.index["NeckYawj"]])
+    assert board.vector("target_positions")[0] == pytest.approx(reference)
+    run(board, backend, 0.1)
+    assert math.degrees(backend.reference[backend.index["NeckYawj"]]) == pytest.approx(reference)

@@ -227,7 +227,7 @@ def test_bad_input_is_refused_and_the_robot_holds(lite_world, probe, lite):
         pilot.close()
 
 
-def test_a_hal_that_disappears_and_comes_back(lite_world, lite):
+def test_a_hal_that_disappears_and_comes_back(lite_world, lite, probe):
     hal = start_hal(lite_world, "sim")
     module = start_module(lite_world, "gaze_control")
     module.wait_for("ready for the pilot", timeout=60)
@@ -235,13 +235,20 @@ def test_a_hal_that_disappears_and_comes_back(lite_world, lite):
     try:
         pilot.send(lite, "switch", "start")
         pilot.wait_state("ready")
+        pilot.send(lite, "command", "look_at 1.0 -0.4 0.1")  # its joints go position direct
+        pilot.wait_state("tracking", timeout=30)
         hal.kill()
         pilot.wait_warning("lost the robot (HAL silent")
         pilot.wait_state("waiting_hal")
-        start_hal(lite_world, "sim")
+        start_hal(lite_world, "sim")                          # boots in position mode
         pilot.wait_warning("the robot (HAL) is back", timeout=40)
-        pilot.send(lite, "command", "look_at 1.0 0.0 0.0")
+        robot = probe()
+        before = neck(robot)
+        pilot.send(lite, "command", "look_at 1.0 0.4 0.1")
         pilot.wait_state("tracking", timeout=30)
+        # The module switched its joints to position direct again: the head moves.
+        wait_until(lambda: neck(robot)[0] > before[0] + 0.25, 10,
+                   message=f"head turned left after the HAL restart (from {before})")
     finally:
         pilot.close()
 

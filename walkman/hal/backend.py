@@ -17,7 +17,8 @@ import numpy as np
 
 from walkman.model.description import Robot, home_posture
 
-#: Reference speed (rad/s) of ``[move]`` commands until a module sets its own.
+#: Reference speed (rad/s) of position-mode moves (``[set] [pos]``, ``[poss]``) until a
+#: client sets its own (``[set] [vels]``).
 DEFAULT_REF_SPEED = 0.6
 
 

@@ -17,11 +17,16 @@ mode -- as a motor board's firmware would:
           whose velocity command is older than 0.1 s stops (YARP's watchdog)
 ``idl``   motors off: the joint is limp
 
-A command for a joint in another mode is refused, as a real board refuses
-it, and the refusal is logged once per burst.  The robot boots in position
-mode holding its posture, like a calibrated YARP robot.  Every command names
-its owner (the sender's port), and the HAL's joint arbitration decides which
-joints it may move before anything is recorded.
+A command for a joint in another mode is skipped, as a real board skips
+it; the skip is logged and told to the sender (the HAL's ``warning:o``) once
+per burst.  The robot boots in position-direct mode holding its posture:
+Walk-Man's boards are position servos fed a reference every millisecond
+(paper, Figure 4), so that is their natural mode, and a module's first
+references are not lost while it switches modes.  Standard YARP clients set
+the mode they need first (``yarpmotorgui`` and ``remote_controlboard`` users
+do: a YARP robot may boot in any mode).  Every command names its owner (the
+sender's port), and the HAL's joint arbitration decides which joints it may
+move before anything is recorded.
 """
 
 from __future__ import annotations
@@ -29,7 +34,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
-from typing import Callable, List, Optional, Sequence, Set, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Set, Tuple
 
 import numpy as np
 
@@ -55,16 +60,19 @@ Arbiter = Callable[[str, List[int]], Set[int]]
 class ChainBoard(cb.ControlBoardDevice):
     def __init__(self, name: str, joints: List[str], backend: Backend,
                  arbitrate: Arbiter = lambda owner, joints: set(joints),
-                 on_seq: Callable[[int], None] = lambda seq: None) -> None:
+                 on_seq: Callable[[int], None] = lambda seq: None,
+                 on_refused: Callable[[str, str], None] = lambda owner, text: None,
+                 boot_mode: str = cb.MODE_DIRECT) -> None:
         self.name = name
         self.joints = joints
         self.backend = backend
         self.indices = np.array([backend.index[j] for j in joints])
         self.arbitrate = arbitrate
         self.on_seq = on_seq
+        self.on_refused = on_refused  # (owner, text): tell the owner (the HAL's warning:o)
         count = len(joints)
         self.lock = threading.Lock()
-        self.modes: List[str] = [cb.MODE_POSITION] * count
+        self.modes: List[str] = [boot_mode] * count
         self.targets = np.degrees(backend.reference[self.indices])      # pos mode goals
         self.ref_speed = np.full(count, math.degrees(DEFAULT_REF_SPEED))
         self.ref_acceleration = np.full(count, 1e9)                        # not modelled
@@ -75,8 +83,8 @@ class ChainBoard(cb.ControlBoardDevice):
         self._dirty = np.zeros(count, dtype=bool)   # direct references not yet applied
         self._idle_changed = False
         self.commands = 0
-        self.refused = 0
-        self._refusals = Burst()
+        self.refused = 0  # commands skipped because a joint was in another mode
+        self._refusals: Dict[str, Burst] = {}
 
     # -- reading (ControlBoardDevice) -----------------------------------------------------
 
@@ -144,15 +152,19 @@ class ChainBoard(cb.ControlBoardDevice):
             if held:
                 raise cb.ControlBoardError(f"{self.name}: {owner} may not change the mode of "
                                            f"{', '.join(held)}: another module holds it")
-        now_q = np.degrees(self.backend.positions()[self.indices])
+        measured = np.degrees(self.backend.positions()[self.indices])
         with self.lock:
             for joint, mode in zip(joints, modes):
                 mode = cb.MODE_IDLE if mode == cb.MODE_FORCE_IDLE else mode
                 if mode == self.modes[joint]:
                     continue
+                # A new mode starts from the servo's reference (not the measured position,
+                # which a loaded compliant joint holds below it), or from where a limp
+                # joint hangs.
+                start = measured[joint] if self.modes[joint] == cb.MODE_IDLE \
+                    else self._reference(joint)
                 self.modes[joint] = mode
-                # A new mode starts from where the joint is, as fakeMotionControl does.
-                self.targets[joint] = self.direct[joint] = now_q[joint]
+                self.targets[joint] = self.direct[joint] = start
                 self.velocity[joint] = 0.0
                 self._moving[joint] = False
                 self._dirty[joint] = mode != cb.MODE_IDLE
@@ -161,23 +173,23 @@ class ChainBoard(cb.ControlBoardDevice):
     def command(self, what: str, joints: Sequence[int], values: Sequence[float],
                 owner: str = "", seq: Optional[int] = None) -> None:
         joints = list(joints)
-        if what in ("set_ref_speeds", "set_ref_accelerations"):
-            if not all(v > 0 for v in values):
-                raise cb.ControlBoardError(f"{what} needs positive values: {list(values)}")
-            with self.lock:
-                (self.ref_speed if what == "set_ref_speeds" else self.ref_acceleration)[joints] \
-                    = values
-            return
-        allowed = self.arbitrate(owner, [int(self.indices[j]) for j in joints])
-        keep = [k for k, j in enumerate(joints) if int(self.indices[j]) in allowed]
         if seq is not None:
             self.on_seq(seq)
+        if what in ("set_ref_speeds", "set_ref_accelerations") and not all(v > 0 for v in values):
+            raise cb.ControlBoardError(f"{what} needs positive values: {list(values)}")
         need = MODE_OF.get(what)
         with self.lock:
-            wrong = [joints[k] for k in keep if need is not None and self.modes[joints[k]] != need]
-            if wrong:
-                self._refuse(owner, what, need, wrong)
-                keep = [k for k in keep if joints[k] not in wrong]
+            wrong = [j for j in joints if need is not None and self.modes[j] != need]
+            modes = [self.modes[j] for j in wrong]
+        if wrong:  # as a motor board: a command for another mode is skipped
+            self._refuse(owner, what, need, wrong, modes)
+        candidates = [k for k, j in enumerate(joints) if j not in wrong]
+        if not candidates:
+            return
+        # Only then arbitration: a command the mode refuses does not claim its joints.
+        allowed = self.arbitrate(owner, [int(self.indices[joints[k]]) for k in candidates])
+        keep = [k for k in candidates if int(self.indices[joints[k]]) in allowed]
+        with self.lock:
             self.commands += 1
             for k in keep:
                 self._record(what, joints[k], values[k] if values else 0.0)
@@ -194,21 +206,34 @@ class ChainBoard(cb.ControlBoardDevice):
         elif what == "velocity_move":
             self.velocity[joint] = value
             self.velocity_at[joint] = self.backend.time
-        elif what == "stop":
-            q = math.degrees(self.backend.positions()[self.indices[joint]])
-            self.targets[joint] = self.direct[joint] = q
+        elif what == "set_ref_speeds":
+            self.ref_speed[joint] = value
+        elif what == "set_ref_accelerations":
+            self.ref_acceleration[joint] = value
+        elif what == "stop":  # hold what the servo holds now
+            here = self._reference(joint)
+            self.targets[joint] = self.direct[joint] = here
             self.velocity[joint] = 0.0
             self._moving[joint] = False
         else:
             raise cb.ControlBoardError(f"{self.name}: {what} is not offered")
 
-    def _refuse(self, owner: str, what: str, need: str, joints: List[int]) -> None:
-        self.refused += 1
-        if self._refusals.record():
-            log.warning("%s: %s from %s skipped for %s: not in [%s] mode but [%s] "
-                        "(#%d of this burst)", self.name, what, owner or "?",
-                        ", ".join(self.joints[j] for j in joints), need,
-                        "], [".join(self.modes[j] for j in joints), self._refusals.count)
+    def _reference(self, joint: int) -> float:
+        """The servo's reference (degrees): where a new mode or a stop starts from."""
+        return math.degrees(self.backend.reference[self.indices[joint]])
+
+    def _refuse(self, owner: str, what: str, need: Optional[str], joints: List[int],
+                modes: List[str]) -> None:
+        """Count, log and report (once per burst per owner) commands the mode refused."""
+        with self.lock:
+            self.refused += 1
+            burst = self._refusals.setdefault(owner, Burst())
+        if burst.record():
+            text = (f"HAL: {what} from {owner or '?'} skipped for "
+                    f"{', '.join(self.joints[j] for j in joints)}: not in [{need}] mode but "
+                    f"[{'], ['.join(modes)}] (#{burst.count} of this burst)")
+            log.warning("%s: %s", self.name, text)
+            self.on_refused(owner, text)
 
     # -- the physics thread ---------------------------------------------------------------
 

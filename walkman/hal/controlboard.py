@@ -252,8 +252,6 @@ def _stamped(reply: Bottle, stamp: Stamp, now: float) -> Bottle:
 
 def _respond(device: ControlBoardDevice, request: Bottle, stamp: Stamp, now: float,
              owner: str) -> Optional[Bottle]:
-    if len(request) < 2:
-        return None
     code, interface = _vocab(request, 0), _vocab(request, 1)
     if interface == "prot":
         return Bottle([Vocab("prot"), *PROTOCOL_VERSION]) if code == "get" else None
@@ -362,8 +360,8 @@ def _control_mode(device: ControlBoardDevice, request: Bottle, code: str, stamp:
     elif method == "cmog":
         reply = Bottle([IS, Vocab("cmog"),
                         Bottle(Vocab(modes[j]) for j in _group(device, request, 3))])
-    else:
-        raise ControlBoardError(f"[get] [icmd] [{method}] is not understood")
+    else:  # the real wrapper logs it and answers a bare timestamp and [ok]
+        reply = Bottle()
     return _stamped(reply, stamp, now)
 
 
@@ -566,11 +564,15 @@ def decode_joint_data(bottle: Bottle) -> JointData:
 
     if len(bottle) != 2 * len(JOINT_DATA_FIELDS):
         raise ControlBoardError(f"jointData has 22 fields, got {len(bottle)}")
+    axes = len(bottle[0]) if isinstance(bottle[0], list) else 0
     fields = {}
     for k, name in enumerate(JOINT_DATA_FIELDS):
         values, valid = bottle[2 * k], bottle[2 * k + 1]
         if not isinstance(values, list) or str(valid) not in ("ok", "fail"):
             raise ControlBoardError(f"jointData field {name} is malformed")
+        if str(valid) == "ok" and len(values) != axes:
+            raise ControlBoardError(f"jointData field {name} has {len(values)} values, "
+                                    f"jointPosition {axes}")
         if name in ("controlMode", "interactionMode"):
             if not all(isinstance(v, int) for v in values):
                 raise ControlBoardError(f"jointData field {name} must hold int32 codes")

@@ -32,7 +32,7 @@ import math
 from dataclasses import dataclass
 from typing import List, Sequence, Tuple
 
-from yarp_lite.bottle import Bottle, Vocab
+from yarp_lite.bottle import Bottle
 
 
 class HalError(Exception):

@@ -141,12 +141,16 @@ class WholeBody(ABC):
 
 @dataclass
 class _ChainLink:
+    """One chain of the robot as this client sees it (guarded by ``Robot._lock``)."""
+
     name: str
     indices: List[int]
     command: Port
-    rpc: str                                    # the chain's rpc:i port name
-    direct: Set[int] = field(default_factory=set)  # joints switched to position direct
-    asked_at: float = -1e9                         # when we last asked for position direct
+    rpc: str                                       # the chain's rpc:i port name
+    wanted: Set[int] = field(default_factory=set)  # joints we command (position direct)
+    direct: Set[int] = field(default_factory=set)  # ... that the robot has switched
+    seen_at: float = 0.0                           # when its state last arrived
+    seq: int = 0                                   # and its count
     reported: bool = False
 
 
@@ -183,9 +187,11 @@ class Robot(WholeBody):
         self.clamped = 0
         self.last_seq = 0
         self._hal_warnings: List[str] = []
-        self._away_since = 0.0
         self._stop = threading.Event()
+        self._mode_wanted = threading.Event()  # wakes the mode keeper
         self._connect(connect_timeout)
+        threading.Thread(target=self._keep_modes, daemon=True,
+                         name=f"{self.owner} control modes").start()
 
     # -- connecting ----------------------------------------------------------------------
 
@@ -334,7 +340,7 @@ class Robot(WholeBody):
         except HalProtocolError as exc:
             log.warning("%s: bad state from the HAL on %s: %s", self.owner, chain, exc)
             return
-        self._store(indices, state.seq, state.q, state.qdot, state.tau, state.temperature)
+        self._store(chain, state.seq, state.q, state.qdot, state.tau, state.temperature)
 
     def _on_state_ext(self, chain: str, indices: List[int], bottle: Bottle,
                       envelope: str = "") -> None:
@@ -347,13 +353,25 @@ class Robot(WholeBody):
             return
         stamp = controlboard.Stamp.from_envelope(envelope)
         zeros = [0.0] * len(indices)
-        self._store(indices, stamp.count if stamp else 0, np.radians(data.position),
+        self._store(chain, stamp.count if stamp else 0, np.radians(data.position),
                     np.radians(data.velocity) if data.velocity else zeros,
-                    data.torque or zeros, None)
+                    data.torque or zeros, None, data.control_modes)
 
-    def _store(self, indices: List[int], seq: int, q: Sequence[float], qdot: Sequence[float],
-               tau: Sequence[float], temperature: Optional[Sequence[float]]) -> None:
+    def _store(self, chain: str, seq: int, q: Sequence[float], qdot: Sequence[float],
+               tau: Sequence[float], temperature: Optional[Sequence[float]],
+               modes: Optional[Sequence[str]] = None) -> None:
+        link = self._links[chain]
+        indices = link.indices
+        now = time.monotonic()
         with self._lock:
+            # A robot back from silence, or restarted (its count went back), may have booted
+            # our joints in another mode; so may anyone who changed their modes.
+            lost = [k for k in link.direct if modes is not None and modes[k] != "posd"]
+            if now - link.seen_at > STALE_AFTER or seq < link.seq or lost:
+                link.direct.difference_update(lost if lost else set(link.direct))
+                if link.wanted - link.direct:
+                    self._mode_wanted.set()
+            link.seen_at, link.seq = now, seq
             self._q[indices] = q
             self._qdot[indices] = qdot
             self._tau[indices] = tau
@@ -368,10 +386,11 @@ class Robot(WholeBody):
         while not self._stop.wait(1.0):
             for link in list(self._links.values()):
                 reply = self._rpc(link, [Vocab("get"), Vocab("tmps")])
-                if reply is not None and len(reply) > 2 and isinstance(reply[2], list) and \
-                        len(reply[2]) == len(link.indices):
+                values = reply[2] if reply is not None and len(reply) > 2 else None
+                if isinstance(values, list) and len(values) == len(link.indices) and \
+                        all(isinstance(v, float) for v in values):
                     with self._lock:
-                        self._temperature[link.indices] = [float(v) for v in reply[2]]
+                        self._temperature[link.indices] = values
 
     def _rpc(self, link: _ChainLink, request: Sequence) -> Optional[Bottle]:
         """One request to a chain's rpc:i; None (logged once) if it failed."""
@@ -398,11 +417,16 @@ class Robot(WholeBody):
             self._ft[sensor] = np.array([float(v) for v in bottle[:6]])
 
     def _on_hal_warning(self, bottle: Bottle) -> None:
-        """Keep what the HAL says about this module's own commands (arbitration)."""
-        if len(bottle) >= 3 and str(bottle[2]) == self.owner:
+        """Keep what the HAL says about this module's own commands (arbitration, and
+        commands refused because a joint left position direct: switch it back)."""
+        if len(bottle) >= 5 and str(bottle[2]) == self.owner:
             with self._lock:
                 self._hal_warnings.append(str(bottle[1]))
                 del self._hal_warnings[:-20]
+                if str(bottle[4]) == "wrong mode":
+                    for link in self._links.values():
+                        link.direct.clear()
+                    self._mode_wanted.set()
 
     def take_hal_warnings(self) -> List[str]:
         """What the HAL refused or overrode of this module's commands since last asked."""
@@ -473,12 +497,7 @@ class Robot(WholeBody):
             raise HalUsageError(f"move streams positions (mode 'pos'), not {mode!r}")
         values = self.check(q)
         if not self.connected:
-            self._away_since = self._away_since or time.monotonic()
             return False
-        if self._away_since:
-            for link in self._links.values():  # a robot back from away boots in position mode
-                link.direct.clear()
-            self._away_since = 0.0
         selected = None if joints is None else {self.index[name] for name in joints}
         sent = True
         for chain, link in self._links.items():
@@ -486,8 +505,10 @@ class Robot(WholeBody):
                     if selected is None or index in selected]
             if not mine:
                 continue
-            if not set(mine) <= link.direct:
-                self._switch_to_direct(link, mine)
+            if not link.wanted.issuperset(mine) or not link.direct.issuperset(mine):
+                with self._lock:
+                    link.wanted.update(mine)
+                self._mode_wanted.set()  # the mode keeper switches them; we stream meanwhile
             refs = np.degrees(values[[link.indices[k] for k in mine]])
             bottle = controlboard.encode_stream(
                 "direct", refs, None if len(mine) == len(link.indices) else mine,
@@ -495,14 +516,22 @@ class Robot(WholeBody):
             sent = link.command.write(bottle) and sent
         return sent
 
-    def _switch_to_direct(self, link: _ChainLink, joints: List[int]) -> None:
-        """Position-direct mode for these joints (YARP boards refuse [dpos] otherwise)."""
-        now = time.monotonic()
-        if now - link.asked_at < 1.0:
-            return  # asked a moment ago (and failed): do not stall the control loop
-        link.asked_at = now
-        reply = self._rpc(link, [Vocab("set"), Vocab("icmd"), Vocab("cmog"), len(joints),
-                                 Bottle(joints), Bottle(Vocab("posd") for _ in joints)])
-        if reply is not None:
-            link.direct.update(joints)
-
+    def _keep_modes(self) -> None:
+        """Switch the joints we command to position direct, off the control loop: a
+        YARP board refuses [dpos] in any other mode, and an rpc may take milliseconds."""
+        while not self._stop.is_set():
+            self._mode_wanted.wait(1.0)
+            self._mode_wanted.clear()
+            for link in list(self._links.values()):
+                with self._lock:
+                    joints = sorted(link.wanted - link.direct)
+                if not joints or self._stop.is_set():
+                    continue
+                reply = self._rpc(link, [Vocab("set"), Vocab("icmd"), Vocab("cmog"), len(joints),
+                                         Bottle(joints), Bottle(Vocab("posd") for _ in joints)])
+                if reply is not None:
+                    with self._lock:
+                        link.direct.update(joints)
+                else:
+                    self._stop.wait(1.0)  # refused or away: ask again in a second
+                    self._mode_wanted.set()

@@ -39,14 +39,16 @@ import numpy as np
 
 from walkman.hal import protocol
 from walkman.hal import analog, controlboard
-from walkman.hal.arbitration import Conflict, JointArbiter, owner_of
+from walkman.hal.arbitration import JointArbiter, owner_of
 from walkman.hal.backend import Backend
 from walkman.hal.chain import ChainBoard
+from walkman.hal.sim import HARNESS_MODES
 from walkman.hal.config import HalConfig, load_config
 from walkman.hal.controlboard import ControlBoardError, JointData, Stamp
 from walkman.hal.protocol import ChainState
 from walkman.model.mjcf import STATIONS
 from yarp_lite.bottle import Bottle, Vocab
+from yarp_lite.bursts import Burst
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
 from yarp_lite.rpc import RpcServer
@@ -105,12 +107,16 @@ class HalServer:
         self.robot = config.robot
         self.nameclient = nameclient or NameClient()
         self.realtime = realtime
-        self.lock = threading.Lock()
+        self._harness: Optional[str] = None  # asked over rpc, applied by the physics thread
         self.arbiter = JointArbiter(backend.joint_names, config.policy, config.priorities,
                                     config.release_after)
+        self._arbiter_lock = threading.Lock()  # commands arrive on many port threads
         self.chains: Dict[str, ChainBoard] = {
-            name: ChainBoard(name, joints, backend, self._arbitrate, self._on_command_seq)
+            name: ChainBoard(name, joints, backend, self._arbitrate, self._on_command_seq,
+                             lambda owner, text: self._warn(text, owner, "", "wrong mode"))
             for name, joints in config.chains.items()}
+        self._malformed: Dict[str, Burst] = {name: Burst() for name in self.chains}
+        self._rpc_refusals: Dict[str, Burst] = {}
         self.chain_ports: Dict[str, Dict[str, Port]] = {name: {} for name in self.chains}
         self.rpc_stamps: Dict[str, Stamp] = {name: Stamp() for name in self.chains}
         self.state_stamp = Stamp()
@@ -182,7 +188,9 @@ class HalServer:
     def close(self) -> None:
         self.running = False
         self.publisher.stop()
-        for port in self.ports:
+        # /<robot>/rpc:i last: a client that finds chains without it takes us for a plain
+        # YARP robot (see walkman.hal.robot).
+        for port in reversed(self.ports):
             port.close()
         self.backend.close()
 
@@ -195,10 +203,10 @@ class HalServer:
             chain.command(command.what, command.joints, command.values,
                           owner_of(source) if source else "?", command.seq)
         except ControlBoardError as exc:
-            chain.refused += 1
-            if chain.refused in (1, 10, 100) or chain.refused % 1000 == 0:
-                log.warning("%s: refused command #%d from %s: %s", chain.name, chain.refused,
-                            source or "?", exc)
+            burst = self._malformed[chain.name]
+            if burst.record():
+                log.warning("%s: refused command from %s (#%d of this burst): %s", chain.name,
+                            source or "?", burst.count, exc)
 
     def _on_command_seq(self, seq: int) -> None:
         """Sense->move latency: a command names the state publication it answers."""
@@ -208,24 +216,39 @@ class HalServer:
 
     def _arbitrate(self, owner: str, joints: List[int]) -> set:
         """The joints ``owner`` may command (see :mod:`walkman.hal.arbitration`)."""
-        decision = self.arbiter.filter(owner, joints, time.monotonic())
+        with self._arbiter_lock:
+            decision = self.arbiter.filter(owner, joints, time.monotonic())
         for conflict in decision.conflicts:
-            self._report(conflict)
+            log.warning("%s", conflict.text())
+            self._warn(conflict.text(), conflict.owner, conflict.holder, conflict.action)
         return set(decision.allowed)
 
-    def _report(self, conflict: Conflict) -> None:
-        text = conflict.text()
-        log.warning("%s", text)
+    def _warn(self, text: str, owner: str, holder: str, action: str) -> None:
+        """``/<robot>/warning:o``: ``seq text owner holder action`` (the owner's module
+        repeats it to its pilot; ``wrong mode`` also makes it switch its joints back)."""
         if self.warning_port is not None:
-            self._warning_seq += 1
-            self.warning_port.write(Bottle([self._warning_seq, text, conflict.owner,
-                                            conflict.holder, conflict.action]))
+            with self._arbiter_lock:
+                self._warning_seq += 1
+                seq = self._warning_seq
+            self.warning_port.write(Bottle([seq, text, owner, holder, action]))
 
     def _chain_rpc(self, chain: ChainBoard, request: Bottle, source: str = "") -> Bottle:
         """``rpc:i``: YARP's control-board requests (:func:`controlboard.respond`)."""
-        return controlboard.respond(
-            chain, request, self.rpc_stamps[chain.name], time.time(), owner_of(source) if source else "?",
-            on_error=lambda text: log.info("%s rpc from %s: %s", chain.name, source or "?", text))
+        try:
+            return controlboard.respond(chain, request, self.rpc_stamps[chain.name], time.time(),
+                                        owner_of(source) if source else "?",
+                                        lambda text: self._rpc_refused(chain.name, source, text))
+        except Exception:  # our bug, not the peer's: say so, and answer as YARP fails
+            log.exception("%s rpc from %s: %s failed", chain.name, source or "?",
+                          request.to_text()[:120])
+            return Bottle([Vocab("fail")])
+
+    def _rpc_refused(self, chain: str, source: str, text: str) -> None:
+        """A refused rpc request, logged once per burst per client."""
+        burst = self._rpc_refusals.setdefault(f"{chain} {source}", Burst())
+        if burst.record():
+            log.info("%s rpc from %s (#%d of this burst): %s", chain, source or "?",
+                     burst.count, text)
 
     def _robot_rpc(self, request: Bottle) -> Bottle:
         verb = str(request[0]) if request else ""
@@ -240,11 +263,10 @@ class HalServer:
                 return Bottle([Vocab("fail"), "this backend has no harness"])
             mode = {"on": "locked", "true": "locked", "1": "locked", "false": "off",
                     "0": "off"}.get(str(request[2]), str(request[2]))
-            try:
-                with self.lock:
-                    plant.set_harness(mode)
-            except ValueError as exc:
-                return Bottle([Vocab("fail"), str(exc)])
+            if mode not in HARNESS_MODES:
+                return Bottle([Vocab("fail"), f"harness must be one of "
+                                              f"{', '.join(HARNESS_MODES)}, got {mode!r}"])
+            self._harness = mode  # the physics thread applies it before its next step
             return Bottle([Vocab("ok")])
         return Bottle([Vocab("fail"), "unknown request; try [get] chains, [get] stats, "
                                       "[set] harness locked|trolley|off"])
@@ -252,6 +274,9 @@ class HalServer:
     # -- the loop ----------------------------------------------------------------------------
 
     def _apply_commands(self) -> None:
+        harness, self._harness = self._harness, None
+        if harness is not None:
+            self.backend.plant.set_harness(harness)
         for chain in self.chains.values():
             chain.step(self.backend.dt)
 
@@ -272,7 +297,7 @@ class HalServer:
             q_deg = np.degrees(q[idx])
             if ports["state_ext"].output_count:
                 data = JointData(tuple(q_deg.tolist()), tuple(np.degrees(qdot[idx]).tolist()),
-                                 tuple([0.0] * len(idx)), tuple(tau[idx].tolist()),
+                                 None, tuple(tau[idx].tolist()),
                                  tuple(chain.control_modes()),
                                  tuple(chain.interaction_modes()))
                 self.publisher.publish(ports["state_ext"],
