@@ -532,6 +532,79 @@ def controlboard_target(data: bytes) -> None:
     attempt((ControlBoardError,), controlboard.decode_joint_data, request)
 
 
+class _StubBackend:
+    """Two joints, enough of :class:`walkman.hal.backend.Backend` for a ChainBoard."""
+
+    dt = 0.001
+
+    class _Model:
+        class _Joint:
+            effort = 100.0
+
+        def joint(self, name: str) -> "_StubBackend._Model._Joint":
+            return self._Joint()
+
+    def __init__(self) -> None:
+        self.model = self._Model()
+        self.index = {"a": 0, "b": 1}
+        self.lower, self.upper = np.array([-1.0, -2.0]), np.array([1.0, 2.0])
+        self.reference = np.zeros(2)
+        self.time = 0.0
+
+    def positions(self) -> np.ndarray:
+        return self.reference.copy()
+
+    velocities = torques = temperatures = positions
+
+    def set_references(self, indices, values) -> None:
+        self.reference[np.asarray(indices, dtype=int)] = np.clip(
+            values, self.lower[indices], self.upper[indices])
+
+    def set_idle(self, indices) -> None:
+        pass
+
+
+def chain_board_target(data: bytes) -> None:
+    """A HAL chain (ChainBoard) fed any Bottle on rpc:i or command:i, then stepped: its
+    references stay finite and within the joint limits."""
+    from walkman.hal.chain import ChainBoard
+
+    backend = _StubBackend()
+    board = ChainBoard("chain", ["a", "b"], backend, boot_mode="pos")
+    for record in split_records(data):  # a session: mode changes, then moves...
+        request = attempt(YARP, bottle.decode, record)
+        if request is None:
+            continue
+        reply = controlboard.respond(board, request, controlboard.Stamp(), 1.0, "/fuzz")
+        if not reply or str(reply[-1]) not in ("ok", "fail", "nak"):
+            raise AssertionError(f"the wrapper's answer must end in ok/fail/nak: {reply}")
+        command = attempt((ControlBoardError,), controlboard.decode_stream, request, 2)
+        if command is not None:
+            attempt((ControlBoardError,), board.command, command.what, command.joints,
+                    command.values, "/fuzz", command.seq)
+        for _ in range(3):
+            board.step(backend.dt)
+            backend.time += backend.dt
+        degrees = np.degrees(backend.reference)
+        if not np.all(np.isfinite(degrees)) or \
+                np.any(degrees < np.degrees(backend.lower) - 1e-6) or \
+                np.any(degrees > np.degrees(backend.upper) + 1e-6):
+            raise AssertionError(f"references left the limits: {degrees}")
+
+
+def _chain_board_seeds() -> List[bytes]:
+    from yarp_lite.bottle_text import parse
+
+    sessions = [["[set] [icmd] [cmds] ([vel] [posd])", "([vmos]) (50.0 0.0)",
+                 "([dpog] 1 (1) (seq 3)) (500.0)"],
+                ["[set] [vels] (10.0 20.0)", "[set] [posg] 2 (0 1) (30.0 -90.0)",
+                 "[set] [rel] 0 5.0", "[set] [stos]"],
+                ["[set] [icmd] [cmod] 0 [idl]", "[set] [icmd] [cmod] 0 [posd]",
+                 "([dpos]) (1.0 -1.0)"]]
+    return [join_records([bottle.encode(parse(text)) for text in session])
+            for session in sessions]
+
+
 def _controlboard_seeds() -> List[bytes]:
     from yarp_lite.bottle_text import parse
 
@@ -674,6 +747,8 @@ TARGETS: Dict[str, Target] = {target.name: target for target in (
     Target("fec", fec_target, BRIDGE, _fec_seeds, doc="bridge.fec.recover"),
     Target("controlboard", controlboard_target, YARP, _controlboard_seeds,
            doc="walkman.hal.controlboard: respond, decode_stream, decode_joint_data"),
+    Target("chain_board", chain_board_target, YARP, _chain_board_seeds,
+           doc="walkman.hal.chain.ChainBoard behind rpc:i and command:i, stepped"),
     Target("config", config_target, (ConfigError,), _config_seeds, max_len=8192,
            doc="bridge.config.parse (XML)"),
 )}

@@ -34,7 +34,7 @@ def test_every_saved_crasher_now_decodes_or_raises_the_peer_error(name):
 
 
 def test_seeds_are_valid_encodings_that_decode_without_any_error():
-    for name in ("bottle_binary", "compact", "state_codec", "tiles", "config"):
+    for name in ("bottle_binary", "compact", "state_codec", "tiles", "config", "chain_board"):
         target = TARGETS[name]
         for seed in target.seeds():
             target.run(seed)  # a seed refused by its own decoder would seed nothing
