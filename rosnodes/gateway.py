@@ -56,6 +56,8 @@ from yarp_lite.port import Port
 log = logging.getLogger("walkman.gateway")
 
 DEFAULT_CONFIG = Path(__file__).resolve().parents[1] / "models" / "bridge_drc.xml"
+#: How long a command waits for the connection to its module before it is refused (s).
+CONNECT_GRACE = 10.0
 #: The lifecycle state each switch word leads to (walkman.gym.lifecycle owns the table).
 EXPECTED = {switch.value: state.value for switch, state in TARGET.items()}
 
@@ -145,8 +147,18 @@ class ModuleLink:
                     ours_is_source=False)
 
     def send(self, port: Port, bottle: Bottle) -> Tuple[bool, str]:
+        # A pilot's first command may come before the connection keeper made the
+        # connection (just after start-up, or a restart of the bridge): wait for it a while
+        # rather than drop the command.
+        deadline = time.monotonic() + CONNECT_GRACE
         if port.output_count == 0:
-            return False, f"/{self.module} is not reachable (no connection to its port yet)"
+            log.info("%s: no connection to /%s yet; the message waits for it up to %g s",
+                     port.name, self.module, CONNECT_GRACE)
+        while port.output_count == 0:
+            if time.monotonic() > deadline:
+                return False, (f"/{self.module} is not reachable (no connection to its port "
+                               f"within {CONNECT_GRACE:g} s)")
+            time.sleep(0.05)
         if not port.write(bottle):
             return False, f"/{self.module} did not accept the message"
         return True, ""

@@ -133,3 +133,18 @@ def test_a_second_gateway_on_the_same_roscore_refuses_instead_of_doubling_comman
     seq = int(re.search(r"seq: (\d+)", reply).group(1))
     wait_until(lambda: executed(counter) == [f"executed once {seq}"], 20,
                message="the command executed exactly once")
+
+
+def test_a_switch_sent_before_the_module_is_connected_waits_for_it(make_pc, config, counter):
+    """Just after start-up the pilot's first command may beat the connection keeper:
+    it is delivered once the connection is made, not dropped."""
+    pc = make_pc()
+    pc.start_name_servers()
+    gateway = pc.start("gateway", [PYTHON, "-m", "rosnodes.gateway", "--config", str(config)])
+    gateway.wait_for(r"ROS topics and services up", 60)
+    pc.start("pub", ["rostopic", "pub", "-1", "/counter/switch", "walkman_msgs/Switch",
+                     "command: start"])
+    gateway.wait_for(r"no connection to /counter yet; the message waits for it", 60)
+    module = start_counter(pc)
+    module.wait_for("start -> running", 30)
+    assert "is not reachable" not in gateway.output()
