@@ -394,6 +394,10 @@ class LinkConnection:
         if hello.fingerprint != ours.fingerprint:
             raise BridgeProtocolError("peer runs a different bridge configuration "
                                       "(ids would not match); use the same file on both sides")
+        if hello.keyed != self.key.keyed:
+            # Said at once, on both sides: waiting for the AUTH frames let the first side to
+            # notice close the connection before the other could name the mismatch.
+            raise AuthenticationFailed(self._why_auth_failed(hello))
 
     def _why_auth_failed(self, hello: Hello) -> str:
         if hello.keyed and not self.key.keyed:

@@ -19,6 +19,7 @@ import pytest
 from bridge.emulation import EmulatedLink
 from bridge_harness import HERE, PYTHON, TwoPCs
 from harness import Proc, wait_until
+from system.processes import WaitTimeout
 from pilot_side import bridge_status, executed, send, switch, wait_nothing_in_flight
 
 pytestmark = pytest.mark.requires("root")
@@ -156,6 +157,11 @@ def test_a_30_second_cut_and_kills_lose_no_command(pcs, lite, link):
     link.flap(False)
     pcs.kill_bridge(pcs.robot)
     pcs.start_bridge(pcs.robot)
-    wait_until(lambda: len(executed(pcs.log)) == 25, 60, message="commands after the flap")
+    try:
+        wait_until(lambda: len(executed(pcs.log)) == 25, 60, message="commands after the flap")
+    except WaitTimeout as exc:  # say where the commands are (it failed once under full load)
+        raise WaitTimeout(f"{exc}; executed {executed(pcs.log)[-6:]}, pilot bridge: "
+                          f"{bridge_status(pcs.pilot, lite)[:600]}; robot bridge: "
+                          f"{bridge_status(pcs.robot, lite)[:600]}") from None
     wait_nothing_in_flight(pcs, lite)
     assert executed(pcs.log) == list(range(1, 26))
