@@ -75,6 +75,8 @@ MAX_RELIABLE_PER_FRAME = 256
 #: Shortest time between two event sends of one flow; more frequent events wait (coalesced).
 EVENT_MIN_GAP = 0.05
 KEEPALIVE = 1.0
+#: Where ``struct tcp_info`` (linux/tcp.h) keeps ``tcpi_rtt``, in microseconds.
+TCP_INFO_RTT_OFFSET = 68
 #: Seconds a connection has to complete the handshake.
 HANDSHAKE_TIMEOUT = 5.0
 #: Handshakes run at once on the listening side; more connections are refused.
@@ -138,6 +140,8 @@ class _Connection:
     state_encoders: Dict[Key, StateEncoder] = field(default_factory=dict)
     state_decoders: Dict[Key, StateDecoder] = field(default_factory=dict)
     closed: bool = False
+    #: data frames that came in the same read as the peer's last handshake message
+    early_frames: List[DataFrame] = field(default_factory=list)
 
 
 class TcpChannel:
@@ -390,7 +394,8 @@ class TcpChannel:
                 continue
             if not data:  # not a drop: usually the peer refusing us, and saying so itself
                 raise ConnectionAbortedError("peer closed during the handshake")
-            for event in link.receive_data(data):
+            events = link.receive_data(data)
+            for index, event in enumerate(events):
                 if isinstance(event, PeerHello):
                     sock.sendall(link.send_auth())
                 elif isinstance(event, PeerAuthenticated):
@@ -398,14 +403,31 @@ class TcpChannel:
                     sock.sendall(link.send_resume(accepted))
                     self._keys_hook("offered", link)
                 elif isinstance(event, LinkUp):
-                    if link.buffered:
-                        raise BridgeProtocolError("peer sent data before the handshake ended")
+                    # The peer's link was up as soon as it sent its last handshake message:
+                    # its first data frames may share this read (or sit, partial, in the
+                    # link's buffer) and are handled once the connection is installed.
+                    # Dropping them lost reliable messages: the peer had sent them.
+                    early = events[index + 1:]
+                    if not all(isinstance(e, FrameReceived) for e in early):
+                        raise BridgeProtocolError("peer repeated the handshake after it ended")
                     sock.settimeout(None)
                     self.journal.acknowledge(event.peer_accepted)
                     return _Connection(sock, peer, link, event.peer_session,
-                                       sent_upto=event.peer_accepted, ack_sent=accepted)
+                                       sent_upto=event.peer_accepted, ack_sent=accepted,
+                                       early_frames=[e.frame for e in early])
                 else:
                     raise BridgeProtocolError("peer sent data before the handshake ended")
+
+    def round_trip_ms(self) -> Optional[float]:
+        """The link's round trip as the kernel measures it (smoothed ``tcpi_rtt``), if up."""
+        connection = self._connection
+        if connection is None or connection.closed:
+            return None
+        try:
+            info = connection.sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_INFO, 104)
+        except OSError:
+            return None
+        return struct.unpack_from("<I", info, TCP_INFO_RTT_OFFSET)[0] / 1000.0
 
     def _drop(self, reason: str, which: Optional[_Connection] = None) -> None:
         """Close the current connection -- or only ``which``, if it is still the current one
@@ -434,6 +456,9 @@ class TcpChannel:
     def _receive_loop(self, connection: _Connection) -> None:
         sock = connection.sock
         sock.settimeout(0.25)
+        if not self._handle_frames(connection, connection.early_frames):
+            return
+        connection.early_frames = []
         while not connection.closed and not self._stopping.is_set():
             try:
                 data = sock.recv(65536)
@@ -451,20 +476,33 @@ class TcpChannel:
             connection.last_rx = time.monotonic()
             self.stats.bytes_in += len(data)
             try:
-                for event in connection.link.receive_data(data):
-                    assert isinstance(event, FrameReceived)
-                    self._on_frame(connection, event.frame)
+                received = [event.frame for event in connection.link.receive_data(data)
+                            if isinstance(event, FrameReceived)]
             except BridgeProtocolError as exc:
                 self.drops.peer_error(exc, "frame")
                 self.stats.last_error = str(exc)
                 self._drop(f"bad frame from the peer: {exc}", connection)
                 return
-            except Exception:  # noqa: BLE001 -- our bug: seen, counted, and the link re-made
-                self.stats.internal_errors += 1
-                log.exception("TCP channel: receiving failed (a bug); dropping the connection "
-                              "so the link does not claim to be up")
-                self._drop("internal error while receiving", connection)
+            if not self._handle_frames(connection, received):
                 return
+
+    def _handle_frames(self, connection: _Connection, received: List[DataFrame]) -> bool:
+        """Deliver the frames; False when one made us drop the connection."""
+        try:
+            for frame in received:
+                self._on_frame(connection, frame)
+        except BridgeProtocolError as exc:
+            self.drops.peer_error(exc, "frame")
+            self.stats.last_error = str(exc)
+            self._drop(f"bad frame from the peer: {exc}", connection)
+            return False
+        except Exception:  # noqa: BLE001 -- our bug: seen, counted, and the link re-made
+            self.stats.internal_errors += 1
+            log.exception("TCP channel: receiving failed (a bug); dropping the connection "
+                          "so the link does not claim to be up")
+            self._drop("internal error while receiving", connection)
+            return False
+        return True
 
     def _on_frame(self, connection: _Connection, frame: DataFrame) -> None:
         self.stats.frames_in += 1
