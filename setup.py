@@ -8,7 +8,7 @@ setup(
     description="Walk-Man humanoid software architecture: yarp_lite, GYM, HAL, network bridge, "
                 "ROS pilot nodes",
     python_requires=">=3.11",
-    packages=find_packages(include=["yarp_lite*", "walkman*", "bridge*", "rosnodes*", "system*"]),
+    packages=find_packages(include=["yarp_lite*", "walkman*", "bridge*", "rosnodes*", "system*", "nodekit*", "pilot*"]),
     package_data={"": ["*.xml", "*.xsd", "*.ini", "*.urdf", "*.msg", "*.srv"]},
     include_package_data=True,
     install_requires=["numpy"],
@@ -31,6 +31,7 @@ setup(
             "walkman-pc=system.pc:main",
             "walkman-main-job=system.mainjob:main",
             "walkman-chaos=system.chaos:main",
+            "walkman-pilot=pilot.app:main",
         ],
     },
 )

@@ -34,6 +34,7 @@ from bridge.config import ConfigError
 from bridge.errors import BridgeUsageError
 from bridge.journal import default_state_dir
 from bridge.link import LinkKey, generate_key_file
+from nodekit.logs import configure_logging
 
 DEFAULT_TCP_PORT = 10150
 DEFAULT_UDP_PORT = 10151
@@ -123,22 +124,6 @@ def describe(config: bridge_config.BridgeConfig) -> str:
     return "\n".join(lines)
 
 
-def configure_logging(side: str, verbose: bool) -> None:
-    """Our loggers print to stderr through their own handler, not the root's.
-
-    rospy.init_node (in a background thread) replaces the root logger's
-    handlers with its log files; our lines must keep coming meanwhile.
-    """
-    handler = logging.StreamHandler()
-    handler.setFormatter(logging.Formatter(f"[bridge {side}] %(levelname)s %(name)s: "
-                                           f"%(message)s"))
-    for name in ("bridge", "yarp_lite", "walkman"):
-        logger = logging.getLogger(name)
-        logger.addHandler(handler)
-        logger.setLevel(logging.DEBUG if verbose else logging.INFO)
-        logger.propagate = False
-
-
 def main(argv: Optional[List[str]] = None) -> int:
     parser = build_parser()
     options = parser.parse_args(argv)
@@ -181,7 +166,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(f"walkman-bridge: {exc}", file=sys.stderr)
         return 1
     # Only now: a refused start must leave the process's logging as it found it.
-    configure_logging(options.side, options.verbose)
+    configure_logging(f"bridge {options.side}", options.verbose)
     if not key.keyed:
         logging.getLogger("bridge").warning(
             "running WITHOUT authentication (--no-auth): anyone on the link can command "

@@ -5,8 +5,8 @@ Theory of operation
 The channels start first, so the link comes up whatever else is running; the
 endpoints open in a background thread that waits for the local yarpserver and
 roscore, so the bridge can start before them (and survives their restarts:
-ports re-register, the :class:`~bridge.endpoints.yarp.ConnectionKeeper` remakes
-connections, :class:`~bridge.endpoints.ros.RosNode` re-registers topics).
+ports re-register, the :class:`~nodekit.connections.ConnectionKeeper` remakes
+connections, :class:`~nodekit.ros_node.RosNode` re-registers topics).
 
 Data flows sink -> channel -> (link) -> channel -> source.  Reliable messages
 (pilot commands, warnings) go through the journal on both sides; the delivery
@@ -168,7 +168,8 @@ class Bridge:
         self._threads.append(thread)
 
     def _open_endpoints(self) -> None:
-        from bridge.endpoints.yarp import (ConnectionKeeper, RobotStateSink, RobotStateSource,
+        from nodekit.connections import ConnectionKeeper
+        from bridge.endpoints.yarp import (RobotStateSink, RobotStateSource,
                                            YarpSink, YarpSource)
 
         yarp_channels = [c for c in self.config.channels if c.middleware == "yarp"]
@@ -207,7 +208,8 @@ class Bridge:
                  len(self.config.sending(self.side)), len(self.config.receiving(self.side)))
 
     def _start_ros(self, channels: List[Channel]) -> None:
-        from bridge.endpoints.ros import RosNode, RosSink, RosSource
+        from bridge.endpoints.ros import RosSink, RosSource
+        from nodekit.ros_node import RosNode
 
         self.ros_node = RosNode(f"walkman_bridge_{self.side}")
 
@@ -332,6 +334,7 @@ class Bridge:
             "time": round(time.time(), 3),  # wall clock, so samples read later keep their time
             "link": self.tcp.phase,
             "link_since_s": int(time.monotonic() - self.tcp.phase_since),
+            "round_trip_ms": round(self.tcp.round_trip_ms() or 0.0, 1),
             "queued_commands": self.journal.waiting(),
             "oldest_queued_s": int(self.journal.oldest_age()),
             "undelivered": len(self.journal.undelivered()),

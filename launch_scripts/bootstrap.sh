@@ -15,6 +15,8 @@ DEBIAN_PACKAGES=(
   ros-std-msgs ros-sensor-msgs ros-geometry-msgs python3-tf2-msgs
   libosmesa6 nftables iproute2 python3-venv python3-dev g++ cmake make curl
   ycm-cmake-modules libsqlite3-dev libeigen3-dev
+  python3-pyqt5 python3-python-qt-binding rviz python3-rviz python3-interactive-markers
+  python3-visualization-msgs ros-visualization-msgs xvfb xauth
 )
 
 missing=()
@@ -47,7 +49,7 @@ if [[ ! -f $stamp || "$(cat "$stamp")" != "$want" ]]; then
   say "installing Python packages into .venv: ${PY_PACKAGES[*]} and this project"
   "$VENV/bin/pip" install -q --disable-pip-version-check "${PY_PACKAGES[@]}" 2>&1 | grep -v "^WARNING: Location" || true
   "$VENV/bin/pip" install -q --disable-pip-version-check -e "$ROOT" 2>&1 | grep -v "^WARNING: Location" || true
-  "$VENV/bin/python" -c "import numpy, mujoco, pinocchio, lxml, cv2, pytest, hypothesis, rospy, yarp_lite" \
+  "$VENV/bin/python" -c "import numpy, mujoco, pinocchio, lxml, cv2, pytest, hypothesis, rospy, yarp_lite, PyQt5.QtTest, rviz" \
     || { echo "[bootstrap] the virtual environment is incomplete" >&2; exit 1; }
   echo "$want" > "$stamp"
 else

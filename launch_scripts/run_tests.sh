@@ -6,10 +6,12 @@ cd "$(dirname "$0")/.."
 launch_scripts/bootstrap.sh
 launch_scripts/build_reference_yarp.sh
 # What CI has must be used, not skipped (tests/requirements.py): the interop suite runs
-# against the reference YARP (and its devices), the emulated-network tests as root (namespaces, tc, nftables).
+# against the reference YARP (and its devices), the emulated-network tests as root (namespaces, tc, nftables),
+# the Pilot Interface's GUI tests under Xvfb.
 export WALKMAN_REQUIRE_REFERENCE=1
 export WALKMAN_REQUIRE_REFERENCE_DEVICES=1
 export WALKMAN_REQUIRE_ROOT=1
+export WALKMAN_REQUIRE_XVFB=1
 set +e
 .venv/bin/python -m pytest tests -ra "$@"
 status=$?

@@ -3,7 +3,7 @@
 Theory of operation
 -------------------
 For each module ``M`` the gateway opens four YARP ports on the pilot's name
-server (``/pilot_gateway/<id>/M/...``) and keeps them connected to the module's
+server (``/pilot_gateway/<station>/M/...``) and keeps them connected to the module's
 ``/M/switch:i``, ``/M/command:i``, ``/M/status:o`` and ``/M/warning:o`` -- the
 module itself in the lab, the bridge's stand-ins in the DRC topology.  On the
 pilot roscore it offers:
@@ -17,13 +17,16 @@ pilot roscore it offers:
 ``/M/switch_and_wait``       ``walkman_msgs/SwitchModule``       service: the new state
 ``/M/send_command``          ``walkman_msgs/SendCommand``        service: the sequence number
 ``/M/get_status``            ``walkman_msgs/GetStatus``          service
-``/pilot/sent_commands``     ``walkman_msgs/SentCommand``        out: everything sent, for logs
+``/pilot/sent_commands``     ``walkman_msgs/SentCommand``        out: everything any station sent
 ===========================  ==================================  ===========================
 
-Sequence numbers are millisecond clock values, so several gateways (the DRC
-had three pilot PCs: one roscore and one gateway each, all on the pilot YARP
-name server) never reuse one and a module never mistakes two pilots' commands
-for a resend.  One roscore has one gateway: a second would forward every topic
+Several gateways (the DRC had three pilot PCs: one roscore and one gateway
+each, all on the pilot YARP name server) each claim a station number
+(:mod:`rosnodes.stations`): their sequence numbers never collide, even in the
+same millisecond, so a module never mistakes two pilots' commands for a
+resend; and each republishes what the others sent, with who sent it (the
+``sender`` of a Command or Switch: a Pilot Interface's name), so every pilot's
+log shows every command.  One roscore has one gateway: a second would forward every topic
 command again, so it refuses to start.  Statuses are decoded with the module's list of states
 (the ``statuses`` attribute in the bridge configuration, or the module's class).
 """
@@ -35,6 +38,7 @@ import importlib
 import logging
 import math
 import os
+import re
 import socket
 import sys
 import threading
@@ -43,7 +47,10 @@ from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 from bridge import config as bridge_config
-from bridge.endpoints.yarp import ConnectionKeeper
+from nodekit.connections import ConnectionKeeper
+from nodekit.logs import configure_logging
+from rosnodes.stations import (SequenceNumbers, StationError, claim_station, parse_sent,
+                               sent_bottle_fields)
 from rosnodes.timed import CANCELLED, SENT, Countdowns
 from walkman.gym.lifecycle import TARGET, lifecycle_of_status
 from walkman.gym.interfaces import (InterfaceError, PilotCommand, decode_command, decoder_for,
@@ -89,19 +96,6 @@ def command_decoder(name: str) -> Callable[[Bottle], PilotCommand]:
 
 def lifecycle_of(state: str) -> str:
     return lifecycle_of_status(state).value
-
-
-class SequenceNumbers:
-    """Millisecond stamps, strictly increasing: unique across pilots and restarts."""
-
-    def __init__(self) -> None:
-        self._last = 0
-        self._lock = threading.Lock()
-
-    def next(self) -> int:
-        with self._lock:
-            self._last = max(self._last + 1, int(time.time() * 1000) % (1 << 31))
-            return self._last
 
 
 def build_command(msg: Any, seq: int,
@@ -175,13 +169,18 @@ class ModuleLink:
 class Gateway:
     """All modules' links and their ROS faces."""
 
-    def __init__(self, modules: Dict[str, List[str]], prefix: str, countdown: float,
-                 node_name: str) -> None:
+    def __init__(self, modules: Dict[str, List[str]], countdown: float, node_name: str) -> None:
         self.modules = modules
-        self.prefix = prefix
+        self.prefix = ""
+        self.station = 0
         self.node_name = node_name
         self.countdowns = Countdowns(countdown)
-        self.sequence = SequenceNumbers()
+        self.sequence: Optional[SequenceNumbers] = None
+        self.sent_out: Optional[Port] = None
+        self.sent_in: Optional[Port] = None
+        self._peers: set = set()
+        #: set once the station is claimed and the ports are open: ROS waits for it
+        self.yarp_open = threading.Event()
         self.links: Dict[str, ModuleLink] = {}
         self.keeper = ConnectionKeeper()
         self.nameclient = NameClient()
@@ -197,11 +196,46 @@ class Gateway:
     # -- YARP side ---------------------------------------------------------------------
 
     def open_yarp(self) -> None:
+        """Claim a station, then open every module's ports under ``/pilot_gateway/<station>``."""
+        self.station, self.sent_out = claim_station(
+            self.nameclient, lambda name: Port(nameclient=self.nameclient).open(name,
+                                                                               wait=math.inf))
+        self.sequence = SequenceNumbers(self.station)
+        self.prefix = f"/pilot_gateway/{self.station}"
+        self.sent_in = Port(nameclient=self.nameclient, reader=self._on_peer_sent)
+        self.sent_in.open(f"{self.prefix}/sent:i", wait=math.inf)
         for module, statuses in self.modules.items():
             self.links[module] = ModuleLink(module, statuses, self.prefix, self.nameclient,
                                             self.keeper, self._on_status, self._on_warning)
         self.keeper.start()
-        log.info("gateway: YARP ports open for %s", ", ".join(self.modules))
+        threading.Thread(target=self._find_peers, name="gateway peers", daemon=True).start()
+        self.yarp_open.set()
+        log.info("gateway: pilot station %d; YARP ports open for %s", self.station,
+                 ", ".join(self.modules))
+
+    def _find_peers(self) -> None:
+        """Read every other station's ``sent:o``, found on the name server every 2 s."""
+        pattern = re.compile(r"^/pilot_gateway/(\d+)/sent:o$")
+        while not self._stop.wait(2.0):
+            try:
+                names = [c.name for c in self.nameclient.list()]
+            except YarpError:
+                continue
+            for name in names:
+                found = pattern.match(name)
+                if found and int(found.group(1)) != self.station and name not in self._peers:
+                    self._peers.add(name)
+                    self.keeper.want(name, self.sent_in.name, self.sent_in, ours_is_source=False)
+
+    def _on_peer_sent(self, bottle: Bottle) -> None:
+        fields = parse_sent(bottle)
+        if fields is None:
+            log.warning("gateway: a malformed sent-command record from another station: %s",
+                        str(bottle)[:120])
+            return
+        station, sender, module, port, text, seq = fields
+        if station != self.station:
+            self._publish_sent(module, port, text, seq, sender, station)
 
     def _on_status(self, link: ModuleLink, bottle: Bottle) -> None:
         try:
@@ -228,7 +262,7 @@ class Gateway:
     # -- ROS side ----------------------------------------------------------------------
 
     def start_ros(self) -> None:
-        from bridge.endpoints.ros import RosNode
+        from nodekit.ros_node import RosNode
 
         self.ros_node = RosNode(self.node_name)
         self.ros_node.when_ready(self._open_ros)
@@ -259,6 +293,9 @@ class Gateway:
         from walkman_msgs.msg import Command, Countdown, SentCommand, Status, Switch, Warning
         from walkman_msgs.srv import GetStatus, SendCommand, SwitchModule
 
+        while not self.yarp_open.wait(1.0):    # the station numbers what ROS brings
+            if self.finished.is_set():
+                return
         if not self._ros:  # first registration (not a roscore restart)
             other = self._other_gateway()
             if other is not None:
@@ -323,7 +360,8 @@ class Gateway:
 
     # -- sending -----------------------------------------------------------------------
 
-    def send_switch(self, module: str, word: str, seq: int = 0) -> Tuple[bool, str, int]:
+    def send_switch(self, module: str, word: str, seq: int = 0,
+                    sender: str = "") -> Tuple[bool, str, int]:
         link = self.links[module]
         word = word.strip().lower()
         if word not in EXPECTED:
@@ -333,20 +371,29 @@ class Gateway:
         if ok:
             if word in ("stop", "quit"):
                 for event in self.countdowns.cancel_all(module):
-                    self._publish_countdown(event)
-            self._log_sent(module, "switch", f"{word} {seq}", seq)
+                    self._publish_countdown(event, sender)
+            self._log_sent(module, "switch", f"{word} {seq}", seq, sender)
         return ok, message, seq
 
-    def send_command(self, module: str, command: PilotCommand) -> Tuple[bool, str]:
+    def send_command(self, module: str, command: PilotCommand,
+                     sender: str = "") -> Tuple[bool, str]:
         link = self.links[module]
         bottle = encode_command(command)
         ok, message = link.send(link.command, bottle)
         if ok:
-            self._log_sent(module, "command", bottle.to_text(), command.seq or 0)
+            self._log_sent(module, "command", bottle.to_text(), command.seq or 0, sender)
         return ok, message
 
-    def _log_sent(self, module: str, port: str, text: str, seq: int) -> None:
-        log.info("gateway: sent to /%s/%s:i: %s", module, port, text)
+    def _log_sent(self, module: str, port: str, text: str, seq: int, sender: str) -> None:
+        sender = sender or "rostopic"
+        log.info("gateway: sent to /%s/%s:i: %s (from %s)", module, port, text, sender)
+        if self.sent_out is not None:
+            self.sent_out.write(Bottle(sent_bottle_fields(self.station, sender, module, port,
+                                                          text, seq)))
+        self._publish_sent(module, port, text, seq, sender, self.station)
+
+    def _publish_sent(self, module: str, port: str, text: str, seq: int, sender: str,
+                      station: int) -> None:
         if self._sent is not None:
             import rospy
             from walkman_msgs.msg import SentCommand
@@ -354,6 +401,7 @@ class Gateway:
             msg = SentCommand()
             msg.header.stamp = rospy.Time.now()
             msg.module, msg.port, msg.text, msg.seq = module, port, text, seq
+            msg.sender, msg.station = sender, station
             self._sent.publish(msg)
 
     def _refuse(self, module: str, text: str) -> None:
@@ -361,7 +409,7 @@ class Gateway:
         self._publish_warning(module, 0, f"gateway: {text}")
 
     def _on_switch_topic(self, module: str, msg: Any) -> None:
-        ok, message, _ = self.send_switch(module, msg.command, msg.seq)
+        ok, message, _ = self.send_switch(module, msg.command, msg.seq, msg.sender)
         if not ok:
             self._refuse(module, message)
 
@@ -373,34 +421,36 @@ class Gateway:
             return
         if msg.dangerous:
             text = encode_command(PilotCommand(command.name, command.args)).to_text()
+            sender = msg.sender or "rostopic"
             try:
-                event = self.countdowns.request(module, text, time.monotonic(), command,
-                                                float(msg.countdown))
+                event = self.countdowns.request(module, text, time.monotonic(),
+                                                (command, sender), float(msg.countdown))
             except ValueError as exc:
                 self._refuse(module, str(exc))
                 return
-            log.info("gateway: %s %s: %s", module, text,
+            log.info("gateway: %s %s: %s (%s)", module, text,
                      "cancelled" if event.state == CANCELLED else
-                     f"waiting {event.remaining:.1f} s (send it again to cancel)")
-            self._publish_countdown(event)
+                     f"waiting {event.remaining:.1f} s (send it again to cancel)", sender)
+            self._publish_countdown(event, sender)
             return
         ok, message = self.send_command(module, PilotCommand(
-            command.name, command.args, command.seq or self.sequence.next()))
+            command.name, command.args, command.seq or self.sequence.next()), msg.sender)
         if not ok:
             self._refuse(module, message)
 
     def _countdown_loop(self) -> None:
         while not self._stop.wait(0.1):
             for event in self.countdowns.tick(time.monotonic()):
+                command, sender = event.pending.payload
                 if event.state == SENT:
-                    command = event.pending.payload
                     ok, message = self.send_command(event.pending.module, PilotCommand(
-                        command.name, command.args, command.seq or self.sequence.next()))
+                        command.name, command.args, command.seq or self.sequence.next()),
+                        sender)
                     if not ok:
                         self._refuse(event.pending.module, message)
-                self._publish_countdown(event)
+                self._publish_countdown(event, sender)
 
-    def _publish_countdown(self, event) -> None:
+    def _publish_countdown(self, event, sender: str = "") -> None:
         publisher = self._ros.get(event.pending.module, {}).get("countdown")
         if publisher is None:
             return
@@ -411,6 +461,7 @@ class Gateway:
         msg.header.stamp = rospy.Time.now()
         msg.module, msg.command = event.pending.module, event.pending.text
         msg.remaining, msg.state = float(event.remaining), event.state
+        msg.sender = sender or "rostopic"
         publisher.publish(msg)
 
     # -- services ----------------------------------------------------------------------
@@ -423,7 +474,7 @@ class Gateway:
         timeout = float(request.timeout) or 5.0
         with link.changed:
             warnings_before = len(link.warnings)
-        ok, message, _ = self.send_switch(module, word)
+        ok, message, _ = self.send_switch(module, word, sender="service")
         if not ok:
             return SwitchModuleResponse(False, link.lifecycle, message)
         wanted = EXPECTED[word]
@@ -448,7 +499,7 @@ class Gateway:
             command = build_command(request, self.sequence.next(), command_decoder(module))
         except GatewayError as exc:
             return SendCommandResponse(False, 0, str(exc))
-        ok, message = self.send_command(module, command)
+        ok, message = self.send_command(module, command, "service")
         return SendCommandResponse(ok, command.seq if ok else 0, message)
 
     def _get_status(self, module: str) -> Any:
@@ -467,6 +518,9 @@ class Gateway:
         self.keeper.stop()
         for link in self.links.values():
             link.close()
+        for port in (self.sent_in, self.sent_out):
+            if port is not None:
+                port.close()
         if self.ros_node is not None:
             self.ros_node.stop()
 
@@ -495,10 +549,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                         help="seconds a dangerous command waits (default 3)")
     parser.add_argument("--name", default="", help="ROS node name (default: unique per PC)")
     options = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="[gateway] %(levelname)s %(message)s")
-    for name in ("walkman", "yarp_lite", "bridge"):
-        logging.getLogger(name).propagate = False
-        logging.getLogger(name).addHandler(logging.getLogger().handlers[0])
+    configure_logging("gateway")
     try:
         modules = select_modules(options.config, options.modules)
     except (GatewayError, bridge_config.ConfigError) as exc:
@@ -511,11 +562,11 @@ def main(argv: Optional[List[str]] = None) -> int:
 
     ensure_importable()
     unique = options.name or f"pilot_gateway_{os.uname().nodename.replace('-', '_')}_{os.getpid()}"
-    gateway = Gateway(modules, f"/pilot_gateway/{os.getpid()}", options.countdown, unique)
-    gateway.start_ros()
+    gateway = Gateway(modules, options.countdown, unique)
+    gateway.start_ros()        # its topics open once the YARP side is (either may come first)
     try:
         gateway.open_yarp()
-    except YarpError as exc:
+    except (YarpError, StationError) as exc:
         print(f"walkman-pilot-gateway: {exc}", file=sys.stderr)
         return 1
     import signal

@@ -8,8 +8,11 @@ the Table 1 resolution) and publishes on the local roscore:
   at most ``--rate`` Hz (50 on the robot; on the pilot, as often as the bridge
   brings the state: every period T);
 * ``/tf`` -- every link of the model in the ``pelvis`` frame (forward
-  kinematics with Pinocchio on ``models/walkman.urdf``), so RViz or ``tf_echo``
-  can place the robot.
+  kinematics with Pinocchio on ``models/walkman.urdf``) and the camera's optical
+  frame (perception's cloud), so RViz or ``tf_echo`` can place the robot;
+* ``/joint_temperatures`` -- ``walkman_msgs/JointTemperatures``, once a second;
+* the ``/robot_description`` parameter (the URDF), as ``robot_state_publisher``
+  sets it, for RViz's RobotModel -- set again after a roscore restart.
 """
 
 from __future__ import annotations
@@ -18,11 +21,17 @@ import argparse
 import logging
 import sys
 import threading
+import time
 from typing import List, Tuple
 
 import numpy as np
 
+from walkman.model import URDF_PATH
+
 log = logging.getLogger("walkman.joint_state")
+#: multisense_frame -> multisense_optical_frame (x right, y down, z ahead), xyzw, as in
+#: every ROS camera driver's static transform.
+OPTICAL_ROTATION = (-0.5, 0.5, -0.5, 0.5)
 
 
 def link_transforms(kinematics, q: np.ndarray) -> List[Tuple[str, np.ndarray, np.ndarray]]:
@@ -42,6 +51,22 @@ def link_transforms(kinematics, q: np.ndarray) -> List[Tuple[str, np.ndarray, np
     return out
 
 
+def publish_slow(publisher, robot, now) -> None:
+    """Temperatures, and ``/robot_description`` when the master lacks it (a new roscore)."""
+    import rospy
+    from walkman_msgs.msg import JointTemperatures
+
+    msg = JointTemperatures(name=list(robot.joint_names),
+                            celsius=robot.sense_temperature().tolist())
+    msg.header.stamp = now
+    publisher.publish(msg)
+    try:
+        if not rospy.has_param("/robot_description"):
+            rospy.set_param("/robot_description", URDF_PATH.read_text())
+    except (OSError, ConnectionError) as exc:
+        log.warning("joint state: cannot set /robot_description: %s", exc)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="walkman-joint-state",
                                      description="The HAL's joints as JointState and TF.")
@@ -51,10 +76,10 @@ def main(argv=None) -> int:
     options = parser.parse_args(argv)
     if not 0 < options.rate <= 500:
         parser.error("--rate must be in (0, 500]")
-    from bridge.main import configure_logging
+    from nodekit.logs import configure_logging
 
     configure_logging("joint_state", False)
-    from bridge.endpoints.ros import RosNode
+    from nodekit.ros_node import RosNode
     from walkman.control.kinematics import Kinematics
     from walkman.hal.robot import Robot
 
@@ -65,13 +90,19 @@ def main(argv=None) -> int:
     def open_topics() -> None:
         import rospy
         from sensor_msgs.msg import JointState
+        from walkman_msgs.msg import JointTemperatures
 
         publishers["joints"] = rospy.Publisher("/joint_states", JointState, queue_size=5)
+        publishers["temperatures"] = rospy.Publisher("/joint_temperatures", JointTemperatures,
+                                                     queue_size=2)
         if kinematics is not None:
             from tf2_msgs.msg import TFMessage
 
             publishers["tf"] = rospy.Publisher("/tf", TFMessage, queue_size=5)
 
+    from rosnodes.msgs import ensure_importable
+
+    ensure_importable()
     ros.when_ready(open_topics)
     ros.start()
     robot = Robot("/joint_state", robot=options.robot, connect_timeout=float("inf"))
@@ -82,7 +113,7 @@ def main(argv=None) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     tf_every = max(1, int(round(options.rate / 10)))  # TF at 10 Hz is plenty for display
-    tick, published_seq = 0, 0
+    tick, published_seq, slow_at = 0, 0, 0.0
     while not stop.wait(1.0 / options.rate):
         if not publishers or robot.last_seq == published_seq:
             continue
@@ -91,6 +122,9 @@ def main(argv=None) -> int:
         from sensor_msgs.msg import JointState
 
         now = rospy.Time.now()
+        if time.monotonic() >= slow_at:     # once a second: temperatures, the description
+            slow_at = time.monotonic() + 1.0
+            publish_slow(publishers["temperatures"], robot, now)
         q = robot.sense_position()
         msg = JointState(name=list(robot.joint_names), position=q.tolist(),
                          velocity=robot.sense_velocity().tolist(),
@@ -113,6 +147,12 @@ def main(argv=None) -> int:
                  transform.transform.rotation.z, transform.transform.rotation.w) = \
                     quaternion.tolist()
                 transforms.append(transform)
+            optical = TransformStamped()     # the camera's optical frame: z ahead, y down
+            optical.header.stamp, optical.header.frame_id = now, "multisense_frame"
+            optical.child_frame_id = "multisense_optical_frame"
+            (optical.transform.rotation.x, optical.transform.rotation.y,
+             optical.transform.rotation.z, optical.transform.rotation.w) = OPTICAL_ROTATION
+            transforms.append(optical)
             publishers["tf"].publish(TFMessage(transforms))
     robot.close()
     ros.stop()

@@ -173,11 +173,11 @@ def main(argv=None) -> int:
             options.cloud_step < 1:
         parser.error("need 0 < rate <= 30, width and height >= 16, cloud-step >= 1")
     os.environ.setdefault("MUJOCO_GL", "osmesa")
-    from bridge.main import configure_logging
+    from nodekit.logs import configure_logging
 
     configure_logging("perception", False)
-    from bridge.endpoints.ros import RosNode
-    from bridge.endpoints.yarp import ConnectionKeeper
+    from nodekit.connections import ConnectionKeeper
+    from nodekit.ros_node import RosNode
 
     node = PerceptionNode(options.robot, options.rate, options.width, options.height,
                           options.cloud_step)

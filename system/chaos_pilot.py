@@ -15,7 +15,7 @@ accepted one with its own sequence number, which the reply carries.
 Everything it sees and does is one JSON line on stdout, with the wall-clock
 time it happened (``ev``: ``ready``, ``status``, ``switch``, ``sent``,
 ``refused``, ``failed``); :mod:`system.chaos` reads them.  The node survives
-its roscore being killed: :class:`~bridge.endpoints.ros.RosNode` registers its
+its roscore being killed: :class:`~nodekit.ros_node.RosNode` registers its
 subscriptions again, and a service proxy looks the service up on every call.
 SIGINT or SIGTERM stops it between two calls.
 """
@@ -131,7 +131,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                         help="seconds between two accepted commands (default 0.5)")
     parser.add_argument("--first", type=int, default=1, help="first N (default 1)")
     options = parser.parse_args(argv)
-    from bridge.endpoints.ros import RosNode
+    from nodekit.ros_node import RosNode
     from rosnodes.msgs import ensure_importable
 
     ensure_importable()

@@ -8,6 +8,8 @@ import sys
 from pathlib import Path
 
 import pytest
+
+from nodekit.logs import OUR_LOGGERS
 from hypothesis import HealthCheck, settings
 
 # Hypothesis profiles.  Two busy cores: a generated case may take longer than the 200 ms
@@ -108,7 +110,7 @@ def _quiet_logs(caplog):
 def _our_loggers_restored():
     """A program's main() run in-process (walkman-bridge's configure_logging) gives our
     loggers their own handler and stops propagation: later tests' caplog would see nothing."""
-    names = ("bridge", "yarp_lite", "walkman")
+    names = OUR_LOGGERS
     saved = {name: (list(logging.getLogger(name).handlers), logging.getLogger(name).propagate,
                     logging.getLogger(name).level) for name in names}
     yield

@@ -67,6 +67,19 @@ def _root() -> Optional[str]:
     return emulation.available()
 
 
+def _xvfb() -> Optional[str]:
+    import importlib.util
+    import shutil
+
+    missing = [what for what, ok in (
+        ("Xvfb (apt-get install xvfb)", shutil.which("Xvfb")),
+        ("PyQt5 (python3-pyqt5)", importlib.util.find_spec("PyQt5")),
+        ("librviz's Python bindings (python3-rviz)", importlib.util.find_spec("rviz")),
+        ("interactive_markers (python3-interactive-markers)",
+         importlib.util.find_spec("interactive_markers"))) if not ok]
+    return None if not missing else f"the GUI tests need {', '.join(missing)}"
+
+
 #: Every requirement by name, as ``@pytest.mark.requires(NAME)`` names it.
 REQUIREMENTS: Dict[str, Requirement] = {
     requirement.name: requirement for requirement in (
@@ -74,6 +87,7 @@ REQUIREMENTS: Dict[str, Requirement] = {
         # ... with its device plugins: yarpdev, controlboardwrapper2, fakeMotionControl
         Requirement("reference_devices", _reference_devices),
         Requirement("root", _root),  # network namespaces, tc and nftables: emulated hosts
+        Requirement("xvfb", _xvfb),  # the Pilot Interface under Xvfb: Qt, librviz, markers
     )
 }
 

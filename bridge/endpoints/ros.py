@@ -2,11 +2,8 @@
 
 Theory of operation
 -------------------
-:class:`RosNode` wraps rospy's one node per process: it waits for the local
-master (so the bridge may start before roscore), and every second checks that
-the master still knows our topics -- a restarted roscore forgets every node,
-and rospy never registers again by itself -- registering them again when it
-does not.
+The node itself is :class:`nodekit.ros_node.RosNode` (shared with the ROS
+nodes and the Pilot Interface).
 
 :class:`RosSink` subscribes to a topic on the side where data starts and posts
 each message to the UDP channel; :class:`RosSource` publishes on the other
@@ -15,13 +12,6 @@ published, so it is never sent back (no republish loops when both directions
 carry the same name).  Latched topics keep their last message, which is sent
 again when the link comes back and every few seconds, and the receiving side
 publishes it latched -- once, unless it changed.
-
-rospy reads the handshake of every inbound connection in its accept thread,
-with no deadline and no size limit: one silent client stalls every topic and
-service of the node, and a header that declares 2 GB is buffered until it
-arrives.  :func:`guard_tcpros` (installed by :class:`RosNode`) gives each
-handshake a thread of its own (at most :data:`MAX_HANDSHAKES` at once), a
-deadline and a size limit, so our nodes keep serving under hostile peers.
 
 Images and point clouds are tiled (:mod:`bridge.tiles`): a partial frame is
 published with its missing regions black (images), NaN (float images) or NaN
@@ -33,7 +23,6 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import threading
 import time
 from io import BytesIO
 from typing import Any, Callable, Dict, List, Optional, Tuple
@@ -227,155 +216,6 @@ def codec_for(channel: Channel) -> Any:
 
 
 #: A TCPROS handshake must complete within this many seconds and bytes.
-HANDSHAKE_TIMEOUT = 5.0
-MAX_HANDSHAKE_BYTES = 1 << 20
-#: Inbound handshakes read at once; further connections are closed at once.
-MAX_HANDSHAKES = 64
-
-
-class _HandshakeBudget:
-    """A socket seen by rospy's header reader: its ``recv`` stops at the byte limit."""
-
-    def __init__(self, sock: Any) -> None:
-        self._sock = sock
-        self.received = 0
-
-    def recv(self, size: int) -> bytes:
-        from rosgraph.network import ROSHandshakeException
-
-        data = self._sock.recv(size)
-        self.received += len(data)
-        if self.received > MAX_HANDSHAKE_BYTES:
-            raise ROSHandshakeException(f"handshake header over {MAX_HANDSHAKE_BYTES} bytes: "
-                                        f"refused")
-        return data
-
-
-def guard_tcpros() -> None:
-    """Bound rospy's inbound TCPROS handshakes in time, size and threads (idempotent)."""
-    from rosgraph import network
-    from rospy.impl import tcpros_base
-
-    if getattr(tcpros_base, "_walkman_guarded", False):
-        return
-    read_header = network.read_ros_handshake_header
-    serve = tcpros_base.TCPROSServer._tcp_server_callback
-    slots = threading.BoundedSemaphore(MAX_HANDSHAKES)
-
-    def bounded_read(sock: Any, buffer: Any, buff_size: int) -> Dict[str, str]:
-        previous = sock.gettimeout()
-        sock.settimeout(HANDSHAKE_TIMEOUT if previous is None
-                        else min(previous, HANDSHAKE_TIMEOUT))
-        try:
-            return read_header(_HandshakeBudget(sock), buffer, buff_size)
-        finally:
-            sock.settimeout(previous)
-
-    def threaded(server: Any, sock: Any, address: Any) -> None:
-        if not slots.acquire(blocking=False):
-            log.warning("TCPROS: %d handshakes already running; refused %s:%s",
-                        MAX_HANDSHAKES, *address[:2])
-            sock.close()
-            return
-
-        def run() -> None:
-            try:
-                serve(server, sock, address)   # rospy logs and closes on any failure
-            finally:
-                slots.release()
-
-        threading.Thread(target=run, name="tcpros handshake", daemon=True).start()
-
-    tcpros_base.read_ros_handshake_header = bounded_read
-    tcpros_base.TCPROSServer._tcp_server_callback = threaded
-    tcpros_base._walkman_guarded = True
-
-
-class RosNode:
-    """rospy's node for this process: started when the master answers, kept registered."""
-
-    def __init__(self, name: str) -> None:
-        self.name = name
-        self.ready = threading.Event()
-        self._stop = threading.Event()
-        self._on_ready: List[Callable[[], None]] = []
-        self._master_pid: Optional[int] = None
-        self._thread = threading.Thread(target=self._run, name="bridge ros", daemon=True)
-
-    def start(self) -> None:
-        self._thread.start()
-
-    def when_ready(self, action: Callable[[], None]) -> None:
-        self._on_ready.append(action)
-
-    def _master(self):
-        import rosgraph
-
-        return rosgraph.Master(self.name)
-
-    def _run(self) -> None:
-        import rosgraph
-        import rospy
-
-        announced = False
-        while not self._stop.is_set() and not rosgraph.is_master_online():
-            if not announced:
-                log.info("waiting for the ROS master at %s", rosgraph.get_master_uri())
-                announced = True
-            self._stop.wait(1.0)
-        if self._stop.is_set():
-            return
-        guard_tcpros()
-        rospy.init_node(self.name, anonymous=False, disable_signals=True)
-        self._master_pid = self._pid()
-        log.info("ROS node %s registered with %s", rospy.get_name(), rosgraph.get_master_uri())
-        for action in self._on_ready:
-            action()
-        self.ready.set()
-        while not self._stop.wait(1.0):
-            pid = self._pid()
-            if pid is not None and pid != self._master_pid:
-                log.warning("the ROS master restarted; registering our topics again")
-                if self._register_again():
-                    self._master_pid = pid
-
-    def _pid(self) -> Optional[int]:
-        try:
-            return int(self._master().getPid())
-        except Exception:  # noqa: BLE001 -- master down: keep the old one
-            return None
-
-    def _register_again(self) -> bool:
-        import rospy
-        from rospy.impl.registration import (RegManager, get_registration_listeners,
-                                             get_service_manager, get_topic_manager)
-
-        manager = next((l for l in get_registration_listeners().listeners
-                        if isinstance(l, RegManager)), None)
-        master = self._master()
-        uri = rospy.core.get_node_uri()
-        try:
-            for topic, type_name in get_topic_manager().get_publications():
-                master.registerPublisher(topic, type_name, uri)
-            for topic, type_name in get_topic_manager().get_subscriptions():
-                publishers = master.registerSubscriber(topic, type_name, uri)
-                if manager is not None:
-                    manager.publisher_update(topic, publishers)
-            for service, service_uri in get_service_manager().get_services():
-                master.registerService(service, service_uri, uri)
-        except Exception as exc:  # noqa: BLE001 -- try again next second
-            log.warning("registering again failed: %s", exc)
-            return False
-        return True
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self.ready.is_set():
-            import rospy
-
-            rospy.signal_shutdown("bridge stopping")
-
-
 class RosSink:
     """Subscribes to a topic and posts its messages to the link."""
 

@@ -9,10 +9,11 @@ the module's ``status:o`` for robot data).  On the other side a
 pilot to read, ``/bridge/pilot/module/switch`` connected to the module's
 ``switch:i``).
 
-:class:`ConnectionKeeper` owns every connection the bridge needs and checks
-them twice a second -- locally, on the bridge's own port, so checking costs no
-traffic -- and remakes any that is missing: after a module, a name server or
-the bridge itself restarted, connections come back without anyone asking.
+A :class:`nodekit.connections.ConnectionKeeper` owns every connection the bridge
+needs and checks them twice a second -- locally, on the bridge's own port, so
+checking costs no traffic -- and remakes any that is missing: after a module, a
+name server or the bridge itself restarted, connections come back without
+anyone asking.
 
 :class:`RobotStateSink` gathers the HAL's per-chain ``stateSI:o`` into one
 whole-robot reading; :class:`RobotStateSource` republishes it on the pilot
@@ -27,12 +28,12 @@ import logging
 import math
 import threading
 import time
-from dataclasses import dataclass
 from typing import Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 
 from bridge import compact
+from nodekit.connections import ConnectionKeeper
 from bridge.config import Channel
 from bridge.state_codec import Layout, RobotState, StateDecoder, StateEncoder, split_by_chain
 from walkman.hal import protocol
@@ -47,81 +48,6 @@ from yarp_lite.port import Port
 from yarp_lite.rpc import RpcServer
 
 log = logging.getLogger("bridge.yarp")
-
-
-@dataclass
-class _Wanted:
-    source: str
-    target: str
-    carrier: str
-    port: Port
-    ours_is_source: bool
-    announced: bool = False
-
-
-class ConnectionKeeper:
-    """Keeps the connections between the bridge's ports and the modules' ports alive."""
-
-    def __init__(self, period: float = 0.5) -> None:
-        self.period = period
-        self._wanted: List[_Wanted] = []
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._thread: Optional[threading.Thread] = None
-
-    def want(self, source: str, target: str, port: Port, ours_is_source: bool,
-             carrier: str = "tcp") -> None:
-        with self._lock:
-            self._wanted.append(_Wanted(source, target, carrier, port, ours_is_source))
-
-    def forget(self, port: Port) -> None:
-        with self._lock:
-            self._wanted = [w for w in self._wanted if w.port is not port]
-
-    def start(self) -> None:
-        self._thread = threading.Thread(target=self._run, name="bridge connections",
-                                        daemon=True)
-        self._thread.start()
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=3)
-
-    def connected(self, wanted: _Wanted) -> bool:
-        if wanted.ours_is_source:
-            return any(r.target == wanted.target for r in wanted.port.output_routes())
-        return any(r.source == wanted.source for r in wanted.port.input_routes())
-
-    def check_now(self) -> None:
-        with self._lock:
-            wanted = list(self._wanted)
-        for item in wanted:
-            if not item.port.is_open or self.connected(item):
-                continue
-            try:
-                if item.ours_is_source:
-                    ok = item.port.add_output(item.target, item.carrier, quiet=True)
-                else:
-                    ok = bool(network.connect(item.source, item.target, item.carrier,
-                                              client=item.port.nameclient))
-            except YarpError:
-                ok = False
-            if ok:
-                log.info("connected %s -> %s", item.source, item.target)
-                item.announced = False
-            elif not item.announced:
-                log.info("waiting for %s (to connect %s -> %s)",
-                         item.target if item.ours_is_source else item.source,
-                         item.source, item.target)
-                item.announced = True
-
-    def _run(self) -> None:
-        while not self._stop.wait(self.period):
-            try:
-                self.check_now()
-            except Exception:  # noqa: BLE001 -- keep keeping
-                log.exception("connection keeper")
 
 
 class YarpSink:

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import logging
 import time
-from typing import Any, Callable, Dict, List, Optional
+from typing import Any, Callable, Dict, FrozenSet, List, Mapping, Optional, Tuple
 
 from walkman.gym.interfaces import PilotCommand, PilotInterfaces
 
@@ -74,6 +74,10 @@ class GenericThread:
 
     #: The module's states, in order: sent as 'a', 'b', ... (dictionary compression).
     statuses: List[str] = []
+    #: command -> (fewest numbers, most numbers, usage): what a pilot's tool offers.
+    arguments: Mapping[str, Tuple[int, int, str]] = {}
+    #: Commands a pilot's tool sends with a countdown (the paper's QtTimedButton).
+    dangerous: FrozenSet[str] = frozenset()
 
     def __init__(self, name: str, config: Dict[str, Any], interfaces: PilotInterfaces,
                  on_status_change=lambda: None) -> None:

@@ -48,6 +48,7 @@ class Module(GraspTask):
     table = TABLE
     arguments = {"doordatasent": (8, 8, "X Y Z ROLL PITCH YAW HANDLE_LENGTH DOOR_WIDTH"),
                  "turn": (0, 1, "ANGLE rad"), "open": (0, 1, "ANGLE rad")}
+    dangerous = frozenset({"open"})
 
     def status_data(self) -> List[float]:
         return [] if self.target is None else [float(self.target["opened"])]

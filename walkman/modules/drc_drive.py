@@ -52,6 +52,7 @@ class Module(GraspTask):
     arguments = {"steeringwheeldatasent": (7, 10, "X Y Z ROLL PITCH YAW RADIUS [PX PY PZ]"),
                  "turn_left": (0, 1, "ANGLE rad"), "turn_right": (0, 1, "ANGLE rad"),
                  "accelerate": (0, 1, "SECONDS")}
+    dangerous = frozenset({"accelerate"})
     joints = GraspTask.joints + RIGHT_LEG
 
     def setup(self) -> None:

@@ -52,6 +52,7 @@ class Module(GraspTask):
     table = TABLE
     arguments = {"valvedatasent": (7, 7, "X Y Z ROLL PITCH YAW RADIUS"),
                  "turn": (0, 1, "ANGLE rad")}
+    dangerous = frozenset({"turn"})
 
     def status_data(self) -> List[float]:
         return [] if self.target is None else [float(v) for v in self.target["center"]]

@@ -47,6 +47,8 @@ def neck_angles(kinematics, q: np.ndarray, target: np.ndarray,
 
 class Module(ControlThread):
     statuses = ["ready", "moving", "tracking", "unreachable"]
+    arguments = {"look_at": (3, 3, "X Y Z m, pelvis frame"), "track": (3, 3, "X Y Z m"),
+                 "home": (0, 0, ""), "set_time": (1, 1, "T s, 0.1..20")}
 
     def custom_init(self) -> bool:
         self.duration = float(self.config.get("trajectory_time", 1.5))

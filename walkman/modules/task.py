@@ -69,6 +69,22 @@ class Effector:
     joints: Sequence[str]     # the joints IK may use to move it
 
 
+#: Events a task module fires itself; every other event of its table is a pilot command.
+OWN_EVENTS = frozenset({"action_done", "hand_done"})
+
+
+def pilot_commands(table: Mapping[str, Mapping[str, str]]) -> List[str]:
+    """The pilot's commands of a state table, in the task's order: by where the state each
+    leads to comes in the table (``reach`` before ``grasp`` before ``home``)."""
+    order = {state: index for index, state in enumerate(table)}
+    first: Dict[str, int] = {}
+    for moves in table.values():
+        for event, target in moves.items():
+            if event not in OWN_EVENTS:
+                first[event] = min(first.get(event, len(order)), order.get(target, len(order)))
+    return sorted(first, key=lambda event: first[event])
+
+
 def task_statuses(table: Mapping[str, Mapping[str, str]]) -> List[str]:
     """A task's status list: its states, in table order, then ``refused``."""
     return list(table) + ["refused"]
@@ -92,16 +108,13 @@ class TaskModule(ControlThread):
     #: state -> {event -> next state}; events are the commands and action_done/hand_done.
     table: Mapping[str, Mapping[str, str]] = {}
     initial = "idle"
-    #: command -> (fewest numbers, most numbers, usage shown when the count is wrong).
-    arguments: Mapping[str, Tuple[int, int, str]] = {}
     #: every joint the module commands (and so holds while it runs).
     joints: Sequence[str] = ()
 
     @property
     def commands(self) -> List[str]:
         """The pilot's commands: every event of the table but the module's own."""
-        events = {event for moves in self.table.values() for event in moves}
-        return sorted(events - {"action_done", "hand_done"})
+        return pilot_commands(self.table)
 
     # -- set-up ------------------------------------------------------------------------
 

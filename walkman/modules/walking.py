@@ -54,6 +54,8 @@ class Module(TaskModule):
     table = TABLE
     arguments = {"go_straight": (1, 1, "DISTANCE m"), "turn": (1, 1, "ANGLE rad"),
                  "step_side": (1, 1, "DISTANCE m, left positive")}
+    # Rotating on the spot nearly toppled Walk-Man at the DRC: every step counts down.
+    dangerous = frozenset({"go_straight", "turn", "step_side"})
     joints = LEGS["left"] + LEGS["right"] + WAIST
 
     def setup(self) -> None:

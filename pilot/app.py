@@ -1,0 +1,335 @@
+"""``walkman-pilot``: the Pilot Interface window, composed from a named layout.
+
+Theory of operation
+-------------------
+:class:`PilotWindow` builds the widgets a layout names (:mod:`pilot.layouts`)
+for the modules of the bridge configuration, starts a :class:`~pilot.link.PilotLink`
+and routes its events -- posted from ROS and YARP threads -- through one Qt
+signal onto the GUI thread, where :meth:`PilotWindow.dispatch` hands each to
+the widgets that show it.  A timer refreshes ages twice a second.  The 3-D view
+starts once the ROS node is registered.  Several PIs may run at once, on one
+pilot PC or several: each has its own name (``--name``, shown in every pilot's
+log beside its commands) and its own markers.
+
+Killing a PI loses nothing: commands are in the gateway or the bridge once
+sent, countdowns run in the gateway, and a new PI with the same layout shows
+the current state from the latched status topics.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Any, Dict, List, Optional
+
+from bridge import config as bridge_config
+from pilot.catalogue import catalogue_of
+from pilot.layouts import DEFAULT_LAYOUTS, Layout, LayoutError, Widget, load_layout
+
+log = logging.getLogger("pilot.app")
+DEFAULT_CONFIG = Path(__file__).resolve().parents[1] / "models" / "bridge_drc.xml"
+
+
+def configured_modules(path: Path) -> Dict[str, List[str]]:
+    """The GYM modules of a bridge configuration and their declared states."""
+    config = bridge_config.load(path)
+    return {name: list(statuses) for name, statuses in config.gym_modules.items()}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="walkman-pilot",
+        description="The Pilot Interface: the robot's modules, 3-D view, camera and status.")
+    parser.add_argument("--layout", default="main-pilot",
+                        help="layout name in the layouts file (default %(default)s)")
+    parser.add_argument("--layouts", type=Path, default=DEFAULT_LAYOUTS,
+                        help="layouts file (default %(default)s)")
+    parser.add_argument("--list-layouts", action="store_true", help="list the layouts and exit")
+    parser.add_argument("--config", type=Path, default=DEFAULT_CONFIG,
+                        help="bridge configuration listing the modules (default %(default)s)")
+    parser.add_argument("--name", default="",
+                        help="this PI's name in every pilot's log (default pi_<host>_<pid>)")
+    parser.add_argument("--advanced", action="store_true",
+                        help="advanced mode: every button enabled (the pilot knows the risk)")
+    parser.add_argument("--screenshot", type=Path,
+                        help="save a screenshot of the window there after --screenshot-after s")
+    parser.add_argument("--screenshot-after", type=float, default=8.0)
+    return parser
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    options = build_parser().parse_args(argv)
+    try:
+        modules = configured_modules(options.config)
+        if options.list_layouts:
+            from pilot.layouts import parse_layouts
+
+            for name, layout in parse_layouts(options.layouts.read_text(), str(options.layouts),
+                                              list(modules)).items():
+                print(f"{name:20s} {layout.description}")
+            return 0
+        layout = load_layout(options.layout, options.layouts, list(modules))
+    except (LayoutError, bridge_config.ConfigError, OSError) as exc:
+        print(f"walkman-pilot: {exc}", file=sys.stderr)
+        return 2
+    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY") and \
+            os.environ.get("QT_QPA_PLATFORM", "") not in ("offscreen", "minimal"):
+        print("walkman-pilot: no display (DISPLAY is not set); run it on a desktop, under "
+              "xvfb-run, or pilot with rostopic (launch_scripts/pilot_pc.sh --no-gui)",
+              file=sys.stderr)
+        return 2
+    from nodekit.logs import configure_logging
+
+    configure_logging("pilot")
+    name = options.name or f"pi_{os.uname().nodename.replace('-', '_')}_{os.getpid()}"
+    from python_qt_binding.QtWidgets import QApplication
+
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    window = PilotWindow(layout, modules, name, advanced=options.advanced)
+    window.show()
+    window.start()
+    from python_qt_binding.QtCore import QTimer
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: app.quit())
+    keep_python_awake = QTimer()        # lets Python see the signals while Qt runs
+    keep_python_awake.timeout.connect(lambda: None)
+    keep_python_awake.start(200)
+    if options.screenshot is not None:
+        QTimer.singleShot(int(options.screenshot_after * 1000),
+                          lambda: window.screenshot(options.screenshot))
+    print(f"walkman-pilot: {name} window up (layout {layout.name})", flush=True)
+    code = app.exec_()
+    window.close_link()
+    return code
+
+
+# -- the window ---------------------------------------------------------------------------
+
+from python_qt_binding.QtCore import QObject, Qt, QTimer, Signal  # noqa: E402
+from python_qt_binding.QtWidgets import (QCheckBox, QLabel, QMainWindow, QSplitter,  # noqa: E402
+                                         QScrollArea, QTabWidget, QVBoxLayout, QWidget)
+
+from pilot import link as events  # noqa: E402
+
+
+class _Events(QObject):
+    arrived = Signal(object)
+
+
+class PilotWindow(QMainWindow):
+    def __init__(self, layout: Layout, modules: Dict[str, List[str]], name: str,
+                 advanced: bool = False) -> None:
+        super().__init__()
+        self.layout_spec = layout
+        self.name = name
+        self.modules = modules
+        self.setWindowTitle(f"Walk-Man Pilot Interface - {layout.name} - {name}")
+        self.events = _Events()
+        self.events.arrived.connect(self.dispatch, Qt.QueuedConnection)
+        self.module_widgets: Dict[str, List[Any]] = {m: [] for m in modules}
+        self.view3d = self.camera = self.status = self.link_widget = self.log = None
+        self.ros_up = False
+        self.started_at = time.monotonic()
+        self.ready_after: Optional[float] = None
+        self.advanced_box = QCheckBox("advanced mode (every button enabled)")
+        self.advanced_box.setObjectName("advanced")
+        self.advanced_box.setChecked(advanced)
+        self.advanced_box.toggled.connect(lambda _: self._tick())
+
+        central = QWidget()
+        outer = QVBoxLayout(central)
+        self.banner = QLabel("connecting to the pilot roscore...")
+        self.banner.setObjectName("banner")
+        outer.addWidget(self.banner)
+        splitter = QSplitter(Qt.Horizontal)
+        self.tabs = QTabWidget()
+        self.tabs.setObjectName("tabs")
+        for title, widgets in layout.tabs:
+            self.tabs.addTab(self._column(widgets), title)
+        splitter.addWidget(self.tabs)
+        if layout.side:
+            splitter.addWidget(self._column(layout.side, scroll=False))
+        outer.addWidget(splitter, 1)
+        outer.addWidget(self.advanced_box)
+        self.setCentralWidget(central)
+        self.resize(1400, 900)
+
+        needs_camera = any(w.kind in ("camera", "view3d") for w in layout.widgets())
+        self.link = events.PilotLink(name, list(modules), self.events.arrived.emit,
+                                     camera=needs_camera)
+        self.timer = QTimer(self)
+        self.timer.timeout.connect(self._tick)
+        self.timer.start(500)
+
+    # -- building --------------------------------------------------------------------------
+
+    def _column(self, widgets: List[Widget], scroll: bool = True) -> QWidget:
+        column = QWidget()
+        layout = QVBoxLayout(column)
+        for spec in widgets:
+            for widget in self._make(spec):
+                layout.addWidget(widget)
+        layout.addStretch(0)
+        if not scroll or any(w.kind in ("view3d", "camera") for w in widgets):
+            return column
+        area = QScrollArea()
+        area.setWidgetResizable(True)
+        area.setWidget(column)
+        return area
+
+    def _make(self, spec: Widget) -> List[QWidget]:
+        from pilot.widgets.camera import CameraView
+        from pilot.widgets.generic import GenericWidget
+        from pilot.widgets.link import LinkWidget
+        from pilot.widgets.log import LogView
+        from pilot.widgets.status import StatusTab
+        from pilot.widgets.tasks import TASK_MODULES, TaskWidget
+        from pilot.widgets.view3d import View3D
+
+        advanced = self.advanced_box.isChecked
+        if spec.kind in ("task", "generic"):
+            catalogue = catalogue_of(spec.module, self.modules.get(spec.module, []))
+            cls = TaskWidget if spec.kind == "task" and spec.module in TASK_MODULES \
+                else GenericWidget
+            widget = cls(catalogue, self.link_proxy, advanced)
+            self.module_widgets[spec.module].append(widget)
+            return [widget]
+        if spec.kind == "modules":
+            out = []
+            for module in self.modules:
+                widget = GenericWidget(catalogue_of(module, self.modules[module]),
+                                       self.link_proxy, advanced)
+                self.module_widgets[module].append(widget)
+                out.append(widget)
+            return out
+        if spec.kind == "view3d":
+            self.view3d = View3D(self.name)
+            return [self.view3d]
+        if spec.kind == "camera":
+            self.camera = CameraView()
+            return [self.camera]
+        if spec.kind == "status":
+            self.status = StatusTab(list(self.modules))
+            return [self.status]
+        if spec.kind == "link":
+            self.link_widget = LinkWidget()
+            return [self.link_widget]
+        if spec.kind == "log":
+            self.log = LogView(self.name)
+            return [self.log]
+        raise LayoutError(f"no widget '{spec}'")
+
+    @property
+    def link_proxy(self) -> "PilotWindow":
+        return self
+
+    # what widgets call (the link is created after them)
+    def switch(self, module: str, word: str) -> str:
+        return self.link.switch(module, word)
+
+    def command(self, module: str, name: str, numbers=(), dangerous: bool = False) -> str:
+        return self.link.command(module, name, numbers, dangerous)
+
+    # -- running ---------------------------------------------------------------------------
+
+    def start(self) -> None:
+        self.link.start()
+
+    def close_link(self) -> None:
+        if self.view3d is not None:
+            self.view3d.close_view()
+        self.link.close()
+
+    def closeEvent(self, event) -> None:  # noqa: N802 -- Qt's name
+        self.close_link()
+        super().closeEvent(event)
+
+    def task_widgets(self) -> List[Any]:
+        from pilot.widgets.tasks import TaskWidget
+
+        return [w for ws in self.module_widgets.values() for w in ws if isinstance(w, TaskWidget)]
+
+    def dispatch(self, event: Any) -> None:
+        """One event on the GUI thread; a widget's bug is logged, never fatal to the PI."""
+        try:
+            self._dispatch(event)
+        except Exception:  # noqa: BLE001 -- PyQt aborts the process on a slot's exception
+            log.exception("pilot: showing %s failed", type(event).__name__)
+
+    def _dispatch(self, event: Any) -> None:
+        if isinstance(event, events.RosEvent):
+            self.ros_up = event.up
+            self.banner.setText(f"{self.name}: on the pilot roscore "
+                                f"({os.environ.get('ROS_MASTER_URI', 'default master')})")
+            if self.ready_after is None:
+                self.ready_after = time.monotonic() - self.started_at
+            if self.view3d is not None:
+                self.view3d.start()
+                for widget in self.task_widgets():
+                    pose = widget.pose()
+                    if pose is not None:
+                        self.view3d.add_pose_marker(widget.module, pose, widget.set_pose)
+            return
+        module = getattr(event, "module", None)
+        targets = self.module_widgets.get(module, []) if module else []
+        if isinstance(event, events.StatusEvent):
+            for widget in targets:
+                widget.on_status(event)
+            for sink in (self.status, self.log):
+                if sink is not None:
+                    sink.on_status(event)
+        elif isinstance(event, events.WarningEvent):
+            for widget in targets:
+                widget.on_warning(event)
+            if self.log is not None:
+                self.log.on_warning(event)
+        elif isinstance(event, events.CountdownEvent):
+            for widget in targets:
+                widget.on_countdown(event)
+                widget.refresh()
+        elif isinstance(event, events.SentEvent):
+            if self.log is not None:
+                self.log.on_sent(event)
+        elif isinstance(event, events.JointsEvent):
+            if self.status is not None:
+                self.status.on_joints(event)
+        elif isinstance(event, events.TemperaturesEvent):
+            if self.status is not None:
+                self.status.on_temperatures(event)
+        elif isinstance(event, events.ImageEvent):
+            if self.camera is not None:
+                self.camera.on_image(event)
+        elif isinstance(event, events.CloudEvent):
+            if self.camera is not None:
+                self.camera.on_cloud(event)
+        elif isinstance(event, events.BridgeEvent):
+            if self.link_widget is not None:
+                self.link_widget.on_bridge(event)
+
+    def _tick(self) -> None:
+        for widgets in self.module_widgets.values():
+            for widget in widgets:
+                widget.tick()
+        for sink in (self.status, self.link_widget):
+            if sink is not None:
+                sink.tick()
+
+    def screenshot(self, path: Path) -> bool:
+        """The window as the screen shows it (librviz's GL content included)."""
+        from python_qt_binding.QtWidgets import QApplication
+
+        screen = QApplication.primaryScreen()
+        geometry = self.frameGeometry()
+        image = screen.grabWindow(0, geometry.x(), geometry.y(), geometry.width(),
+                                  geometry.height())
+        return image.save(str(path))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,108 @@
+"""What a module offers a pilot: its commands, their numbers, and when each is legal.
+
+Theory of operation
+-------------------
+A GYM module class declares its states (``statuses``), the numbers each
+command takes (``arguments``: fewest, most, usage) and which commands count
+down before they leave (``dangerous``); a task module also has its state
+table (``table``: state -> command -> next state).  :func:`catalogue_of` reads
+those once, so the Generic Widget builds its command entry and the task
+widgets their buttons from the module's own declaration -- never a second copy
+in the GUI.  A module the PI cannot import (another team's) gets a catalogue
+with its states only, from the bridge configuration, and a free-text entry.
+
+Which commands are legal follows the table: in state ``s`` exactly the
+commands of ``table[s]``.  Modules without a table accept their commands in any
+state.  The lifecycle buttons follow Figure 8 (:mod:`walkman.gym.lifecycle`).
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from typing import Dict, List, Mapping, Optional, Sequence, Tuple
+
+from walkman.gym.lifecycle import TRANSITIONS, lifecycle_of_status
+
+
+@dataclass(frozen=True)
+class CommandSpec:
+    name: str
+    fewest: int = 0
+    most: int = 0
+    usage: str = ""
+    dangerous: bool = False
+
+    @property
+    def fields(self) -> List[str]:
+        """One label per number, from the usage (``X Y Z RADIUS`` -> four fields)."""
+        words = [w.strip("[]") for w in self.usage.replace(",", " ").split()
+                 if w.strip("[]").isupper() or w.strip("[]").replace("_", "").isupper()]
+        if len(words) >= self.most:
+            return words[:self.most]
+        return [f"#{i + 1}" for i in range(self.most)]
+
+    def check(self, numbers: Sequence[float]) -> Optional[str]:
+        """Why these numbers are wrong for the command, or None."""
+        if not self.fewest <= len(numbers) <= self.most:
+            count = str(self.fewest) if self.fewest == self.most else \
+                f"{self.fewest} to {self.most}"
+            return f"{self.name} takes {count} numbers ({self.usage or 'none'}), got {len(numbers)}"
+        return None
+
+
+@dataclass
+class Catalogue:
+    module: str
+    statuses: List[str]
+    commands: Dict[str, CommandSpec] = field(default_factory=dict)
+    table: Optional[Mapping[str, Mapping[str, str]]] = None
+
+    def legal(self, state: str) -> List[str]:
+        """The commands the module accepts in ``state``, in the table's order."""
+        if self.table is None:
+            return list(self.commands)
+        return [c for c in self.table.get(state, {}) if c in self.commands]
+
+    def next_state(self, state: str, command: str) -> Optional[str]:
+        return None if self.table is None else self.table.get(state, {}).get(command)
+
+
+def legal_switches(status: Optional[str]) -> List[str]:
+    """The lifecycle commands legal now (Figure 8), from the module's last status word.
+
+    Nothing known about the module (it never spoke): only ``start``, which the
+    GYM runner accepts in its constructor state.
+    """
+    if status is None:
+        return ["start"]
+    return [switch.value for switch in TRANSITIONS[lifecycle_of_status(status)]]
+
+
+def _module_class(module: str) -> Optional[type]:
+    try:
+        return getattr(importlib.import_module(f"walkman.modules.{module}"), "Module")
+    except (ImportError, AttributeError):
+        return None
+
+
+def catalogue_of(module: str, statuses: Sequence[str] = ()) -> Catalogue:
+    """The module's catalogue, from its class when it is one of ours."""
+    cls = _module_class(module)
+    if cls is None:
+        return Catalogue(module, list(statuses))
+    table = getattr(cls, "table", None) or None
+    arguments: Mapping[str, Tuple[int, int, str]] = getattr(cls, "arguments", {}) or {}
+    dangerous = getattr(cls, "dangerous", frozenset())
+    if table is not None:
+        from walkman.modules.task import pilot_commands
+
+        names = pilot_commands(table)
+    else:
+        names = list(arguments)
+    commands = {}
+    for name in names:
+        fewest, most, usage = arguments.get(name, (0, 0, ""))
+        commands[name] = CommandSpec(name, fewest, most, usage, name in dangerous)
+    return Catalogue(module, list(statuses) or list(getattr(cls, "statuses", [])), commands,
+                     table)

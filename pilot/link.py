@@ -1,0 +1,338 @@
+"""The Pilot Interface's ROS node: everything it shows and sends, as plain events.
+
+Theory of operation
+-------------------
+The PI is a ROS node on the pilot's roscore.  It speaks to the robot only
+through the pilot gateway's topics (``/M/switch``, ``/M/command`` in;
+``/M/status`` latched, ``/M/warning``, ``/M/countdown``, ``/pilot/sent_commands``
+out) and reads what the bridge brings to the pilot PC (``/joint_states``,
+``/joint_temperatures``, the camera and the cloud); the only YARP port it
+reads is the local bridge's own ``/bridge/pilot/status:o`` (the link's state).
+
+:class:`PilotLink` turns every message into an event -- a small dataclass
+handed to ``post`` from whichever thread received it -- so the Qt side
+(:mod:`pilot.app`) queues them onto the GUI thread and tests collect them in
+a list.  Heavy decoding (pixels, points) happens here, off the GUI thread.
+
+Recovery: :class:`~nodekit.ros_node.RosNode` registers again after a roscore
+restart, the gateway's status topics are latched (a restarted PI shows the
+current state at once), and the bridge status port is reconnected by a
+:class:`~nodekit.connections.ConnectionKeeper`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Callable, Dict, Optional, Sequence, Tuple
+
+import numpy as np
+
+log = logging.getLogger("pilot.link")
+
+IMAGE_TOPIC = "/multisense/left/image_color"
+CLOUD_TOPIC = "/multisense/points"
+#: Side of the square blocks the camera view checks for missing tiles (the bridge fills
+#: what did not arrive with zeros; a whole block of exact zeros is a missing region).
+BLOCK = 8
+
+
+# -- events ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class StatusEvent:
+    module: str
+    state: str
+    data: str
+    values: Tuple[float, ...]
+    seq: int
+    stamp: float          # when the gateway received it (wall clock, s)
+
+
+@dataclass(frozen=True)
+class WarningEvent:
+    module: str
+    text: str
+    stamp: float
+
+
+@dataclass(frozen=True)
+class CountdownEvent:
+    module: str
+    command: str          # the command as YARP text (``turn 0.5``)
+    remaining: float
+    state: str            # waiting, sent, cancelled
+    sender: str
+
+
+@dataclass(frozen=True)
+class SentEvent:
+    module: str
+    port: str             # switch or command
+    text: str
+    seq: int
+    sender: str
+    station: int
+    stamp: float
+
+
+@dataclass(frozen=True)
+class JointsEvent:
+    names: Tuple[str, ...]
+    position: np.ndarray
+    effort: np.ndarray
+    stamp: float
+
+
+@dataclass(frozen=True)
+class TemperaturesEvent:
+    names: Tuple[str, ...]
+    celsius: np.ndarray
+    stamp: float
+
+
+@dataclass(frozen=True)
+class ImageEvent:
+    rgb: np.ndarray       # H x W x 3 uint8
+    missing: np.ndarray   # (H // BLOCK) x (W // BLOCK) bool: regions that did not arrive
+    completeness: float
+    stamp: float
+
+
+@dataclass(frozen=True)
+class CloudEvent:
+    points: int
+    completeness: float   # share of the points that are not NaN
+    stamp: float
+
+
+@dataclass(frozen=True)
+class BridgeEvent:
+    status: Dict[str, Any]
+    stamp: float
+
+
+@dataclass(frozen=True)
+class RosEvent:
+    up: bool
+
+
+Post = Callable[[Any], None]
+
+
+# -- pure decoding -------------------------------------------------------------------------
+
+
+def image_pixels(encoding: str, height: int, width: int, data: bytes) -> Optional[np.ndarray]:
+    """An 8-bit colour or mono ``sensor_msgs/Image`` as H x W x 3 RGB, or None."""
+    channels = {"rgb8": 3, "bgr8": 3, "mono8": 1, "rgba8": 4, "bgra8": 4}.get(encoding)
+    if channels is None or len(data) < height * width * channels:
+        return None
+    pixels = np.frombuffer(data, np.uint8, height * width * channels)
+    pixels = pixels.reshape(height, width, channels)
+    if channels == 1:
+        return np.repeat(pixels, 3, axis=2)
+    if encoding.startswith("bgr"):
+        pixels = pixels[:, :, 2::-1]
+    return np.ascontiguousarray(pixels[:, :, :3])
+
+
+def missing_blocks(rgb: np.ndarray, block: int = BLOCK) -> np.ndarray:
+    """Blocks of exact zeros: where the bridge's tiles did not arrive."""
+    h, w = (rgb.shape[0] // block) * block, (rgb.shape[1] // block) * block
+    if h == 0 or w == 0:
+        return np.zeros((0, 0), bool)
+    blocks = rgb[:h, :w].reshape(h // block, block, w // block, block, -1)
+    return ~blocks.any(axis=(1, 3, 4))
+
+
+def cloud_completeness(msg: Any) -> Tuple[int, float]:
+    """Points in a ``PointCloud2`` and the share whose x is a number (NaN: not arrived)."""
+    count = msg.width * msg.height
+    offset = next((f.offset for f in msg.fields if f.name == "x"), None)
+    if count == 0 or offset is None or msg.point_step == 0:
+        return count, 0.0
+    raw = np.frombuffer(msg.data, np.uint8, count * msg.point_step).reshape(count,
+                                                                           msg.point_step)
+    x = raw[:, offset:offset + 4].copy().view(np.float32).ravel()
+    return count, float(np.isfinite(x).mean())
+
+
+# -- the node ------------------------------------------------------------------------------
+
+
+@dataclass
+class _Sender:
+    switch: Any
+    command: Any
+
+
+class PilotLink:
+    """The PI's ROS node and the bridge status reader; ``post`` gets every event."""
+
+    def __init__(self, name: str, modules: Sequence[str], post: Post,
+                 camera: bool = True, bridge_status: str = "/bridge/pilot/status:o") -> None:
+        self.name = name
+        self.modules = list(modules)
+        self.post = post
+        self.camera = camera
+        self.bridge_status = bridge_status
+        self._senders: Dict[str, _Sender] = {}
+        self._ros = None
+        self._keeper = None
+        self._status_port = None
+        self._lock = threading.Lock()
+
+    # -- life ----------------------------------------------------------------------------
+
+    def start(self) -> None:
+        from nodekit.ros_node import RosNode
+        from rosnodes.msgs import ensure_importable
+
+        ensure_importable()
+        self._ros = RosNode(self.name)
+        self._ros.when_ready(self._open_topics)
+        self._ros.start()
+        threading.Thread(target=self._open_bridge_status, name="pilot bridge status",
+                         daemon=True).start()
+
+    def close(self) -> None:
+        if self._keeper is not None:
+            self._keeper.stop()
+        if self._status_port is not None:
+            self._status_port.close()
+        if self._ros is not None:
+            self._ros.stop()
+
+    @property
+    def ready(self) -> bool:
+        return self._ros is not None and self._ros.ready.is_set()
+
+    # -- sending -------------------------------------------------------------------------
+
+    def switch(self, module: str, word: str) -> str:
+        """Send a lifecycle command; returns "" or why it could not leave."""
+        sender = self._senders.get(module)
+        if sender is None:
+            return "the PI is not connected to the pilot roscore yet"
+        from walkman_msgs.msg import Switch
+
+        sender.switch.publish(Switch(command=word, seq=0, sender=self.name))
+        return ""
+
+    def command(self, module: str, name: str, numbers: Sequence[float] = (),
+                dangerous: bool = False) -> str:
+        """Send a command (a dangerous one counts down at the gateway; again cancels it)."""
+        sender = self._senders.get(module)
+        if sender is None:
+            return "the PI is not connected to the pilot roscore yet"
+        bad = [v for v in numbers if not math.isfinite(v)]
+        if bad:
+            return f"{name}: {bad[0]} is not a finite number"
+        from walkman_msgs.msg import Command
+
+        sender.command.publish(Command(command=name, words=[], numbers=list(map(float, numbers)),
+                                       text="", dangerous=dangerous, countdown=0.0, seq=0,
+                                       sender=self.name))
+        return ""
+
+    # -- ROS -------------------------------------------------------------------------------
+
+    def _open_topics(self) -> None:
+        import rospy
+        from sensor_msgs.msg import Image, JointState, PointCloud2
+        from walkman_msgs.msg import (Command, Countdown, JointTemperatures, SentCommand, Status,
+                                      Switch, Warning)
+
+        for module in self.modules:
+            self._senders[module] = _Sender(
+                rospy.Publisher(f"/{module}/switch", Switch, queue_size=10),
+                rospy.Publisher(f"/{module}/command", Command, queue_size=10))
+            rospy.Subscriber(f"/{module}/status", Status, self._on_status)
+            rospy.Subscriber(f"/{module}/warning", Warning, self._on_warning)
+            rospy.Subscriber(f"/{module}/countdown", Countdown, self._on_countdown)
+        rospy.Subscriber("/pilot/sent_commands", SentCommand, self._on_sent)
+        rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=1)
+        rospy.Subscriber("/joint_temperatures", JointTemperatures, self._on_temperatures,
+                         queue_size=1)
+        if self.camera:
+            rospy.Subscriber(IMAGE_TOPIC, Image, self._on_image, queue_size=1,
+                             buff_size=1 << 22)
+            rospy.Subscriber(CLOUD_TOPIC, PointCloud2, self._on_cloud, queue_size=1,
+                             buff_size=1 << 22)
+        # Subscribers connect to the publishers a moment after registering: until then a
+        # message published here would go nowhere.
+        deadline = time.monotonic() + 3.0
+        while time.monotonic() < deadline and not all(
+                s.switch.get_num_connections() and s.command.get_num_connections()
+                for s in self._senders.values()):
+            time.sleep(0.05)
+        self.post(RosEvent(True))
+        log.info("pilot: %s on the pilot roscore, %d modules", self.name, len(self.modules))
+
+    def _on_status(self, msg: Any) -> None:
+        self.post(StatusEvent(msg.module, msg.state, msg.data, tuple(msg.values), msg.seq,
+                              msg.header.stamp.to_sec()))
+
+    def _on_warning(self, msg: Any) -> None:
+        self.post(WarningEvent(msg.module, msg.text, msg.header.stamp.to_sec() or time.time()))
+
+    def _on_countdown(self, msg: Any) -> None:
+        self.post(CountdownEvent(msg.module, msg.command, float(msg.remaining), msg.state,
+                                 msg.sender))
+
+    def _on_sent(self, msg: Any) -> None:
+        self.post(SentEvent(msg.module, msg.port, msg.text, msg.seq, msg.sender, msg.station,
+                            msg.header.stamp.to_sec() or time.time()))
+
+    def _on_joints(self, msg: Any) -> None:
+        self.post(JointsEvent(tuple(msg.name), np.array(msg.position, float),
+                              np.array(msg.effort, float), msg.header.stamp.to_sec()))
+
+    def _on_temperatures(self, msg: Any) -> None:
+        self.post(TemperaturesEvent(tuple(msg.name), np.array(msg.celsius, float),
+                                    msg.header.stamp.to_sec()))
+
+    def _on_image(self, msg: Any) -> None:
+        rgb = image_pixels(msg.encoding, msg.height, msg.width, msg.data)
+        if rgb is None:
+            log.warning("pilot: camera image in encoding %s (%dx%d) is not shown",
+                        msg.encoding, msg.width, msg.height)
+            return
+        missing = missing_blocks(rgb)
+        completeness = 1.0 - float(missing.mean()) if missing.size else 1.0
+        self.post(ImageEvent(rgb, missing, completeness, msg.header.stamp.to_sec()))
+
+    def _on_cloud(self, msg: Any) -> None:
+        count, completeness = cloud_completeness(msg)
+        self.post(CloudEvent(count, completeness, msg.header.stamp.to_sec()))
+
+    # -- the bridge's status (YARP, local) --------------------------------------------------
+
+    def _open_bridge_status(self) -> None:
+        from bridge.status import from_bottle
+        from bridge.errors import BridgeProtocolError
+        from nodekit.connections import ConnectionKeeper
+        from yarp_lite.errors import YarpError
+        from yarp_lite.port import Port
+
+        def on_status(bottle) -> None:
+            try:
+                self.post(BridgeEvent(from_bottle(bottle), time.time()))
+            except BridgeProtocolError as exc:
+                log.warning("pilot: %s: %s", self.bridge_status, exc)
+
+        try:
+            port = Port(reader=on_status)
+            port.open(f"/pilot/{self.name}/bridge_status:i", wait=math.inf)
+        except YarpError as exc:
+            log.warning("pilot: no YARP name server for the bridge status: %s", exc)
+            return
+        self._status_port = port
+        self._keeper = ConnectionKeeper(period=1.0)
+        self._keeper.want(self.bridge_status, port.name, port, ours_is_source=False)
+        self._keeper.start()

@@ -1,0 +1,1 @@
+"""The Pilot Interface widgets (Qt): one module per widget."""

@@ -1,0 +1,255 @@
+"""The Generic Widget (paper, Figure 13): the graphical face of one GYM module.
+
+Theory of operation
+-------------------
+Every module widget inherits it: a LED and the decoded status with its age
+(green running, grey when the status is stale, red "not running" when the
+module never spoke or went silent), the lifecycle buttons of Figure 8 -- each
+enabled only when the module's lifecycle allows it -- the module's warnings in
+red with their history, and a command entry built from the module's
+:class:`~pilot.catalogue.Catalogue`: its commands, one number field per
+argument, a timed send for dangerous ones.  A refused command (by the module,
+its state machine or the gateway) shows the reason in the warnings.
+
+"Advanced mode" (the paper's: commands usually hidden are shown and all the
+buttons enabled, the pilot knowing the risk) is one switch for the window.
+The widget holds no ROS or threads: the window feeds it events and calls
+:meth:`tick` twice a second.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable, Dict, List, Optional
+
+from python_qt_binding.QtCore import Qt
+from python_qt_binding.QtWidgets import (QComboBox, QDoubleSpinBox, QGridLayout, QGroupBox,
+                                         QHBoxLayout, QLabel, QLineEdit, QListWidget,
+                                         QListWidgetItem, QPushButton, QVBoxLayout, QWidget)
+from python_qt_binding.QtGui import QColor
+
+from pilot.catalogue import Catalogue, legal_switches
+from pilot.link import CountdownEvent, StatusEvent, WarningEvent
+from pilot.widgets.timed_button import TimedButton
+from walkman.gym.lifecycle import State, lifecycle_of_status
+
+#: A status older than this is grey (the module sends one every 0.5 s; the bridge every T).
+STALE_S = 3.0
+#: Silent this long (or never heard): "not running".
+ABSENT_S = 10.0
+SWITCH_ORDER = ["start", "pause", "resume", "stop", "quit"]
+WARNING_HISTORY = 200
+
+
+class GenericWidget(QGroupBox):
+    def __init__(self, catalogue: Catalogue, sender, advanced: Callable[[], bool] = lambda: False,
+                 parent: Optional[QWidget] = None) -> None:
+        super().__init__(f"/{catalogue.module}", parent)
+        self.setObjectName(f"generic_{catalogue.module}")
+        self.catalogue = catalogue
+        self.module = catalogue.module
+        self.sender_ = sender
+        self.advanced = advanced
+        self.state: Optional[str] = None        # the module's last status word
+        self.heard_at: Optional[float] = None   # monotonic time of the last status
+        self.status_stamp = 0.0                 # the gateway's stamp of it (wall clock)
+        self.timed: Dict[str, TimedButton] = {}
+        outer = QVBoxLayout(self)
+
+        top = QHBoxLayout()
+        self.led = QLabel("\u25cf")
+        self.led.setObjectName("led")
+        self.status_label = QLabel("not running")
+        self.status_label.setObjectName("status")
+        self.age_label = QLabel("")
+        top.addWidget(self.led)
+        top.addWidget(self.status_label, 1)
+        top.addWidget(self.age_label)
+        outer.addLayout(top)
+
+        switches = QHBoxLayout()
+        self.switch_buttons: Dict[str, QPushButton] = {}
+        for word in SWITCH_ORDER:
+            button = QPushButton(word)
+            button.setObjectName(f"switch_{word}")
+            button.clicked.connect(lambda _=False, w=word: self._switch(w))
+            switches.addWidget(button)
+            self.switch_buttons[word] = button
+        outer.addLayout(switches)
+
+        self.task_area = QVBoxLayout()     # task widgets put their panel here
+        outer.addLayout(self.task_area)
+
+        outer.addWidget(self._command_entry())
+        self.warnings = QListWidget()
+        self.warnings.setObjectName("warnings")
+        self.warnings.setMaximumHeight(90)
+        outer.addWidget(self.warnings)
+        self.refresh()
+
+    # -- the command entry ----------------------------------------------------------------
+
+    def _command_entry(self) -> QWidget:
+        box = QWidget()
+        grid = QGridLayout(box)
+        grid.setContentsMargins(0, 0, 0, 0)
+        self.command_box = QComboBox()
+        self.command_box.setObjectName("command")
+        self.command_box.addItems(list(self.catalogue.commands))
+        self.free_text = QLineEdit()
+        self.free_text.setPlaceholderText("command and numbers, e.g. look_at 1.0 0.4 0.1")
+        self.free_text.setVisible(not self.catalogue.commands)
+        self.command_box.setVisible(bool(self.catalogue.commands))
+        self.fields_row = QHBoxLayout()
+        self.number_fields: List[QDoubleSpinBox] = []
+        self.send_button = QPushButton("send")
+        self.send_button.setObjectName("send")
+        self.send_button.clicked.connect(self._send_entry)
+        grid.addWidget(QLabel("command"), 0, 0)
+        grid.addWidget(self.command_box, 0, 1)
+        grid.addWidget(self.free_text, 0, 1)
+        grid.addLayout(self.fields_row, 1, 0, 1, 3)
+        grid.addWidget(self.send_button, 0, 2)
+        self.command_box.currentTextChanged.connect(self._command_chosen)
+        self._command_chosen(self.command_box.currentText())
+        return box
+
+    def _command_chosen(self, name: str) -> None:
+        while self.fields_row.count():
+            item = self.fields_row.takeAt(0)
+            if item.widget() is not None:
+                item.widget().deleteLater()
+        self.number_fields = []
+        spec = self.catalogue.commands.get(name)
+        if spec is None:
+            return
+        for label in spec.fields:
+            self.fields_row.addWidget(QLabel(label))
+            field = number_field()
+            field.setObjectName(f"arg_{label}")
+            self.fields_row.addWidget(field)
+            self.number_fields.append(field)
+        self.send_button.setText("send (3 s, click again to cancel)" if spec.dangerous
+                                 else "send")
+
+    def _send_entry(self) -> None:
+        if not self.catalogue.commands:
+            words = self.free_text.text().split()
+            if not words:
+                return
+            try:
+                numbers = [float(w) for w in words[1:]]
+            except ValueError:
+                self.show_problem(f"'{' '.join(words[1:])}' are not all numbers")
+                return
+            self.send(words[0], numbers)
+            return
+        name = self.command_box.currentText()
+        self.send(name, [f.value() for f in self.number_fields])
+
+    # -- sending --------------------------------------------------------------------------
+
+    def send(self, name: str, numbers: List[float]) -> bool:
+        """Send a command after the checks the catalogue allows; a refusal is shown."""
+        spec = self.catalogue.commands.get(name)
+        if spec is not None:
+            problem = spec.check(numbers)
+            if problem is None and not self.advanced() and self.catalogue.table is not None \
+                    and name not in self.catalogue.legal(self.state or ""):
+                problem = (f"{name} is not accepted in state {self.state or 'unknown'} "
+                           f"(now: {', '.join(self.catalogue.legal(self.state or '')) or 'none'})")
+            if problem is not None:
+                self.show_problem(problem)
+                return False
+        problem = self.sender_.command(self.module, name, numbers,
+                                       dangerous=bool(spec and spec.dangerous))
+        if problem:
+            self.show_problem(problem)
+            return False
+        return True
+
+    def _switch(self, word: str) -> None:
+        problem = self.sender_.switch(self.module, word)
+        if problem:
+            self.show_problem(problem)
+
+    # -- events ---------------------------------------------------------------------------
+
+    def on_status(self, event: StatusEvent) -> None:
+        self.state = event.state
+        self.heard_at = time.monotonic() - max(0.0, time.time() - event.stamp)
+        self.status_stamp = event.stamp
+        text = event.state + (f"  {event.data}" if event.data else "")
+        self.status_label.setText(text)
+        self.refresh()
+
+    def on_warning(self, event: WarningEvent) -> None:
+        stamp = time.strftime("%H:%M:%S", time.localtime(event.stamp))
+        item = QListWidgetItem(f"{stamp}  {event.text}")
+        item.setForeground(QColor("#d00000"))
+        self.warnings.insertItem(0, item)
+        while self.warnings.count() > WARNING_HISTORY:
+            self.warnings.takeItem(self.warnings.count() - 1)
+
+    def on_countdown(self, event: CountdownEvent) -> None:
+        words = event.command.replace("(", " ").replace(")", " ").split()  # "(turn 1.5)"
+        name = words[0] if words else ""
+        button = self.timed.get(name)
+        if button is not None:
+            button.show_countdown(event.remaining, event.state)
+        spec = self.catalogue.commands.get(name)
+        if spec is not None and self.command_box.currentText() == name:
+            self.send_button.setText(
+                f"{name}: {event.remaining:.1f} s - click to cancel" if event.state == "waiting"
+                else "send (3 s, click again to cancel)")
+
+    def show_problem(self, text: str) -> None:
+        self.on_warning(WarningEvent(self.module, f"not sent: {text}", time.time()))
+
+    # -- appearance ------------------------------------------------------------------------
+
+    @property
+    def age(self) -> Optional[float]:
+        return None if self.heard_at is None else time.monotonic() - self.heard_at
+
+    @property
+    def presence(self) -> str:
+        """running, stale or absent."""
+        age = self.age
+        if age is None or age > ABSENT_S:
+            return "absent"
+        return "stale" if age > STALE_S else "running"
+
+    def tick(self) -> None:
+        self.refresh()
+
+    def refresh(self) -> None:
+        presence = self.presence
+        age = self.age
+        running = presence != "absent" and self.state is not None and \
+            lifecycle_of_status(self.state) == State.RUNNING
+        colour = {"running": "#10a010" if running else "#d0a000", "stale": "#909090",
+                  "absent": "#d00000"}[presence]
+        self.led.setStyleSheet(f"color: {colour}; font-size: 18px;")
+        self.status_label.setStyleSheet("color: #909090;" if presence != "running" else "")
+        if presence == "absent":
+            self.status_label.setText("not running" if self.state is None
+                                      else f"not running (last: {self.state})")
+        self.age_label.setText("" if age is None else f"{age:.1f} s ago")
+        known = None if presence == "absent" else self.state
+        legal = set(legal_switches(known))
+        for word, button in self.switch_buttons.items():
+            button.setEnabled(self.advanced() or word in legal)
+        self.refresh_commands(known)
+
+    def refresh_commands(self, state: Optional[str]) -> None:
+        """Task widgets enable their buttons here."""
+
+
+def number_field() -> QDoubleSpinBox:
+    field = QDoubleSpinBox()
+    field.setDecimals(3)
+    field.setRange(-100.0, 100.0)
+    field.setSingleStep(0.05)
+    field.setAlignment(Qt.AlignRight)
+    return field

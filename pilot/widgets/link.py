@@ -1,0 +1,80 @@
+"""The link widget: the bridge as the pilot's PC sees it (``/bridge/pilot/status:o``).
+
+Up or down and since when, the round trip (the kernel's smoothed RTT of the TCP
+channel), commands queued for the robot, messages dropped or refused, and the
+bit rate per 8-bit id computed from successive byte counters -- plus each
+perception flow's mean completeness.  In the lab topology there is no bridge:
+the widget says so.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Dict, Optional
+
+from python_qt_binding.QtWidgets import (QLabel, QTableWidget, QTableWidgetItem, QVBoxLayout,
+                                         QWidget)
+
+from pilot.link import BridgeEvent
+
+#: No status for this long: the bridge is not running (it sends one every second).
+SILENT_S = 5.0
+
+
+def bit_rates(before: Dict, after: Dict, seconds: float) -> Dict[str, float]:
+    """bit/s per id between two ``bytes_by_id`` samples."""
+    if seconds <= 0:
+        return {}
+    return {str(key): max(0, int(after[key]) - int(before.get(key, 0))) * 8 / seconds
+            for key in after}
+
+
+class LinkWidget(QWidget):
+    def __init__(self, parent=None) -> None:
+        super().__init__(parent)
+        self.setObjectName("link")
+        layout = QVBoxLayout(self)
+        self.summary = QLabel("no bridge heard (the lab topology has none)")
+        self.summary.setObjectName("link_summary")
+        self.summary.setWordWrap(True)
+        layout.addWidget(self.summary)
+        self.rates = QTableWidget(0, 2)
+        self.rates.setHorizontalHeaderLabels(["8-bit id", "bit/s"])
+        layout.addWidget(self.rates)
+        self.flows = QLabel("")
+        self.flows.setWordWrap(True)
+        layout.addWidget(self.flows)
+        self.last: Optional[BridgeEvent] = None
+        self.heard = 0.0
+
+    def on_bridge(self, event: BridgeEvent) -> None:
+        status = event.status
+        tcp = status.get("tcp", {}) or {}
+        before = self.last.status.get("tcp", {}).get("bytes_by_id", {}) if self.last else {}
+        seconds = event.stamp - self.last.stamp if self.last else 0.0
+        rates = bit_rates(before or {}, tcp.get("bytes_by_id", {}) or {}, seconds)
+        self.last, self.heard = event, time.monotonic()
+        dropped = status.get("dropped", {}) or {}
+        self.summary.setText(
+            f"link {status.get('link', '?')} for {status.get('link_since_s', 0)} s | "
+            f"round trip {status.get('round_trip_ms', 0)} ms | queued commands "
+            f"{status.get('queued_commands', 0)} | refused {status.get('refused', 0)} | "
+            f"dropped {sum(int(v) for v in dropped.values())}"
+            + (f" ({', '.join(f'{k} {v}' for k, v in dropped.items())})" if dropped else ""))
+        self.summary.setStyleSheet("color: #10a010;" if status.get("link") == "up"
+                                   else "color: #d00000; font-weight: bold;")
+        if rates:
+            self.rates.setRowCount(len(rates))
+            for row, (ident, bits) in enumerate(sorted(rates.items(), key=lambda kv: int(kv[0]))):
+                self.rates.setItem(row, 0, QTableWidgetItem(ident))
+                self.rates.setItem(row, 1, QTableWidgetItem(f"{bits:,.0f}"))
+        flows = (status.get("udp", {}) or {}).get("flows", {}) or {}
+        self.flows.setText("perception: " + ", ".join(
+            f"{name} {float(flow.get('mean_completeness', 0)):.0%} complete"
+            for name, flow in flows.items()) if flows else "")
+
+    def tick(self) -> None:
+        if self.last is not None and time.monotonic() - self.heard > SILENT_S:
+            self.summary.setText(f"the bridge is silent for {time.monotonic() - self.heard:.0f} s "
+                                 f"(not running?)")
+            self.summary.setStyleSheet("color: #d00000; font-weight: bold;")

@@ -1,0 +1,51 @@
+"""The pilot's log: every command any pilot sent (and who), status changes, warnings.
+
+Commands come from ``/pilot/sent_commands``, which each gateway fills with its
+own and the other stations' commands, so every PI shows every pilot's; a
+command from another PI is marked as such.  Warnings are red (paper, 2.3).
+"""
+
+from __future__ import annotations
+
+import html
+import time
+from typing import Dict
+
+from python_qt_binding.QtWidgets import QTextEdit
+
+from pilot.link import SentEvent, StatusEvent, WarningEvent
+
+MAX_LINES = 2000
+
+
+class LogView(QTextEdit):
+    def __init__(self, me: str, parent=None) -> None:
+        super().__init__(parent)
+        self.setObjectName("log")
+        self.setReadOnly(True)
+        self.me = me
+        self.states: Dict[str, str] = {}
+        self.lines = 0
+
+    def _line(self, stamp: float, text: str, colour: str = "") -> None:
+        when = time.strftime("%H:%M:%S", time.localtime(stamp))
+        body = html.escape(text)
+        self.append(f'<span style="color:{colour or "#000000"}">{when} {body}</span>')
+        self.lines += 1
+        if self.lines > MAX_LINES:
+            self.clear()
+            self.lines = 0
+
+    def on_sent(self, event: SentEvent) -> None:
+        mine = event.sender == self.me
+        who = "me" if mine else f"{event.sender} (station {event.station})"
+        self._line(event.stamp, f"{who} -> /{event.module}/{event.port}: {event.text}",
+                   "" if mine else "#2060c0")
+
+    def on_status(self, event: StatusEvent) -> None:
+        if self.states.get(event.module) != event.state:
+            self.states[event.module] = event.state
+            self._line(time.time(), f"/{event.module}: {event.state}", "#606060")
+
+    def on_warning(self, event: WarningEvent) -> None:
+        self._line(event.stamp, f"/{event.module} WARNING: {event.text}", "#d00000")

@@ -1,0 +1,114 @@
+"""Task widgets: a Generic Widget plus one button per pilot command, in the task's order.
+
+Theory of operation
+-------------------
+A DRC task widget (paper, Figure 14) lays out its module's commands in the
+order its state machine meets them (``valvedatasent, reach, approach, grasp,
+turn, ungrasp, move_away, home``), each with its number fields beside it
+(a pose for ``...datasent``, an angle for ``turn``, a distance for
+``go_straight``), and enables only the commands the current state accepts.
+One class serves every task module: the buttons come from the module's
+:class:`~pilot.catalogue.Catalogue`, only the fields' starting values differ
+(:data:`STARTING_VALUES`).  Dangerous commands are :class:`TimedButton` s.
+
+A ``...datasent`` pose can be typed, or dragged: the 3-D view's interactive
+marker for the module calls :meth:`TaskWidget.set_pose` (position and roll,
+pitch, yaw in the pelvis frame) and the fields follow it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Dict, List, Optional, Sequence
+
+from python_qt_binding.QtWidgets import QGridLayout, QLabel, QPushButton, QWidget
+
+from pilot.catalogue import Catalogue
+from pilot.widgets.generic import GenericWidget, number_field
+from pilot.widgets.timed_button import TimedButton
+from walkman.gym.lifecycle import State, lifecycle_of_status
+from walkman.model.mjcf import PILOT_POSES
+
+
+def _pose(text: str) -> List[float]:
+    return [float(v) for v in text.split()[1:]]
+
+
+#: Where each field starts: the pilots' estimate of each part of the scene (the marker's
+#: starting pose), and the usual angles and distances.
+STARTING_VALUES: Dict[str, Dict[str, List[float]]] = {
+    "drc_valve": {"valvedatasent": _pose(PILOT_POSES["valve"]), "turn": [math.pi / 2]},
+    "drc_door": {"doordatasent": _pose(PILOT_POSES["door"]), "turn": [0.6], "open": [0.5]},
+    "drc_drive": {"steeringwheeldatasent": _pose(PILOT_POSES["car"]), "turn_left": [0.3],
+                  "turn_right": [0.3], "accelerate": [1.0]},
+    "walking": {"go_straight": [0.5], "turn": [0.3], "step_side": [0.1]},
+    "gaze_control": {"look_at": [1.0, 0.2, 0.1], "set_time": [1.5]},
+}
+#: Modules that have a task widget; the others get the Generic Widget alone.
+TASK_MODULES = tuple(STARTING_VALUES)
+
+
+def pose_command(name: str) -> bool:
+    return name.endswith("datasent")
+
+
+class TaskWidget(GenericWidget):
+    def __init__(self, catalogue: Catalogue, sender, advanced=lambda: False,
+                 parent: Optional[QWidget] = None) -> None:
+        self.buttons: Dict[str, QPushButton] = {}
+        self.fields: Dict[str, list] = {}
+        super().__init__(catalogue, sender, advanced, parent)
+        self.setObjectName(f"task_{catalogue.module}")
+        panel = QWidget()
+        grid = QGridLayout(panel)
+        grid.setContentsMargins(0, 0, 0, 0)
+        starting = STARTING_VALUES.get(self.module, {})
+        for row, (name, spec) in enumerate(catalogue.commands.items()):
+            button = TimedButton(name) if spec.dangerous else QPushButton(name)
+            button.setObjectName(f"do_{name}")
+            if spec.dangerous:
+                button.fire.connect(lambda n=name: self.do(n))
+                self.timed[name] = button
+            else:
+                button.clicked.connect(lambda _=False, n=name: self.do(n))
+            grid.addWidget(button, row, 0)
+            values = starting.get(name, [])
+            fields = []
+            for column, label in enumerate(spec.fields[:len(values)] if spec.fewest == 0
+                                           else spec.fields):
+                field = number_field()
+                field.setObjectName(f"{name}_{label}")
+                field.setToolTip(f"{label} ({spec.usage})")
+                if column < len(values):
+                    field.setValue(values[column])
+                caption = QLabel(label.lower())
+                grid.addWidget(caption, row, 1 + 2 * column)
+                grid.addWidget(field, row, 2 + 2 * column)
+                fields.append(field)
+            self.fields[name] = fields
+            self.buttons[name] = button
+        self.task_area.addWidget(panel)
+        self.refresh()
+
+    def do(self, name: str) -> bool:
+        return self.send(name, [f.value() for f in self.fields.get(name, [])])
+
+    def set_pose(self, pose: Sequence[float]) -> None:
+        """The marker moved: the pose command's first fields follow (x y z roll pitch yaw)."""
+        for name, fields in self.fields.items():
+            if pose_command(name):
+                for field, value in zip(fields, pose):
+                    field.setValue(float(value))
+
+    def pose(self) -> Optional[List[float]]:
+        for name, fields in self.fields.items():
+            if pose_command(name):
+                return [f.value() for f in fields[:6]]
+        return None
+
+    def refresh_commands(self, state: Optional[str]) -> None:
+        running = state is not None and lifecycle_of_status(state) == State.RUNNING
+        legal = set(self.catalogue.legal(state)) if running else set()
+        for name, button in getattr(self, "buttons", {}).items():
+            waiting = isinstance(button, TimedButton) and button.waiting
+            button.setEnabled(self.advanced() or name in legal or waiting)
