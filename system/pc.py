@@ -87,6 +87,10 @@ def plan(side: str, options: argparse.Namespace) -> Dict[str, List[str]]:
         else:
             argv = component.command(bag)
         out[component.name] = argv
+    if side in ("pilot", "lab") and not options.no_gui and os.environ.get("DISPLAY"):
+        # The Pilot Interface, where a pilot can see it; --no-gui (or no display): rostopic.
+        out["pilot_interface"] = [sys.executable, "-m", "pilot.app", "--layout", options.layout,
+                                  "--config", str(options.config)]
     return out
 
 
@@ -113,6 +117,10 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--dir", type=Path, default=None,
                         help=f"logs, name-server state and rosbags (default {DEFAULT_DIR}/<side>)")
     parser.add_argument("--skip", default="", help="programs not to start (comma separated)")
+    parser.add_argument("--no-gui", action="store_true",
+                        help="no Pilot Interface even when a display is present (pilot, lab)")
+    parser.add_argument("--layout", default="main-pilot",
+                        help="the Pilot Interface's layout (models/pilot_layouts.ini)")
     parser.add_argument("--shuffle", action="store_true",
                         help="start the programs in a random order, 0-2 s apart")
     options = parser.parse_args(argv)
@@ -155,6 +163,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                 time.sleep(random.uniform(0, 2))
         env_file = pc.write_env_file()
         ready = {c.name: c.ready for c in components(kind_of(options.side))}
+        ready["pilot_interface"] = r"window up"
         return serve({name: pc.processes[name] for name in names}, ready, lambda: say(
             f"all up. In another shell: source {env_file} (then rostopic, rosservice, "
             f"yarp-lite ...); Ctrl-C here stops this PC"))
