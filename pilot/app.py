@@ -118,6 +118,14 @@ from python_qt_binding.QtWidgets import (QCheckBox, QLabel, QMainWindow, QSplitt
 from pilot import link as events  # noqa: E402
 
 
+#: The method of a widget that shows each kind of event (a widget without it ignores it).
+ROUTES = {events.StatusEvent: "on_status", events.WarningEvent: "on_warning",
+          events.CountdownEvent: "on_countdown", events.SentEvent: "on_sent",
+          events.JointsEvent: "on_joints", events.TemperaturesEvent: "on_temperatures",
+          events.ImageEvent: "on_image", events.CloudEvent: "on_cloud",
+          events.BridgeEvent: "on_bridge"}
+
+
 class _Events(QObject):
     arrived = Signal(object)
 
@@ -197,14 +205,14 @@ class PilotWindow(QMainWindow):
             catalogue = catalogue_of(spec.module, self.modules.get(spec.module, []))
             cls = TaskWidget if spec.kind == "task" and spec.module in TASK_MODULES \
                 else GenericWidget
-            widget = cls(catalogue, self.link_proxy, advanced)
+            widget = cls(catalogue, self, advanced)
             self.module_widgets[spec.module].append(widget)
             return [widget]
         if spec.kind == "modules":
             out = []
             for module in self.modules:
                 widget = GenericWidget(catalogue_of(module, self.modules[module]),
-                                       self.link_proxy, advanced)
+                                       self, advanced)
                 self.module_widgets[module].append(widget)
                 out.append(widget)
             return out
@@ -224,10 +232,6 @@ class PilotWindow(QMainWindow):
             self.log = LogView(self.name)
             return [self.log]
         raise LayoutError(f"no widget '{spec}'")
-
-    @property
-    def link_proxy(self) -> "PilotWindow":
-        return self
 
     # what widgets call (the link is created after them)
     def switch(self, module: str, word: str) -> str:
@@ -277,40 +281,15 @@ class PilotWindow(QMainWindow):
                         self.view3d.add_pose_marker(widget.module, pose, widget.set_pose)
             return
         module = getattr(event, "module", None)
-        targets = self.module_widgets.get(module, []) if module else []
-        if isinstance(event, events.StatusEvent):
-            for widget in targets:
-                widget.on_status(event)
-            for sink in (self.status, self.log):
-                if sink is not None:
-                    sink.on_status(event)
-        elif isinstance(event, events.WarningEvent):
-            for widget in targets:
-                widget.on_warning(event)
-            if self.log is not None:
-                self.log.on_warning(event)
-        elif isinstance(event, events.CountdownEvent):
-            for widget in targets:
-                widget.on_countdown(event)
-                widget.refresh()
-        elif isinstance(event, events.SentEvent):
-            if self.log is not None:
-                self.log.on_sent(event)
-        elif isinstance(event, events.JointsEvent):
-            if self.status is not None:
-                self.status.on_joints(event)
-        elif isinstance(event, events.TemperaturesEvent):
-            if self.status is not None:
-                self.status.on_temperatures(event)
-        elif isinstance(event, events.ImageEvent):
-            if self.camera is not None:
-                self.camera.on_image(event)
-        elif isinstance(event, events.CloudEvent):
-            if self.camera is not None:
-                self.camera.on_cloud(event)
-        elif isinstance(event, events.BridgeEvent):
-            if self.link_widget is not None:
-                self.link_widget.on_bridge(event)
+        # Which widgets show an event, and with which method: the module's own, then the rest.
+        method = ROUTES.get(type(event))
+        if method is None:
+            return
+        sinks = list(self.module_widgets.get(module, [])) if module else []
+        sinks += [self.status, self.log, self.camera, self.link_widget]
+        for sink in sinks:
+            if sink is not None and hasattr(sink, method):
+                getattr(sink, method)(event)
 
     def _tick(self) -> None:
         for widgets in self.module_widgets.values():

@@ -18,11 +18,11 @@ state.  The lifecycle buttons follow Figure 8 (:mod:`walkman.gym.lifecycle`).
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass, field
 from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 
 from walkman.gym.lifecycle import TRANSITIONS, lifecycle_of_status
+from walkman.modules import module_class
 
 
 @dataclass(frozen=True)
@@ -79,16 +79,9 @@ def legal_switches(status: Optional[str]) -> List[str]:
     return [switch.value for switch in TRANSITIONS[lifecycle_of_status(status)]]
 
 
-def _module_class(module: str) -> Optional[type]:
-    try:
-        return getattr(importlib.import_module(f"walkman.modules.{module}"), "Module")
-    except (ImportError, AttributeError):
-        return None
-
-
 def catalogue_of(module: str, statuses: Sequence[str] = ()) -> Catalogue:
     """The module's catalogue, from its class when it is one of ours."""
-    cls = _module_class(module)
+    cls = module_class(module)
     if cls is None:
         return Catalogue(module, list(statuses))
     table = getattr(cls, "table", None) or None

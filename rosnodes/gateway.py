@@ -34,7 +34,6 @@ command again, so it refuses to start.  Statuses are decoded with the module's l
 from __future__ import annotations
 
 import argparse
-import importlib
 import logging
 import math
 import os
@@ -53,6 +52,7 @@ from rosnodes.stations import (SequenceNumbers, StationError, claim_station, par
                                sent_bottle_fields)
 from rosnodes.timed import CANCELLED, SENT, Countdowns
 from walkman.gym.lifecycle import TARGET, lifecycle_of_status
+from walkman.modules import module_class
 from walkman.gym.interfaces import (InterfaceError, PilotCommand, decode_command, decoder_for,
                                     decode_status, encode_command)
 from yarp_lite.bottle import Bottle
@@ -71,14 +71,6 @@ EXPECTED = {switch.value: state.value for switch, state in TARGET.items()}
 
 class GatewayError(Exception):
     """The gateway was started or asked wrongly; the text says how."""
-
-
-def module_class(name: str) -> Optional[type]:
-    """The GYM module class behind a configured name, when it is one of ours."""
-    try:
-        return getattr(importlib.import_module(f"walkman.modules.{name}"), "Module")
-    except (ImportError, AttributeError):
-        return None
 
 
 def module_statuses(name: str, declared: Sequence[str]) -> List[str]:

@@ -202,6 +202,7 @@ class GenericWidget(QGroupBox):
             self.send_button.setText(
                 f"{name}: {event.remaining:.1f} s - click to cancel" if event.state == "waiting"
                 else "send (3 s, click again to cancel)")
+        self.refresh()            # a waiting timed button stays clickable (to cancel)
 
     def show_problem(self, text: str) -> None:
         self.on_warning(WarningEvent(self.module, f"not sent: {text}", time.time()))

@@ -179,19 +179,6 @@ class View3D(QWidget):
         if target is not None:
             target(pose)
 
-    def move_marker(self, name: str, pose: Sequence[float]) -> None:
-        """Typed fields move the marker too."""
-        if self.server is None:
-            return
-        from geometry_msgs.msg import Pose
-
-        target = Pose()
-        target.position.x, target.position.y, target.position.z = pose[:3]
-        (target.orientation.x, target.orientation.y, target.orientation.z,
-         target.orientation.w) = rpy_to_quaternion(*pose[3:6])
-        self.server.setPose(name, target)
-        self.server.applyChanges()
-
     def close_view(self) -> None:
         if self.server is not None:
             self.server.clear()
