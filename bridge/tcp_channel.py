@@ -118,8 +118,14 @@ def fingerprint(text: str) -> bytes:
 
 
 def _unsent_bytes(sock: socket.socket) -> int:
+    """Bytes the kernel still holds for the peer; 0 once the socket is closed (the receive
+    thread closes it when the peer dies: ``fileno()`` is then -1, which ``ioctl`` refuses
+    with a ValueError -- it was logged as a bug on every bridge restart)."""
+    fd = sock.fileno()
+    if fd < 0:
+        return 0
     try:
-        raw = fcntl.ioctl(sock.fileno(), termios.TIOCOUTQ, b"\0\0\0\0")
+        raw = fcntl.ioctl(fd, termios.TIOCOUTQ, b"\0\0\0\0")
         return struct.unpack("i", raw)[0]
     except OSError:
         return 0

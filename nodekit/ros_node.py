@@ -7,6 +7,10 @@ roscore), and every second checks that the master still knows our topics -- a
 restarted roscore forgets every node, and rospy never registers again by
 itself -- registering them again when it does not.  Actions queued with
 :meth:`RosNode.when_ready` run once the node is registered (topics, services).
+A roscpp node living in the same process (librviz's, in the Pilot Interface)
+never registers again either: :meth:`RosNode.adopt` makes it ours to register,
+through its own XML-RPC slave API (its subscriptions, their publishers pushed
+to it with ``publisherUpdate``, its publications).
 
 rospy reads the handshake of every inbound connection in its accept thread,
 with no deadline and no size limit: one silent client stalls every topic and
@@ -19,8 +23,9 @@ deadline and a size limit, so our nodes keep serving under hostile peers.
 from __future__ import annotations
 
 import logging
+import os
 import threading
-from typing import Any, Callable, Dict, List, Optional
+from typing import Any, Callable, Dict, List, Optional, Set
 
 log = logging.getLogger("nodekit.ros")
 
@@ -96,6 +101,8 @@ class RosNode:
         self.ready = threading.Event()
         self._stop = threading.Event()
         self._on_ready: List[Callable[[], None]] = []
+        self._on_again: List[Callable[[], None]] = []
+        self._adopted: Dict[str, str] = {}     # roscpp node name -> its XML-RPC URI
         self._master_pid: Optional[int] = None
         self._thread = threading.Thread(target=self._run, name="ros node", daemon=True)
 
@@ -105,10 +112,25 @@ class RosNode:
     def when_ready(self, action: Callable[[], None]) -> None:
         self._on_ready.append(action)
 
-    def _master(self):
+    def when_registered_again(self, action: Callable[[], None]) -> None:
+        """``action`` runs after each master restart, once our topics are registered again
+        (for what rospy does not own: a roscpp part of the process, a parameter)."""
+        self._on_again.append(action)
+
+    def _master(self, caller: str = ""):
         import rosgraph
 
-        return rosgraph.Master(self.name)
+        return rosgraph.Master(caller or self.name)
+
+    def adopt(self) -> List[str]:
+        """Take on the other ROS nodes of this process (roscpp's: librviz) to register them
+        again after a master restart; returns their names."""
+        for name, uri in nodes_of_this_process(self._master()).items():
+            if name != f"/{self.name.lstrip('/')}" and name not in self._adopted:
+                self._adopted[name] = uri
+                log.info("ROS node %s (%s) lives in this process: registered again with ours",
+                         name, uri)
+        return sorted(self._adopted)
 
     def _run(self) -> None:
         import rosgraph
@@ -135,6 +157,8 @@ class RosNode:
                 log.warning("the ROS master restarted; registering our topics again")
                 if self._register_again():
                     self._master_pid = pid
+                    for action in self._on_again:
+                        action()
 
     def _pid(self) -> Optional[int]:
         try:
@@ -160,10 +184,24 @@ class RosNode:
                     manager.publisher_update(topic, publishers)
             for service, service_uri in get_service_manager().get_services():
                 master.registerService(service, service_uri, uri)
+            for name, node_uri in self._adopted.items():
+                self._register_foreign(name, node_uri)
         except Exception as exc:  # noqa: BLE001 -- try again next second
             log.warning("registering again failed: %s", exc)
             return False
         return True
+
+    def _register_foreign(self, name: str, uri: str) -> None:
+        """Register a node of this process through its slave API, as it would itself."""
+        from xmlrpc.client import ServerProxy
+
+        node = ServerProxy(uri)
+        master = self._master(name)
+        for topic, type_name in node.getSubscriptions(self.name)[2]:
+            publishers = master.registerSubscriber(topic, type_name, uri)
+            node.publisherUpdate("/master", topic, publishers)
+        for topic, type_name in node.getPublications(self.name)[2]:
+            master.registerPublisher(topic, type_name, uri)
 
     def stop(self) -> None:
         self._stop.set()
@@ -171,3 +209,48 @@ class RosNode:
             import rospy
 
             rospy.signal_shutdown("node stopping")
+
+
+def nodes_of_this_process(master: Any) -> Dict[str, str]:
+    """The nodes the master knows whose XML-RPC server listens in this process (name: URI)."""
+    from urllib.parse import urlsplit
+
+    import rosgraph
+
+    publishers, subscribers, services = master.getSystemState()
+    names = {n for _, nodes in [*publishers, *subscribers, *services] for n in nodes}
+    ports = listening_ports()
+    found = {}
+    for name in sorted(names):
+        try:
+            uri = master.lookupNode(name)
+            port = urlsplit(uri).port
+        except (rosgraph.MasterError, ValueError):
+            continue
+        if port in ports:
+            found[name] = uri
+    return found
+
+
+def listening_ports() -> Set[int]:
+    """TCP ports this process listens on (its sockets' inodes in /proc/net/tcp{,6})."""
+    inodes: Set[str] = set()
+    for fd in os.listdir("/proc/self/fd"):
+        try:
+            target = os.readlink(f"/proc/self/fd/{fd}")
+        except OSError:
+            continue
+        if target.startswith("socket:["):
+            inodes.add(target[8:-1])
+    ports: Set[int] = set()
+    for table in ("/proc/self/net/tcp", "/proc/self/net/tcp6"):
+        try:
+            with open(table) as rows:
+                next(rows)
+                for row in rows:
+                    fields = row.split()
+                    if fields[3] == "0A" and fields[9] in inodes:     # LISTEN
+                        ports.add(int(fields[1].rsplit(":", 1)[1], 16))
+        except OSError:
+            continue
+    return ports

@@ -273,8 +273,15 @@ class PilotWindow(QMainWindow):
                                 f"({os.environ.get('ROS_MASTER_URI', 'default master')})")
             if self.ready_after is None:
                 self.ready_after = time.monotonic() - self.started_at
+                log.info("pilot: %s usable %.2f s after its window was made", self.name,
+                         self.ready_after)
+            if event.again:
+                self.banner.setText(f"{self.name}: registered again with a restarted roscore "
+                                    f"({time.strftime('%H:%M:%S')})")
+                return
             if self.view3d is not None:
                 self.view3d.start()
+                self.link.adopt_local_nodes()       # librviz's roscpp node
                 for widget in self.task_widgets():
                     pose = widget.pose()
                     if pose is not None:

@@ -69,6 +69,19 @@ CONNECT_GRACE = 10.0
 EXPECTED = {switch.value: state.value for switch, state in TARGET.items()}
 
 
+
+def readable(bottle: Bottle) -> str:
+    """A Bottle as a pilot reads it in the logs: YARP's text, but each float with ten
+    significant digits (YARP prints 1.45 as 1.44999999999999995559)."""
+    def one(value: Any) -> str:
+        if isinstance(value, Bottle):
+            return f"({readable(value)})"
+        if isinstance(value, float) and math.isfinite(value):
+            text = f"{value:.10g}"
+            return text if any(c in text for c in ".e") else f"{text}.0"
+        return Bottle([value]).to_text()
+    return " ".join(one(value) for value in bottle)
+
 class GatewayError(Exception):
     """The gateway was started or asked wrongly; the text says how."""
 
@@ -373,7 +386,7 @@ class Gateway:
         bottle = encode_command(command)
         ok, message = link.send(link.command, bottle)
         if ok:
-            self._log_sent(module, "command", bottle.to_text(), command.seq or 0, sender)
+            self._log_sent(module, "command", readable(bottle), command.seq or 0, sender)
         return ok, message
 
     def _log_sent(self, module: str, port: str, text: str, seq: int, sender: str) -> None:

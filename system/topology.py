@@ -193,9 +193,9 @@ class Pc:
         path.write_text("\n".join(lines) + "\n")
         return path
 
-    def start(self, name: str, argv: Sequence[str]) -> Proc:
+    def start(self, name: str, argv: Sequence[str], stdin: bool = False) -> Proc:
         log = self.log_dir / f"{name}.log" if self.log_dir else None
-        proc = Proc([*self.wrap, *argv], self.env, f"{self.name}:{name}", log=log)
+        proc = Proc([*self.wrap, *argv], self.env, f"{self.name}:{name}", stdin=stdin, log=log)
         self.processes[name] = proc
         return proc
 
@@ -305,9 +305,12 @@ class Topology:
     def bag_path(self) -> Path:
         return self.pilot.root / "pilot.bag"
 
+    def command_line(self, name: str) -> List[str]:
+        """How this topology runs ``name`` (a second pilot PC runs a gateway so too)."""
+        return self._argv(self.table[name])
+
     def start(self, name: str) -> Proc:
-        component = self.table[name]
-        return self.pcs[component.pc].start(name, self._argv(component))
+        return self.pcs[self.table[name].pc].start(name, self.command_line(name))
 
     def start_all(self, order: Optional[Sequence[str]] = None, delay: float = 0.0,
                   rng: Optional[random.Random] = None) -> List[str]:

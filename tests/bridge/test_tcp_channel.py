@@ -344,3 +344,16 @@ def test_frames_sharing_a_read_with_the_handshake_are_not_lost(tmp_path):
     finally:
         pilot.stop()
         robot.stop()
+
+
+def test_the_backlog_of_a_socket_closed_by_the_receive_thread_is_nothing():
+    """The sender asks the kernel for the backlog while the receive thread may have closed
+    the socket (the peer died): that is no backlog, not an exception."""
+    from bridge.tcp_channel import _unsent_bytes
+
+    left, right = socket.socketpair()
+    left.sendall(b"x" * 10)
+    assert _unsent_bytes(left) >= 0
+    left.close()
+    right.close()
+    assert _unsent_bytes(left) == 0

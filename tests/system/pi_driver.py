@@ -7,13 +7,24 @@ process, and the recovery test kills a PI for real):
 
 Phases: ``first`` (start gaze_control, the valve task up to ``reached``, then waits
 to be killed), ``second`` (a new PI: the current state shown at once, the rest of the
-task, a cancelled timed turn, the 3-D view checked).  Each step prints ``STEP name``;
-failures print ``FAIL why`` and exit 1.  Screenshots go to OUTDIR.
+task, a cancelled timed turn, the 3-D view checked), ``latency COUNT`` (for
+bench/bench_pilot.py: COUNT clicks on gaze_control's look_at, 4 a second, each
+with a new target, printing ``CLICKED i wall-time look_at x y``), ``peer OTHER X``
+(one of two PIs: sends ``look_at X`` once the test says ``go`` on stdin, sees the
+other PI's command in its log; with a 3-D view, a dragged marker moves the valve's
+pose fields, and after the test says ``restarted`` (roscore and bridge restarted
+under it) the PI shows the module again, librviz takes the new bridge's cloud,
+the PI sends ``look_at X+0.1`` and draws the robot).  ``PI_NAME`` and ``PI_LAYOUT``
+choose the PI's name and layout.  Each step prints ``STEP name``; failures print
+``FAIL why`` and exit 1.  Screenshots go to OUTDIR.
 """
 
 from __future__ import annotations
 
+import os
+import queue
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -55,7 +66,30 @@ def wait(predicate, timeout: float, what: str) -> None:
 
 
 def widget(module: str):
-    return next(w for w in window.module_widgets[module] if w.objectName() == f"task_{module}")
+    """The module's task widget, else its Generic Widget."""
+    widgets = window.module_widgets[module]
+    return next((w for w in widgets if w.objectName() == f"task_{module}"), widgets[0])
+
+
+STDIN: "queue.Queue[str]" = queue.Queue()
+
+
+def read_stdin() -> None:
+    for line in sys.stdin:
+        STDIN.put(line.strip())
+
+
+def wait_word(word: str, timeout: float) -> None:
+    """Pump the GUI until the test writes ``word`` on our stdin."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        QApplication.processEvents()
+        try:
+            if STDIN.get(timeout=0.05) == word:
+                return
+        except queue.Empty:
+            pass
+    fail(f"the test never said {word!r}")
 
 
 def click(button: QPushButton, what: str) -> None:
@@ -172,14 +206,145 @@ def second() -> None:
     say("DONE")
 
 
+def start_gaze():
+    gaze = widget("gaze_control")
+    wait(lambda: gaze.presence == "running", 60, "gaze_control's status")
+    if gaze.state != "ready" and gaze.switch_buttons["start"].isEnabled():
+        click(gaze.switch_buttons["start"], "gaze_control start")
+    wait(lambda: gaze.state == "ready", 30, "gaze_control ready")
+    return gaze
+
+
+def send_look_at(gaze, x: float) -> None:
+    """By the task widget's button, or the Generic Widget's command entry."""
+    if hasattr(gaze, "buttons"):
+        for field, value in zip(gaze.fields["look_at"], (x, 0.2, 0.1)):
+            field.setValue(value)
+        click(gaze.buttons["look_at"], f"look_at {x:.3f}")
+        return
+    gaze.command_box.setCurrentText("look_at")
+    pump(0.1)
+    for field, value in zip(gaze.number_fields, (x, 0.2, 0.1)):
+        field.setValue(value)
+    click(gaze.send_button, f"send look_at {x:.3f}")
+
+
+def drag_marker() -> None:
+    """What RViz sends while the pilot drags the valve's marker: the fields follow."""
+    import rospy
+    from visualization_msgs.msg import InteractiveMarkerFeedback
+
+    valve = widget("drc_valve")
+    topic = rospy.Publisher(f"{window.view3d.markers_topic}/feedback", InteractiveMarkerFeedback,
+                            queue_size=5)
+    wait(lambda: topic.get_num_connections() > 0, 15, "the marker server's feedback subscriber")
+    feedback = InteractiveMarkerFeedback(client_id="/rviz/Markers", marker_name="drc_valve",
+                                         control_name="move_x",
+                                         event_type=InteractiveMarkerFeedback.POSE_UPDATE)
+    feedback.header.frame_id = "pelvis"
+    feedback.pose.position.x, feedback.pose.position.y, feedback.pose.position.z = 0.61, -0.12, 0.05
+    feedback.pose.orientation.z = feedback.pose.orientation.w = 0.5 ** 0.5   # yaw pi/2
+    fields = valve.fields["valvedatasent"]
+    end = time.monotonic() + 10              # a drag is a stream of pose updates
+    while abs(fields[0].value() - 0.61) >= 1e-3 and time.monotonic() < end:
+        topic.publish(feedback)
+        pump(0.3)
+    if abs(fields[0].value() - 0.61) >= 1e-3:
+        context = window.view3d.server.marker_contexts.get("drc_valve")
+        fail(f"the valve's x did not follow the marker (server's marker: "
+             f"{context and (context.last_client_id, context.last_feedback.to_sec())}, "
+             f"now {rospy.Time.now().to_sec()})")
+    values = [round(f.value(), 3) for f in fields[:6]]
+    if values[:3] != [0.61, -0.12, 0.05] or abs(values[5] - 1.571) > 2e-3:
+        fail(f"the valve's pose fields show {values} after the drag")
+    say(f"STEP marker dragged: valve pose {values}")
+
+
+def cloud_connected(uri: str) -> bool:
+    """That node takes the cloud from its publisher of now (a link to a dead one stays
+    listed while roscpp retries it): its slave API's bus info against the master."""
+    from xmlrpc.client import ServerProxy
+
+    import rosgraph
+    from pilot.link import CLOUD_TOPIC
+
+    master = rosgraph.Master("/driver")
+    publishers = next((nodes for topic, nodes in master.getSystemState()[0]
+                       if topic == CLOUD_TOPIC), [])
+    uris = {master.lookupNode(node) for node in publishers}
+    connections = ServerProxy(uri).getBusInfo("/driver")[2]
+    return any(c[2] == "i" and c[4] == CLOUD_TOPIC and c[1] in uris for c in connections)
+
+
+def peer() -> None:
+    other, x = sys.argv[3], float(sys.argv[4])
+    threading.Thread(target=read_stdin, daemon=True).start()
+    gaze = start_gaze()
+    say("STEP ready")
+    wait_word("go", 120)
+    send_look_at(gaze, x)
+    def others_look_at() -> str:
+        return next((line for line in window.log.toPlainText().splitlines()
+                     if other in line and "look_at" in line), "")
+
+    wait(others_look_at, 30, f"{other}'s look_at in the log")
+    line = others_look_at()
+    say(f"STEP saw {line}")
+    if window.view3d is None:
+        say("DONE")
+        return
+    drag_marker()
+    import rosgraph
+    from nodekit.ros_node import nodes_of_this_process
+
+    librviz = {name: uri for name, uri in nodes_of_this_process(rosgraph.Master("/driver")).items()
+               if name != f"/{window.name}"}
+    if len(librviz) != 1:
+        fail(f"expected librviz's roscpp node beside ours, found {librviz}")
+    say("STEP waiting for the restarts")
+    wait_word("restarted", 300)
+    restarted = time.monotonic()
+    wait(lambda: gaze.heard_at is not None and gaze.heard_at > restarted, 60,
+         "gaze_control's status after the restarts")
+    # librviz (roscpp) takes the cloud from the restarted bridge: registered again for it.
+    wait(lambda: cloud_connected(*librviz.values()), 30,
+         "librviz's subscription to the restarted bridge's cloud")
+    say("STEP librviz connected to the restarted bridge")
+    send_look_at(gaze, x + 0.1)
+    say("STEP sent after the restarts")
+    pump(8.0)                               # librviz's new frame, the robot's TF
+    with_all, without_robot = view_pixels(), view_pixels("Robot")
+    say(f"PIXELS after restarts all {with_all} without_robot {without_robot}")
+    if with_all - without_robot < 300:
+        fail(f"after the restarts the robot draws {with_all - without_robot} pixels")
+    window.screenshot(OUT / f"{window.name}-after-restarts.png")
+    say("DONE")
+
+
+def latency() -> None:
+    count = int(sys.argv[3])
+    gaze = start_gaze()
+    x_field, y_field, z_field = gaze.fields["look_at"]
+    for index in range(count):
+        x, y = 1.0 + 0.001 * (index % 400), 0.2 + 0.001 * (index // 400)
+        x_field.setValue(x)
+        y_field.setValue(y)
+        z_field.setValue(0.1)
+        pump(0.25)
+        at = time.time()
+        QTest.mouseClick(gaze.buttons["look_at"], Qt.LeftButton)
+        say(f"CLICKED {index} {at:.6f} look_at {x:.3f} {y:.3f}")
+    say("DONE")
+
+
 if __name__ == "__main__":
     app = QApplication(sys.argv[:1])
     modules = configured_modules(Path(__file__).resolve().parents[2] / "models" / "bridge_drc.xml")
-    layout = load_layout("main-pilot", modules=list(modules))
-    window = PilotWindow(layout, modules, f"pi_test_{sys.argv[1]}")
+    layout = load_layout(os.environ.get("PI_LAYOUT", "main-pilot"), modules=list(modules))
+    window = PilotWindow(layout, modules, os.environ.get("PI_NAME", f"pi_test_{sys.argv[1]}"))
     window.show()
     window.start()
     wait(lambda: window.ros_up, 60, "the PI's ROS node")
     say(f"UP after {window.ready_after:.2f} s")
-    {"first": first, "second": second}[sys.argv[1]]()
+    {"first": first, "second": second, "latency": latency, "peer": peer}[sys.argv[1]]()
     window.close_link()

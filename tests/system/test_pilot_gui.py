@@ -12,17 +12,16 @@ test's folder (and copied to ``out/pilot-gui`` for a look).
 from __future__ import annotations
 
 import math
-import os
 import re
 import shutil
 import signal
-import subprocess
 import sys
 
 import pytest
 
-from system.processes import Proc
-from system.topology import REPO, Component, Topology
+from system.display import private_display
+from system.processes import ROSCORE_READY, Proc
+from system.topology import REPO, Component, Pc, Topology
 from tests.system.conftest import dump_outputs_if_failed
 
 PYTHON = sys.executable
@@ -33,19 +32,8 @@ pytestmark = pytest.mark.requires("xvfb")
 @pytest.fixture
 def display():
     """A private Xvfb display (its number chosen by Xvfb itself)."""
-    read, write = os.pipe()
-    server = subprocess.Popen(["Xvfb", "-displayfd", str(write), "-screen", "0", "1400x900x24",
-                               "-nolisten", "tcp"], pass_fds=(write,),
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    os.close(write)
-    with os.fdopen(read) as pipe:
-        number = pipe.readline().strip()
-    try:
-        assert number.isdigit(), "Xvfb did not say its display number"
-        yield f":{number}"
-    finally:
-        server.terminate()
-        server.wait(10)
+    with private_display() as name:
+        yield name
 
 
 @pytest.fixture
@@ -71,9 +59,11 @@ def valve_angle(topology) -> float:
     return float(words[words.index("valve") + 1])
 
 
-def start_pi(topology, display: str, phase: str, out) -> Proc:
-    topology.pilot.extra_env["DISPLAY"] = display
-    return topology.pilot.start(f"pi_{phase}", [PYTHON, str(DRIVER), phase, str(out)])
+def start_pi(pc: Pc, display: str, phase: str, out, *args: str, name: str = "",
+             layout: str = "main-pilot") -> Proc:
+    pc.extra_env.update(DISPLAY=display, PI_LAYOUT=layout, PI_NAME=name or f"pi_test_{phase}")
+    return pc.start(name or f"pi_{phase}", [PYTHON, str(DRIVER), phase, str(out), *args],
+                    stdin=True)
 
 
 def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
@@ -81,7 +71,7 @@ def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
     out = tmp_path / "screens"
     out.mkdir()
     try:
-        first = start_pi(drc, display, "first", out)
+        first = start_pi(drc.pilot, display, "first", out)
         first.wait_for(r"UP after", 90)
         first.wait_for(r"STEP gaze_control started", 60)
         first.wait_for(r"STEP illegal buttons disabled", 60)
@@ -90,7 +80,7 @@ def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
         before = valve_angle(drc)
         first.kill(signal.SIGKILL)                  # the paper's one GUI crash at the DRC
 
-        second = start_pi(drc, display, "second", out)
+        second = start_pi(drc.pilot, display, "second", out)
         second.wait_for(r"DONE|FAIL", 400)
         assert "FAIL" not in second.output(), second.output()
     finally:
@@ -107,3 +97,59 @@ def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
     pixels = re.search(r"PIXELS all (\d+) without_robot (\d+) without_cloud (\d+)",
                        second.output())
     assert pixels, second.output()
+
+
+@pytest.fixture
+def second_pilot_pc(drc, tmp_path, request):
+    """A second pilot PC: its own roscore and gateway, the pilot PC's YARP name server."""
+    pc = Pc("pilot2", tmp_path / "pilot2")
+    (pc.root / "yarp").mkdir(parents=True)
+    for conf in (drc.pilot.root / "yarp").glob("*.conf"):
+        shutil.copy(conf, pc.root / "yarp" / conf.name)
+    try:
+        pc.start_roscore().wait_for(ROSCORE_READY, 60)
+        pc.start("gateway", drc.command_line("gateway")).wait_for(
+            drc.table["gateway"].ready, 60)
+        yield pc
+    finally:
+        dump_outputs_if_failed(request, pc.processes.values())
+        pc.close()
+
+
+def test_two_pilot_pcs_see_each_others_commands_and_a_pi_survives_restarts(
+        drc, second_pilot_pc, display, tmp_path):
+    """Two PIs on two pilot PCs (one gateway each, one pilot YARP name server): each
+    sees the other's command with its sender; a dragged marker sets the valve pose;
+    roscore and the bridge restart under the first PI, which then shows the module,
+    sends, and draws the robot again."""
+    out = tmp_path / "screens"
+    out.mkdir()
+    try:
+        main = start_pi(drc.pilot, display, "peer", out, "pi_status", "1.25", name="pi_main")
+        status = start_pi(second_pilot_pc, display, "peer", out, "pi_main", "1.45",
+                          name="pi_status", layout="status-pilot")
+        for pi in (main, status):
+            pi.wait_for(r"STEP ready|FAIL", 120)
+        for pi in (main, status):
+            pi.send("go\n")
+        status.wait_for(r"DONE|FAIL", 60)
+        assert "FAIL" not in status.output(), status.output()
+        main.wait_for(r"STEP waiting for the restarts|FAIL", 60)
+        assert "FAIL" not in main.output(), main.output()
+        assert re.search(r"STEP saw .*pi_main \(station 1\) -> /gaze_control/command: "
+                         r".*look_at 1.25", status.output()), status.output()
+        assert re.search(r"STEP saw .*pi_status \(station 2\) -> /gaze_control/command: "
+                         r".*look_at 1.45", main.output()), main.output()
+
+        drc.pilot.kill("roscore")
+        drc.pilot.kill("bridge_pilot")
+        drc.pilot.start_roscore().wait_for(ROSCORE_READY, 60)
+        drc.start("bridge_pilot").wait_for(drc.table["bridge_pilot"].ready, 60)
+        main.send("restarted\n")
+        main.wait_for(r"DONE|FAIL", 180)
+        assert "FAIL" not in main.output(), main.output()
+    finally:
+        shutil.copytree(out, REPO / "out" / "pilot-gui", dirs_exist_ok=True)
+    gaze = drc.process("gaze_control").output()
+    for x in ("1.25", "1.45", "1.35"):   # 1.35: sent after the restarts
+        assert f"command look_at {x} 0.2 0.1" in gaze, gaze[-3000:]

@@ -44,6 +44,7 @@ import threading
 import time
 from typing import Any, Dict, List, Optional, Tuple, Type
 
+from nodekit.logs import time_prefix
 from walkman.gym import inifile
 from walkman.gym.interfaces import PilotInterfaces, decoder_for
 from walkman.gym.lifecycle import (HOOKS, IllegalTransition, State, Switch, next_state,
@@ -551,7 +552,7 @@ def run_module(argv: Optional[List[str]] = None) -> int:
     options = parse_args(argv)
     sys.setswitchinterval(SWITCH_INTERVAL)
     logging.basicConfig(level=logging.DEBUG if options.verbose else logging.INFO,
-                        format="[%(levelname)s] %(message)s", stream=sys.stderr)
+                        format=f"{time_prefix()}[%(levelname)s] %(message)s", stream=sys.stderr)
     try:
         config = load_config(options)
     except inifile.IniError as exc:

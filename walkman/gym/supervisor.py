@@ -5,7 +5,9 @@ watches its heartbeat (a byte every 0.5 s on a pipe):
 
 * the process exits 0 (the pilot said ``quit``): the supervisor exits too;
 * it exits with ``EXIT_ESCALATED`` (``run()`` ignored a ``stop``), crashes, or
-  its heartbeat stops for 5 s (a hang that even blocks the watchdog): the
+  its heartbeat stops for 5 s (a hang that even blocks the watchdog; a process
+  that has not beaten yet is still importing and gets 60 s, as systemd's
+  start timeout is apart from its watchdog's): the
   supervisor kills it and starts a fresh one in the *stopped* state, so the
   pilot can ``start`` it again.  Restarts are logged and rate-limited.
 
@@ -24,11 +26,15 @@ import sys
 import time
 from typing import List, Optional
 
+from nodekit.logs import time_prefix
 from walkman.gym.runner import EXIT_ESCALATED, EXIT_QUIT, parse_args, run_module
 
 log = logging.getLogger("walkman.gym.supervisor")
 
 HEARTBEAT_TIMEOUT = 5.0
+#: Before its first beat a module is starting (Python, numpy, MuJoCo imports on a loaded
+#: 2-core PC took over 5 s and the module was killed ten times over, never started).
+STARTUP_TIMEOUT = 60.0
 
 
 class Supervisor:
@@ -66,17 +72,18 @@ class Supervisor:
 
     def _watch(self, read_fd: int) -> Optional[int]:
         assert self.child is not None
-        last_beat = time.monotonic()
+        last_beat, limit = time.monotonic(), STARTUP_TIMEOUT
         while True:
             readable, _, _ = select.select([read_fd], [], [], 0.5)
             if readable:
                 if os.read(read_fd, 1024):
-                    last_beat = time.monotonic()
+                    last_beat, limit = time.monotonic(), HEARTBEAT_TIMEOUT
             code = self.child.poll()
             if code is not None:
                 return code
-            if time.monotonic() - last_beat > HEARTBEAT_TIMEOUT and not self.stopping:
-                log.warning("module heartbeat lost for %.0f s: killing it", HEARTBEAT_TIMEOUT)
+            if time.monotonic() - last_beat > limit and not self.stopping:
+                log.warning("module heartbeat %s for %.0f s: killing it",
+                            "lost" if limit == HEARTBEAT_TIMEOUT else "never came", limit)
                 self.child.kill()
                 self.child.wait()
                 return None
@@ -92,8 +99,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     options = parse_args(argv)
     if options.no_supervisor:
         return run_module(argv)
-    logging.basicConfig(level=logging.INFO, format="[%(levelname)s] %(message)s",
-                        stream=sys.stderr)
+    logging.basicConfig(level=logging.INFO,
+                        format=f"{time_prefix()}[%(levelname)s] %(message)s", stream=sys.stderr)
     supervisor = Supervisor([arg for arg in argv if arg != "--no-supervisor"])
     signal.signal(signal.SIGINT, supervisor.forward)
     signal.signal(signal.SIGTERM, supervisor.forward)

@@ -1,0 +1,185 @@
+"""The Pilot Interface's widgets fed events directly (Qt offscreen, no ROS).
+
+What each widget shows for what it is told: lifecycle buttons and command
+refusals of the Generic Widget, the timed button's countdown, the camera's
+hatching of lost tiles, the link widget's figures, the status tab.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from typing import List, Tuple
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.requires("xvfb")
+
+
+@pytest.fixture(scope="module")
+def qt():
+    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    from python_qt_binding.QtWidgets import QApplication
+
+    return QApplication.instance() or QApplication([])
+
+
+class Recorder:
+    """Stands in for the window: what the widgets send (the PI's own ROS link aside)."""
+
+    def __init__(self, problem: str = "") -> None:
+        self.sent: List[Tuple] = []
+        self.problem = problem
+
+    def command(self, module, name, numbers=(), dangerous=False) -> str:
+        self.sent.append((module, name, list(numbers), dangerous))
+        return self.problem
+
+    def switch(self, module, word) -> str:
+        self.sent.append((module, word))
+        return self.problem
+
+
+def status(module: str, state: str, age: float = 0.0):
+    from pilot.link import StatusEvent
+
+    return StatusEvent(module, state, "", (), 7, time.time() - age)
+
+
+def enabled(buttons) -> List[str]:
+    return [name for name, button in buttons.items() if button.isEnabled()]
+
+
+def warnings(widget) -> List[str]:
+    return [widget.warnings.item(i).text() for i in range(widget.warnings.count())]
+
+
+def test_the_generic_widget_enables_what_the_lifecycle_allows_and_greys_a_stale_module(qt):
+    from pilot.catalogue import catalogue_of
+    from pilot.widgets.generic import ABSENT_S, STALE_S, GenericWidget
+
+    widget = GenericWidget(catalogue_of("temperature"), Recorder())
+    assert widget.presence == "absent" and widget.status_label.text() == "not running"
+    assert enabled(widget.switch_buttons) == ["start"]
+    widget.on_status(status("temperature", "ready"))
+    assert widget.presence == "running"
+    assert enabled(widget.switch_buttons) == ["pause", "stop", "quit"]
+    widget.on_status(status("temperature", "paused"))
+    assert enabled(widget.switch_buttons) == ["resume", "stop", "quit"]
+    widget.on_status(status("temperature", "ready", age=STALE_S + 1))
+    assert widget.presence == "stale" and "#909090" in widget.status_label.styleSheet()
+    widget.on_status(status("temperature", "ready", age=ABSENT_S + 1))
+    widget.tick()
+    assert widget.status_label.text() == "not running (last: ready)"
+    assert enabled(widget.switch_buttons) == ["start"]
+
+
+def test_a_command_the_state_refuses_is_not_sent_and_the_reason_is_shown_in_red(qt):
+    from pilot.catalogue import catalogue_of
+    from pilot.widgets.tasks import TaskWidget
+
+    sender = Recorder()
+    valve = TaskWidget(catalogue_of("drc_valve"), sender)
+    valve.on_status(status("drc_valve", "idle"))
+    assert enabled(valve.buttons) == ["valvedatasent"]
+    assert not valve.send("turn", [1.0])
+    assert sender.sent == []
+    assert "not sent: turn is not accepted in state idle (now: valvedatasent)" in warnings(valve)[0]
+    assert valve.warnings.item(0).foreground().color().name() == "#d00000"
+    assert not valve.send("valvedatasent", [1.0, 2.0])
+    assert "takes 7 numbers" in warnings(valve)[0]
+    valve.on_status(status("drc_valve", "grasped"))
+    valve.buttons["turn"].click()
+    assert sender.sent == [("drc_valve", "turn", [pytest.approx(np.pi / 2, abs=1e-3)], True)]
+    # The link's own refusal (not connected yet) is shown too.
+    refusing = TaskWidget(catalogue_of("drc_valve"), Recorder("the PI is not connected"))
+    refusing.on_status(status("drc_valve", "idle"))
+    refusing.buttons["valvedatasent"].click()
+    assert warnings(refusing)[0].endswith("not sent: the PI is not connected")
+
+
+def test_the_timed_button_shows_the_gateways_countdown_and_stays_clickable_to_cancel(qt):
+    from pilot.catalogue import catalogue_of
+    from pilot.link import CountdownEvent
+    from pilot.widgets.tasks import TaskWidget
+
+    valve = TaskWidget(catalogue_of("drc_valve"), Recorder())
+    valve.on_status(status("drc_valve", "grasped"))
+    turn = valve.buttons["turn"]
+    valve.on_countdown(CountdownEvent("drc_valve", "(turn 1.57)", 2.4, "waiting", "pi_a"))
+    assert turn.waiting and turn.text() == "turn  2.4 s - click to cancel"
+    valve.on_status(status("drc_valve", "turning"))   # turn is not legal now: still cancellable
+    assert turn.isEnabled()
+    valve.on_countdown(CountdownEvent("drc_valve", "(turn 1.57)", 1.1, "cancelled", "pi_a"))
+    assert not turn.waiting and turn.text() == "turn (cancelled)" and not turn.isEnabled()
+
+
+def test_the_camera_hatches_the_tiles_that_did_not_arrive(qt):
+    from pilot.link import BLOCK, CloudEvent, ImageEvent, missing_blocks
+    from pilot.widgets.camera import MISSING_COLOUR, CameraView, marked
+
+    rgb = np.full((48, 64, 3), 90, np.uint8)
+    rgb[8:24, 16:40] = 0                                # two rows of three lost blocks
+    missing = missing_blocks(rgb)
+    assert missing.sum() == 6 and missing[1:3, 2:5].all()
+    shown = marked(rgb, missing)
+    lost = shown[8:24, 16:40].reshape(-1, 3)
+    assert (lost == MISSING_COLOUR).all(axis=1).mean() > 0.25       # hatched, not black
+    assert (shown[:8] == 90).all() and (shown[24:] == 90).all()     # the rest untouched
+    view = CameraView()
+    view.on_image(ImageEvent(rgb, missing, 1 - missing.mean(), time.time()))
+    view.on_cloud(CloudEvent(4800, 0.75, time.time()))
+    assert view.frames == 1 and not view.picture.pixmap().isNull()
+    caption = view.caption.text()
+    assert "image 88% arrived" in caption and "cloud 75% of points" in caption
+    assert "red: tiles that did not arrive" in caption
+    assert BLOCK == 8
+
+
+def test_the_link_widget_shows_the_bridge_status_and_bit_rates_per_id(qt):
+    from pilot.link import BridgeEvent
+    from pilot.widgets import link as link_widget
+
+    widget = link_widget.LinkWidget()
+    assert "no bridge heard" in widget.summary.text()
+    first = {"link": "up", "link_since_s": 12, "round_trip_ms": 41.5, "queued_commands": 0,
+             "refused": 1, "dropped": {"stale": 2},
+             "tcp": {"bytes_by_id": {"3": 1000, "17": 50}},
+             "udp": {"flows": {"/multisense/points": {"mean_completeness": 0.93}}}}
+    second = dict(first, link="down", tcp={"bytes_by_id": {"3": 1600, "17": 50, "20": 125}})
+    widget.on_bridge(BridgeEvent(first, 100.0))
+    widget.on_bridge(BridgeEvent(second, 102.0))
+    text = widget.summary.text()
+    assert text.startswith("link down for 12 s | round trip 41.5 ms")
+    assert "refused 1 | dropped 2 (stale 2)" in text
+    assert "#d00000" in widget.summary.styleSheet()
+    rows = {widget.rates.item(r, 0).text(): widget.rates.item(r, 1).text()
+            for r in range(widget.rates.rowCount())}
+    assert rows == {"3": "2,400", "17": "0", "20": "500"}
+    assert widget.flows.text() == "perception: /multisense/points 93% complete"
+    widget.heard -= link_widget.SILENT_S + 1
+    widget.tick()
+    assert "the bridge is silent" in widget.summary.text()
+
+
+def test_the_status_tab_shows_module_states_temperatures_and_torques(qt):
+    from pilot.link import JointsEvent, TemperaturesEvent
+    from pilot.widgets.status import StatusTab
+
+    tab = StatusTab(["drc_valve", "walking"])
+    tab.on_status(status("walking", "walking"))
+    tab.tick()
+    assert tab.table.item(1, 1).text() == "walking"
+    assert tab.table.item(0, 1).text() == "not running" and tab.table.item(0, 2).text() == "never"
+    assert tab.table.item(1, 2).text().endswith("s ago")
+    names = ("LHipSag", "RKneeSag")
+    tab.on_temperatures(TemperaturesEvent(names, np.array([41.0, 75.0]), time.time()))
+    tab.on_joints(JointsEvent(names, np.zeros(2), np.array([12.0, -80.0]), time.time()))
+    assert list(tab.temperatures.values) == [41.0, 75.0]
+    assert list(tab.torques.values) == [12.0, -80.0]
+    # Drawn: a blue bar for the cool joint, a red one for the one over HOT_C.
+    image = tab.temperatures.grab().toImage()
+    colours = {image.pixelColor(x, y).name() for x in range(0, image.width(), 2)
+               for y in range(0, image.height(), 2)}
+    assert {"#40a0e0", "#d03030"} <= colours
