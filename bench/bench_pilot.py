@@ -41,7 +41,7 @@ sys.path.insert(0, str(ROOT))
 
 from nodekit.logs import LOG_TIME_ENV  # noqa: E402
 from system.compare import open_link  # noqa: E402
-from system.display import private_display  # noqa: E402
+from system.display import display_env, private_display  # noqa: E402
 from system.processes import Proc, descendants  # noqa: E402
 from system.topology import PYTHON, Topology  # noqa: E402
 
@@ -100,7 +100,7 @@ def target(index: int, base: float) -> Tuple[float, float]:
 
 
 def click_latency(topology: Topology, display: str, count: int, out: Path) -> List[float]:
-    topology.pilot.extra_env["DISPLAY"] = display
+    topology.pilot.extra_env.update(display_env(display))
     driver = topology.pilot.start("pi_latency", [PYTHON, str(DRIVER), "latency", str(out),
                                                  str(count)])
     driver.wait_for(r"DONE|FAIL", 120 + count)
@@ -168,7 +168,7 @@ def cpu_seconds(pid: int) -> float:
 def start_pi(topology: Topology, display: str, layout: str, layouts: Path,
              name: str) -> Tuple[Proc, float]:
     """Start ``walkman-pilot``; returns it and the seconds until it logged "usable"."""
-    topology.pilot.extra_env["DISPLAY"] = display
+    topology.pilot.extra_env.update(display_env(display))
     began = time.time()
     proc = topology.pilot.start(name, [PYTHON, "-m", "pilot.app", "--layout", layout,
                                        "--layouts", str(layouts), "--name", name])

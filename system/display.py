@@ -6,7 +6,13 @@ import os
 import shutil
 import subprocess
 from contextlib import contextmanager
-from typing import Iterator
+from typing import Dict, Iterator
+
+
+def display_env(display: str) -> Dict[str, str]:
+    """What a program needs in its environment to draw on ``display`` with librviz: Qt's
+    X11 platform too (an inherited ``QT_QPA_PLATFORM=offscreen`` made librviz abort)."""
+    return {"DISPLAY": display, "QT_QPA_PLATFORM": "xcb"}
 
 
 class DisplayError(RuntimeError):

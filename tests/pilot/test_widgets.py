@@ -7,7 +7,6 @@ hatching of lost tiles, the link widget's figures, the status tab.
 
 from __future__ import annotations
 
-import os
 import time
 from typing import List, Tuple
 
@@ -19,10 +18,13 @@ pytestmark = pytest.mark.requires("xvfb")
 
 @pytest.fixture(scope="module")
 def qt():
-    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    """Qt's offscreen platform, asked on its command line: QT_QPA_PLATFORM in os.environ
+    would reach the PIs the GUI tests start later in this process, and librviz cannot draw
+    offscreen (it aborted them)."""
     from python_qt_binding.QtWidgets import QApplication
 
-    return QApplication.instance() or QApplication([])
+    app = QApplication.instance() or QApplication(["test_widgets", "-platform", "offscreen"])
+    return app
 
 
 class Recorder:

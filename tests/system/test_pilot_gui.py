@@ -19,7 +19,7 @@ import sys
 
 import pytest
 
-from system.display import private_display
+from system.display import display_env, private_display
 from system.processes import ROSCORE_READY, Proc
 from system.topology import REPO, Component, Pc, Topology
 from tests.system.conftest import dump_outputs_if_failed
@@ -61,7 +61,8 @@ def valve_angle(topology) -> float:
 
 def start_pi(pc: Pc, display: str, phase: str, out, *args: str, name: str = "",
              layout: str = "main-pilot") -> Proc:
-    pc.extra_env.update(DISPLAY=display, PI_LAYOUT=layout, PI_NAME=name or f"pi_test_{phase}")
+    pc.extra_env.update(display_env(display), PI_LAYOUT=layout,
+                        PI_NAME=name or f"pi_test_{phase}")
     return pc.start(name or f"pi_{phase}", [PYTHON, str(DRIVER), phase, str(out), *args],
                     stdin=True)
 
