@@ -331,6 +331,9 @@ def latency() -> None:
         y_field.setValue(y)
         z_field.setValue(0.1)
         pump(0.25)
+        # Greyed out while the module's status is late (over 10 s on a lossy link): a click
+        # then sends nothing, and counting it would blame the link for it.
+        wait(lambda: gaze.buttons["look_at"].isEnabled(), 60, "look_at enabled")
         at = time.time()
         QTest.mouseClick(gaze.buttons["look_at"], Qt.LeftButton)
         say(f"CLICKED {index} {at:.6f} look_at {x:.3f} {y:.3f}")
