@@ -99,6 +99,17 @@ def target(index: int, base: float) -> Tuple[float, float]:
     return round(base + 0.001 * (index % 400), 3), round(0.2 + 0.001 * (index // 400), 3)
 
 
+def sent_at(proc: Proc) -> Dict[Tuple[float, float], float]:
+    """When each ``look_at`` left, by its target: the lines ``... <time> look_at x y`` that the
+    PI driver (``CLICKED i``) and the rospy publisher (``SENT``) print."""
+    sent = {}
+    for line in proc.lines:
+        match = re.match(r"(?:CLICKED \d+|SENT) (\d+\.\d+) look_at (\S+) (\S+)", line)
+        if match:
+            sent[(float(match.group(2)), float(match.group(3)))] = float(match.group(1))
+    return sent
+
+
 def click_latency(topology: Topology, display: str, count: int, out: Path) -> List[float]:
     topology.pilot.extra_env.update(display_env(display))
     driver = topology.pilot.start("pi_latency", [PYTHON, str(DRIVER), "latency", str(out),
@@ -106,13 +117,8 @@ def click_latency(topology: Topology, display: str, count: int, out: Path) -> Li
     driver.wait_for(r"DONE|FAIL", 120 + count)
     if "FAIL" in driver.output():
         raise RuntimeError(driver.output()[-3000:])
-    sent = {}
-    for line in driver.lines:
-        match = re.match(r"CLICKED \d+ (\d+\.\d+) look_at (\S+) (\S+)", line)
-        if match:
-            sent[(float(match.group(2)), float(match.group(3)))] = float(match.group(1))
     driver.kill()
-    return one_way(sent, topology)
+    return one_way(sent_at(driver), topology)
 
 
 def rospy_latency(topology: Topology, count: int) -> List[float]:
@@ -120,13 +126,8 @@ def rospy_latency(topology: Topology, count: int) -> List[float]:
     proc = topology.pilot.start("rospy_latency", [PYTHON, str(Path(__file__)), "--publisher",
                                                   str(count)])
     proc.wait_for(r"DONE", 60 + count)
-    sent = {}
-    for line in proc.lines:
-        match = re.match(r"SENT (\d+\.\d+) (\S+) (\S+)", line)
-        if match:
-            sent[(float(match.group(2)), float(match.group(3)))] = float(match.group(1))
     proc.kill()
-    return one_way(sent, topology)
+    return one_way(sent_at(proc), topology)
 
 
 def publisher(count: int) -> int:
@@ -148,7 +149,7 @@ def publisher(count: int) -> int:
         time.sleep(0.25)
         at = time.time()
         topic.publish(Command(command="look_at", numbers=[x, y, 0.1], sender="bench"))
-        print(f"SENT {at:.6f} {x:.3f} {y:.3f}", flush=True)
+        print(f"SENT {at:.6f} look_at {x:.3f} {y:.3f}", flush=True)
     print("DONE", flush=True)
     return 0
 
