@@ -337,22 +337,37 @@ class LinkConnection:
     # -- receiving -----------------------------------------------------------------
 
     def receive_data(self, data: Buffer) -> List[Event]:
-        """Feed received bytes; raises a :class:`BridgeProtocolError` on any violation."""
-        self._splitter.feed(data)
+        """Feed received bytes and take every event they complete; raises a
+        :class:`BridgeProtocolError` on any violation (events before it are lost:
+        a handshake answers each event before the next, so it uses :meth:`next_event`)."""
+        self.feed(data)
         events: List[Event] = []
+        while (event := self.next_event()) is not None:
+            events.append(event)
+        return events
+
+    def feed(self, data: Buffer) -> None:
+        """Buffer received bytes; :meth:`next_event` takes what they complete."""
+        self._splitter.feed(data)
+
+    def next_event(self) -> Optional[Event]:
+        """The next event, None when more bytes are needed, or a
+        :class:`BridgeProtocolError` for the first violation: a side answers the peer's
+        HELLO with its AUTH before it judges the peer's AUTH read in the same bytes, so
+        the peer learns the outcome from our proof instead of a bare close."""
         while True:
             sealed = self.their_phase in ("authenticated", "up")
             record = self._splitter.next_record(
                 TAG_SIZE if sealed else 0,
                 None if sealed else frames.MAX_HANDSHAKE_FRAME)
             if record is None:
-                return events
+                return None
             body, tag = record
             if sealed:
                 self._check_tag(body, tag)
             event = self._on_frame(frames.parse_body(body))
             if event is not None:
-                events.append(event)
+                return event
 
     def _check_tag(self, body: bytes, tag: bytes) -> None:
         assert self._keys is not None

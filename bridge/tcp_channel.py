@@ -400,8 +400,8 @@ class TcpChannel:
                 continue
             if not data:  # not a drop: usually the peer refusing us, and saying so itself
                 raise ConnectionAbortedError("peer closed during the handshake")
-            events = link.receive_data(data)
-            for index, event in enumerate(events):
+            link.feed(data)
+            while (event := link.next_event()) is not None:
                 if isinstance(event, PeerHello):
                     sock.sendall(link.send_auth())
                 elif isinstance(event, PeerAuthenticated):
@@ -413,14 +413,14 @@ class TcpChannel:
                     # its first data frames may share this read (or sit, partial, in the
                     # link's buffer) and are handled once the connection is installed.
                     # Dropping them lost reliable messages: the peer had sent them.
-                    early = events[index + 1:]
-                    if not all(isinstance(e, FrameReceived) for e in early):
-                        raise BridgeProtocolError("peer repeated the handshake after it ended")
+                    # (Once up, the link yields only data: a repeated handshake raises.)
+                    early = link.receive_data(b"")
                     sock.settimeout(None)
                     self.journal.acknowledge(event.peer_accepted)
                     return _Connection(sock, peer, link, event.peer_session,
                                        sent_upto=event.peer_accepted, ack_sent=accepted,
-                                       early_frames=[e.frame for e in early])
+                                       early_frames=[e.frame for e in early
+                                                     if isinstance(e, FrameReceived)])
                 else:
                     raise BridgeProtocolError("peer sent data before the handshake ended")
 

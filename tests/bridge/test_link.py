@@ -82,6 +82,24 @@ def test_a_wrong_key_fails_on_both_sides():
         _pilot_first(robot, pilot)
 
 
+def test_a_side_answers_the_hello_before_judging_an_auth_read_with_it():
+    """HELLO and a wrong AUTH in one read: the robot's AUTH still leaves (so the rogue
+    learns "authentication failed" from it, not a bare close: CI saw the rogue's error
+    overwritten by "peer closed during the handshake")."""
+    robot, rogue = link("robot"), link("pilot", LinkKey(b"r" * 32))
+    robot_hello = robot.start()
+    rogue_bytes = rogue.start()
+    (event,) = rogue.receive_data(robot_hello)
+    rogue_bytes += respond(rogue, event)
+    robot.feed(rogue_bytes)
+    assert isinstance(robot.next_event(), PeerHello)
+    robot_auth = robot.send_auth()
+    with pytest.raises(AuthenticationFailed, match="does not hold our key"):
+        robot.next_event()
+    with pytest.raises(AuthenticationFailed, match="does not hold our key"):
+        rogue.receive_data(robot_auth)
+
+
 def test_a_missing_key_is_named_on_both_sides_at_the_hello():
     """Each side names the mismatch from the other's HELLO, before any AUTH frame, so
     neither can close the connection before the other has said why."""
