@@ -16,8 +16,11 @@ rospy reads the handshake of every inbound connection in its accept thread,
 with no deadline and no size limit: one silent client stalls every topic and
 service of the node, and a header that declares 2 GB is buffered until it
 arrives.  :func:`guard_tcpros` (installed by :class:`RosNode`) gives each
-handshake a thread of its own (at most :data:`MAX_HANDSHAKES` at once), a
-deadline and a size limit, so our nodes keep serving under hostile peers.
+handshake a thread of its own, a deadline and a size limit, so our nodes keep
+serving under hostile peers.  At most :data:`MAX_HANDSHAKES` are read at once;
+when a new connection finds them all taken, the one that has waited longest is
+cut, not the newcomer: a flood of silent connections then cannot lock a real
+client out (it says its header at once, so it is never the oldest for long).
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ log = logging.getLogger("nodekit.ros")
 
 HANDSHAKE_TIMEOUT = 5.0
 MAX_HANDSHAKE_BYTES = 1 << 20
-#: Inbound handshakes read at once; further connections are closed at once.
+#: Inbound handshakes read at once; a further connection cuts the one waiting longest.
 MAX_HANDSHAKES = 64
 
 
@@ -60,9 +63,13 @@ def guard_tcpros() -> None:
 
     if getattr(tcpros_base, "_walkman_guarded", False):
         return
+    import socket
+    from collections import OrderedDict
+
     read_header = network.read_ros_handshake_header
     serve = tcpros_base.TCPROSServer._tcp_server_callback
-    slots = threading.BoundedSemaphore(MAX_HANDSHAKES)
+    waiting: "OrderedDict[Any, Any]" = OrderedDict()   # socket -> its peer, oldest first
+    lock = threading.Lock()
 
     def bounded_read(sock: Any, buffer: Any, buff_size: int) -> Dict[str, str]:
         previous = sock.gettimeout()
@@ -72,21 +79,24 @@ def guard_tcpros() -> None:
             return read_header(_HandshakeBudget(sock), buffer, buff_size)
         finally:
             sock.settimeout(previous)
+            with lock:
+                waiting.pop(sock, None)   # read (or failed): no longer one to cut
 
     def threaded(server: Any, sock: Any, address: Any) -> None:
-        if not slots.acquire(blocking=False):
-            log.warning("TCPROS: %d handshakes already running; refused %s:%s",
-                        MAX_HANDSHAKES, *address[:2])
-            sock.close()
-            return
-
-        def run() -> None:
+        with lock:
+            cut = waiting.popitem(last=False) if len(waiting) >= MAX_HANDSHAKES else None
+            waiting[sock] = address
+        if cut is not None:
+            log.warning("TCPROS: %d handshakes already waiting; cut the oldest, from %s:%s",
+                        MAX_HANDSHAKES, *cut[1][:2])
             try:
-                serve(server, sock, address)   # rospy logs and closes on any failure
-            finally:
-                slots.release()
+                cut[0].shutdown(socket.SHUT_RDWR)   # its reader sees the end and gives up
+            except OSError:
+                pass
 
-        threading.Thread(target=run, name="tcpros handshake", daemon=True).start()
+        # rospy logs and closes on any failure; bounded_read takes the socket off the list.
+        threading.Thread(target=serve, args=(server, sock, address), name="tcpros handshake",
+                         daemon=True).start()
 
     tcpros_base.read_ros_handshake_header = bounded_read
     tcpros_base.TCPROSServer._tcp_server_callback = threaded

@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from typing import Callable, Dict, List, Sequence
 
-from python_qt_binding.QtCore import QObject, Signal
+from python_qt_binding.QtCore import QObject, Qt, Signal
 from python_qt_binding.QtWidgets import QLabel, QVBoxLayout, QWidget
 
 RVIZ_CONFIG = """
@@ -101,7 +101,7 @@ class View3D(QWidget):
         self.feedback = _Feedback()
         self._targets: Dict[str, Callable[[Sequence[float]], None]] = {}
         self._starts: Dict[str, Sequence[float]] = {}
-        self.feedback.moved.connect(self._moved)
+        self.feedback.moved.connect(self._moved, Qt.QueuedConnection)
         self.setMinimumSize(360, 300)
 
     def start(self) -> None:
@@ -117,8 +117,13 @@ class View3D(QWidget):
         rviz.YamlConfigReader().readString(config,
                                            RVIZ_CONFIG.replace("{markers}", self.markers_topic))
         frame.load(config)
-        frame.setMenuBar(None)
-        frame.setStatusBar(None)
+        # Hidden, not replaced: setStatusBar(None) deletes the bar that owns rviz's fps label,
+        # and rviz writes to that label whenever statusBar() is again the address it kept
+        # (rviz#895/#896) -- a new bar allocated where the old one was freed is: heap
+        # corruption ("malloc(): unaligned tcache chunk", once in many runs).  The menus
+        # live in the menu bar and rviz keeps pointers to them too.
+        frame.menuBar().hide()
+        frame.statusBar().hide()
         frame.setHideButtonVisibility(False)
         self.layout_.removeWidget(self.placeholder)
         self.placeholder.deleteLater()

@@ -1,0 +1,119 @@
+"""rospy's inbound handshakes under guard_tcpros: bounded in time and size, never locked out.
+
+rospy's own TCPROS connection callback, in this process, with no master: each
+connection is one end of a socket pair handed to the callback as rospy's accept
+loop would, so the test does not depend on the kernel's listen backlog.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import socket
+import struct
+import threading
+import time
+from typing import Iterator, List
+
+import pytest
+
+rosgraph_network = pytest.importorskip("rosgraph.network",
+                                       reason="rospy (Debian's python3-rospy) is missing")
+
+from nodekit import ros_node  # noqa: E402
+
+
+class _Cuts(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__()
+        self.count = 0
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.count += "cut the oldest" in record.getMessage()
+
+
+@pytest.fixture
+def server() -> Iterator[tuple]:
+    """``(connect, served, cuts)``: ``connect()`` hands a new connection to rospy and returns
+    the client's end; each handshake that reaches the service lands in ``served``."""
+    from rospy.impl import tcpros_base
+
+    ros_node.guard_tcpros()
+    served: "queue.Queue[dict]" = queue.Queue()
+    rospy_server = tcpros_base.TCPROSServer()
+
+    def service(sock: socket.socket, address: tuple, header: dict) -> None:
+        served.put(header)
+        sock.close()
+
+    rospy_server.service_connection_handler = service
+    clients: List[socket.socket] = []
+
+    def connect() -> socket.socket:
+        client, accepted = socket.socketpair()
+        clients.append(client)
+        rospy_server._tcp_server_callback(accepted, ("127.0.0.1", len(clients)))
+        return client
+
+    cuts = _Cuts()
+    logging.getLogger("nodekit.ros").addHandler(cuts)
+    yield connect, served, cuts
+    logging.getLogger("nodekit.ros").removeHandler(cuts)
+    for client in clients:
+        client.close()
+
+
+def _ended(client: socket.socket, timeout: float) -> bool:
+    """True when the server hung up on ``client`` within ``timeout``."""
+    client.settimeout(timeout)
+    try:
+        return client.recv(1) == b""
+    except ConnectionResetError:
+        return True
+    except socket.timeout:
+        return False
+
+
+def test_a_real_client_is_served_after_a_flood_of_silent_connections(server):
+    connect, served, cuts = server
+    flood = [connect() for _ in range(ros_node.MAX_HANDSHAKES * 3)]
+    # Each connection past the limit cut the one that had waited longest ...
+    assert cuts.count == ros_node.MAX_HANDSHAKES * 2
+    assert _ended(flood[0], timeout=1) and _ended(flood[-ros_node.MAX_HANDSHAKES - 1], timeout=1)
+    assert not _ended(flood[-1], timeout=0.1)
+    # ... so a client that says its header at once is served, well within the deadline.
+    client = connect()
+    client.sendall(rosgraph_network.encode_ros_handshake_header(
+        {"service": "/probe", "callerid": "/test", "md5sum": "*"}))
+    assert served.get(timeout=ros_node.HANDSHAKE_TIMEOUT / 2)["callerid"] == "/test"
+
+
+def test_a_silent_connection_is_cut_at_the_deadline(server):
+    connect, served, _ = server
+    client = connect()
+    started = time.monotonic()
+    assert _ended(client, timeout=ros_node.HANDSHAKE_TIMEOUT * 2)
+    assert time.monotonic() - started >= ros_node.HANDSHAKE_TIMEOUT * 0.9
+    assert served.empty()
+
+
+def test_a_header_that_declares_more_than_the_limit_is_refused_without_buffering_it(server):
+    connect, served, _ = server
+    client = connect()
+    sent = 0
+
+    def send() -> None:
+        nonlocal sent
+        try:
+            client.sendall(struct.pack("<I", 0x7FFFFFFF))
+            while sent < 8 * ros_node.MAX_HANDSHAKE_BYTES:
+                client.sendall(b"x" * 65536)
+                sent += 65536
+        except OSError:
+            pass   # the server hung up: what we expect
+
+    sender = threading.Thread(target=send, daemon=True)
+    sender.start()
+    sender.join(timeout=ros_node.HANDSHAKE_TIMEOUT)
+    assert not sender.is_alive() and sent < 2 * ros_node.MAX_HANDSHAKE_BYTES
+    assert served.empty()
