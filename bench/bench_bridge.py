@@ -8,9 +8,12 @@
    with TCP/IP headers.  References: the paper's 2400 bit/s, and what YARP's
    tcp carrier would send for the same messages once a second.
 2. **Perception completeness** at delta-t = 0.4 s versus random loss, for a
-   320x240 image and an 80x60 organized cloud at 2 Hz, without and with FEC,
-   against the whole-message baseline measured through YARP's udp carrier on
-   the same link (a message counts only if every datagram arrived).
+   320x240 image and an 80x60 organized cloud at 2 Hz, without FEC, with a
+   fixed repair fraction of 0.3 and with ``fec="auto"`` (repairs per frame shown),
+   counted by a ROS subscriber on the pilot side from the pixels and points it
+   gets (``tests/bridge/cloud_probe.py``: missing regions are black or NaN), against
+   the whole-message baseline measured through YARP's udp carrier on the same link
+   (a message counts only if every datagram arrived).
 3. **Pilot command latency** through the bridge on the lab and drc profiles
    (median, p99), against a direct YARP connection over the same link.
 
@@ -40,6 +43,7 @@ from bridge import emulation  # noqa: E402
 from bridge.emulation import EmulatedLink  # noqa: E402
 from bridge_harness import HERE as TEST_HELPERS, PYTHON, TwoPCs  # noqa: E402
 from harness import YarpWorld, lite_implementation, wait_until  # noqa: E402
+from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 ROLES = str(HERE / "bridge_roles.py")
 LITE = lite_implementation()
@@ -144,13 +148,16 @@ PERCEPTION_CONFIG = """<bridge period="0.5" gather="0.4">
 IMAGE_BYTES, CLOUD_BYTES = 320 * 240 * 3, 80 * 60 * 16
 
 
-def completeness(link: EmulatedLink, loss: float, fec: float, frames: int) -> Dict[str, float]:
+def completeness(link: EmulatedLink, loss: float, fec: "float | str", frames: int
+                 ) -> Dict[str, float]:
     with bridged(link, PERCEPTION_CONFIG.format(fec=fec)) as pcs:
         for side in (pcs.robot, pcs.pilot):
             pcs.start_roscore(side)
         pcs.start_bridge(pcs.robot)
         pcs.start_bridge(pcs.pilot)
         pcs.wait_linked(60)
+        probe = pcs.pilot.python(str(TEST_HELPERS / "cloud_probe.py"), name="probe")
+        probe.wait_for("probe ready", 60)
         time.sleep(4)  # the ROS endpoints register
         link.set_loss(loss)
         camera = pcs.robot.python(str(TEST_HELPERS / "camera_publisher.py"), "2",
@@ -159,14 +166,18 @@ def completeness(link: EmulatedLink, loss: float, fec: float, frames: int) -> Di
         time.sleep(2)
         link.set_loss(0)
         sent = flows(pcs, pcs.robot)
-        got = flows(pcs, pcs.pilot)
+        arrived = list(probe.lines)
+    # Completeness as a subscriber on the pilot side sees it (its own pixels and points, not
+    # the bridge's counters): each frame the camera published counts, 0 if it never came.
     out = {}
     for topic, short in (("/multisense/left/image_color", "image"),
                          ("/multisense/points", "cloud")):
+        shares = [1 - float(m.group(1)) for m in
+                  map(re.compile(rf"^{short} \d+ ([\d.]+)").search, arrived) if m]
+        out[short] = sum(shares) / frames
         total = sent.get(topic, {}).get("sent", 0)
-        received = got.get(topic, {})
-        delivered = received.get("complete", 0) + received.get("completeness_sum", 0)
-        out[short] = delivered / total if total else float("nan")
+        out[short + " repairs"] = sent.get(topic, {}).get("repairs_sent", 0) / total \
+            if total else float("nan")
     return out
 
 
@@ -250,7 +261,10 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="shorter runs (noisier figures)")
     parser.add_argument("--only", default="1,2,3", help="which benchmarks (default 1,2,3)")
+    parser.add_argument("--losses", default="0,5,10,20,30",
+                        help="loss percentages of benchmark 2 (default 0,5,10,20,30)")
     options = parser.parse_args()
+    say_machine()
     reason = emulation.available()
     if reason:
         say(f"bench_bridge: {reason}")
@@ -276,17 +290,23 @@ def main() -> int:
             frames = 20 if options.quick else 40
             say(f"\n2. Completeness at delta-t 0.4 s, 320x240 image + 80x60 cloud at 2 Hz, "
                 f"{frames} frames each")
-            say(f"   {'loss':>5} {'limit':>6} {'image':>7} {'cloud':>7} {'img+FEC':>8} "
-                f"{'cld+FEC':>8} {'YARP udp img':>13} {'YARP udp cld':>13}")
+            say("   FEC 0.3: a fixed repair fraction; auto: sized from the loss the receiver "
+                "reports (repairs per frame, image/cloud)")
+            say(f"   {'loss':>5} {'limit':>6} {'image':>7} {'cloud':>7} {'img 0.3':>8} "
+                f"{'cld 0.3':>8} {'img auto':>8} {'cld auto':>8} {'repairs':>9} "
+                f"{'YARP udp img':>13} {'YARP udp cld':>13}")
             link.apply("lab")
-            for loss in (0, 5, 10, 20, 30):
+            for loss in (int(x) for x in options.losses.split(",")):
                 plain = completeness(link, loss, 0.0, frames)
                 repaired = completeness(link, loss, 0.3, frames)
+                auto = completeness(link, loss, "auto", frames)
                 image_base = whole_message_baseline(link, loss, IMAGE_BYTES, frames)
                 cloud_base = whole_message_baseline(link, loss, CLOUD_BYTES, frames)
+                repairs = f"{auto['image repairs']:.0f}/{auto['cloud repairs']:.0f}"
                 say(f"   {loss:>4}% {1 - loss / 100:>6.2f} {plain['image']:>7.3f} "
                     f"{plain['cloud']:>7.3f} {repaired['image']:>8.3f} "
-                    f"{repaired['cloud']:>8.3f} {image_base:>13.3f} {cloud_base:>13.3f}")
+                    f"{repaired['cloud']:>8.3f} {auto['image']:>8.3f} {auto['cloud']:>8.3f} "
+                    f"{repairs:>9} {image_base:>13.3f} {cloud_base:>13.3f}")
         if 3 in only:
             count = 200 if options.quick else 600
             say(f"\n3. Pilot command latency, one way ({count} commands at 20 Hz), ms")

@@ -34,6 +34,7 @@ sys.path.insert(0, str(HERE.parent))
 from walkman.hal.config import load_config  # noqa: E402
 from yarp_lite import reference  # noqa: E402
 from yarp_lite.freeport import free_port  # noqa: E402
+from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 PYTHON = sys.executable
 #: How the readers connect: tcp (an acknowledgement per message, ``yarp read``'s
@@ -160,17 +161,12 @@ class Bench:
         return figures
 
 
-def machine() -> str:
-    load = os.getloadavg()
-    return f"{os.cpu_count()} cores, load {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}"
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="fewer rounds (a smoke run)")
     options = parser.parse_args()
+    say_machine()
     bench = Bench(options.quick)
-    print(f"machine: {machine()}", flush=True)
     try:
         bench.start()
         rpc = bench.rpc_interleaved()
@@ -195,7 +191,7 @@ def main() -> int:
     for backend, figures in cpu.items():
         print(f"  {backend:<12}{figures['idle']:>11.0f}%" +
               "".join(f"{figures[c]:>13.0f}%" for c in CARRIERS))
-    print(f"machine after: {machine()}")
+    say_machine("after")
     return 0
 
 

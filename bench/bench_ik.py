@@ -16,6 +16,7 @@ import numpy as np
 
 from walkman.control.ik import InverseKinematics
 from walkman.control.kinematics import Kinematics
+from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 LEFT_ARM = ["LShSag", "LShLat", "LShYaw", "LElbj", "LForearmPlate", "LWrj1", "LWrj2"]
 
@@ -29,6 +30,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--ticks", type=int, default=2000)
     options = parser.parse_args()
+    say_machine()
     ik = InverseKinematics(Kinematics())
     home = np.clip(np.zeros(33), ik.lower, ik.upper)
     q = home.copy()

@@ -44,6 +44,7 @@ from system.compare import open_link  # noqa: E402
 from system.display import display_env, private_display  # noqa: E402
 from system.processes import Proc, descendants  # noqa: E402
 from system.topology import PYTHON, Topology  # noqa: E402
+from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 DRIVER = ROOT / "tests" / "system" / "pi_driver.py"
 TICKS = os.sysconf("SC_CLK_TCK")
@@ -232,6 +233,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     options = parser.parse_args(argv)
     if options.publisher is not None:
         return publisher(options.publisher)
+    say_machine()
     options.count = 60 if options.quick else 200
     options.seconds = 15.0 if options.quick else 30.0
     from rosnodes.msgs import generate

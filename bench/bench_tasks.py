@@ -20,6 +20,7 @@ from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import SimBackend
 from walkman.model.mjcf import PILOT_POSES
 from walkman.modules import drc_door, drc_drive, drc_valve, walking
+from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 Step = Tuple[str, str]
 TASKS: Dict[str, Tuple[str, type, List[Step], Callable[[OfflineWorld], str]]] = {
@@ -64,6 +65,7 @@ def timed_ticks(module: OfflineModule) -> List[float]:
 
 
 def main() -> int:
+    say_machine()
     print(f"{'task':10s} {'step':54s} {'sim s':>7s}")
     summary = []
     for name, (station, module_class, steps, outcome) in TASKS.items():

@@ -26,6 +26,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
 from yarp_lite.freeport import free_port  # noqa: E402
+from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 HAL_ARGS: list = []
 
@@ -100,6 +101,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=20.0)
     options = parser.parse_args()
+    say_machine()
     print("walkman core benchmark", flush=True)
     phys = physics()
     print()

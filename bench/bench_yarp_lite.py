@@ -35,6 +35,7 @@ sys.path.insert(0, str(HERE.parent))
 
 from yarp_lite import reference  # noqa: E402
 from yarp_lite.freeport import free_port  # noqa: E402
+from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 PYTHON = sys.executable
 
@@ -209,7 +210,10 @@ class Bench:
 
     def spawn(self, argv: List, env: Optional[dict] = None, wait_ready: bool = True):
         argv = [str(arg) for arg in argv]
-        child = subprocess.Popen(argv, env=env or self.env, stdout=subprocess.PIPE,
+        # A child nobody reads (no "ready" to wait for) must not write into a pipe: yarpserver
+        # logs every request and blocked once the pipe was full (10 000 ports, bench_scale).
+        child = subprocess.Popen(argv, env=env or self.env,
+                                 stdout=subprocess.PIPE if wait_ready else subprocess.DEVNULL,
                                  stderr=subprocess.DEVNULL, text=True)
         self.children.append(child)
         if wait_ready:
@@ -378,6 +382,7 @@ def main() -> int:
     parser.add_argument("--role", nargs="+", help=argparse.SUPPRESS)
     parser.add_argument("--json", help="also write the figures to this file")
     options = parser.parse_args()
+    say_machine()
     if options.role:
         name, *args = options.role
         ROLES[name](*[int(a) if a.lstrip("-").isdigit() else a for a in args])

@@ -33,7 +33,8 @@ Any input, however malformed, gives a :class:`BridgeConfig` or a
 :class:`ConfigError` (``file:line: problem``).  The XML parser resolves no
 entities and loads no DTD or network resource; a file may be at most
 :data:`MAX_CONFIG_BYTES`; numbers must be finite and in range (ids 0..255,
-quality 0..100, fec 0..0.5, period/gather/rate > 0).
+quality 0..100, fec 0..0.5 or ``auto``, period/gather/rate > 0).  ``fec="auto"``
+sizes the repairs from the loss the receiver reports (:mod:`bridge.adaptive_fec`).
 """
 
 from __future__ import annotations
@@ -90,6 +91,7 @@ class Channel:
     latch: bool = False
     quality: int = 80
     fec: float = 0.0
+    fec_auto: bool = False       # repairs sized from the measured loss (fec unused)
     statuses: Tuple[str, ...] = ()
     line: int = 0
     #: a GYM status: a change of its ``seq state`` head is an event that leaves at once
@@ -289,16 +291,18 @@ def parse(text: Union[str, bytes], where: str = "<bridge config>") -> BridgeConf
         source, destination = DIRECTIONS[direction]
         claim(source, "ros:" + topic, line)
         claim(destination, "ros:" + topic + ":publish", line)
-        fec = _number(element, "fec", 0.0, where)
+        fec_auto = element.get("fec") == "auto"
+        fec = 0.0 if fec_auto else _number(element, "fec", 0.0, where)
         if not 0 <= fec <= 0.5:
-            raise ConfigError(f"{where}:{line}: fec is a repair fraction 0..0.5, got {fec}")
+            raise ConfigError(f"{where}:{line}: fec is a repair fraction 0..0.5 or auto, "
+                              f"got {fec}")
         quality = _number(element, "quality", 80, where, int)
         if not 0 <= quality <= 100:
             raise ConfigError(f"{where}:{line}: quality is a JPEG quality 0..100, got {quality}")
         config.channels.append(Channel(
             topic_id, 0, topic, source, destination, "ros", "udp", False, ros_type=ros_type,
             latch=element.get("latch", "false") in ("true", "1"),
-            quality=quality, fec=fec, line=line))
+            quality=quality, fec=fec, fec_auto=fec_auto, line=line))
     return config
 
 

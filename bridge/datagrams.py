@@ -17,6 +17,12 @@ are followed by repair datagrams (``index`` = the group, ``row`` = the repair
 row, see :mod:`bridge.fec`).  What a data body holds depends on the channel:
 a standalone tile (:mod:`bridge.tiles`) or a plain slice of the message.
 
+The receiving side answers with reports (:class:`Report`, for
+:mod:`bridge.adaptive_fec`): how many data datagrams it expected and received
+so far, totals that only grow::
+
+    report   := 0xB8 varint(expected) varint(received)
+
 On the wire every datagram is sealed by the link (:mod:`bridge.link`: a
 counter and an authentication tag, which also catch corrupted bytes), so the
 budget for a body leaves room for the seal.
@@ -31,6 +37,7 @@ from bridge.link import SEAL_OVERHEAD
 from bridge.wire import Buffer, get_varint, put_varint
 
 MAGIC = 0xB7
+REPORT_MAGIC = 0xB8
 MAX_DATAGRAM = 1472           # 1500 - 20 (IPv4) - 8 (UDP)
 REPAIR = 0x08
 #: Room left for a body after the largest header and the link's seal.
@@ -104,3 +111,42 @@ def decode(data: Buffer) -> Datagram:
     elif index >= parts:
         raise BridgeProtocolError(f"part {index} of a {parts}-part message")
     return Datagram(data[1], flags & 0x07, message, parts, group, index, view[pos:], row)
+
+
+@dataclass(frozen=True)
+class Report:
+    """The receiver's totals of data datagrams: those it expected, those that arrived."""
+
+    received: int
+    expected: int
+
+
+def is_report(data: Buffer) -> bool:
+    return len(data) > 0 and data[0] == REPORT_MAGIC
+
+
+def encode_report(report: Report) -> bytes:
+    if not 0 <= report.received <= report.expected:
+        raise BridgeUsageError(f"report of {report.received} received of {report.expected}")
+    out = bytearray((REPORT_MAGIC,))
+    put_varint(out, report.expected)
+    put_varint(out, report.received)
+    return bytes(out)
+
+
+def decode_report(data: Buffer) -> Report:
+    """One report, or :class:`BridgeProtocolError` naming what is wrong with it."""
+    view = bytes(data)
+    if not view or view[0] != REPORT_MAGIC:
+        raise BridgeProtocolError(f"report starts with {view[:1].hex() or 'nothing'}, "
+                                  f"not {REPORT_MAGIC:#04x}")
+    try:
+        expected, pos = get_varint(view, 1, "expected")
+        received, pos = get_varint(view, pos, "received")
+    except NeedMoreData as exc:
+        raise BridgeProtocolError(f"report truncated: {exc}") from None
+    if pos != len(view):
+        raise BridgeProtocolError(f"report has {len(view) - pos} bytes after its totals")
+    if received > expected:
+        raise BridgeProtocolError(f"report says {received} received of {expected} expected")
+    return Report(received=received, expected=expected)

@@ -143,7 +143,8 @@ class Bridge:
             else:
                 from bridge.endpoints.ros import codec_for
 
-                udp.append(UdpRoute(channel.key, channel.label, codec_for(channel), channel.fec))
+                udp.append(UdpRoute(channel.key, channel.label, codec_for(channel), channel.fec,
+                                    channel.fec_auto))
         if self.config.robot_state is not None:
             state_id, robot, transport = self.config.robot_state
             self.state_key = (state_id, 0)

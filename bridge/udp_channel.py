@@ -5,8 +5,9 @@ Theory of operation
 Each flow keeps only its newest message waiting (latest-only, as the TCP
 channel's streams).  The sender thread turns a message into datagrams with the
 flow's codec -- standalone tiles for images and clouds, plain slices for
-anything else -- adds Reed-Solomon repair datagrams when the flow asks for a
-repair fraction, and sends them round-robin across flows, paced to ``rate``
+anything else -- adds Reed-Solomon repair datagrams when the flow asks for them (a
+fixed repair fraction, or as many as the loss the receiver reports needs:
+:mod:`bridge.adaptive_fec`), and sends them round-robin across flows, paced to ``rate``
 bits per second (IP and UDP headers included) so a slow link's shaper does not
 drop our bursts.
 
@@ -18,7 +19,9 @@ it can, and publishes a message as soon as every part is there, or ``gather``
 seconds (the paper's delta-t, 0.4 s) after its first part: a tiled message
 then goes out with its missing regions blank or NaN, a sliced one is counted
 lost.  A datagram for a message older than the last one published is stale
-and dropped.
+and dropped.  Every finished message is counted in the receiver's
+:class:`~bridge.adaptive_fec.LossMeter`, whose totals go back to the sender
+every half second as a report datagram.
 
 On the wire every datagram is sealed by the link (:mod:`bridge.link`): a
 counter and an authentication tag with the UDP key the TCP handshake derived.
@@ -38,6 +41,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Deque, Dict, List, Optional, Protocol, Tuple
 
 from bridge import datagrams, drops, fec, tiles
+from bridge.adaptive_fec import REPORT_INTERVAL, FecAdapter, LossMeter
 from bridge.datagrams import BODY_BUDGET, Datagram
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeError, BridgeProtocolError
@@ -70,6 +74,8 @@ class UdpRoute:
     label: str
     codec: UdpCodec
     fec: float = 0.0
+    #: repairs sized from the receiver's loss reports (``fec`` is then unused)
+    adaptive: bool = False
 
 
 @dataclass
@@ -81,6 +87,7 @@ class FlowStats:
     superseded: int = 0
     completeness_sum: float = 0.0
     repaired: int = 0
+    repairs_sent: int = 0
 
     @property
     def mean_completeness(self) -> float:
@@ -101,6 +108,12 @@ class UdpStats:
     #: datagram bytes sent per 8-bit id (IP/UDP headers not included)
     bytes_by_id: Dict[int, int] = field(default_factory=dict)
     flows: Dict[str, FlowStats] = field(default_factory=dict)
+    #: data datagram loss the peer reports for what we send (-1: no report yet)
+    peer_loss: float = -1.0
+    #: the loss adaptive repairs are sized for now
+    fec_loss_bound: float = 0.0
+    #: data datagram loss we measure on what we receive
+    loss: float = 0.0
 
 
 @dataclass
@@ -111,13 +124,16 @@ class _Partial:
     data: Dict[int, bytes] = field(default_factory=dict)
     repairs: Dict[int, Dict[int, bytes]] = field(default_factory=dict)
     repaired: int = 0
+    raw: int = 0              # data datagrams that came off the wire (not repaired)
 
 
 _is_newer = drops.is_newer
 
 
-def message_datagrams(route: UdpRoute, message: int, bodies: List[bytes]) -> List[bytes]:
-    """The datagrams of one message: data parts, each group followed by its repairs."""
+def message_datagrams(route: UdpRoute, message: int, bodies: List[bytes],
+                      repairs: Optional[Callable[[int], int]] = None) -> List[bytes]:
+    """The datagrams of one message: data parts, each group followed by its repairs
+    (``repairs(k)`` of them for a group of ``k``; by default the route's fixed fraction)."""
     parts = len(bodies)
     if parts == 0:
         return []
@@ -131,8 +147,8 @@ def message_datagrams(route: UdpRoute, message: int, bodies: List[bytes]) -> Lis
         for offset, body in enumerate(chunk):
             out.append(datagrams.encode(Datagram(route.key[0], route.key[1], message, parts,
                                                  group, start + offset, body)))
-        for row, repair in enumerate(fec.encode(chunk, fec.repair_count(len(chunk),
-                                                                         route.fec))):
+        count = repairs(len(chunk)) if repairs else fec.repair_count(len(chunk), route.fec)
+        for row, repair in enumerate(fec.encode(chunk, count)):
             out.append(datagrams.encode(Datagram(route.key[0], route.key[1], message, parts,
                                                  group, start // group, repair, row)))
     return out
@@ -146,13 +162,16 @@ class Reassembler:
     """Receiving half, sans-IO: feed datagrams and the clock, get finished messages."""
 
     def __init__(self, routes: Dict[Key, UdpRoute], gather: float, stats: UdpStats,
-                 ledger: Optional[DropLedger] = None) -> None:
+                 ledger: Optional[DropLedger] = None,
+                 loss: Optional[LossMeter] = None) -> None:
         self.routes = routes
         self.gather = gather
         self.stats = stats
         self.drops = ledger if ledger is not None else DropLedger("UDP channel", log)
+        self.loss = loss if loss is not None else LossMeter()
         self._partials: Dict[Key, Dict[int, _Partial]] = {}
         self._last: Dict[Key, int] = {}
+        self._counted: Dict[Key, int] = {}   # the message of each flow counted last
 
     def feed(self, raw: bytes, now: float) -> List[Tuple[Key, Any]]:
         try:
@@ -170,6 +189,8 @@ class Reassembler:
                                               f"(limit {MAX_PARTS})")
             return []
         if not _is_newer(datagram.message, self._last.get(key)):
+            if not datagram.is_repair and datagram.message == self._counted.get(key):
+                self.loss.late()     # arrived after its message was given up: not lost
             self.drops.drop(Reason.STALE, f"{route.label} message {datagram.message}")
             return []
         pending = self._partials.setdefault(key, {})
@@ -190,6 +211,7 @@ class Reassembler:
             self._repair(partial, datagram.index)
         else:
             partial.data[datagram.index] = datagram.body
+            partial.raw += 1
             self._repair(partial, datagram.index // partial.group)
         if len(partial.data) == partial.parts:
             del pending[datagram.message]
@@ -227,6 +249,9 @@ class Reassembler:
         route = self.routes[key]
         flow = self.stats.flows.setdefault(route.label, FlowStats())
         flow.repaired += partial.repaired
+        self.loss.record(partial.raw, partial.parts)
+        self._counted[key] = message
+        self.stats.loss = round(self.loss.loss, 4)
         if not _is_newer(message, self._last.get(key)):
             flow.superseded += 1
             return []
@@ -292,7 +317,11 @@ class UdpChannel:
         self.on_message = on_message
         self.stats = UdpStats()
         self.drops = DropLedger("UDP channel", log)
-        self.reassembler = Reassembler(self.routes, gather, self.stats, self.drops)
+        self.loss_meter = LossMeter()
+        self.adapter = FecAdapter(rate)
+        self.reassembler = Reassembler(self.routes, gather, self.stats, self.drops,
+                                       self.loss_meter)
+        self._next_report = 0.0
         self.opener = DatagramOpener()
         self._sealer: Optional[DatagramSealer] = None
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -368,16 +397,23 @@ class UdpChannel:
                      if not self._queues.get(key)]
         for key, value in ready:
             route = self.routes[key]
+            now = time.monotonic()
+            repairs = (lambda k: self.adapter.repairs(k, now)) if route.adaptive else None
             try:
                 encoded = route.codec.encode(value)
                 bodies = encoded if route.codec.tiled else slice_message(encoded)
-                queue = message_datagrams(route, self._next_message_number(key), bodies)
+                queue = message_datagrams(route, self._next_message_number(key), bodies,
+                                          repairs)
             except BridgeError as exc:
                 self.drops.last_error = str(exc)
                 log.error("UDP channel: cannot send on %s: %s", route.label, exc)
                 continue
+            self.adapter.note_sent(sum(len(body) for body in bodies), now)
             self._queues[key] = deque(queue)
-            self.stats.flows.setdefault(route.label, FlowStats()).sent += 1
+            flow = self.stats.flows.setdefault(route.label, FlowStats())
+            flow.sent += 1
+            flow.repairs_sent += len(queue) - len(bodies)
+            self.stats.fec_loss_bound = round(self.adapter.loss_bound(), 4)
 
     def _pace(self, size: int) -> None:
         if not self.rate:
@@ -393,13 +429,38 @@ class UdpChannel:
                 return
             time.sleep((size - self._tokens) / bytes_per_second)
 
+    def _send(self, key: Optional[Key], inner: bytes) -> None:
+        datagram = self._sealer.seal(inner)
+        self._pace(len(datagram) + IP_UDP_OVERHEAD)
+        try:
+            self._sock.sendto(datagram, (self.peer, self.peer_port))
+        except OSError as exc:  # no route while the link is down: that datagram is lost
+            self.stats.send_errors += 1
+            self.drops.last_error = f"send: {exc.strerror or exc}"
+            return
+        self.stats.datagrams_out += 1
+        self.stats.bytes_out += len(datagram)
+        if key is not None:
+            self.stats.bytes_by_id[key[0]] = self.stats.bytes_by_id.get(key[0], 0) + \
+                len(datagram)
+
+    def _report(self) -> None:
+        """Tell the sender what arrived (every :data:`REPORT_INTERVAL`, if anything did)."""
+        now = time.monotonic()
+        if now < self._next_report:
+            return
+        self._next_report = now + REPORT_INTERVAL
+        report = self.loss_meter.report()
+        if report is not None:
+            self._send(None, datagrams.encode_report(report))
+
     def _send_loop(self) -> None:
-        address = (self.peer, self.peer_port)
         while not self._stopping.is_set():
             if self._sealer is None:  # no handshake yet: nothing may leave unsealed
                 with self._cond:
                     self._cond.wait(0.5)
                 continue
+            self._report()
             self._refill()
             active = [key for key, queue in self._queues.items() if queue]
             if not active:
@@ -408,18 +469,7 @@ class UdpChannel:
                         self._cond.wait(0.5)
                 continue
             for key in active:
-                datagram = self._sealer.seal(self._queues[key].popleft())
-                self._pace(len(datagram) + IP_UDP_OVERHEAD)
-                try:
-                    self._sock.sendto(datagram, address)
-                except OSError as exc:  # no route while the link is down: that datagram is lost
-                    self.stats.send_errors += 1
-                    self.drops.last_error = f"send: {exc.strerror or exc}"
-                    continue
-                self.stats.datagrams_out += 1
-                self.stats.bytes_out += len(datagram)
-                self.stats.bytes_by_id[key[0]] = self.stats.bytes_by_id.get(key[0], 0) + \
-                    len(datagram)
+                self._send(key, self._queues[key].popleft())
 
     # -- receiving ---------------------------------------------------------------------
 
@@ -432,6 +482,17 @@ class UdpChannel:
             self.stats.internal_errors += 1
             log.exception("UDP channel: reassembly failed (a bug); the datagram is lost")
             return []
+
+    def _on_report(self, inner: bytes, now: float) -> None:
+        try:
+            report = datagrams.decode_report(inner)
+        except BridgeProtocolError as exc:
+            self.drops.peer_error(exc, "loss report")
+            return
+        self.adapter.on_report(report, now)
+        seen = self.adapter.measured()
+        if seen is not None and seen[1]:
+            self.stats.peer_loss = round(seen[0] / seen[1], 4)
 
     def _receive_loop(self) -> None:
         next_sweep = time.monotonic()
@@ -457,7 +518,10 @@ class UdpChannel:
                     except BridgeProtocolError as exc:
                         self.drops.peer_error(exc, f"datagram from {host}")
                     else:
-                        finished.extend(self._guarded(self.reassembler.feed, inner, now))
+                        if datagrams.is_report(inner):
+                            self._on_report(inner, now)
+                        else:
+                            finished.extend(self._guarded(self.reassembler.feed, inner, now))
             if now >= next_sweep:
                 finished.extend(self._guarded(self.reassembler.expire, now))
                 next_sweep = now + 0.02

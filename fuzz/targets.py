@@ -304,7 +304,11 @@ def bridge_frames(data: bytes) -> None:
 
 
 def bridge_datagrams(data: bytes) -> None:
-    datagrams.decode(data)
+    """What the UDP channel's receiver does with an opened datagram: a loss report or a part."""
+    if datagrams.is_report(data):
+        datagrams.decode_report(data)
+    else:
+        datagrams.decode(data)
 
 
 _LINK_KEY = link.LinkKey(bytes(range(32)))
@@ -339,7 +343,7 @@ def bridge_sealed_datagrams(data: bytes) -> None:
         sealed = sealer.seal(raw) if index % 2 else raw
         inner = attempt(BRIDGE, opener.open, sealed)
         if inner is not None:
-            attempt(BRIDGE, datagrams.decode, inner)
+            attempt(BRIDGE, bridge_datagrams, inner)
 
 
 #: Canvas ceiling for the tile target: the checks are the same, the fuzzer stays fast.
@@ -631,7 +635,8 @@ def _frame_seeds() -> List[bytes]:
 
 def _datagram_seeds() -> List[bytes]:
     return [datagrams.encode(datagrams.Datagram(3, 1, 70000, 4, 2, 3, b"body")),
-            datagrams.encode(datagrams.Datagram(3, 0, 1, 4, 2, 1, bytes(30), repair_row=0))]
+            datagrams.encode(datagrams.Datagram(3, 0, 1, 4, 2, 1, bytes(30), repair_row=0)),
+            datagrams.encode_report(datagrams.Report(received=900, expected=1000))]
 
 
 def _link_seeds() -> List[bytes]:

@@ -57,6 +57,15 @@ def test_the_project_config_has_state_and_topics():
     assert not topics["/multisense/points"].latch
 
 
+def test_fec_auto_asks_for_repairs_sized_from_the_measured_loss():
+    loaded = config.parse('<bridge><ros_topics><topic name="/a" type="a/B" id="1" '
+                          'direction="robot_to_pilot" channel="udp" fec="auto"/>'
+                          '<topic name="/b" type="a/B" id="2" direction="robot_to_pilot" '
+                          'channel="udp" fec="0.25"/></ros_topics></bridge>')
+    auto, fixed = loaded.channels
+    assert (auto.fec_auto, fixed.fec_auto, fixed.fec) == (True, False, 0.25)
+
+
 BAD = [
     ('<modules><module name="a" id="1"/><module name="b" id="1"/></modules>', 1,
      "duplicate id 1"),
@@ -88,6 +97,10 @@ BAD = [
     ('<bridge><ros_topics>\n<topic name="/a" type="a/B" id="1" direction="robot_to_pilot" '
      'channel="udp" quality="1000"/></ros_topics></bridge>', 2,
      "quality is a JPEG quality 0..100"),                              # tiles: byte overflow
+    ('<bridge><ros_topics>\n<topic name="/a" type="a/B" id="1" direction="robot_to_pilot" '
+     'channel="udp" fec="sometimes"/></ros_topics></bridge>', 2, "fec"),
+    ('<bridge><ros_topics>\n<topic name="/a" type="a/B" id="1" direction="robot_to_pilot" '
+     'channel="udp" fec="0.9"/></ros_topics></bridge>', 2, "fec is a repair fraction 0..0.5 or auto"),
     ('<modules>\n<module name="a\udcff" id="1"/></modules>', 2, "not text"),  # UnicodeEncodeError
     (b'<modules><module name="a\xff" id="1"/></modules>', 1, "malformed XML"),
     ('<!DOCTYPE bridge [<!ENTITY x SYSTEM "file:///etc/hostname">]>\n<bridge><modules>'

@@ -75,3 +75,46 @@ def test_oversized_input_is_refused_both_ways():
         datagrams.encode(Datagram(1, 0, 1, 1, 1, 0, bytes(MAX_INNER)))
     with pytest.raises(BridgeProtocolError, match="exceeds"):
         datagrams.decode(bytes([datagrams.MAGIC]) + bytes(MAX_INNER))
+
+
+# -- loss reports ---------------------------------------------------------------------------
+
+
+@FUZZ
+@given(st.integers(0, 2 ** 63 - 1), st.integers(0, 2 ** 63 - 1))
+def test_a_report_round_trips(a, b):
+    report = datagrams.Report(received=min(a, b), expected=max(a, b))
+    wire = datagrams.encode_report(report)
+    assert datagrams.is_report(wire) and not datagrams.is_report(
+        datagrams.encode(Datagram(1, 0, 1, 1, 1, 0, b"x")))
+    assert datagrams.decode_report(wire) == report
+    for cut in range(len(wire)):   # every prefix is refused, none is misread
+        with pytest.raises(BridgeProtocolError):
+            datagrams.decode_report(wire[:cut])
+
+
+@FUZZ
+@given(st.binary(max_size=40))
+def test_report_garbage_raises_the_peer_error(data):
+    try:
+        report = datagrams.decode_report(bytes([datagrams.REPORT_MAGIC]) + data)
+    except BridgeProtocolError:
+        return
+    assert 0 <= report.received <= report.expected
+
+
+@pytest.mark.parametrize("wire, problem", [
+    (b"\xb8\x05\x06", "6 received of 5 expected"),
+    (b"\xb8\x05\x04\x00", "1 bytes after its totals"),
+    (b"\xb8\x05", "received truncated"),
+    (b"\xb7\x05\x04", "not 0xb8"),
+    (b"\xb8" + b"\xff" * 11, "longer than"),
+])
+def test_bad_reports_are_named(wire, problem):
+    with pytest.raises(BridgeProtocolError, match=problem):
+        datagrams.decode_report(wire)
+
+
+def test_a_report_cannot_claim_more_received_than_expected():
+    with pytest.raises(BridgeUsageError):
+        datagrams.encode_report(datagrams.Report(received=3, expected=2))

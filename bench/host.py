@@ -1,0 +1,33 @@
+"""The machine a benchmark ran on, printed before and after its figures.
+
+Figures from a loaded 2-core box and an idle workstation are not comparable;
+every script in ``bench/`` says which it was, so a reader can tell.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+
+
+def _cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as info:
+            for line in info:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
+def describe() -> str:
+    """``N cores (model), load 1/5/15 min, Python, kernel``."""
+    load = os.getloadavg()
+    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return (f"{usable} cores ({_cpu_model()}), load {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}, "
+            f"Python {platform.python_version()}, Linux {platform.release()}")
+
+
+def say_machine(when: str = "") -> None:
+    print(f"machine{' ' + when if when else ''}: {describe()}", flush=True)
