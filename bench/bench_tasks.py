@@ -69,7 +69,7 @@ def main() -> int:
     print(f"{'task':10s} {'step':54s} {'sim s':>7s}")
     summary = []
     for name, (station, module_class, steps, outcome) in TASKS.items():
-        harness = "trolley" if name == "walking" else "locked"
+        harness = "off" if name == "walking" else "locked"
         world = OfflineWorld(SimBackend(station=station, harness=harness))
         START[:] = [world.backend.plant.base_pose()]
         module = world.add(module_class, name)

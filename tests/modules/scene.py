@@ -41,6 +41,14 @@ class World:
         x, y, z, w, _, _, qz = self._positions()[adr:adr + 7]
         return [x, y, z, 2.0 * math.atan2(qz, w)]
 
+    def tilt(self) -> float:
+        """How far the pelvis leans from upright (rad), whichever way (ground truth)."""
+        adr = self.model.joint("base").qposadr[0]
+        w, x, y, z = self._positions()[adr + 3:adr + 7]
+        # the pelvis's z axis in the world: its angle to the vertical
+        up_z = 1.0 - 2.0 * (x * x + y * y)
+        return math.acos(max(-1.0, min(1.0, up_z)))
+
     def close(self) -> None:
         self.port.close()
 

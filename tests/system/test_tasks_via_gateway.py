@@ -121,7 +121,7 @@ def test_the_door_task_through_rosservice(pilot_at):
 
 
 def test_walking_through_rosservice(pilot_at):
-    walk = pilot_at("yard", "walking", "--harness", "trolley")
+    walk = pilot_at("yard", "walking", "--harness", "off")
     before = walk.scene()["base_x"]
     walk.step("{command: go_straight, numbers: [0.5]}", "walking", 20)
     walk.wait_state("idle", 60, "go_straight 0.5")

@@ -107,3 +107,37 @@ def test_home_posture_is_inside_limits(robot):
     for name, value in home_posture(robot).items():
         joint = robot.joint(name)
         assert joint.lower <= value <= joint.upper, name
+
+
+def test_the_joints_that_carry_the_robot_are_damped_enough_to_walk(robot):
+    """Legs and waist: SUPPORT_DAMPING in the model, the MJCF actuators and the sim servos."""
+    from walkman.hal.sim import SimBackend
+    from walkman.model.description import SUPPORT_DAMPING
+
+    backend = SimBackend(harness="off")
+    mj = backend.plant.m
+    for joint in robot.joints:
+        carries = joint.chain in ("left_leg", "right_leg") or joint.name.startswith("Waist")
+        assert joint.damping == (SUPPORT_DAMPING if carries else 60.0), joint.name
+        actuator = mj.actuator(joint.name)
+        assert actuator.biasprm[2] == pytest.approx(-joint.damping), joint.name
+
+
+def test_a_push_moves_the_free_robot_and_bad_pushes_are_refused():
+    from walkman.hal.sim import SimBackend
+
+    backend = SimBackend(harness="off", station="yard")
+    for _ in range(200):
+        backend.step()
+    with pytest.raises(ValueError, match="three finite numbers"):
+        backend.push((1.0, float("nan"), 0.0))
+    with pytest.raises(ValueError, match="more than 500 N\\*s"):
+        backend.push((0.0, 600.0, 0.0))
+    with pytest.raises(ValueError, match="lasts 0.001..1 s"):
+        backend.push((0.0, 10.0, 0.0), duration=5.0)
+    body = backend.plant.m.body("pelvis").id
+    backend.push((0.0, 30.0, 0.0))
+    for _ in range(110):   # the push lasts 0.1 s
+        backend.step()
+    assert backend.plant.d.cvel[body][4] > 0.1       # the pelvis moves sideways (+y)
+    assert not backend.plant.d.xfrc_applied.any()    # and the push is over

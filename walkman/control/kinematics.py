@@ -56,3 +56,21 @@ class Kinematics:
         full = pin.getFrameJacobian(self.model, self.data, self.frame_id(frame),
                                     pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
         return full[:, self.to_pin]
+
+    def com(self, q: Sequence[float]) -> np.ndarray:
+        """The whole robot's centre of mass in the pelvis frame."""
+        return pin.centerOfMass(self.model, self.data, self.pin_q(q)).copy()
+
+    def gravity(self, q: Sequence[float]) -> np.ndarray:
+        """Joint torques (N*m) that hold the limbs up, the pelvis fixed and level."""
+        return pin.computeGeneralizedGravity(self.model, self.data, self.pin_q(q))[self.to_pin]
+
+    def wrench_torques(self, q: Sequence[float], frame: str,
+                       wrench: Sequence[float]) -> np.ndarray:
+        """Joint torques (N*m, whole-body columns) that a wrench ``(f, t)`` measured in
+        ``frame`` (an F/T sensor's: what the limb exerts on what is below it) puts on the
+        joints above it: ``J^T w``, the static transpose-Jacobian map."""
+        _, rotation = self.pose(q, frame)
+        w = np.asarray(wrench, dtype=float)
+        aligned = np.concatenate([rotation @ w[:3], rotation @ w[3:6]])
+        return self.jacobian(q, frame).T @ aligned

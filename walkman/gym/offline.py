@@ -110,10 +110,12 @@ class OfflineModule:
             self.interfaces.warn(str(exc))
             return False
         switch = parse_switch(command)
-        if switch == Switch.PAUSE:  # as the runner: run() goes on until a safe pause
+        if switch == Switch.PAUSE or (switch == Switch.STOP and
+                                      self.lifecycle == State.RUNNING):
+            # as the runner: run() goes on until a safe pause
             self.thread.pause_requested = True
             self.world.run_until(self.thread.ready_to_pause, 5.0, f"{self.name}: a safe pause")
-        elif switch == Switch.RESUME:
+        if switch != Switch.PAUSE:
             self.thread.pause_requested = False
         hook = HOOKS[switch]
         skip = hook == "release" and not releases(self.lifecycle)
@@ -143,10 +145,15 @@ class OfflineModule:
         return self.world.time - start
 
     def tick(self) -> None:
-        if self.lifecycle != State.RUNNING or self.world.time + 1e-9 < self.next_tick:
+        paused = self.lifecycle == State.PAUSED and self.thread.runs_while_paused()
+        if (self.lifecycle != State.RUNNING and not paused) or \
+                self.world.time + 1e-9 < self.next_tick:
             return
         self.next_tick += self.thread.thread_period
-        self.thread.run()
+        if paused:
+            self.thread.run_paused()
+        else:
+            self.thread.run()
         for text in self.robot.take_hal_warnings():
             self.interfaces.warn(f"{self.name}: {text}")
 

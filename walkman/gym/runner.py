@@ -119,9 +119,11 @@ class ControlLoop(threading.Thread):
         self.realtime = make_realtime(CONTROL_PRIORITY)
         period = runner.thread.thread_period
         deadline = time.perf_counter()
+        paused_too = runner.thread.runs_while_paused()
         while not self.exit:
             self._serve_request()
-            if runner.state != State.RUNNING:
+            state = runner.state
+            if state != State.RUNNING and not (paused_too and state == State.PAUSED):
                 with self.cond:
                     self.cond.wait_for(lambda: self.request is not None or self.exit, 0.1)
                 deadline = time.perf_counter()
@@ -132,7 +134,10 @@ class ControlLoop(threading.Thread):
                 deadline = time.perf_counter()
                 continue
             try:
-                runner.thread.run()
+                if state == State.RUNNING:
+                    runner.thread.run()
+                else:
+                    runner.thread.run_paused()
             except HalUsageError as exc:
                 runner.warn(f"{runner.name}: refused by the robot: {exc}")
                 runner.hold("a refused command")
@@ -411,7 +416,12 @@ class ModuleRunner:
         return True
 
     def _stop(self, switch: Switch) -> bool:
-        """``stop`` or ``quit``: the state changes first, so run() is not called again."""
+        """``stop`` or ``quit``: the state changes first, so run() is not called again.
+        ``stop`` of a running module first lets it reach a safe pause, as ``pause`` does
+        (walking lands its foot and comes to rest), then stops."""
+        if switch == Switch.STOP and self.state == State.RUNNING:
+            self._reach_safe_pause()
+        self.thread.pause_requested = False
         before, _ = self._transition(switch)
         # custom_init in force (running or paused): undo it once, and hold what it drove.
         active = releases(before)

@@ -113,6 +113,19 @@ class GenericThread:
         """
         return True
 
+    def run_paused(self) -> None:
+        """Called every ``thread_period`` while paused, if a module overrides it.
+
+        Paused, a module is silent so that another may use the robot (the paper's
+        door sequence).  A module whose robot would not stay safe without it -- walking:
+        nothing else keeps a free-standing robot balanced -- overrides this to go on
+        commanding *only* the joints that keeps it safe (the legs); the HAL frees the
+        others (the waist) for the next module once they have been silent."""
+
+    @classmethod
+    def runs_while_paused(cls) -> bool:
+        return cls.run_paused is not GenericThread.run_paused
+
     def custom_pause(self) -> bool:
         return True
 

@@ -11,8 +11,10 @@ we add beside YARP's protocols:
                   (standard clients read ``stateExt:o`` and never see it)
 ``/<robot>/rpc:i`` ``[get] chains`` -> ``((chain name...) ...)``: the grouping, so
                   a whole-body client finds every chain without a config;
-                  ``[get] stats``; ``[set] harness on|off``  (vocabs hold 4
-                  letters, so longer words are plain strings)
+                  ``[get] stats``; ``[set] harness on|off``; simulation only:
+                  ``[set] push IX IY IZ [SECONDS]``, an impulse (N*s, world
+                  frame) on the torso (vocabs hold 4 letters, so longer words
+                  are plain strings)
 ``/<robot>/warning:o``      ``SEQ TEXT OWNER HOLDER ACTION`` when two modules command one
                              joint (:mod:`walkman.hal.arbitration`)
 ``/<robot>/<ft>/analog:o``  Fx Fy Fz Tx Ty Tz (N, N*m), like YARP's analogServer

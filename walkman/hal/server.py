@@ -268,8 +268,26 @@ class HalServer:
                                               f"{', '.join(HARNESS_MODES)}, got {mode!r}"])
             self._harness = mode  # the physics thread applies it before its next step
             return Bottle([Vocab("ok")])
+        if verb == "set" and what == "push":
+            return self._push(request)
         return Bottle([Vocab("fail"), "unknown request; try [get] chains, [get] stats, "
-                                      "[set] harness locked|trolley|off"])
+                                      "[set] harness locked|trolley|off, [set] push IX IY IZ"])
+
+    def _push(self, request: Bottle) -> Bottle:
+        """``[set] push IX IY IZ [SECONDS]``: a simulated push on the torso (N*s, world)."""
+        push = getattr(self.backend, "push", None)
+        if push is None:
+            return Bottle([Vocab("fail"), "this backend cannot be pushed (simulation only)"])
+        values = list(request)[2:]
+        if len(values) not in (3, 4) or not all(isinstance(v, (int, float)) and
+                                                not isinstance(v, bool) for v in values):
+            return Bottle([Vocab("fail"), "push takes IX IY IZ (N*s) and optionally SECONDS, "
+                                          f"got {request.to_text()[:80]!r}"])
+        try:  # two attribute writes the physics thread reads at its next step
+            push([float(v) for v in values[:3]], *[float(v) for v in values[3:]])
+        except ValueError as error:
+            return Bottle([Vocab("fail"), str(error)])
+        return Bottle([Vocab("ok")])
 
     # -- the loop ----------------------------------------------------------------------------
 

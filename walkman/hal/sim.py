@@ -38,6 +38,9 @@ GRASP_CLOSED = 0.8
 GRASP_OPEN = 0.4
 GRASP_DISTANCE = 0.08  # m: the soft hand closes on a part with large position errors
 LATCH_RELEASE = -0.5   # rad of the door handle (down) that frees the latch
+PUSH_BODY = "torso"    # where a simulated push lands (a hand on the robot's chest)
+PUSH_TIME = 0.1        # s a push lasts
+MAX_PUSH = 500.0       # N*s: the largest impulse the simulator accepts
 HARNESS_MODES = ("locked", "trolley", "off")
 
 
@@ -55,6 +58,7 @@ class MujocoPlant:
         self.dof_adr = np.array([self.m.joint(n).dofadr[0] for n in names])
         self.actuator = np.array([self.m.actuator(n).id for n in names])
         self.stiffness = np.array([model.joint(n).stiffness for n in names])
+        self.damping = np.array([model.joint(n).damping for n in names])
         self.position_range = self.m.actuator_ctrlrange[self.actuator].copy()
         self.effort = np.array([model.joint(n).effort for n in names])
         self.harness_id = self.m.equality("harness").id
@@ -146,7 +150,8 @@ class MujocoPlant:
             elif torque_mode[index]:
                 gain[0], bias[1], bias[2] = 1.0, 0.0, 0.0
             else:
-                gain[0], bias[1], bias[2] = self.stiffness[index], -self.stiffness[index], -60.0
+                gain[0], bias[1], bias[2] = (self.stiffness[index], -self.stiffness[index],
+                                                -self.damping[index])
             # ctrl is a position (clamped to the joint range) or a torque (to the effort).
             self.m.actuator_ctrlrange[actuator] = (
                 (-self.effort[index], self.effort[index]) if torque_mode[index]
@@ -207,6 +212,23 @@ class SimBackend(Backend):
         self._hands = (self.index["l_handj"], self.index["r_handj"])
         self.events: List[str] = []
         self._steps = 0
+        self._push_body = self.plant.m.body(PUSH_BODY).id
+        self._push_force = np.zeros(3)
+        self._push_until = 0.0
+
+    def push(self, impulse: Tuple[float, float, float], duration: float = PUSH_TIME) -> None:
+        """Push the torso with ``impulse`` (N*s, world frame) spread over ``duration`` s: what
+        a pilot tries a balance controller with (the walking module's push tests)."""
+        impulse = np.asarray(impulse, dtype=float)
+        if impulse.shape != (3,) or not np.all(np.isfinite(impulse)):
+            raise ValueError(f"a push is three finite numbers (N*s), got {impulse.tolist()}")
+        if np.linalg.norm(impulse) > MAX_PUSH:
+            raise ValueError(f"a push of {np.linalg.norm(impulse):.0f} N*s is more than "
+                             f"{MAX_PUSH:.0f} N*s")
+        if not 0.001 <= duration <= 1.0:
+            raise ValueError(f"a push lasts 0.001..1 s, got {duration}")
+        self._push_force = impulse / duration
+        self._push_until = self.time + duration
 
     def _apply_modes(self, indices: np.ndarray) -> None:
         self.plant.set_servo(indices, self._torque_mode, self.idle)
@@ -214,6 +236,8 @@ class SimBackend(Backend):
     def step(self) -> None:
         plant = self.plant
         plant.d.ctrl[plant.actuator] = np.where(self.idle, 0.0, self.reference)
+        pushing = self.time < self._push_until
+        plant.d.xfrc_applied[self._push_body, :3] = self._push_force if pushing else 0.0
         mujoco.mj_step(plant.m, plant.d)
         self.time += self.dt
         self.thermal.step(self.torques(), self.dt)

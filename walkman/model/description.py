@@ -65,6 +65,10 @@ def _half_extents(geom: Geom) -> Vec3:
     return tuple(extents)  # type: ignore[return-value]
 
 
+#: N*m*s/rad: servo damping of the joints that carry the robot (legs, waist).
+SUPPORT_DAMPING = 400.0
+
+
 @dataclass(frozen=True)
 class Joint:
     name: str
@@ -79,6 +83,10 @@ class Joint:
     velocity: float = 3.0
     #: Series-elastic stiffness (N*m/rad) of the actuator; hands are stiff.
     stiffness: float = 3000.0
+    #: Servo damping (N*m*s/rad).  The legs and waist carry the whole robot: at 60 their
+    #: springs and the body's mass sway at ~1 Hz with 8 % damping, which a walking
+    #: controller cannot outrun; at :data:`SUPPORT_DAMPING` the sway is well damped.
+    damping: float = 60.0
 
 
 @dataclass(frozen=True)
@@ -158,9 +166,13 @@ def walkman() -> Robot:
     link("waist_sag", 1.5, _box(0.05, 0.05, 0.04, (0, 0, 0.04)))
     link("torso", 28.0, _box(0.13, 0.2, 0.22, (0, 0, 0.24), ORANGE),
          _box(0.09, 0.12, 0.06, (-0.15, 0, 0.26), DARK), com=(0, 0, 0.24))
-    joint("WaistLat", "torso", "pelvis", "waist_lat", (0, 0, 0.1), X, -0.6109, 0.6109, 120.0)
-    joint("WaistSag", "torso", "waist_lat", "waist_sag", (0, 0, 0.0), Y, -0.3491, 1.3963, 220.0)
-    joint("WaistYaw", "torso", "waist_sag", "torso", (0, 0, 0.08), Z, -2.8449, 2.8449, 120.0)
+    support = {"damping": SUPPORT_DAMPING}
+    joint("WaistLat", "torso", "pelvis", "waist_lat", (0, 0, 0.1), X, -0.6109, 0.6109, 120.0,
+          **support)
+    joint("WaistSag", "torso", "waist_lat", "waist_sag", (0, 0, 0.0), Y, -0.3491, 1.3963, 220.0,
+          **support)
+    joint("WaistYaw", "torso", "waist_sag", "torso", (0, 0, 0.08), Z, -2.8449, 2.8449, 120.0,
+          **support)
 
     # -- head: NeckYawj, NeckPitchj; the camera looks along +x ---------------------------
     link("neck", 0.8, _capsule(0.04, 0.08, "z", (0, 0, 0.04)))
@@ -213,14 +225,16 @@ def walkman() -> Robot:
                  link(f"{side}_foot", 2.0, _box(0.13, 0.07, 0.025, (0.03, 0, -0.075), DARK),
                       com=(0.03, 0, -0.075))]
         joint(f"{prefix}HipLat", chain, "pelvis", names[0], (0, sign * 0.11, -0.08), X,
-              *hip_lat, 220.0)
-        joint(f"{prefix}HipYaw", chain, names[0], names[1], (0, 0, -0.05), Z, *hip_yaw, 120.0)
+              *hip_lat, 220.0, **support)
+        joint(f"{prefix}HipYaw", chain, names[0], names[1], (0, 0, -0.05), Z, *hip_yaw, 120.0, **support)
         joint(f"{prefix}HipSag", chain, names[1], names[2], (0, 0, -0.05), Y,
-              -2.0933, 1.0467, 220.0)
-        joint(f"{prefix}KneeSag", chain, names[2], names[3], (0, 0, -0.42), Y, 0.0, 2.4422, 220.0)
+              -2.0933, 1.0467, 220.0, **support)
+        joint(f"{prefix}KneeSag", chain, names[2], names[3], (0, 0, -0.42), Y, 0.0, 2.4422, 220.0,
+              **support)
         joint(f"{prefix}AnkSag", chain, names[3], names[4], (0, 0, -0.42), Y,
-              -1.3956, 0.6978, 220.0)
-        joint(f"{prefix}AnkLat", chain, names[4], names[5], (0, 0, 0.0), X, -0.785, 0.785, 120.0)
+              -1.3956, 0.6978, 220.0, **support)
+        joint(f"{prefix}AnkLat", chain, names[4], names[5], (0, 0, 0.0), X, -0.785, 0.785, 120.0,
+              **support)
         robot.sensors.append(Sensor(f"{side}_leg_ft", "ft", names[5], (0, 0, -0.05)))
 
     robot.sensors.append(Sensor("imu", "imu", "pelvis", (0, 0, 0)))

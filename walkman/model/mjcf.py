@@ -121,7 +121,7 @@ def actuators(robot: Robot) -> List[str]:
     for name in robot.joint_names:
         joint = robot.joint(name)
         out.append(f'    <general name="{name}" joint="{name}" gaintype="fixed" biastype="affine" '
-                   f'gainprm="{joint.stiffness:g}" biasprm="0 -{joint.stiffness:g} -60" '
+                   f'gainprm="{joint.stiffness:g}" biasprm="0 -{joint.stiffness:g} -{joint.damping:g}" '
                    f'forcerange="-{joint.effort:g} {joint.effort:g}" forcelimited="true" '
                    f'ctrlrange="{joint.lower:g} {joint.upper:g}" ctrllimited="true"/>')
     out.append("  </actuator>")

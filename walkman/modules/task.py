@@ -149,7 +149,12 @@ class TaskModule(ControlThread):
         if command is not None:
             self.handle(command.name, command.args)
         self.track()
-        self.robot.move(self.reference, joints=self.joints)
+        self.robot.move(self.commanded(), joints=self.joints)
+
+    def commanded(self) -> np.ndarray:
+        """What is sent to the robot: the reference (a module may add to it, e.g. to make
+        up for the joints' compliance)."""
+        return self.reference
 
     def handle(self, name: str, args: Sequence) -> None:
         if name not in self.commands:

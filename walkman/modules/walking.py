@@ -1,33 +1,63 @@
-"""walking: ``go_straight D``, ``turn A``, ``step_side D`` with a level pelvis.
+"""walking: ``go_straight D``, ``turn A``, ``step_side D`` on its own feet, balanced.
 
 Theory of operation
 -------------------
-The gait is :class:`walkman.control.gait.Gait`: the stance foot holds the floor
-and slides back under the pelvis while the swing foot lifts and lands ahead;
-every tick each foot's pose (sole point, flat, yawed) is solved by IK over its
-own leg's six joints, and the waist is held upright.  On start the module
-first bends the knees (the soles come ``CROUCH`` closer to the pelvis): with
-straight legs a foot half a stride ahead is out of reach.  Balance is the support
-harness's job (``walkman-hal --harness trolley``: the trolley keeps the pelvis
-level and carries part of the weight, the feet carry the rest and move the
-robot by friction) -- this is a stepping controller, not a balance controller.
+A position-controlled biped walks when its centre of mass (CoM) moves so that
+the zero-moment point (ZMP) stays inside the feet.  Four parts, each in its
+own module:
 
-The pilot's ``pause`` is safe: the runner keeps the module going until the
-current step ends and both feet are down (:meth:`Module.ready_to_pause`);
-``resume`` plays the rest of the walk.  While paused the module is silent, so
-the HAL lets another module use its joints (the paper's door sequence).  The
-status carries the distance walked so far (odometry of the planned steps:
-x, y in metres, yaw in radians).
+* :mod:`walkman.control.footsteps` plans the steps, the swing feet's paths and
+  where the ZMP must be (on the stance foot, moving between feet in double
+  support), in the *walk frame* fixed on the floor when the module starts;
+* :mod:`walkman.control.lipm` turns that ZMP plan into a CoM trajectory by
+  Kajita's preview control of the linear inverted pendulum (ICRA 2003);
+* :mod:`walkman.control.balance` closes the loop on the fast sensors (the
+  ankle F/T sensors and the pelvis IMU, 100 Hz): each ankle turns its foot so
+  that the foot's measured centre of pressure comes where it should be
+  (Kajita et al.'s damping control, IROS 2010), a PI loop on the IMU's roll and
+  pitch tilts the commanded pelvis level, and a guard watches the measured
+  ZMP's margin to the support polygon and the torso's tilt;
+* every tick, the pelvis is placed so that the model's CoM (Pinocchio: the
+  legs as commanded, the other joints as measured) is where the preview
+  controller wants it, and each foot's pose relative to the pelvis is solved
+  by IK over its leg's six joints.  The legs' series-elastic springs give
+  under the robot's weight (5 cm of CoM in single support): the command adds
+  ``DEFLECTION_SHARE`` of the expected deflection, torque over stiffness, the
+  torques being the F/T wrenches through the legs' Jacobians plus their
+  weight.  Nothing here reads the joints' own state stream for balance: it
+  runs at 500 Hz on a port per chain and reaches a loaded module late (a
+  100 ms lag there topples the robot); the F/T and IMU ports stay fresh.
+
+On start the knees bend (the pelvis sinks ``CROUCH``) so that steps are within
+reach and the pendulum's height is constant while walking.  The pilot's
+``pause`` ends the walk soon with both feet down, side by side (a foot in the
+air lands; if the feet are apart one closing step brings them together: the
+ZMP keeps the walk's rhythm, since turning the CoM back mid-swing would throw
+the robot sideways) and ``resume`` plays the rest.  While paused the module
+keeps the robot standing balanced (``run_paused``: the attitude and
+deflection loops, on the legs only), so the HAL frees the waist for another
+module (the paper's door sequence) and a free-standing robot does not lean
+onto its toes under an arm's reach.  ``stop`` first comes to rest the same way.
+When the guard trips (ZMP too close to the edge of the feet, or the torso
+tilted too far) the module says so on its warning port, drops the rest of the
+walk and stands.  The status carries the odometry of the steps taken (x, y in
+metres, yaw in radians) and the balance figures: the measured ZMP's margin to
+the support polygon's edge (m, nan with no foot on the floor) and the torso's
+tilt (rad), twice a second and at every landing.
 """
 
 from __future__ import annotations
 
 import math
-from typing import List
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from walkman.control.gait import Gait, foot_rotation
+from walkman.control.balance import (AnkleCompliance, AttitudeLoop, BalanceGuard, Sole,
+                                     combined_zmp, foot_zmp, rotation_rpy, support_margin,
+                                     to_local)
+from walkman.control.footsteps import SIDES, Planar, WalkPlan
+from walkman.control.lipm import PreviewAxis, preview_gains
 from walkman.control.trajectory import quintic
 from walkman.modules.task import TaskModule, task_statuses
 
@@ -35,11 +65,18 @@ LEGS = {"left": ["LHipLat", "LHipYaw", "LHipSag", "LKneeSag", "LAnkSag", "LAnkLa
         "right": ["RHipLat", "RHipYaw", "RHipSag", "RKneeSag", "RAnkSag", "RAnkLat"]}
 WAIST = ["WaistLat", "WaistSag", "WaistYaw"]
 FRAMES = {"left": "l_foot", "right": "r_foot"}
+SENSORS = {"left": "l_leg_ft", "right": "r_leg_ft"}
 SOLE = np.array([0.03, 0.0, -0.10])   # the middle of the sole, in the foot frame
-PRESS = 0.005                          # m the stance foot is held into the floor
-CROUCH = 0.06                          # m the pelvis sinks at start: knees bent, steps reachable
+CROUCH = 0.08                          # m the pelvis sinks at start: knees bent, steps reachable
 CROUCH_TIME = 1.5                      # s
 TICK_IK_ITERATIONS = 20
+SETTLED_SPEED = 0.01                   # m/s: the CoM is at rest below this
+REPORT_PERIOD = 0.5                    # s between balance reports on the status port
+DEFLECTION_SHARE = 0.8                 # of the legs' measured spring deflection made up for
+ANKLE_AIM = (0.08, 0.04)               # m: a foot's desired CoP stays this far inside its sole
+#: s the ankles stay compliant after a walk's last motion; standing, they are stiff: a
+#: stiff ankle is what holds the robot against a push (compliant, it gives way)
+ANKLE_AFTER = 1.0
 
 TABLE = {
     "idle": {"go_straight": "walking", "turn": "turning", "step_side": "side_stepping"},
@@ -47,6 +84,11 @@ TABLE = {
     "turning": {"action_done": "idle"},
     "side_stepping": {"action_done": "idle"},
 }
+
+
+def rotation_z(yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 class Module(TaskModule):
@@ -60,24 +102,54 @@ class Module(TaskModule):
 
     def setup(self) -> None:
         q = self.robot.sense_position()
-        soles = {side: self.sole(q, side) for side in LEGS}
-        standing = float(np.mean([p[2] for p in soles.values()])) - PRESS
-        self.gait = Gait(half_width=float(np.mean([abs(p[1]) for p in soles.values()])),
-                         forward=float(np.mean([p[0] for p in soles.values()])), ground=standing)
-        self.crouch = (standing, standing + CROUCH, self.now())
+        soles = {side: self.sole(q, side) for side in SIDES}
+        middle = (soles["left"] + soles["right"]) / 2
+        # The walk frame: on the floor between the soles, x along the pelvis's heading.
+        self.plan = WalkPlan({side: (float(soles[side][0] - middle[0]),
+                                     float(soles[side][1] - middle[1]), 0.0)
+                              for side in SIDES})
+        standing = float(-middle[2])          # pelvis above the soles
+        self.height = (standing, standing - CROUCH, self.now())
+        self.pelvis_xy = -middle[:2]
         self.leg_index = {side: self.ik.joints_of(joints) for side, joints in LEGS.items()}
         waist = [self.robot.index[name] for name in WAIST]
         self.reference[waist] = 0.0  # upright
+        com = self.kinematics.com(self.reference)
+        gains = preview_gains(standing - CROUCH + float(com[2]))
+        start = self.pelvis_xy + com[:2]
+        self.plan.settle(start, self.now(), self.now() + CROUCH_TIME)
+        self.axes = [PreviewAxis(gains, float(start[axis]), self.now()) for axis in (0, 1)]
+        self.attitude = AttitudeLoop()
+        self.guard = BalanceGuard()
+        self.ankles = {side: AnkleCompliance() for side in SIDES}
+        self.sole_shape = Sole()
+        self.halted_for_pause = False
+        self.paused = False   # paused and still balancing (run_paused)
+        legs = np.concatenate(list(self.leg_index.values()))
+        self.compensated = legs
+        self.stiffness = np.array([self.kinematics.robot.joint(self.robot.joint_names[i]).stiffness
+                                   for i in legs])
+        self.deflection = np.zeros(len(legs))
+        self.margin: Optional[float] = None
+        self.wrenches: Dict[str, Optional[np.ndarray]] = {}
+        self.com_velocity = np.zeros(2)
+        self.roll_pitch = (0.0, 0.0)
+        self.last_tick = self.last_report = self.now()
 
     def sole(self, q: np.ndarray, side: str) -> np.ndarray:
         position, rotation = self.kinematics.pose(q, FRAMES[side])
         return position + rotation @ SOLE
 
     def status_data(self) -> List[float]:
-        return [round(float(v), 3) for v in self.gait.travelled]
+        """Odometry (x, y m, yaw rad) and balance: the ZMP's margin (m; nan with no foot
+        on the floor) and the torso's tilt (rad)."""
+        margin = math.nan if self.margin is None else self.margin
+        return [round(float(v), 3) for v in (*self.plan.travelled, margin, self.guard.tilt)]
+
+    # -- commands ----------------------------------------------------------------------
 
     def _walk(self, dx: float, dy: float, dyaw: float) -> None:
-        self.gait.plan(dx, dy, dyaw, self.now())
+        self.plan.plan(dx, dy, dyaw, self.now())
 
     def _start_go_straight(self, distance: float) -> None:
         if not 0.01 <= abs(distance) <= 5.0:
@@ -94,32 +166,157 @@ class Module(TaskModule):
             raise ValueError(f"step_side takes 0.01..1 m (positive: left), got {distance}")
         self._walk(0.0, distance, 0.0)
 
+    # -- every tick ----------------------------------------------------------------------
+
+    def com_reference(self, now: float) -> Tuple[np.ndarray, np.ndarray]:
+        """Where the preview controller puts the CoM now: position and velocity (walk frame)."""
+        for axis, zmp in zip(self.axes, (lambda t: self.plan.zmp(t)[0],
+                                         lambda t: self.plan.zmp(t)[1])):
+            axis.advance(now, zmp)
+        samples = [axis.sample(now) for axis in self.axes]
+        return np.array([s[0] for s in samples]), np.array([s[1] for s in samples])
+
+    def sense_balance(self) -> Tuple[Optional[np.ndarray], float]:
+        """(measured ZMP, tilt), the ZMP in the *level frame* (the pelvis frame turned by
+        the IMU's roll and pitch: z up), and the ZMP's margin to the support polygon
+        (:attr:`margin`).  Only the fast sensors count (F/T, IMU: 100 Hz, a few ports):
+        the joints' state streams on a port per chain at 500 Hz and, on a loaded machine,
+        reaches a module late (100 ms of lag there and the robot falls), so the feet are
+        placed where the legs are commanded -- the deflection compensation puts them
+        there."""
+        self.sensed = self.robot.sense_position()     # for the slow joints (arms) only
+        wrenches = {side: self.robot.sense_ft(SENSORS[side]) for side in SIDES}
+        imu = self.robot.sense_imu()
+        roll, pitch = (float(imu[0][0]), float(imu[0][1])) if imu else (0.0, 0.0)
+        self.roll_pitch = (roll, pitch)
+        tilt = math.hypot(roll, pitch)
+        self.margin = None
+        self.wrenches = {side: w for side, w in wrenches.items() if w is not None and len(w) >= 6}
+        if len(self.wrenches) < len(SIDES):
+            return None, tilt
+        level = rotation_rpy(roll, pitch, 0.0)
+        soles: Dict[str, Planar] = {}
+        for side in SIDES:
+            position, rotation = self.kinematics.pose(self.reference, FRAMES[side])
+            point, turned = level @ (position + rotation @ SOLE), level @ rotation
+            soles[side] = (float(point[0]), float(point[1]),
+                           math.atan2(turned[1, 0], turned[0, 0]))
+        zmp, contacts = combined_zmp({side: (soles[side], wrenches[side]) for side in SIDES},
+                                     self.sole_shape)
+        if zmp is not None:
+            self.margin = support_margin(zmp, soles, contacts, self.sole_shape)
+        return zmp, tilt
+
     def track(self) -> None:
         now = self.now()
-        gait = self.gait
-        start, end, t0 = self.crouch
-        gait.ground = start + (end - start) * quintic((now - t0) / CROUCH_TIME)
-        if self.pause_requested and gait.can_pause(now):
-            gait.hold(now)
-        ended = gait.update(now)
+        dt = min(max(now - self.last_tick, 0.0), 0.05)
+        self.last_tick = now
+        plan = self.plan
+        if self.pause_requested and not self.halted_for_pause:
+            plan.halt(now)
+            self.halted_for_pause = True
+        landed = plan.update(now)
+        if (landed or now - self.last_report >= REPORT_PERIOD) and not self.paused:
+            self.report()  # odometry once per step, balance twice a second
+            self.last_report = now
+        com_ref, velocity = self.com_reference(now)
+        self.com_velocity = velocity
+        if not plan.walking and not plan.halted and self.fsm.state != "idle" and \
+                now >= plan.end_time() and float(np.linalg.norm(velocity)) < SETTLED_SPEED:
+            self.event("action_done")
+        feet = {side: plan.foot(side, now) for side in SIDES}
+        planar = {side: feet[side][0] for side in SIDES}
+        yaw = (planar["left"][2] + planar["right"][2]) / 2
+        zmp, tilt = self.sense_balance()
+        roll, pitch = self.attitude.update(dt, *self.roll_pitch)
+        self.guard_check(now, tilt)
+        start, end, t0 = self.height
+        pelvis_z = start + (end - start) * quintic((now - t0) / CROUCH_TIME)
+        rotation = rotation_rpy(roll, pitch, yaw)
+        # The CoM of the posture as it is: the legs as commanded, the rest as measured --
+        # but held while paused: another module's hand then works in a pelvis frame that
+        # stays put in the world (a door handle in its grip), the legs' springs and the
+        # pelvis attitude taking the load.
+        if not self.paused:
+            self.posture = self.sensed.copy()
+        self.posture[self.compensated] = self.reference[self.compensated]
+        offset = rotation @ self.kinematics.com(self.posture)
+        self.pelvis_xy = com_ref - offset[:2]
+        pelvis = np.array([self.pelvis_xy[0], self.pelvis_xy[1], pelvis_z])
+        tilts = self.comply(dt, now, planar)
         for side, index in self.leg_index.items():
-            (x, y, yaw), z = gait.foot(side, now)
-            result = self.ik.solve(FRAMES[side], np.array([x, y, z]), foot_rotation(yaw),
+            (x, y, foot_yaw), height = feet[side]
+            target = rotation.T @ (np.array([x, y, height]) - pelvis)
+            foot_roll, foot_pitch = tilts[side]
+            result = self.ik.solve(FRAMES[side], target,
+                                   rotation.T @ rotation_rpy(foot_roll, foot_pitch, foot_yaw),
                                    self.reference, LEGS[side], offset=SOLE, restarts=0,
                                    max_iterations=TICK_IK_ITERATIONS)
             self.reference[index] = result.q[index]
-        if ended is not None:
-            if gait.walking:
-                self.report()  # odometry, once per step
+
+    def comply(self, dt: float, now: float, planar: Dict[str, Planar]) -> Dict[str, np.ndarray]:
+        """Each foot's compliance tilt: its measured CoP driven to the desired one, the
+        planned ZMP on the foot that stands alone, the sole's centre in double support."""
+        swinging = self.plan.swinging(now)
+        zmp = [float(v[0]) for v in self.plan.zmp(np.array([now]))]
+        stepping = self.plan.walking or now < self.plan.end_time() + ANKLE_AFTER
+        tilts = {}
+        for side in SIDES:
+            wrench = self.wrenches.get(side)
+            measured = foot_zmp(wrench, self.sole_shape) if stepping and wrench is not None \
+                and len(wrench) >= 6 and side != swinging else None
+            desired = (0.0, 0.0)
+            if swinging is not None and side != swinging:
+                local = to_local(planar[side], zmp)
+                desired = (float(np.clip(local[0], -ANKLE_AIM[0], ANKLE_AIM[0])),
+                           float(np.clip(local[1], -ANKLE_AIM[1], ANKLE_AIM[1])))
+            tilts[side] = self.ankles[side].update(
+                dt, None if measured is None else measured[:2], desired)
+        return tilts
+
+    def commanded(self) -> np.ndarray:
+        """The reference plus the legs' expected spring deflection (a share of the joint
+        torques over the stiffness, filtered): the stance hip carries 150 N*m in single
+        support, which bends its series-elastic spring by 0.05 rad -- 5 cm of CoM.  The
+        torques are the ankle F/T wrenches through the legs' Jacobians plus the legs'
+        weight, at the commanded posture: fresh where the joints' torque stream is not."""
+        tau = self.kinematics.gravity(self.reference)
+        for side, wrench in self.wrenches.items():
+            tau += self.kinematics.wrench_torques(self.reference, f"{SENSORS[side]}_frame",
+                                                  wrench)
+        alpha = min(1.0, self.thread_period / 0.05)
+        legs = self.compensated
+        self.deflection += alpha * (tau[legs] / self.stiffness - self.deflection)
+        out = self.reference.copy()
+        start, _, t0 = self.height
+        ramp = min(1.0, max(0.0, (self.now() - t0) / CROUCH_TIME))
+        out[legs] += ramp * DEFLECTION_SHARE * self.deflection
+        return out
+
+    def guard_check(self, now: float, tilt: float) -> None:
+        problem = self.guard.update(now, self.margin, tilt)
+        if problem is not None:
+            if self.plan.walking:
+                self.warn(f"balance: {problem}; stopping the walk and standing")
+                self.plan.cancel(now)
             else:
-                self.event("action_done")
+                self.warn(f"balance: {problem}")
 
     def ready_to_pause(self) -> bool:
-        return not self.gait.walking or self.gait.held
+        return not self.plan.walking and self.now() >= self.plan.end_time() and \
+            float(np.linalg.norm(self.com_velocity)) < SETTLED_SPEED
+
+    def run_paused(self) -> None:
+        """Paused, the robot stands balanced: the balance loops go on, on the legs only
+        (the waist is free for another module: the paper's door sequence)."""
+        self.paused = True
+        self.track()
+        self.robot.move(self.commanded(), joints=LEGS["left"] + LEGS["right"])
 
     def custom_pause(self) -> bool:
-        return True  # both feet are down: keep the reference as it is
+        return True  # both feet are down, the CoM at rest: keep the reference as it is
 
     def custom_resume(self) -> bool:
-        self.gait.resume(self.now())
+        self.halted_for_pause = self.paused = False
+        self.plan.resume(self.now())
         return True

@@ -1,0 +1,136 @@
+"""Walking without the harness: speed, accuracy, balance, pushes, and the control tick's cost.
+
+    .venv/bin/python bench/bench_walking.py            # everything (about 5 minutes)
+    .venv/bin/python bench/bench_walking.py --quick    # the walks only
+
+The walking module runs offline (walkman.gym.offline: its own code on simulated time,
+MuJoCo at 1 kHz, the harness off).  Per command, from a fresh robot standing: the speed
+(distance over the time from the command to ``idle``), the distance error, the most the
+torso tilted, the smallest margin of the measured ZMP to the edge of the feet, and the
+wall time of one control tick against the 2 ms budget of a 500 Hz loop.  Then the largest
+push (N*s on the torso, over 0.1 s) survived standing, in 5 N*s steps, each way; and
+sideways in mid-walk.  Survived: upright (tilt < 0.1 rad, pelvis not sunk) 4 s after.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from typing import List, Optional, Tuple
+
+import numpy as np
+
+from bench_tasks import timed_ticks
+from host import say_machine  # noqa: E402  (bench/ is the script's folder)
+from walkman.gym.offline import OfflineModule, OfflineWorld
+from walkman.hal.sim import SimBackend
+from walkman.model.description import STANDING_PELVIS_HEIGHT
+from walkman.modules import walking
+
+COMMANDS = [("go_straight 1.0", 0, 1.0), ("go_straight -0.5", 0, -0.5), ("turn 0.8", 3, 0.8),
+            ("turn -1.5", 3, -1.5), ("step_side 0.3", 1, 0.3), ("step_side -0.3", 1, -0.3)]
+LOWEST = STANDING_PELVIS_HEIGHT - walking.CROUCH - 0.06
+
+
+def standing() -> Tuple[OfflineWorld, OfflineModule, List[float]]:
+    world = OfflineWorld(SimBackend(station="yard", harness="off"))
+    world.step(0.5)
+    module = world.add(walking.Module, "walking")
+    costs = timed_ticks(module)
+    module.switch("start")
+    world.step(walking.CROUCH_TIME + 0.5)
+    return world, module, costs
+
+
+def tilt(world: OfflineWorld) -> float:
+    roll, pitch, _ = world.backend.imu().rpy
+    return math.hypot(roll, pitch)
+
+
+def upright(world: OfflineWorld) -> bool:
+    return tilt(world) < 0.1 and world.backend.plant.base_pose()[2] > LOWEST
+
+
+def walk(command: str, axis: int, amount: float) -> Tuple[str, List[float]]:
+    world, module, costs = standing()
+    costs.clear()
+    before = np.array(world.backend.plant.base_pose())
+    began = world.time
+    module.command(command)
+    most_tilted, margins, fell = 0.0, [], False
+    world.step(0.1)
+    while module.state != "idle" and world.time - began < 60:
+        world.step(0.01)
+        most_tilted = max(most_tilted, tilt(world))
+        if module.thread.margin is not None:
+            margins.append(module.thread.margin)
+        fell = fell or not upright(world)
+    seconds = world.time - began
+    moved = np.array(world.backend.plant.base_pose()) - before
+    unit = "rad" if axis == 3 else "m"
+    error = moved[axis] - amount
+    drift = "" if axis == 3 else f" (drift {np.hypot(*moved[:2]) - abs(moved[axis]):+.3f} m)"
+    row = (f"{command:18s} {abs(moved[axis]) / seconds:6.3f} {unit}/s {error:+7.3f} {unit}"
+           f"{drift:18s} {math.degrees(most_tilted):6.2f} {min(margins) * 100:7.1f}"
+           f"  {'FELL' if fell else 'ok'}")
+    return row, costs
+
+
+def survives(impulse: Tuple[float, float, float], while_walking: bool) -> bool:
+    world, module, _ = standing()
+    if while_walking:
+        module.command("go_straight 1.0")
+        world.step(2.0)      # in the first step's single support
+    world.backend.push(impulse)
+    for _ in range(40):
+        world.step(0.1)
+        if not upright(world):
+            return False
+    return True
+
+
+def largest_push(direction: Tuple[float, float, float], while_walking: bool = False,
+                 limit: float = 150.0) -> Optional[float]:
+    """The largest impulse survived along ``direction`` in 5 N*s steps (None: not even 5)."""
+    best = None
+    impulse = 5.0
+    while impulse <= limit:
+        if not survives(tuple(impulse * d for d in direction), while_walking):
+            break
+        best = impulse
+        impulse += 5.0
+    return best
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="the walks only, no pushes")
+    options = parser.parse_args()
+    say_machine()
+    print(f"{'command':18s} {'speed':>10s} {'error':>11s} {'':18s} {'tilt °':>6s} "
+          f"{'ZMP margin cm':>7s}")
+    ticks: List[float] = []
+    for command, axis, amount in COMMANDS:
+        row, costs = walk(command, axis, amount)
+        ticks += costs
+        print(row, flush=True)
+    ms = np.array(ticks) * 1e3
+    print(f"control tick: median {np.median(ms):.2f} ms, p99 {np.percentile(ms, 99):.2f} ms, "
+          f"max {ms.max():.2f} ms (budget 2 ms at 500 Hz; the module runs at 100 Hz)")
+    if not options.quick:
+        started = time.perf_counter()
+        for label, direction, moving in (("standing, sideways", (0.0, 1.0, 0.0), False),
+                                         ("standing, forwards", (1.0, 0.0, 0.0), False),
+                                         ("standing, backwards", (-1.0, 0.0, 0.0), False),
+                                         ("walking, sideways", (0.0, 1.0, 0.0), True)):
+            best = largest_push(direction, moving)
+            print(f"largest push survived {label:20s} "
+                  f"{'< 5' if best is None else f'{best:.0f}'} N*s", flush=True)
+        print(f"(pushes: {time.perf_counter() - started:.0f} s wall)")
+    say_machine("after")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

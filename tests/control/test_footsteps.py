@@ -1,0 +1,118 @@
+"""Footstep plans: strides within limits, feet side by side at the end, the ZMP on the stance
+foot, swing paths that land vertically, and halt/resume/cancel (pause, stop, the guard)."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from walkman.control.footsteps import Timing, WalkPlan, compose, inverse
+
+FEET = {"left": (0.0, 0.11, 0.0), "right": (0.0, -0.11, 0.0)}
+planar = st.tuples(st.floats(-3, 3), st.floats(-3, 3), st.floats(-math.pi, math.pi))
+
+
+@given(planar, planar)
+def test_compose_and_inverse_undo_each_other(a, b):
+    back = compose(compose(a, b), inverse(b))
+    assert np.allclose(back[:2], a[:2], atol=1e-9)
+    assert math.isclose(math.remainder(back[2] - a[2], 2 * math.pi), 0.0, abs_tol=1e-9)
+
+
+def play(plan: WalkPlan, until: float, step: float = 0.01):
+    t = 0.0
+    while t < until:
+        plan.update(t)
+        t += step
+    plan.update(until)
+
+
+@given(st.floats(-2, 2), st.floats(-0.5, 0.5), st.floats(-math.pi, math.pi))
+def test_a_walk_ends_with_the_feet_side_by_side_where_it_was_asked(dx, dy, dyaw):
+    plan = WalkPlan(dict(FEET))
+    steps = plan.plan(dx, dy, dyaw, 0.0)
+    limits = Timing().max_stride
+    for step in plan.steps:
+        assert all(abs(v) <= limit + 1e-9 for v, limit in zip(step.stride, limits))
+    strides = steps - 1                 # the last step only brings the other foot beside
+    expected = (0.0, 0.0, 0.0)
+    for _ in range(strides):            # equal strides, each in the robot's new frame
+        expected = compose(expected, (dx / strides, dy / strides, dyaw / strides))
+    play(plan, plan.end_time() + 0.1)
+    assert not plan.walking and not plan.halted
+    assert np.allclose(plan.centre, expected, atol=1e-9)
+    assert np.allclose(plan.travelled, expected, atol=1e-9)
+    left, right = plan.feet["left"], plan.feet["right"]
+    assert math.isclose(math.hypot(left[0] - right[0], left[1] - right[1]), 0.22, abs_tol=1e-9)
+
+
+def test_the_zmp_stands_on_the_stance_foot_while_the_other_swings():
+    plan = WalkPlan(dict(FEET))
+    plan.plan(0.3, 0.0, 0.0, 0.0)
+    first = plan.steps[0]
+    assert first.side == "left"
+    middle = (first.lift_at + first.land_at) / 2
+    x, y = (float(v[0]) for v in plan.zmp(np.array([middle])))
+    inward = Timing().inward
+    assert (x, y) == pytest.approx((0.0, -0.11 + inward))   # on the right foot
+    assert plan.swinging(middle) == "left" and plan.swinging(first.lift_at - 0.01) is None
+
+
+def test_the_swing_foot_rises_travels_and_comes_straight_down():
+    plan = WalkPlan(dict(FEET))
+    plan.plan(0.15, 0.0, 0.0, 0.0)
+    step = plan.steps[0]
+    duration = step.land_at - step.lift_at
+    (x0, _, _), h0 = plan.foot("left", step.lift_at)
+    (_, _, _), top = plan.foot("left", step.lift_at + 0.5 * duration)
+    (xd, _, _), hd = plan.foot("left", step.lift_at + 0.75 * duration)
+    (x1, _, _), h1 = plan.foot("left", step.land_at)
+    assert h0 == pytest.approx(0.0) and top == pytest.approx(Timing().lift)
+    assert 0 < hd < Timing().lift and xd == pytest.approx(0.15)   # descending above its spot
+    assert x0 == pytest.approx(0.0) and x1 == pytest.approx(0.15) and h1 == pytest.approx(0.0)
+
+
+def test_halt_in_the_air_lands_closes_the_feet_and_resume_walks_the_rest():
+    plan = WalkPlan(dict(FEET))
+    plan.plan(0.6, 0.0, 0.0, 0.0)
+    first = plan.steps[0]
+    t = (first.lift_at + first.land_at) / 2
+    play(plan, t)
+    plan.halt(t)
+    assert plan.halted
+    play(plan, plan.end_time() + 0.1)
+    left, right = plan.feet["left"], plan.feet["right"]
+    assert left[0] == pytest.approx(0.15) and right[0] == pytest.approx(0.15)  # side by side
+    assert plan.travelled[0] == pytest.approx(0.15)
+    end = plan.end_time() + 0.1
+    assert plan.resume(end) > 0
+    play(plan, plan.end_time() + 0.1)
+    assert plan.travelled[0] == pytest.approx(0.6) and plan.centre[0] == pytest.approx(0.6)
+
+
+def test_halt_keeps_the_zmp_plan_until_the_closing_step_lands():
+    """Changing where the ZMP goes while the CoM swings towards the next stance foot would
+    throw the robot sideways: the halted plan matches the walk's until its next landing."""
+    plan = WalkPlan(dict(FEET))
+    plan.plan(0.6, 0.0, 0.0, 0.0)
+    first, second = plan.steps[0], plan.steps[1]
+    t = (first.lift_at + first.land_at) / 2
+    times = np.linspace(t, second.land_at, 50)
+    before = np.array(plan.zmp(times))
+    plan.halt(t)
+    assert np.allclose(np.array(plan.zmp(times)), before)
+
+
+def test_cancel_forgets_the_rest_and_a_new_walk_is_refused_while_walking():
+    plan = WalkPlan(dict(FEET))
+    plan.plan(1.0, 0.0, 0.0, 0.0)
+    with pytest.raises(ValueError, match="already walking"):
+        plan.plan(0.2, 0.0, 0.0, 0.0)
+    plan.cancel(0.5)   # still in the first weight shift: one step in place, then stand
+    play(plan, plan.end_time() + 0.1)
+    assert not plan.halted and plan.resume(plan.end_time() + 1) == 0
+    assert plan.centre[0] == pytest.approx(0.0)
+    with pytest.raises(ValueError, match="finite"):
+        plan.plan(math.nan, 0.0, 0.0, 10.0)

@@ -1,0 +1,314 @@
+"""Footsteps, swing-foot paths and the ZMP plan of a walk, in the walk's own frame (sans-IO).
+
+Theory of operation
+-------------------
+Poses are planar ``(x, y, yaw)`` of a sole's centre in the *walk frame*: the
+floor, fixed when the module starts, x ahead of the robot.  Feet that stand
+do not slip, so the plan is also where the feet are.
+
+A walk of ``(dx, dy, dyaw)`` is cut into ``m`` equal strides ``g`` within
+the step limits.  The robot's centre frame goes ``C0, C1 = C0 g, ... Cm``; step
+``k`` (``k = 1..m``) puts a foot at ``Ck * nominal(side)``, the feet taking
+turns, and a last step brings the other foot beside it at ``Cm``: ``m + 1``
+steps, both feet side by side at the end.  The first foot to move is the one on
+the side the walk goes (left for a left turn or a step to the left).
+
+Each step is three phases:
+
+* *shift* (double support): the ZMP moves from where it is to the centre of the
+  foot that will stand (the first shift of a walk is longer: the whole weight
+  moves onto one leg);
+* *swing* (single support): the ZMP stays on the stance foot, the swing foot
+  rises by ``lift`` in the first fifth of the phase, travels while up and comes
+  straight down in the last 30 % (landing vertically: a foot that skims the
+  floor would carry weight and push the robot back);
+* after the last step a final shift brings the ZMP between the feet, where it
+  stays.
+
+:meth:`WalkPlan.zmp` samples that plan at any times (the preview controller of
+:mod:`walkman.control.lipm` looks 1.6 s ahead).  :meth:`WalkPlan.halt` keeps
+the step in the air (it must land) and sets the steps not started aside: the
+walk then ends at the next double support with both feet down and the ZMP
+between them -- the pilot's ``pause``, and the balance guard's stop.
+:meth:`WalkPlan.resume` plays the steps set aside from where the feet are.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Dict, List, Optional, Tuple
+
+import numpy as np
+
+from walkman.control.trajectory import quintic
+
+Planar = Tuple[float, float, float]  # x, y, yaw
+SIDES = ("left", "right")
+RISE, DESCEND = 0.2, 0.7  # swing phases: up until RISE, travel, down from DESCEND
+
+
+def compose(a: Planar, b: Planar) -> Planar:
+    """``a * b``: b expressed in a's frame, then in a's parent."""
+    ax, ay, at = a
+    bx, by, bt = b
+    c, s = math.cos(at), math.sin(at)
+    return ax + c * bx - s * by, ay + s * bx + c * by, at + bt
+
+
+def inverse(a: Planar) -> Planar:
+    x, y, t = a
+    c, s = math.cos(t), math.sin(t)
+    return -c * x - s * y, s * x - c * y, -t
+
+
+def scale(a: Planar, s: float) -> Planar:
+    return a[0] * s, a[1] * s, a[2] * s
+
+
+def midpoint(a: Planar, b: Planar) -> Planar:
+    """Half-way between two poses (yaw by the shorter way)."""
+    turn = math.atan2(math.sin(b[2] - a[2]), math.cos(b[2] - a[2]))
+    return (a[0] + b[0]) / 2, (a[1] + b[1]) / 2, a[2] + turn / 2
+
+
+def other(side: str) -> str:
+    return "right" if side == "left" else "left"
+
+
+@dataclass(frozen=True)
+class Timing:
+    """Durations (s) and sizes (m, rad) of the walk."""
+
+    swing: float = 0.8            # single support
+    shift: float = 0.4            # double support between two steps
+    first_shift: float = 1.0      # the first weight shift of a walk
+    last_shift: float = 0.8       # back between the feet at the end
+    lift: float = 0.04            # swing foot clearance
+    #: the ZMP stands this far inside the stance foot's centre, towards the other foot: the
+    #: CoM then sways less, and compliance (which leans the robot outwards) has room
+    inward: float = 0.01
+    max_stride: Planar = (0.15, 0.06, 0.25)
+
+
+@dataclass(frozen=True)
+class Step:
+    side: str                     # the foot that moves
+    start: Planar                 # where it lifts off
+    land: Planar                  # where it lands
+    stride: Planar                # the centre frame's motion this step stands for
+    shift_at: float               # double support begins: the ZMP moves to the stance foot
+    lift_at: float                # single support begins
+    land_at: float                # single support ends
+
+
+@dataclass
+class WalkPlan:
+    """Plans and plays walks; ``feet`` are where the soles stand (walk frame)."""
+
+    feet: Dict[str, Planar]
+    timing: Timing = field(default_factory=Timing)
+    steps: List[Step] = field(default_factory=list)
+    set_aside: List[Step] = field(default_factory=list)
+    travelled: Planar = (0.0, 0.0, 0.0)
+    #: ZMP knots (t, x, y): linear between them, constant before the first and after the last
+    _knots: List[Tuple[float, float, float]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        left, right = self.feet["left"], self.feet["right"]
+        #: half the distance between the feet standing side by side
+        self.half_width = math.hypot(left[0] - right[0], left[1] - right[1]) / 2
+        if not self._knots:
+            centre = midpoint(self.feet["left"], self.feet["right"])
+            self._knots = [(0.0, centre[0], centre[1])]
+
+    # -- what the plan says --------------------------------------------------------------
+
+    @property
+    def walking(self) -> bool:
+        return bool(self.steps)
+
+    @property
+    def halted(self) -> bool:
+        """A walk was halted with steps left to play (:meth:`resume` plays them)."""
+        return bool(self.set_aside)
+
+    @property
+    def centre(self) -> Planar:
+        """Between the feet: the robot's place and heading when it stands."""
+        return midpoint(self.feet["left"], self.feet["right"])
+
+    def zmp(self, times: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """The planned ZMP (x, y) at each of ``times``."""
+        knots = np.array(self._knots)
+        return (np.interp(times, knots[:, 0], knots[:, 1]),
+                np.interp(times, knots[:, 0], knots[:, 2]))
+
+    def end_time(self) -> float:
+        """When the plan's last motion (step or shift) ends."""
+        return self._knots[-1][0]
+
+    def foot(self, side: str, t: float) -> Tuple[Planar, float]:
+        """A foot's planar pose and its sole's height above the floor at ``t``."""
+        for step in self.steps:
+            if step.side != side or t < step.lift_at:
+                continue
+            phase = min((t - step.lift_at) / (step.land_at - step.lift_at), 1.0)
+            travel = quintic((phase - RISE) / (DESCEND - RISE))
+            a, b = step.start, step.land
+            turn = math.atan2(math.sin(b[2] - a[2]), math.cos(b[2] - a[2]))
+            pose = (a[0] + travel * (b[0] - a[0]), a[1] + travel * (b[1] - a[1]),
+                    a[2] + travel * turn)
+            height = quintic(phase / RISE) if phase < DESCEND else \
+                1.0 - quintic((phase - DESCEND) / (1.0 - DESCEND))
+            return pose, self.timing.lift * height
+        return self.feet[side], 0.0
+
+    def swinging(self, t: float) -> Optional[str]:
+        """The foot in the air at ``t`` (None in double support)."""
+        for step in self.steps:
+            if step.lift_at <= t < step.land_at:
+                return step.side
+        return None
+
+    def in_double_support(self, t: float) -> bool:
+        return self.swinging(t) is None
+
+    # -- planning ----------------------------------------------------------------------
+
+    def settle(self, start: Tuple[float, float], t0: float, t1: float) -> None:
+        """Before any walk: the ZMP goes from ``start`` (where the CoM stands when the
+        module starts) to between the feet, from ``t0`` to ``t1``."""
+        centre = self.centre
+        self._knots = [(t0, float(start[0]), float(start[1])), (t1, centre[0], centre[1])]
+
+    def nominal(self, centre: Planar, side: str, half_width: float) -> Planar:
+        return compose(centre, (0.0, half_width if side == "left" else -half_width, 0.0))
+
+    def plan(self, dx: float, dy: float, dyaw: float, t: float) -> int:
+        """Plan a walk of (dx, dy, dyaw) in the robot's centre frame; returns its steps."""
+        if self.steps:
+            raise ValueError("already walking: wait for the walk to end")
+        if not all(math.isfinite(v) for v in (dx, dy, dyaw)):
+            raise ValueError("the walk must be finite numbers")
+        self.set_aside = []
+        limits = self.timing.max_stride
+        strides = max(1, max(math.ceil(abs(v) / limit - 1e-9)
+                             for v, limit in zip((dx, dy, dyaw), limits)))
+        stride = (dx / strides, dy / strides, dyaw / strides)
+        left, right = self.feet["left"], self.feet["right"]
+        centre = midpoint(left, right)
+        half_width = self.half_width
+        side = "left" if (dy > 0 or (dy == 0 and dyaw >= 0)) else "right"
+        feet = dict(self.feet)
+        steps: List[Step] = []
+        for index in range(strides + 1):
+            moves = stride if index < strides else (0.0, 0.0, 0.0)
+            if index < strides:
+                centre = compose(centre, stride)
+            land = self.nominal(centre, side, half_width)
+            steps.append(Step(side, feet[side], land, moves, 0.0, 0.0, 0.0))
+            feet[side] = land
+            side = other(side)
+        self._schedule(steps, t)
+        return len(steps)
+
+    def _schedule(self, steps: List[Step], t: float, from_standing: bool = True) -> None:
+        """Give ``steps`` their times from ``t`` on and rebuild the ZMP plan (the first
+        weight shift is the slow one when the robot starts ``from_standing``)."""
+        timing = self.timing
+        zmp_x, zmp_y = (float(v[0]) for v in self.zmp(np.array([t])))
+        knots = [k for k in self._knots if k[0] < t] + [(t, zmp_x, zmp_y)]
+        feet = dict(self.feet)
+        for step in self.steps:   # a step in the air lands first
+            feet[step.side] = step.land
+        now = max(t, self.steps[-1].land_at if self.steps else t)
+        timed = []
+        for index, step in enumerate(steps):
+            shift = timing.first_shift if index == 0 and from_standing else timing.shift
+            stance = compose(feet[other(step.side)],
+                             (0.0, timing.inward if step.side == "left" else -timing.inward,
+                              0.0))
+            timed.append(replace(step, shift_at=now, lift_at=now + shift,
+                                 land_at=now + shift + timing.swing))
+            knots += [(now + shift, stance[0], stance[1]),
+                      (now + shift + timing.swing, stance[0], stance[1])]
+            feet[step.side] = step.land
+            now += shift + timing.swing
+        centre = midpoint(feet["left"], feet["right"])
+        knots.append((now + timing.last_shift, centre[0], centre[1]))
+        self.steps += timed
+        self._knots = knots
+
+    # -- playing ----------------------------------------------------------------------------
+
+    def update(self, t: float) -> List[Step]:
+        """Advance to ``t``; returns the steps that landed since the last call."""
+        landed = []
+        while self.steps and t >= self.steps[0].land_at:
+            step = self.steps.pop(0)
+            self.feet = {**self.feet, step.side: step.land}
+            self.travelled = compose(self.travelled, step.stride)
+            landed.append(step)
+        return landed
+
+    def halt(self, t: float) -> None:
+        """End the walk soon, both feet down and side by side: a step in the air lands; if
+        the feet are then apart, one *closing* step brings the next foot beside the other
+        (the ZMP keeps the walk's rhythm: changing where it goes while the CoM swings
+        towards the next stance foot would throw the robot sideways); the ZMP goes back
+        between the feet.  The steps not taken are set aside for :meth:`resume`."""
+        flying = [step for step in self.steps if step.lift_at <= t]
+        rest = [step for step in self.steps if step.lift_at > t]
+        if not rest:
+            return
+        feet = dict(self.feet)
+        for step in flying:
+            feet[step.side] = step.land
+        side = rest[0].side
+        beside = self.beside(feet[other(side)], side)
+        apart = math.hypot(beside[0] - feet[side][0], beside[1] - feet[side][1]) > 0.01 or \
+            abs(beside[2] - feet[side][2]) > 0.02
+        # Once its weight shift has begun, the next step is taken (in place if the feet
+        # are together): turning the CoM back at once would be the same jolt.
+        closing = [replace(rest[0], start=feet[side], land=beside, stride=(0.0, 0.0, 0.0))] \
+            if apart or rest[0].shift_at <= t else []
+        self.set_aside = rest + self.set_aside
+        self.steps = flying
+        zmp_x, zmp_y = (float(v[0]) for v in self.zmp(np.array([t])))
+        if closing and rest[0].shift_at <= t:
+            # its weight shift has begun: keep its times and ZMP knots, land beside
+            self.steps += closing
+            feet[side] = beside
+            end = closing[0].land_at
+            kept = [k for k in self._knots if t < k[0] <= end]
+        else:
+            end = max([t] + [step.land_at for step in flying])
+            kept = [k for k in self._knots if t < k[0] <= end]
+        centre = midpoint(feet["left"], feet["right"])
+        self._knots = [k for k in self._knots if k[0] < t] + [(t, zmp_x, zmp_y)] + kept + \
+            [(end + self.timing.last_shift, centre[0], centre[1])]
+        if closing and rest[0].shift_at > t:
+            self._schedule(closing, end, from_standing=False)
+
+    def beside(self, foot: Planar, side: str) -> Planar:
+        """Where the ``side`` foot stands beside ``foot`` (the other one), feet together."""
+        offset = self.half_width if side == "left" else -self.half_width
+        return compose(foot, (0.0, 2 * offset, 0.0))
+
+    def resume(self, t: float) -> int:
+        """Play the steps :meth:`halt` set aside, from ``t``; returns how many."""
+        if self.steps:
+            raise ValueError("still walking: wait for the halt to finish")
+        steps, self.set_aside = self.set_aside, []
+        if not steps:
+            return 0
+        # The first step set aside may have been planned from a foot that landed since.
+        steps[0] = replace(steps[0], start=self.feet[steps[0].side])
+        self._schedule(steps, t)
+        return len(steps)
+
+    def cancel(self, t: float) -> None:
+        """Halt and forget the rest of the walk."""
+        self.halt(t)
+        self.set_aside = []
