@@ -70,7 +70,7 @@ def walk(command: str, axis: int, amount: float) -> Tuple[str, List[float]]:
     moved = np.array(world.backend.plant.base_pose()) - before
     unit = "rad" if axis == 3 else "m"
     error = moved[axis] - amount
-    drift = "" if axis == 3 else f" (drift {np.hypot(*moved[:2]) - abs(moved[axis]):+.3f} m)"
+    drift = "" if axis == 3 else f" (drift {moved[1 - axis]:+.3f} m)"   # across the walk
     row = (f"{command:18s} {abs(moved[axis]) / seconds:6.3f} {unit}/s {error:+7.3f} {unit}"
            f"{drift:18s} {math.degrees(most_tilted):6.2f} {min(margins) * 100:7.1f}"
            f"  {'FELL' if fell else 'ok'}")
