@@ -4,10 +4,12 @@ Offline (simulated time, deterministic): each command covers 90-110 % of what wa
 the free-floating base upright all the way; pause and stop finish the step and stand; a push
 standing is survived, a larger one is warned about before the robot falls; bad walks are
 refused.  As processes (HAL, module, pilot over YARP): a metre walked with a pause on the way,
-a push through the HAL's rpc port, and the paper's door sequence."""
+a turn and a side step, pushes through the HAL's rpc port (one survived, one toppling that is
+warned about first), the paper's door sequence and the valve turned, standing unsupported."""
 
 import math
 import time
+from typing import Tuple
 
 import numpy as np
 import pytest
@@ -180,22 +182,48 @@ def test_a_metre_with_a_pause_on_the_way_as_processes(task_at):
     assert lowest > LOWEST_PELVIS and most_tilted < MAX_TILT, (lowest, most_tilted)
 
 
-def test_a_push_through_the_hal_is_survived_as_processes(task_at):
-    walk = task_at("yard", "walking", "--harness", "off")
-    scene = walk.scene
+def push(impulse: Tuple[float, float, float]) -> str:
+    """``[set] push`` on the HAL's rpc port, as a user does with ``yarp rpc``."""
     client = RpcClient("/test/pusher")
     try:
         assert client.connect("/walkman/rpc:i")
-        refused = client.call(Bottle(["set", "push", 1.0, "hard", 0.0]), timeout=10)
-        assert "push takes IX IY IZ" in refused.to_text(), refused.to_text()
-        reply = client.call(Bottle(["set", "push", 0.0, STANDING_PUSH, 0.0]), timeout=10)
-        assert reply.to_text() == "[ok]", reply.to_text()
+        return client.call(Bottle(["set", "push", *impulse]), timeout=10).to_text()
     finally:
         client.close()
+
+
+def test_turns_side_steps_and_a_push_standing_as_processes(task_at):
+    walk = task_at("yard", "walking", "--harness", "off")
+    scene = walk.scene
+    start = scene.base()
+    for command, axis, amount in (("turn 0.8", 3, 0.8), ("step_side 0.3", 1, 0.3)):
+        before = scene.base()
+        walk.command(command, {"turn": "turning", "step_side": "side_stepping"}[
+            command.split()[0]], 10)
+        walk.pilot.wait_state("idle", 40)
+        moved = scene.base()[axis] - before[axis]
+        if axis == 1:   # sideways in the robot's frame, which turned by 0.8 rad
+            moved = -math.sin(before[3]) * (scene.base()[0] - before[0]) + \
+                math.cos(before[3]) * (scene.base()[1] - before[1])
+        assert 0.9 <= moved / amount <= 1.1, (command, moved)
+        assert scene.tilt() < MAX_TILT
+    assert abs(scene.base()[3] - start[3] - 0.8) < 0.08
+    assert "push takes IX IY IZ" in push((1.0, "hard", 0.0))
+    assert push((0.0, STANDING_PUSH, 0.0)) == "[ok]"
     deadline = time.monotonic() + 4.0
     while time.monotonic() < deadline:
         assert scene.tilt() < MAX_TILT and scene.base()[2] > LOWEST_PELVIS
     assert walk.pilot.state() == "idle"
+
+
+def test_a_toppling_push_is_warned_about_before_the_fall_as_processes(task_at):
+    walk = task_at("yard", "walking", "--harness", "off")
+    scene = walk.scene
+    assert push((0.0, TOPPLING_PUSH, 0.0)) == "[ok]"
+    walk.pilot.wait_warning("balance: the measured ZMP is", 5)
+    warned_tilt = scene.tilt()
+    wait_until(lambda: scene.tilt() > 2 * MAX_TILT, 10, message="the robot falling")
+    assert warned_tilt < MAX_TILT, warned_tilt   # the pilot knew while it was still upright
 
 
 def pilot_pose(command: str, point: np.ndarray, base, *extra: float) -> str:
