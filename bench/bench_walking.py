@@ -72,7 +72,8 @@ def walk(command: str, axis: int, amount: float) -> Tuple[str, List[float]]:
     error = moved[axis] - amount
     drift = "" if axis == 3 else f" (drift {moved[1 - axis]:+.3f} m)"   # across the walk
     row = (f"{command:18s} {abs(moved[axis]) / seconds:6.3f} {unit}/s {error:+7.3f} {unit}"
-           f"{drift:18s} {math.degrees(most_tilted):6.2f} {min(margins) * 100:7.1f}"
+           f"{drift:18s} {math.degrees(most_tilted):6.2f} "
+           f"{min(margins) * 100 if margins else math.nan:7.1f}"
            f"  {'FELL' if fell else 'ok'}")
     return row, costs
 
@@ -81,7 +82,7 @@ def survives(impulse: Tuple[float, float, float], while_walking: bool) -> bool:
     world, module, _ = standing()
     if while_walking:
         module.command("go_straight 1.0")
-        world.step(2.0)      # in the first step's single support
+        world.step(1.5)      # in the first step's single support (1.0 to 1.8 s)
     world.backend.push(impulse)
     for _ in range(40):
         world.step(0.1)

@@ -100,7 +100,10 @@ def test_the_guard_trips_once_on_a_lasting_problem_and_rearms_after_a_safe_secon
     problem = guard.update(TRIP_TIME, SAFE_MARGIN / 2, 0.0)
     assert problem is not None and "from the edge of the feet" in problem
     assert guard.update(TRIP_TIME + 0.5, SAFE_MARGIN / 2, 0.0) is None   # once
-    for t in np.arange(1.0, 2.2, 0.1):
+    assert guard.update(0.7, 0.05, 0.0) is None      # safe for less than REARM_TIME ...
+    assert guard.update(1.0, SAFE_MARGIN / 2, 0.0) is None
+    assert guard.update(1.0 + 2 * TRIP_TIME, SAFE_MARGIN / 2, 0.0) is None   # ... not rearmed
+    for t in np.arange(1.3, 2.4, 0.1):               # safe for more: rearmed
         assert guard.update(t, 0.05, 0.0) is None
     assert guard.update(2.3, 0.05, 0.3) is None
     problem = guard.update(2.3 + TRIP_TIME, 0.05, 0.3)

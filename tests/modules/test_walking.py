@@ -98,7 +98,7 @@ def test_pause_finishes_the_step_and_stands_and_resume_walks_the_rest():
     assert upright(backend)
 
 
-def test_stop_mid_walk_lands_the_foot_and_comes_to_rest_standing():
+def test_stop_mid_walk_lands_the_foot_and_comes_to_rest_standing_and_start_walks_again():
     world, module = walker()
     backend = world.backend
     module.command("go_straight 1.0")
@@ -109,6 +109,13 @@ def test_stop_mid_walk_lands_the_foot_and_comes_to_rest_standing():
     world.step(3.0)
     assert upright(backend) and both_feet_loaded(backend)
     assert np.abs(np.array(backend.plant.base_pose()) - here)[:2].max() < 0.02
+    module.switch("start")        # the knees already bent: they do not bend further
+    world.step(walking.CROUCH_TIME + 0.5)
+    assert abs(backend.plant.base_pose()[2] - here[2]) < 0.02
+    module.command("go_straight 0.3")
+    world.step(0.1)
+    world.run_until(lambda: module.state == "idle", 30, "a walk after a restart")
+    assert backend.plant.base_pose()[0] - here[0] >= 0.27 and upright(backend)
 
 
 def test_a_push_while_standing_is_survived():
@@ -180,6 +187,12 @@ def test_a_metre_with_a_pause_on_the_way_as_processes(task_at):
     wait_until(walked, 40, interval=0.1, message="the rest of the walk")
     assert scene.base()[0] - start[0] >= 0.9
     assert lowest > LOWEST_PELVIS and most_tilted < MAX_TILT, (lowest, most_tilted)
+    walk.send("switch", "stop")      # the HAL holds the legs as walking commanded them
+    walk.pilot.wait_state("stopped", 10)
+    height = scene.base()[2]
+    deadline = time.monotonic() + 3.0
+    while time.monotonic() < deadline:
+        assert scene.tilt() < MAX_TILT and abs(scene.base()[2] - height) < 0.02
 
 
 def push(impulse: Tuple[float, float, float]) -> str:
@@ -211,9 +224,11 @@ def test_turns_side_steps_and_a_push_standing_as_processes(task_at):
     assert "push takes IX IY IZ" in push((1.0, "hard", 0.0))
     assert push((0.0, STANDING_PUSH, 0.0)) == "[ok]"
     deadline = time.monotonic() + 4.0
-    while time.monotonic() < deadline:
+    while time.monotonic() < deadline:   # each reading waits for the next scene (30 Hz)
         assert scene.tilt() < MAX_TILT and scene.base()[2] > LOWEST_PELVIS
     assert walk.pilot.state() == "idle"
+    x, y, yaw, margin, torso = walk.pilot.data()
+    assert margin > 0.02 and torso < 0.05   # standing again, the ZMP well inside the feet
 
 
 def test_a_toppling_push_is_warned_about_before_the_fall_as_processes(task_at):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from typing import Iterator, List
 
 import pytest
@@ -230,3 +231,43 @@ def test_a_hal_that_does_not_fit_fails_the_start_without_retrying(make_runner, m
     says(runner, lambda: runner.robot_failure is not None, "the connector giving up")
     assert len(attempts) == 1
     assert "the HAL does not fit this module" in runner.interfaces.warnings[-1]
+
+
+class Stander(Scripted):
+    """Keeps something safe while paused (walking keeps the robot balanced on its legs)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.paused_ticks = 0
+        self.ran_while_paused = threading.Event()
+
+    def run_paused(self) -> None:
+        self.paused_ticks += 1
+        self.ran_while_paused.set()
+
+
+def test_stop_of_a_running_module_waits_for_its_safe_pause_first(make_runner):
+    runner, module = running(make_runner)
+    stopping = in_background(runner.switch, "stop")
+    assert module.pause_checked.wait(TIMEOUT)     # stop asks, as pause does ...
+    assert runner.state == State.RUNNING and stopping.is_alive()   # ... and waits
+    module.may_pause.set()
+    stopping.join(TIMEOUT)
+    assert runner.state == State.STOPPED and module.releases == 1
+    assert not module.pause_requested             # a new start begins clean
+
+
+def test_paused_modules_are_silent_unless_they_keep_something_safe(make_runner):
+    quiet, quiet_module = running(make_runner)
+    quiet_module.may_pause.set()
+    quiet.switch("pause")
+    assert quiet.state == State.PAUSED and not Scripted.runs_while_paused()
+    stander = make_runner(Stander)
+    stander.switch("start")
+    stander.thread.may_pause.set()
+    stander.switch("pause")
+    assert stander.thread.ran_while_paused.wait(TIMEOUT)
+    stander.switch("resume")
+    ticks = stander.thread.paused_ticks
+    time.sleep(0.1)
+    assert stander.thread.paused_ticks <= ticks + 1   # running again: run(), not run_paused()

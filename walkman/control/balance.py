@@ -85,8 +85,8 @@ def to_world(pose: Tuple[float, float, float], point: Tuple[float, float]) -> np
 
 def combined_zmp(feet: Dict[str, Tuple[Tuple[float, float, float], Sequence[float]]],
                  sole: Sole) -> Tuple[Optional[np.ndarray], List[str]]:
-    """The ZMP in the walk frame from each foot's (planned pose, wrench), and the feet
-    in contact; (None, []) when no foot carries weight (the robot is in the air)."""
+    """The ZMP from each foot's (planar pose of its sole, wrench), in the frame of those
+    poses, and the feet in contact; (None, []) when no foot carries weight."""
     total = 0.0
     weighted = np.zeros(2)
     contacts = []

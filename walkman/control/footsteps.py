@@ -13,7 +13,7 @@ turns, and a last step brings the other foot beside it at ``Cm``: ``m + 1``
 steps, both feet side by side at the end.  The first foot to move is the one on
 the side the walk goes (left for a left turn or a step to the left).
 
-Each step is three phases:
+Each step is two phases, and the walk ends with a third:
 
 * *shift* (double support): the ZMP moves from where it is to the centre of the
   foot that will stand (the first shift of a walk is longer: the whole weight
@@ -171,9 +171,6 @@ class WalkPlan:
                 return step.side
         return None
 
-    def in_double_support(self, t: float) -> bool:
-        return self.swinging(t) is None
-
     # -- planning ----------------------------------------------------------------------
 
     def settle(self, start: Tuple[float, float], t0: float, t1: float) -> None:
@@ -182,8 +179,10 @@ class WalkPlan:
         centre = self.centre
         self._knots = [(t0, float(start[0]), float(start[1])), (t1, centre[0], centre[1])]
 
-    def nominal(self, centre: Planar, side: str, half_width: float) -> Planar:
-        return compose(centre, (0.0, half_width if side == "left" else -half_width, 0.0))
+    def nominal(self, centre: Planar, side: str) -> Planar:
+        """Where the ``side`` foot stands in a centre frame (feet side by side)."""
+        return compose(centre, (0.0, self.half_width if side == "left" else -self.half_width,
+                                0.0))
 
     def plan(self, dx: float, dy: float, dyaw: float, t: float) -> int:
         """Plan a walk of (dx, dy, dyaw) in the robot's centre frame; returns its steps."""
@@ -198,7 +197,6 @@ class WalkPlan:
         stride = (dx / strides, dy / strides, dyaw / strides)
         left, right = self.feet["left"], self.feet["right"]
         centre = midpoint(left, right)
-        half_width = self.half_width
         side = "left" if (dy > 0 or (dy == 0 and dyaw >= 0)) else "right"
         feet = dict(self.feet)
         steps: List[Step] = []
@@ -206,7 +204,7 @@ class WalkPlan:
             moves = stride if index < strides else (0.0, 0.0, 0.0)
             if index < strides:
                 centre = compose(centre, stride)
-            land = self.nominal(centre, side, half_width)
+            land = self.nominal(centre, side)
             steps.append(Step(side, feet[side], land, moves, 0.0, 0.0, 0.0))
             feet[side] = land
             side = other(side)
@@ -281,10 +279,9 @@ class WalkPlan:
             self.steps += closing
             feet[side] = beside
             end = closing[0].land_at
-            kept = [k for k in self._knots if t < k[0] <= end]
         else:
             end = max([t] + [step.land_at for step in flying])
-            kept = [k for k in self._knots if t < k[0] <= end]
+        kept = [k for k in self._knots if t < k[0] <= end]
         centre = midpoint(feet["left"], feet["right"])
         self._knots = [k for k in self._knots if k[0] < t] + [(t, zmp_x, zmp_y)] + kept + \
             [(end + self.timing.last_shift, centre[0], centre[1])]
@@ -293,8 +290,7 @@ class WalkPlan:
 
     def beside(self, foot: Planar, side: str) -> Planar:
         """Where the ``side`` foot stands beside ``foot`` (the other one), feet together."""
-        offset = self.half_width if side == "left" else -self.half_width
-        return compose(foot, (0.0, 2 * offset, 0.0))
+        return self.nominal(self.nominal(foot, side), side)   # via the centre frame
 
     def resume(self, t: float) -> int:
         """Play the steps :meth:`halt` set aside, from ``t``; returns how many."""

@@ -1,8 +1,8 @@
 """Kinematics of Walk-Man from its URDF, in whole-body joint order (Pinocchio).
 
 The pelvis is the fixed base: positions are expressed in the pelvis frame
-(``base``), which the harness holds still; a module that walks keeps its own
-estimate of where the pelvis is.  Frames are the URDF links (``torso``,
+(``base``); a module that walks keeps its own estimate of where the pelvis
+is in the world.  Frames are the URDF links (``torso``,
 ``head``, ``l_hand``...) and the sensor frames (``multisense_frame``,
 ``l_arm_ft_frame``...).
 """

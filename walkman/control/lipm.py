@@ -29,7 +29,7 @@ Everything here is pure: arrays in, arrays out, time passed in.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Tuple
+from typing import Callable, Optional, Tuple
 
 import numpy as np
 
@@ -37,7 +37,7 @@ GRAVITY = 9.81
 #: The preview controller's own step (s): fine enough for walking, coarse enough that
 #: the Riccati equation is well conditioned.
 STEP = 0.01
-#: How far ahead the controller looks (s): about two steps of the walk.
+#: How far ahead the controller looks (s): a step and its next weight shift (1.2 s a step).
 HORIZON = 1.6
 
 
@@ -51,11 +51,6 @@ class PreviewGains:
     A: np.ndarray
     b: np.ndarray
     C: np.ndarray
-
-    @property
-    def omega(self) -> float:
-        """The pendulum's natural frequency sqrt(g/z) (1/s)."""
-        return float(np.sqrt(GRAVITY / self.height))
 
 
 def cart_table(dt: float, height: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -125,31 +120,32 @@ class PreviewAxis:
         self.gains = gains
         self.x = np.array([position, 0.0, 0.0])
         self.error_sum = 0.0
-        self.jerk = 0.0
-        self.t = t0                   # when x was last computed (a controller step)
+        self.jerk: Optional[float] = None   # the input over [t, t + dt], once computed
+        self.t = t0                          # when x was last computed (a controller step)
 
-    def reset(self, position: float, velocity: float = 0.0) -> None:
-        self.x = np.array([position, velocity, 0.0])
-        self.error_sum = 0.0
-        self.jerk = 0.0
+    def _control(self, zmp_at: Callable[[np.ndarray], np.ndarray]) -> None:
+        """u[k] from x[k] and the plan ahead: the jerk over the coming step."""
+        g = self.gains
+        future = zmp_at(self.t + g.dt * np.arange(1, len(g.preview) + 1))
+        self.error_sum += float(g.C @ self.x) - float(zmp_at(np.array([self.t]))[0])
+        self.jerk = -g.integral * self.error_sum - float(g.state @ self.x) - \
+            float(g.preview @ future)
 
     def advance(self, now: float, zmp_at: Callable[[np.ndarray], np.ndarray]) -> None:
         """Run the controller's steps up to ``now``; ``zmp_at(times)`` gives the plan."""
         g = self.gains
+        if self.jerk is None:
+            self._control(zmp_at)
         while self.t + g.dt <= now + 1e-12:
-            times = self.t + g.dt * np.arange(1, len(g.preview) + 1)
-            future = zmp_at(times)
-            self.error_sum += float(g.C @ self.x) - float(zmp_at(np.array([self.t]))[0])
-            self.jerk = -g.integral * self.error_sum - float(g.state @ self.x) - \
-                float(g.preview @ future)
             self.x = g.A @ self.x + g.b * self.jerk
             self.t += g.dt
+            self._control(zmp_at)
 
     def sample(self, now: float) -> Tuple[float, float, float]:
         """(c, c', c'') at ``now`` (between steps: the step's constant jerk, integrated)."""
         tau = min(max(now - self.t, 0.0), self.gains.dt)
         c, v, a = self.x
-        j = self.jerk
+        j = self.jerk or 0.0
         return (c + v * tau + a * tau * tau / 2 + j * tau ** 3 / 6,
                 v + a * tau + j * tau * tau / 2, a + j * tau)
 

@@ -24,6 +24,9 @@ from enum import Enum
 from typing import Any, Dict
 
 
+#: s a running module may take to reach a safe pause (finish a step) on ``pause`` or ``stop``.
+PAUSE_GRACE = 5.0
+
 class State(str, Enum):
     CONSTRUCTOR = "constructor"
     RUNNING = "running"

@@ -21,8 +21,8 @@ import numpy as np
 
 from walkman.control.kinematics import Kinematics
 from walkman.gym.interfaces import RecordingInterfaces
-from walkman.gym.lifecycle import (HOOKS, IllegalTransition, State, Switch, next_state,
-                                   parse_switch, releases, run_hook)
+from walkman.gym.lifecycle import (HOOKS, PAUSE_GRACE, IllegalTransition, State, Switch,
+                                   next_state, parse_switch, releases, run_hook)
 from walkman.gym.thread import ControlThread
 from walkman.hal.arbitration import JointArbiter
 from walkman.hal.backend import Backend
@@ -114,7 +114,8 @@ class OfflineModule:
                                       self.lifecycle == State.RUNNING):
             # as the runner: run() goes on until a safe pause
             self.thread.pause_requested = True
-            self.world.run_until(self.thread.ready_to_pause, 5.0, f"{self.name}: a safe pause")
+            self.world.run_until(self.thread.ready_to_pause, PAUSE_GRACE,
+                                 f"{self.name}: a safe pause")
         if switch != Switch.PAUSE:
             self.thread.pause_requested = False
         hook = HOOKS[switch]

@@ -47,8 +47,8 @@ from typing import Any, Dict, List, Optional, Tuple, Type
 from nodekit.logs import time_prefix
 from walkman.gym import inifile
 from walkman.gym.interfaces import PilotInterfaces, decoder_for
-from walkman.gym.lifecycle import (HOOKS, IllegalTransition, State, Switch, next_state,
-                                   parse_switch, releases, run_hook)
+from walkman.gym.lifecycle import (HOOKS, PAUSE_GRACE, IllegalTransition, State, Switch,
+                                   next_state, parse_switch, releases, run_hook)
 from walkman.gym.thread import ControlThread, GenericThread
 from walkman.hal.protocol import HalProtocolError, HalUsageError
 from yarp_lite.errors import NetworkError
@@ -59,7 +59,6 @@ log = logging.getLogger("walkman.gym")
 EXIT_QUIT = 0
 EXIT_ESCALATED = 3
 HOOK_TIMEOUT = 2.0
-PAUSE_GRACE = 5.0  # s a module may take to reach a safe pause (finish a step)
 STATUS_PERIOD = 0.5
 CONNECT_RETRY = 2.0  # s between two attempts to reach a HAL that is not there yet
 DEFAULTS = {"thread_period": 10, "robot_name": "walkman", "urdf_path": ""}
@@ -142,9 +141,10 @@ class ControlLoop(threading.Thread):
                 runner.warn(f"{runner.name}: refused by the robot: {exc}")
                 runner.hold("a refused command")
             except Exception as exc:  # the module's bug: told with its traceback, hold, stop
-                runner.warn(f"{runner.name}: run() raised {type(exc).__name__}: {exc}",
+                hook = "run()" if state == State.RUNNING else "run_paused()"
+                runner.warn(f"{runner.name}: {hook} raised {type(exc).__name__}: {exc}",
                             exc_info=True)
-                runner.hold("run() raised")
+                runner.hold(f"{hook} raised")
                 runner.fail_stop()
             deadline += period
             delay = deadline - time.perf_counter()
@@ -313,7 +313,9 @@ class ModuleRunner:
         if self.robot is None:
             return
         try:
-            held = self.robot.hold()
+            posture = self._module_posture()
+            held = self.robot.hold() if posture is None else \
+                self.robot.move(posture, joints=getattr(self.thread, "joints", None))
         except HalUsageError as exc:
             self.warn(f"{self.name}: could not hold the robot after {after}: {exc}")
             return
@@ -324,6 +326,16 @@ class ModuleRunner:
         if not held:
             self.warn(f"{self.name}: could not hold the robot after {after}: the HAL does not "
                       f"take commands")
+
+    def _module_posture(self):
+        """The module's :meth:`held_posture`, or None if it has none or it fails."""
+        if not isinstance(self.thread, ControlThread):
+            return None
+        try:
+            return self.thread.held_posture()
+        except Exception:  # the module's bug: hold what the joints read instead
+            log.exception("%s: held_posture() failed; holding the sensed posture", self.name)
+            return None
 
     def fail_stop(self) -> None:
         """After run() raised (control thread): stop, unless the pilot stopped it meanwhile."""
@@ -416,9 +428,9 @@ class ModuleRunner:
         return True
 
     def _stop(self, switch: Switch) -> bool:
-        """``stop`` or ``quit``: the state changes first, so run() is not called again.
-        ``stop`` of a running module first lets it reach a safe pause, as ``pause`` does
-        (walking lands its foot and comes to rest), then stops."""
+        """``stop`` or ``quit``.  ``stop`` of a running module first lets it reach a safe
+        pause, as ``pause`` does (walking lands its foot and comes to rest); then the state
+        changes, so run() is not called again."""
         if switch == Switch.STOP and self.state == State.RUNNING:
             self._reach_safe_pause()
         self.thread.pause_requested = False

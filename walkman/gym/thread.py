@@ -1,7 +1,10 @@
 """What a module developer inherits: :class:`GenericThread` and :class:`ControlThread`.
 
 The paper's ``generic_thread``: override ``custom_init`` (required) and
-``run``; optionally ``custom_pause``, ``custom_resume``, ``custom_release``.
+``run``; optionally ``custom_pause``, ``custom_resume``, ``custom_release``,
+``ready_to_pause`` (``pause`` and ``stop`` wait for it: walking lands its
+foot), ``run_paused`` (a paused module that must keep the robot safe) and
+``held_posture`` (what the robot holds once the module stops).
 Everything else -- ports, the pilot interfaces, the lifecycle, the loop
 timing, reconnections -- is the runner's job (:mod:`walkman.gym.runner`).
 
@@ -119,7 +122,7 @@ class GenericThread:
         Paused, a module is silent so that another may use the robot (the paper's
         door sequence).  A module whose robot would not stay safe without it -- walking:
         nothing else keeps a free-standing robot balanced -- overrides this to go on
-        commanding *only* the joints that keeps it safe (the legs); the HAL frees the
+        commanding *only* the joints that keep it safe (the legs); the HAL frees the
         others (the waist) for the next module once they have been silent."""
 
     @classmethod
@@ -146,6 +149,12 @@ class ControlThread(GenericThread):
         super().__init__(name, config, interfaces, on_status_change)
         self.robot = robot
         self.kinematics = kinematics
+
+    def held_posture(self):
+        """What the robot holds when the module stops or fails: None (the default) holds
+        the posture the joints read; a module whose command differs from that on purpose
+        (walking makes up for the legs' springs) returns its command for its joints."""
+        return None
 
     def sense(self):
         return self.robot.sense_position()

@@ -41,6 +41,7 @@ LATCH_RELEASE = -0.5   # rad of the door handle (down) that frees the latch
 PUSH_BODY = "torso"    # where a simulated push lands (a hand on the robot's chest)
 PUSH_TIME = 0.1        # s a push lasts
 MAX_PUSH = 500.0       # N*s: the largest impulse the simulator accepts
+MAX_PUSH_FORCE = 5000.0  # N: and the largest force (a short push is a hard one)
 HARNESS_MODES = ("locked", "trolley", "off")
 
 
@@ -227,6 +228,9 @@ class SimBackend(Backend):
                              f"{MAX_PUSH:.0f} N*s")
         if not 0.001 <= duration <= 1.0:
             raise ValueError(f"a push lasts 0.001..1 s, got {duration}")
+        if np.linalg.norm(impulse) / duration > MAX_PUSH_FORCE:
+            raise ValueError(f"a push of {np.linalg.norm(impulse):.0f} N*s over {duration} s "
+                             f"is more than {MAX_PUSH_FORCE:.0f} N: make it last longer")
         self._push_force = impulse / duration
         self._push_until = self.time + duration
 

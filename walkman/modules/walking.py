@@ -43,7 +43,8 @@ tilted too far) the module says so on its warning port, drops the rest of the
 walk and stands.  The status carries the odometry of the steps taken (x, y in
 metres, yaw in radians) and the balance figures: the measured ZMP's margin to
 the support polygon's edge (m, nan with no foot on the floor) and the torso's
-tilt (rad), twice a second and at every landing.
+tilt (rad), twice a second and at every landing (not while paused: the pilot
+then sees ``paused``).
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ from walkman.control.balance import (AnkleCompliance, AttitudeLoop, BalanceGuard
 from walkman.control.footsteps import SIDES, Planar, WalkPlan
 from walkman.control.lipm import PreviewAxis, preview_gains
 from walkman.control.trajectory import quintic
+from walkman.model.description import home_posture
 from walkman.modules.task import TaskModule, task_statuses
 
 LEGS = {"left": ["LHipLat", "LHipYaw", "LHipSag", "LKneeSag", "LAnkSag", "LAnkLat"],
@@ -73,7 +75,7 @@ TICK_IK_ITERATIONS = 20
 SETTLED_SPEED = 0.01                   # m/s: the CoM is at rest below this
 REPORT_PERIOD = 0.5                    # s between balance reports on the status port
 DEFLECTION_SHARE = 0.8                 # of the legs' measured spring deflection made up for
-ANKLE_AIM = (0.08, 0.04)               # m: a foot's desired CoP stays this far inside its sole
+ANKLE_AIM = (0.08, 0.04)               # m: the most a foot's desired CoP is off its sole's centre
 #: s the ankles stay compliant after a walk's last motion; standing, they are stiff: a
 #: stiff ankle is what holds the robot against a push (compliant, it gives way)
 ANKLE_AFTER = 1.0
@@ -84,11 +86,6 @@ TABLE = {
     "turning": {"action_done": "idle"},
     "side_stepping": {"action_done": "idle"},
 }
-
-
-def rotation_z(yaw: float) -> np.ndarray:
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 class Module(TaskModule):
@@ -109,13 +106,18 @@ class Module(TaskModule):
                                      float(soles[side][1] - middle[1]), 0.0)
                               for side in SIDES})
         standing = float(-middle[2])          # pelvis above the soles
-        self.height = (standing, standing - CROUCH, self.now())
+        # CROUCH below the home posture's height, whatever the start (a module stopped and
+        # started again finds the knees already bent)
+        home = home_posture(self.kinematics.robot)
+        home_q = np.array([home[name] for name in self.robot.joint_names])
+        crouched = -float((self.sole(home_q, "left") + self.sole(home_q, "right"))[2]) / 2 - CROUCH
+        self.height = (standing, crouched, self.now())
         self.pelvis_xy = -middle[:2]
         self.leg_index = {side: self.ik.joints_of(joints) for side, joints in LEGS.items()}
         waist = [self.robot.index[name] for name in WAIST]
         self.reference[waist] = 0.0  # upright
         com = self.kinematics.com(self.reference)
-        gains = preview_gains(standing - CROUCH + float(com[2]))
+        gains = preview_gains(crouched + float(com[2]))
         start = self.pelvis_xy + com[:2]
         self.plan.settle(start, self.now(), self.now() + CROUCH_TIME)
         self.axes = [PreviewAxis(gains, float(start[axis]), self.now()) for axis in (0, 1)]
@@ -124,14 +126,13 @@ class Module(TaskModule):
         self.ankles = {side: AnkleCompliance() for side in SIDES}
         self.sole_shape = Sole()
         self.halted_for_pause = False
-        self.paused = False   # paused and still balancing (run_paused)
-        legs = np.concatenate(list(self.leg_index.values()))
-        self.compensated = legs
+        self.legs = np.concatenate(list(self.leg_index.values()))
         self.stiffness = np.array([self.kinematics.robot.joint(self.robot.joint_names[i]).stiffness
-                                   for i in legs])
-        self.deflection = np.zeros(len(legs))
+                                   for i in self.legs])
+        self.deflection = np.zeros(len(self.legs))
+        self.posture = q.copy()   # for the CoM: the legs as commanded, the rest as measured
         self.margin: Optional[float] = None
-        self.wrenches: Dict[str, Optional[np.ndarray]] = {}
+        self.wrenches: Dict[str, np.ndarray] = {}
         self.com_velocity = np.zeros(2)
         self.roll_pitch = (0.0, 0.0)
         self.last_tick = self.last_report = self.now()
@@ -149,7 +150,8 @@ class Module(TaskModule):
     # -- commands ----------------------------------------------------------------------
 
     def _walk(self, dx: float, dy: float, dyaw: float) -> None:
-        self.plan.plan(dx, dy, dyaw, self.now())
+        # asked while the knees still bend: the walk starts when they are done
+        self.plan.plan(dx, dy, dyaw, max(self.now(), self.height[2] + CROUCH_TIME))
 
     def _start_go_straight(self, distance: float) -> None:
         if not 0.01 <= abs(distance) <= 5.0:
@@ -176,10 +178,10 @@ class Module(TaskModule):
         samples = [axis.sample(now) for axis in self.axes]
         return np.array([s[0] for s in samples]), np.array([s[1] for s in samples])
 
-    def sense_balance(self) -> Tuple[Optional[np.ndarray], float]:
-        """(measured ZMP, tilt), the ZMP in the *level frame* (the pelvis frame turned by
-        the IMU's roll and pitch: z up), and the ZMP's margin to the support polygon
-        (:attr:`margin`).  Only the fast sensors count (F/T, IMU: 100 Hz, a few ports):
+    def sense_balance(self) -> float:
+        """The torso's tilt; the measured ZMP's margin to the support polygon
+        (:attr:`margin`), both in the *level frame* (the pelvis frame turned by the IMU's
+        roll and pitch: z up).  Only the fast sensors count (F/T, IMU: 100 Hz, a few ports):
         the joints' state streams on a port per chain at 500 Hz and, on a loaded machine,
         reaches a module late (100 ms of lag there and the robot falls), so the feet are
         placed where the legs are commanded -- the deflection compensation puts them
@@ -191,9 +193,9 @@ class Module(TaskModule):
         self.roll_pitch = (roll, pitch)
         tilt = math.hypot(roll, pitch)
         self.margin = None
-        self.wrenches = {side: w for side, w in wrenches.items() if w is not None and len(w) >= 6}
+        self.wrenches = {side: w for side, w in wrenches.items() if len(w) >= 6}
         if len(self.wrenches) < len(SIDES):
-            return None, tilt
+            return tilt
         level = rotation_rpy(roll, pitch, 0.0)
         soles: Dict[str, Planar] = {}
         for side in SIDES:
@@ -205,9 +207,10 @@ class Module(TaskModule):
                                      self.sole_shape)
         if zmp is not None:
             self.margin = support_margin(zmp, soles, contacts, self.sole_shape)
-        return zmp, tilt
+        return tilt
 
-    def track(self) -> None:
+    def track(self, paused: bool = False) -> None:
+        """One tick of the walk (``paused``: standing for another module, see run_paused)."""
         now = self.now()
         dt = min(max(now - self.last_tick, 0.0), 0.05)
         self.last_tick = now
@@ -216,7 +219,7 @@ class Module(TaskModule):
             plan.halt(now)
             self.halted_for_pause = True
         landed = plan.update(now)
-        if (landed or now - self.last_report >= REPORT_PERIOD) and not self.paused:
+        if (landed or now - self.last_report >= REPORT_PERIOD) and not paused:
             self.report()  # odometry once per step, balance twice a second
             self.last_report = now
         com_ref, velocity = self.com_reference(now)
@@ -227,7 +230,7 @@ class Module(TaskModule):
         feet = {side: plan.foot(side, now) for side in SIDES}
         planar = {side: feet[side][0] for side in SIDES}
         yaw = (planar["left"][2] + planar["right"][2]) / 2
-        zmp, tilt = self.sense_balance()
+        tilt = self.sense_balance()
         roll, pitch = self.attitude.update(dt, *self.roll_pitch)
         self.guard_check(now, tilt)
         start, end, t0 = self.height
@@ -237,9 +240,9 @@ class Module(TaskModule):
         # but held while paused: another module's hand then works in a pelvis frame that
         # stays put in the world (a door handle in its grip), the legs' springs and the
         # pelvis attitude taking the load.
-        if not self.paused:
+        if not paused:
             self.posture = self.sensed.copy()
-        self.posture[self.compensated] = self.reference[self.compensated]
+        self.posture[self.legs] = self.reference[self.legs]
         offset = rotation @ self.kinematics.com(self.posture)
         self.pelvis_xy = com_ref - offset[:2]
         pelvis = np.array([self.pelvis_xy[0], self.pelvis_xy[1], pelvis_z])
@@ -264,7 +267,7 @@ class Module(TaskModule):
         for side in SIDES:
             wrench = self.wrenches.get(side)
             measured = foot_zmp(wrench, self.sole_shape) if stepping and wrench is not None \
-                and len(wrench) >= 6 and side != swinging else None
+                and side != swinging else None
             desired = (0.0, 0.0)
             if swinging is not None and side != swinging:
                 local = to_local(planar[side], zmp)
@@ -285,12 +288,10 @@ class Module(TaskModule):
             tau += self.kinematics.wrench_torques(self.reference, f"{SENSORS[side]}_frame",
                                                   wrench)
         alpha = min(1.0, self.thread_period / 0.05)
-        legs = self.compensated
-        self.deflection += alpha * (tau[legs] / self.stiffness - self.deflection)
+        self.deflection += alpha * (tau[self.legs] / self.stiffness - self.deflection)
         out = self.reference.copy()
-        start, _, t0 = self.height
-        ramp = min(1.0, max(0.0, (self.now() - t0) / CROUCH_TIME))
-        out[legs] += ramp * DEFLECTION_SHARE * self.deflection
+        ramp = min(1.0, max(0.0, (self.now() - self.height[2]) / CROUCH_TIME))
+        out[self.legs] += ramp * DEFLECTION_SHARE * self.deflection
         return out
 
     def guard_check(self, now: float, tilt: float) -> None:
@@ -309,14 +310,18 @@ class Module(TaskModule):
     def run_paused(self) -> None:
         """Paused, the robot stands balanced: the balance loops go on, on the legs only
         (the waist is free for another module: the paper's door sequence)."""
-        self.paused = True
-        self.track()
+        self.track(paused=True)
         self.robot.move(self.commanded(), joints=LEGS["left"] + LEGS["right"])
+
+    def held_posture(self) -> np.ndarray:
+        """Stopped, the robot holds the legs as commanded, springs made up for (the posture
+        the joints read would let it sag by the deflection)."""
+        return self.commanded()
 
     def custom_pause(self) -> bool:
         return True  # both feet are down, the CoM at rest: keep the reference as it is
 
     def custom_resume(self) -> bool:
-        self.halted_for_pause = self.paused = False
-        self.plan.resume(self.now())
+        self.plan.resume(self.now())   # raises while a step is still in the air
+        self.halted_for_pause = False
         return True
