@@ -28,7 +28,9 @@ def test_steer_and_accelerate(task_at):
         assert drive.scene.prop("steering") - before == pytest.approx(angle, rel=0.1), command
     drive.send("command", "accelerate 1")
     drive.pilot.wait_warning("the foot is not on the pedal (rotate_foot first)")
-    drive.command("rotate_foot", "drive")
+    drive.send("command", "rotate_foot")   # from drive back to drive: see it leave first
+    wait_until(lambda: drive.pilot.state() != "drive", 10, message="rotate_foot")
+    drive.pilot.wait_state("drive", 40)
     drive.send("command", "accelerate 2")
     samples = []  # (time, throttle angle)
     wait_until(lambda: drive.pilot.state() == "accelerating", 10, message="accelerating")

@@ -65,7 +65,7 @@ def _half_extents(geom: Geom) -> Vec3:
     return tuple(extents)  # type: ignore[return-value]
 
 
-#: N*m*s/rad: servo damping of the joints that carry the robot (legs, waist).
+#: N*m*s/rad: servo damping of the joints that carry the robot (the legs).
 SUPPORT_DAMPING = 400.0
 
 
@@ -83,7 +83,7 @@ class Joint:
     velocity: float = 3.0
     #: Series-elastic stiffness (N*m/rad) of the actuator; hands are stiff.
     stiffness: float = 3000.0
-    #: Servo damping (N*m*s/rad).  The legs and waist carry the whole robot: at 60 their
+    #: Servo damping (N*m*s/rad).  The legs carry the whole robot: at 60 their
     #: springs and the body's mass sway at ~1 Hz with 8 % damping, which a walking
     #: controller cannot outrun; at :data:`SUPPORT_DAMPING` the sway is well damped.
     damping: float = 60.0
@@ -166,13 +166,9 @@ def walkman() -> Robot:
     link("waist_sag", 1.5, _box(0.05, 0.05, 0.04, (0, 0, 0.04)))
     link("torso", 28.0, _box(0.13, 0.2, 0.22, (0, 0, 0.24), ORANGE),
          _box(0.09, 0.12, 0.06, (-0.15, 0, 0.26), DARK), com=(0, 0, 0.24))
-    support = {"damping": SUPPORT_DAMPING}
-    joint("WaistLat", "torso", "pelvis", "waist_lat", (0, 0, 0.1), X, -0.6109, 0.6109, 120.0,
-          **support)
-    joint("WaistSag", "torso", "waist_lat", "waist_sag", (0, 0, 0.0), Y, -0.3491, 1.3963, 220.0,
-          **support)
-    joint("WaistYaw", "torso", "waist_sag", "torso", (0, 0, 0.08), Z, -2.8449, 2.8449, 120.0,
-          **support)
+    joint("WaistLat", "torso", "pelvis", "waist_lat", (0, 0, 0.1), X, -0.6109, 0.6109, 120.0)
+    joint("WaistSag", "torso", "waist_lat", "waist_sag", (0, 0, 0.0), Y, -0.3491, 1.3963, 220.0)
+    joint("WaistYaw", "torso", "waist_sag", "torso", (0, 0, 0.08), Z, -2.8449, 2.8449, 120.0)
 
     # -- head: NeckYawj, NeckPitchj; the camera looks along +x ---------------------------
     link("neck", 0.8, _capsule(0.04, 0.08, "z", (0, 0, 0.04)))
@@ -211,6 +207,7 @@ def walkman() -> Robot:
               (0.03, 0, -0.08), Y, 0.0, 1.5, 20.0, stiffness=100000.0)
         robot.sensors.append(Sensor(f"{side}_arm_ft", "ft", names[6], (0, 0, -0.01)))
 
+    support = {"damping": SUPPORT_DAMPING}
     # -- legs: HipLat, HipYaw, HipSag, KneeSag, AnkSag, AnkLat ---------------------------
     for side, sign in (("l", 1.0), ("r", -1.0)):
         prefix = side.upper()
