@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+import types
 from typing import Iterator, List
 
 import pytest
@@ -271,3 +272,24 @@ def test_paused_modules_are_silent_unless_they_keep_something_safe(make_runner):
     ticks = stander.thread.paused_ticks
     time.sleep(0.1)
     assert stander.thread.paused_ticks <= ticks + 1   # running again: run(), not run_paused()
+
+
+def test_a_module_clock_stands_still_while_the_robot_is_lost(monkeypatch):
+    """Trajectories go on from where they paused when the HAL is back, not further on."""
+    runner = ModuleRunner("harnessed", Harnessed, {"thread_period": 10},
+                          interfaces=RecordingInterfaces("/harnessed", Harnessed))
+    now = [100.0]
+    monkeypatch.setattr(runner_module.time, "monotonic", lambda: now[0])
+    robot = types.SimpleNamespace(connected=True, state_age=0.0)
+    runner.robot = robot
+    assert runner.robot_alive() and runner.control_clock() == 100.0
+    now[0] = 101.0
+    robot.connected, robot.state_age = False, 0.6
+    assert not runner.robot_alive()               # lost at 101
+    now[0] = 104.0
+    assert runner.control_clock() == 101.0        # still
+    robot.connected = True
+    assert runner.robot_alive()                   # back at 104: 3 s lost
+    now[0] = 105.0
+    assert runner.control_clock() == 102.0
+    assert "lost the robot (HAL silent for 0.6 s)" in runner.interfaces.warnings[0]
