@@ -392,16 +392,25 @@ def split(pixels: np.ndarray, header: RasterHeader, meta: bytes,
     cells = max(1.0, 0.75 * room / per_cell)
     align = 16 if header.codec == JPEG else 1
     side = max(align, int(math.sqrt(cells)) // align * align)
-    tile_w = min(width, max(1, side if height > 1 else int(cells)))
-    tile_h = min(height, max(1, int(cells // tile_w)))
-    if header.codec == JPEG and tile_h > 16:
-        tile_h = tile_h // 16 * 16
+    guess_w = min(width, max(1, side if height > 1 else int(cells)))
+    guess_h = min(height, max(1, int(cells // guess_w)))
+    # As many columns and rows as the guess needs, then tiles of equal size: a lost
+    # datagram then costs 1/n of the frame, never a big tile beside slivers.
+    columns = _even_cuts(width, math.ceil(width / guess_w), align)
+    rows = _even_cuts(height, math.ceil(height / guess_h), align)
     bodies: List[bytes] = []
-    for y in range(0, height, tile_h):
-        for x in range(0, width, tile_w):
-            _cover(pixels, header, meta, x, y, min(tile_w, width - x), min(tile_h, height - y),
-                   room, bodies)
+    for y, y_end in zip(rows, rows[1:]):
+        for x, x_end in zip(columns, columns[1:]):
+            _cover(pixels, header, meta, x, y, x_end - x, y_end - y, room, bodies)
     return bodies
+
+
+def _even_cuts(length: int, parts: int, align: int) -> List[int]:
+    """Where to cut ``length`` into ``parts`` near-equal pieces, at multiples of ``align``
+    (JPEG codes 16-pixel blocks): ``[0, ..., length]``."""
+    blocks = math.ceil(length / align)
+    parts = max(1, min(parts, blocks))
+    return [min(length, round(i * blocks / parts) * align) for i in range(parts + 1)]
 
 
 def _cover(pixels: np.ndarray, header: RasterHeader, meta: bytes, x: int, y: int, w: int,

@@ -45,6 +45,18 @@ def test_jpeg_tiles_fit_and_rebuild_the_image():
     assert error[120:].mean() < 3 and error.mean() < 8  # JPEG at 85 %, noise patch included
 
 
+@pytest.mark.parametrize("height, width", [(120, 160), (240, 320), (544, 1024), (480, 640)])
+def test_a_frame_is_cut_into_near_equal_tiles(height, width):
+    """A lost datagram costs about 1/n of the frame: no big tile beside slivers (a
+    160 x 120 image was once a 65 % tile and three small ones)."""
+    yy, xx = np.mgrid[0:height, 0:width]
+    image = np.stack([xx % 256, yy * 255 // height, (xx + yy) % 256], -1).astype(np.uint8)
+    bodies = tiles.split(image, tiles.header_for(image, tiles.JPEG, 80), b"")
+    shares = [tiles.decode_tile(body)[0].cells / (height * width) for body in bodies]
+    assert sum(shares) == pytest.approx(1.0)
+    assert max(shares) <= 1.6 * min(shares), shares     # within a 16-pixel block row/column
+
+
 def test_jpeg_tiles_do_not_carry_the_jpeg_header():
     image = camera_image()
     bodies = tiles.split(image, tiles.header_for(image, tiles.JPEG, 85), b"")
