@@ -93,10 +93,17 @@ class _InputUnit:
             if not self._handshake():
                 return
             source = self.carrier.receiver(self.stream, self.stream.where, port.max_message)
+            latest_only, interval = port._latest_only, port._min_interval
             while not self.closing:
                 message = source.next()
+                data = message.command in ("d", "D") and not message.wants_reply
+                if latest_only and data and source.more_waiting():
+                    port._superseded(message)   # a newer one is already here: not decoded
+                    continue
                 if not self._handle(message):
                     break
+                if latest_only and data and interval:
+                    time.sleep(interval)        # what comes meanwhile waits in the socket
         except RemoteProtocolError as exc:
             log.warning("%s: dropping connection from %s: %s", port.name,
                         self.route.source or self.stream.remote_address, exc)
@@ -286,6 +293,13 @@ class Port:
     argument); what it returns is the reply sent back when the sender asked
     for one.  Without it, :meth:`read` blocks until a message arrives.
     """
+
+    #: A message that a newer one already waiting behind supersedes is skipped undecoded
+    #: (a latest-only reader that fell behind catches up at once instead of working through
+    #: the backlog in its socket: :class:`~yarp_lite.buffered_port.BufferedPort`).
+    _latest_only = False
+    #: Latest-only: the least time between two messages delivered from one connection.
+    _min_interval = 0.0
 
     def __init__(self, name: Optional[str] = None, *, reader: Optional[Reader] = None,
                  nameclient: Optional[NameClient] = None, timeout: Optional[float] = None,
@@ -568,6 +582,13 @@ class Port:
     def output_count(self) -> int:
         return len(self.output_routes())
 
+    @property
+    def has_outputs(self) -> bool:
+        """Whether any output is connected, without asking each socket whether its reader
+        is still alive (:attr:`output_count` does): for a writer deciding every tick whether
+        to encode at all.  A dead reader is found, and dropped, by the next write."""
+        return bool(self._outputs)
+
     def wait_for_inputs(self, count: int = 1, timeout: float = 10.0) -> bool:
         deadline = time.monotonic() + timeout
         with self._input_events:
@@ -647,6 +668,9 @@ class Port:
     def reply(self, bottle: Union[Bottle, Sequence]) -> bool:
         """Answer the message taken by ``read(will_reply=True)``."""
         return self._handoff.give_reply(bottle if isinstance(bottle, Bottle) else Bottle(bottle))
+
+    def _superseded(self, message: Incoming) -> None:
+        """A data message skipped for a newer one (latest-only ports count them)."""
 
     def _deliver(self, message: Incoming, unit: "_InputUnit") -> Union[None, Bottle, Payload]:
         """Hand one data message to the owner; return its reply, if any."""

@@ -61,6 +61,10 @@ class Stream:
     def flush(self) -> None:
         """Mark a message boundary (datagram streams send here)."""
 
+    def readable_now(self) -> bool:
+        """Whether a read would find bytes at once (never blocks)."""
+        return False
+
     def close(self) -> None:
         raise NotImplementedError
 
@@ -160,6 +164,14 @@ class SocketStream(Stream):
     @property
     def buffered(self) -> int:
         return len(self._buffer) - self._start
+
+    def readable_now(self) -> bool:
+        if self.buffered:
+            return True
+        try:
+            return bool(self.sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT))
+        except (OSError, ValueError):
+            return False
 
     def _take(self, count: int) -> bytes:
         data = bytes(self._buffer[self._start:self._start + count])

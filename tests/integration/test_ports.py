@@ -143,7 +143,7 @@ def test_buffered_port_latest_only_and_strict(lite_world, ports):
 
 def test_buffered_port_callback_and_background_write(lite_world, ports):
     seen = []
-    ports(BufferedPort, "/cb", on_read=seen.append)
+    ports(BufferedPort, "/cb", on_read=seen.append, strict=True)
     writer = ports(BufferedPort, "/bw", strict=True)
     assert network.connect("/bw", "/cb").ok
     for index in range(50):
@@ -151,6 +151,27 @@ def test_buffered_port_callback_and_background_write(lite_world, ports):
     assert writer.wait_for_write(5)
     wait_until(lambda: len(seen) == 50)
     assert [b[0] for b in seen] == list(range(50))
+
+
+def test_a_latest_only_reader_that_fell_behind_skips_to_the_newest(lite_world, ports):
+    """As YARP's non-strict BufferedPort: a callback still busy when messages pile up
+    sees the newest next, not the backlog (a 500 Hz state stream read by a slow module
+    was up to a second old)."""
+    seen = []
+
+    def slow(bottle):
+        seen.append(bottle[0])
+        if len(seen) == 1:
+            time.sleep(0.3)                 # the backlog piles up in the connection
+
+    reader = ports(BufferedPort, "/behind", on_read=slow)
+    writer = ports(Port, "/fast")
+    assert network.connect("/fast", "/behind", "fast_tcp").ok      # no acks: the writer goes on
+    for index in range(200):
+        writer.write([index])
+    wait_until(lambda: seen and seen[-1] == 199, message=f"the newest message (saw {seen[-5:]})")
+    assert len(seen) < 50, seen
+    assert seen == sorted(seen) and reader.dropped == 200 - len(seen)
 
 
 def test_admin_interface(lite_world, ports):

@@ -308,35 +308,35 @@ class HalServer:
         now = time.perf_counter()
         for chain in self.chains.values():
             idx, ports = chain.indices, self.chain_ports[chain.name]
-            if ports["state_si"].output_count:
+            if ports["state_si"].has_outputs:
                 state = ChainState(seq, backend.time, q[idx].tolist(), qdot[idx].tolist(),
                                    tau[idx].tolist(), temperature[idx].tolist())
                 self.publisher.publish(ports["state_si"], protocol.encode_state_si(state))
             q_deg = np.degrees(q[idx])
-            if ports["state_ext"].output_count:
+            if ports["state_ext"].has_outputs:
                 data = JointData(tuple(q_deg.tolist()), tuple(np.degrees(qdot[idx]).tolist()),
                                  None, tuple(tau[idx].tolist()),
                                  tuple(chain.control_modes()),
                                  tuple(chain.interaction_modes()))
                 self.publisher.publish(ports["state_ext"],
                                        controlboard.encode_joint_data(data, len(idx)), envelope)
-            if ports["state"].output_count:
+            if ports["state"].has_outputs:
                 self.publisher.publish(ports["state"], Bottle(q_deg.tolist()), envelope)
         self.published_at[seq % PUBLISHED_HISTORY] = now
 
     def _publish_sensors(self) -> None:
         envelope = self.sensor_stamp.update(time.time()).envelope()
         for sensor, port in self.ft_ports.items():
-            if port.output_count:
+            if port.has_outputs:
                 wrench = self.ft_offsets[sensor].apply(self.backend.ft(sensor))
                 self.publisher.publish(port, protocol.encode_ft(wrench), envelope)
-        if self.imu_port is not None and self.imu_port.output_count:
+        if self.imu_port is not None and self.imu_port.has_outputs:
             imu = self.backend.imu()
             self.publisher.publish(self.imu_port, protocol.encode_inertial(
                 imu.rpy, imu.acceleration, imu.gyro), envelope)
 
     def _publish_world(self) -> None:
-        if self.world_port is not None and self.world_port.output_count:
+        if self.world_port is not None and self.world_port.has_outputs:
             plant = self.backend.plant
             self.publisher.publish(self.world_port,
                                    protocol.encode_world(self.backend.time, plant.d.qpos))

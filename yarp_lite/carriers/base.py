@@ -174,6 +174,11 @@ class MessageSource:
     def next(self) -> Incoming:
         raise NotImplementedError
 
+    def more_waiting(self) -> bool:
+        """Whether bytes of a further message have already arrived (a reader that is
+        behind can then skip decoding this one)."""
+        return False
+
 
 class TextMessageSource(MessageSource):
     """Reads text-mode messages: a command line, then a Bottle in text form."""

@@ -79,6 +79,9 @@ class BinaryMessageSource(MessageSource):
                     window.release()
                 decoder.feed(self.stream.read_some())
 
+    def more_waiting(self) -> bool:
+        return self.decoder.buffered > 0 or self.stream.readable_now()
+
 
 def read_binary_bottle(stream: Stream, limit: int = DEFAULT_MAX_MESSAGE) -> Bottle:
     """Read one self-delimiting binary Bottle (a reply has no length prefix)."""
