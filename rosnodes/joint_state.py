@@ -81,6 +81,7 @@ def main(argv=None) -> int:
     configure_logging("joint_state", False)
     from nodekit.ros_node import RosNode
     from walkman.control.kinematics import Kinematics
+    from walkman.hal.protocol import state_interval
     from walkman.hal.robot import Robot
 
     kinematics = None if options.no_tf else Kinematics()
@@ -105,7 +106,8 @@ def main(argv=None) -> int:
     ensure_importable()
     ros.when_ready(open_topics)
     ros.start()
-    robot = Robot("/joint_state", robot=options.robot, connect_timeout=float("inf"))
+    robot = Robot("/joint_state", robot=options.robot, connect_timeout=float("inf"),
+                  state_interval=state_interval(1.0 / options.rate))
     log.info("joint state: reading %d joints of /%s", len(robot.joint_names), options.robot)
     stop = threading.Event()
     import signal

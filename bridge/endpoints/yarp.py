@@ -37,7 +37,7 @@ from nodekit.connections import ConnectionKeeper
 from bridge.config import Channel
 from bridge.state_codec import Layout, RobotState, StateDecoder, StateEncoder, split_by_chain
 from walkman.hal import protocol
-from walkman.hal.protocol import ChainState, HalProtocolError
+from walkman.hal.protocol import ChainState, HalProtocolError, state_interval
 from walkman.hal.controlboard import JointData, Stamp, encode_joint_data
 from yarp_lite import network
 from yarp_lite.bottle import Bottle, Vocab
@@ -180,7 +180,8 @@ class RobotStateSink:
             self._temperature = np.zeros(start)
         for chain, _ in layout.chains:
             port = BufferedPort(nameclient=self.nameclient,
-                                on_read=lambda b, chain=chain: self._on_state(chain, b))
+                                on_read=lambda b, chain=chain: self._on_state(chain, b),
+                                min_interval=state_interval(1.0 / self.rate))
             port.open(f"/bridge/robot/state/{chain}:i")
             self._ports.append(port)
             self.keeper.want(protocol.port_names(self.robot, chain)["state_si"], port.name,

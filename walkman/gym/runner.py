@@ -241,6 +241,7 @@ class ModuleRunner:
         """The connector thread: retry while the HAL is not there; any other failure is final."""
         try:
             from walkman.control.kinematics import Kinematics
+            from walkman.hal.protocol import state_interval
             from walkman.hal.robot import Robot
 
             while self.robot is None:
@@ -249,7 +250,8 @@ class ModuleRunner:
                 try:
                     self.robot = Robot(self.prefix,
                                        robot=str(self.config.get("robot_name", "walkman")),
-                                       nameclient=self.nameclient, connect_timeout=3600)
+                                       nameclient=self.nameclient, connect_timeout=3600,
+                                       state_interval=state_interval(self.thread.thread_period))
                 except NetworkError as exc:
                     log.info("%s: HAL not reachable yet (%s)", self.name, exc)
                     time.sleep(CONNECT_RETRY)

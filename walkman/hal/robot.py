@@ -159,8 +159,10 @@ class Robot(WholeBody):
 
     def __init__(self, owner: str, robot: str = "walkman", model: Optional[RobotModel] = None,
                  nameclient: Optional[NameClient] = None, connect_timeout: float = 30.0,
-                 carrier: str = "fast_tcp") -> None:
+                 carrier: str = "fast_tcp", state_interval: float = 0.0) -> None:
         self.owner = owner.rstrip("/")
+        #: Read each chain's state at most this often (the newest; see :func:`walkman.hal.protocol.state_interval`).
+        self.state_interval = state_interval
         self.robot = robot
         self.model = model or walkman()
         self.nameclient = nameclient or NameClient()
@@ -213,7 +215,7 @@ class Robot(WholeBody):
         for chain, indices in self.chains.items():
             names = protocol.port_names(self.robot, chain)
             reader = self._on_state_ext if self.standard else self._on_state_si
-            state = BufferedPort(nameclient=self.nameclient)
+            state = BufferedPort(nameclient=self.nameclient, min_interval=self.state_interval)
             state.on_read = lambda b, chain=chain, idx=indices, port=state: reader(
                 chain, idx, b, port.envelope)
             state.open(f"{self.owner}/robot/{chain}/state:i")
