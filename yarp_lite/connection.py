@@ -56,6 +56,8 @@ class OutgoingConnection:
         self.target = target
         self.lock = threading.Lock()
         self.closed = False
+        #: A message sent by :meth:`send_unless_busy` whose acknowledgement is not read yet.
+        self._ack_owed = False
 
     @classmethod
     def open(cls, contact: Contact, sender: str, carrier: str = "",
@@ -114,6 +116,7 @@ class OutgoingConnection:
             if timeout is not None and isinstance(self.stream, SocketStream):
                 self.stream.set_timeout(timeout)
             try:
+                self._settle_ack()
                 self.carrier.write_message(self.stream, command, payload)
                 reply = self.carrier.read_reply(self.stream) if want_reply else None
                 if self.carrier.requires_ack:
@@ -126,6 +129,37 @@ class OutgoingConnection:
                         and not self.closed:
                     self.stream.set_timeout(None)
         return reply
+
+    def send_unless_busy(self, command: str, payload: Payload) -> bool:
+        """Send one data message without waiting for its acknowledgement; False, and
+        nothing sent, while the reader has not acknowledged the previous one.
+
+        YARP's non-strict writes skip a connection still busy with the previous
+        message: one slow ``tcp`` reader (an acknowledgement per message) then
+        cannot hold up a 500 Hz stream's other readers, nor the writer.
+        """
+        if self.closed:
+            raise NetworkError(f"{self.stream.where}: connection closed")
+        if not self.lock.acquire(blocking=False):
+            return False
+        try:
+            if self._ack_owed:
+                if not self.stream.readable_now():
+                    return False
+                self._settle_ack()
+            self.carrier.write_message(self.stream, "D" + command[1:], payload)
+            self._ack_owed = self.carrier.requires_ack
+            return True
+        except YarpError:
+            self.abort()
+            raise
+        finally:
+            self.lock.release()
+
+    def _settle_ack(self) -> None:
+        if self._ack_owed:
+            self._ack_owed = False
+            self.carrier.read_ack(self.stream)
 
     def send_text_command(self, command: str, timeout: float = 5.0) -> list:
         """Send a port command on a text connection and collect its answer lines."""
@@ -179,6 +213,7 @@ class OutgoingConnection:
         try:
             if self.carrier.can_escape and not self.carrier.connectionless:
                 with self.lock:
+                    self._settle_ack()
                     self.carrier.write_message(self.stream, "q", None)
                     if self.carrier.requires_ack:
                         self.stream.set_timeout(2.0) if isinstance(self.stream, SocketStream) \

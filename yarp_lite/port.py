@@ -99,6 +99,9 @@ class _InputUnit:
                 data = message.command in ("d", "D") and not message.wants_reply
                 if latest_only and data and source.more_waiting():
                     port._superseded(message)   # a newer one is already here: not decoded
+                    ack = self.carrier.ack_chunk()
+                    if ack:
+                        self.stream.write(ack)
                     continue
                 if not self._handle(message):
                     break
@@ -319,6 +322,8 @@ class Port:
         #: The key accepted connections must prove (read from auth.conf at open).
         self.credentials = auth.DISABLED
         self.envelope = ""
+        #: Writes skipped for a connection still busy (``write(..., skip_busy=True)``).
+        self.skipped_writes = 0
         self._admin_view = _AdminView(self)
         self._lock = threading.RLock()
         self._inputs: Dict[int, _InputUnit] = {}
@@ -601,11 +606,15 @@ class Port:
 
     # -- writing -----------------------------------------------------------------
 
-    def write(self, bottle: Union[Bottle, Sequence, Payload], envelope: str = "") -> bool:
+    def write(self, bottle: Union[Bottle, Sequence, Payload], envelope: str = "", *,
+              skip_busy: bool = False) -> bool:
         """Send to every output; False if any output failed (and was dropped).
 
         ``envelope`` travels beside the data, as YARP's ``Port::setEnvelope``
         sends it (a Stamp is ``"count time"``); readers see it as ``envelope``.
+        ``skip_busy`` (a stream where only the newest matters): never wait for a
+        reader's acknowledgement, and skip a connection still waiting for one
+        (:attr:`skipped_writes` counts them).
         """
         payload = bottle if isinstance(bottle, Payload) else BottlePayload(bottle)
         command = f"D {envelope}" if envelope else "D"
@@ -614,7 +623,11 @@ class Port:
         all_ok = True
         for unit in outputs:
             try:
-                unit.connection.send(command, payload, timeout=self.timeout)
+                if skip_busy:
+                    if not unit.connection.send_unless_busy(command, payload):
+                        self.skipped_writes += 1
+                else:
+                    unit.connection.send(command, payload, timeout=self.timeout)
             except YarpError as exc:
                 all_ok = False
                 log.info("%s: output to %s failed (%s); removing it", self.name,

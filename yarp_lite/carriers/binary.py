@@ -80,7 +80,9 @@ class BinaryMessageSource(MessageSource):
                 decoder.feed(self.stream.read_some())
 
     def more_waiting(self) -> bool:
-        return self.decoder.buffered > 0 or self.stream.readable_now()
+        # What the last read brought (a reader that is behind reads many messages at
+        # once); not the socket itself, a system call per message.
+        return self.decoder.buffered > 0
 
 
 def read_binary_bottle(stream: Stream, limit: int = DEFAULT_MAX_MESSAGE) -> Bottle:
