@@ -271,8 +271,9 @@ class ModuleRunner:
         self.wake.set()
 
     def _cannot_start(self, reason: str, exc_info: bool = False) -> None:
-        self.robot_failure = reason
+        # Said before it is set: whoever sees robot_failure finds the warning already out.
         self.warn(f"{self.name}: {reason}; the module cannot start", exc_info=exc_info)
+        self.robot_failure = reason
         self.wake.set()  # a start waiting for the robot is refused now
 
     # -- hooks, run by the control thread ---------------------------------------------------

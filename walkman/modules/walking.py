@@ -246,7 +246,7 @@ class Module(TaskModule):
         offset = rotation @ self.kinematics.com(self.posture)
         self.pelvis_xy = com_ref - offset[:2]
         pelvis = np.array([self.pelvis_xy[0], self.pelvis_xy[1], pelvis_z])
-        tilts = self.comply(dt, now, planar)
+        tilts = self.comply(dt, now, planar, paused)
         for side, index in self.leg_index.items():
             (x, y, foot_yaw), height = feet[side]
             target = rotation.T @ (np.array([x, y, height]) - pelvis)
@@ -257,12 +257,15 @@ class Module(TaskModule):
                                    max_iterations=TICK_IK_ITERATIONS)
             self.reference[index] = result.q[index]
 
-    def comply(self, dt: float, now: float, planar: Dict[str, Planar]) -> Dict[str, np.ndarray]:
+    def comply(self, dt: float, now: float, planar: Dict[str, Planar],
+               paused: bool = False) -> Dict[str, np.ndarray]:
         """Each foot's compliance tilt: its measured CoP driven to the desired one, the
-        planned ZMP on the foot that stands alone, the sole's centre in double support."""
+        planned ZMP on the foot that stands alone, the sole's centre in double support.
+        Also while paused: another module's arms and waist then move the CoM, which the
+        held pelvis does not follow (see :meth:`track`); the ankles keep it over the feet."""
         swinging = self.plan.swinging(now)
         zmp = [float(v[0]) for v in self.plan.zmp(np.array([now]))]
-        stepping = self.plan.walking or now < self.plan.end_time() + ANKLE_AFTER
+        stepping = self.plan.walking or now < self.plan.end_time() + ANKLE_AFTER or paused
         tilts = {}
         for side in SIDES:
             wrench = self.wrenches.get(side)
