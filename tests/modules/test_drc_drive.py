@@ -40,7 +40,9 @@ def test_steer_and_accelerate(task_at):
     pressed = sum(b[0] - a[0] for a, b in zip(samples, samples[1:]) if a[1] > peak / 2)
     assert peak > 0.1  # of the pedal's 0.35 rad
     assert 0.8 * 2 <= pressed <= 2 + 2.0, pressed
-    for command, state in (("move_away_foot", "drive"), ("ungrasp", "ungrasped"),
-                           ("move_away_hand", "moved_away_hand")):
+    drive.send("command", "move_away_foot")   # from drive back to drive: see it leave first
+    wait_until(lambda: drive.pilot.state() != "drive", 10, message="move_away_foot")
+    drive.pilot.wait_state("drive", 40)
+    for command, state in (("ungrasp", "ungrasped"), ("move_away_hand", "moved_away_hand")):
         drive.command(command, state)
     assert drive.scene.prop("throttle") < 0.02
