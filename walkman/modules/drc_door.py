@@ -12,8 +12,9 @@ y), then steps through the task:
 ``reach`` (in front of the lever), ``approach``, ``grasp``, ``turn [A]`` (the
 lever down by A rad, default 0.9: the latch lets go), ``open [A]`` (the hand
 pushes the door about its hinge by A rad, default 0.7, still holding the
-handle; repeatable), ``ungrasp``, ``move_away`` (straight back from where
-the hand is), ``home``.
+handle; repeatable), ``ungrasp`` (a turned lever is eased back up in the
+grip first, then the hand opens), ``move_away`` (straight back from where the
+hand is), ``home``.
 
 Same building blocks as the other tasks (:mod:`walkman.modules.task`): the
 table below, quintic Cartesian lines and arcs, per-tick IK over the left arm
@@ -72,6 +73,7 @@ class Module(GraspTask):
             raise ValueError(f"turn the handle by 0.1..1.2 rad, got {angle}")
         # Down: about the door's normal, the lever's free end goes towards -z.
         self.arc(self.hand, self.target["pivot"], self.target["normal"], -angle, TURN_SPEED)
+        self.target["turned"] = angle
 
     def _start_open(self, angle: float = 0.7) -> None:
         if not 0.05 <= angle <= 1.2:
@@ -84,6 +86,21 @@ class Module(GraspTask):
         self.reachable(self.hand, end, what="door's opening arc end")
         self.arc(self.hand, hinge, door["axis"], signed, OPEN_SPEED)
         door["opened"] += angle
+
+    def _start_ungrasp(self) -> None:
+        """Let the lever back up in the grip before opening the hand: its spring pushes the
+        hand up (8 N*m at 1 rad: ~90 N at the grip), and let go at once it snaps up and takes
+        that push off a free-standing robot's front, tipping it onto its toes."""
+        door, turned = self.target, self.target.get("turned", 0.0) if self.target else 0.0
+        if not turned:
+            super()._start_ungrasp()
+            return
+        swing = pin.exp3(door["axis"] * door["side"] * door["opened"])
+        hinge = door["hinge"]
+        pivot = swing @ (door["pivot"] - hinge) + hinge   # where the door took the lever
+        self.arc(self.hand, pivot, swing @ door["normal"], turned, TURN_SPEED)
+        door["turned"] = 0.0
+        self.then(super()._start_ungrasp)
 
     def _start_move_away(self) -> None:
         position, _ = self.pose(self.hand)
