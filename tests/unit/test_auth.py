@@ -310,6 +310,10 @@ def test_load_without_a_file_says_where_it_looked(tmp_path):
 def test_text_check():
     assert auth.is_text(b"registration name /x ip 1.2.3.4\r\n\t*** end \xc3\xa9")
     assert not auth.is_text(b"\x01" * 8)
+    assert auth.is_text("an answer cut in a character: \u00e9".encode()[:-1])
+    # a real server's challenge that a CI run took for text: printable, not UTF-8
+    assert not auth.is_text(b"EU\xb9\xfa\x9b\t#\xea&J\x95 \x05\xd5\xae\t\n")
+    assert not auth.is_text(bytes(range(0xa0, 0xc8)))
 
 
 def test_unexpected_answer_blames_the_missing_key_only_when_we_have_none():
