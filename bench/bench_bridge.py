@@ -16,8 +16,13 @@
    (a message counts only if every datagram arrived).
 3. **Pilot command latency** through the bridge on the lab and drc profiles
    (median, p99), against a direct YARP connection over the same link.
+4. **All 256 ids in use** (lab profile): 256 GYM modules (1024 flows, 512 ports a
+   side) against 8, each module's status written once a second on the robot; per
+   size, interleaved: seconds from a bridge's start to its ports registered, each
+   bridge's CPU and memory once linked, the link's bit/s, and the one-way latency
+   of commands to the module with the highest id.
 
-Usage: ``.venv/bin/python bench/bench_bridge.py [--quick] [--only 1,2,3]``.
+Usage: ``.venv/bin/python bench/bench_bridge.py [--quick] [--only 1,2,3,4]``.
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ from bridge import emulation  # noqa: E402
 from bridge.emulation import EmulatedLink  # noqa: E402
 from bridge_harness import HERE as TEST_HELPERS, PYTHON, TwoPCs  # noqa: E402
 from harness import YarpWorld, lite_implementation, wait_until  # noqa: E402
+from system.processes import descendants, usage  # noqa: E402
 from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 ROLES = str(HERE / "bridge_roles.py")
@@ -254,13 +260,68 @@ def percentile(values: List[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, int(round(q * (len(ordered) - 1))))]
 
 
+# -- 4: all 256 ids -----------------------------------------------------------------------
+
+def cpu_seconds(pid: int) -> float:
+    """utime + stime of ``pid`` and its descendants (a wrapper may run the bridge)."""
+    total = 0
+    for one in [pid, *descendants(pid)]:
+        try:
+            with open(f"/proc/{one}/stat") as stat:
+                fields = stat.read().rsplit(")", 1)[1].split()
+            total += int(fields[11]) + int(fields[12])
+        except (OSError, IndexError, ValueError):
+            continue
+    return total / os.sysconf("SC_CLK_TCK")
+
+
+def resident_mib(pid: int) -> float:
+    return sum((usage(one) or (0, 0))[0] for one in [pid, *descendants(pid)]) / 1024
+
+
+def many_ids(link: EmulatedLink, modules: int, count: int, duration: float) -> Dict[str, float]:
+    config = ('<bridge period="0.5" gather="0.4"><modules>' +
+              "".join(f'<module name="m{i}" id="{i}"/>' for i in range(modules)) +
+              "</modules></bridge>")
+    last = f"/m{modules - 1}/command:i"
+    with bridged(link, config) as pcs:
+        pcs.robot.python(ROLES, "statuses", str(modules), "1", name="statuses").wait_for(
+            "ready", 120)
+        receiver = pcs.robot.python(ROLES, "ping-receiver", last, name="pong")
+        receiver.wait_for("ready", 30)
+        started = {}
+        for side in (pcs.robot, pcs.pilot):
+            t0 = time.monotonic()
+            pcs.start_bridge(side, wait=False)
+            side.bridge.wait_for(r"side ready", 300)
+            started[side.name] = time.monotonic() - t0
+        pcs.wait_linked(120)
+        time.sleep(10)
+        pids = {side.name: side.bridge.popen.pid for side in (pcs.robot, pcs.pilot)}
+        cpu_before = {name: cpu_seconds(pid) for name, pid in pids.items()}
+        bytes_before = status_numbers(pcs, pcs.robot)["bytes_out"]
+        time.sleep(duration)
+        cpu = {name: (cpu_seconds(pid) - cpu_before[name]) / duration * 100
+               for name, pid in pids.items()}
+        bits = (status_numbers(pcs, pcs.robot)["bytes_out"] - bytes_before) * 8 / duration
+        memory = {name: resident_mib(pid) for name, pid in pids.items()}
+        sender = pcs.pilot.python(ROLES, "ping-sender", last, str(count), "20", name="ping")
+        sender.wait_for("done", count / 20 + 120)
+        wait_until(lambda: len(latencies(receiver)) >= count, 60, message="pings")
+        through = latencies(receiver)
+    return {"ready robot": started["robot"], "ready pilot": started["pilot"],
+            "cpu robot": cpu["robot"], "cpu pilot": cpu["pilot"],
+            "mib robot": memory["robot"], "mib pilot": memory["pilot"], "bits": bits,
+            "median": statistics.median(through), "p99": percentile(through, 0.99)}
+
+
 # -- main ----------------------------------------------------------------------------------
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="shorter runs (noisier figures)")
-    parser.add_argument("--only", default="1,2,3", help="which benchmarks (default 1,2,3)")
+    parser.add_argument("--only", default="1,2,3,4", help="which benchmarks (default 1,2,3,4)")
     parser.add_argument("--losses", default="0,5,10,20,30",
                         help="loss percentages of benchmark 2 (default 0,5,10,20,30)")
     options = parser.parse_args()
@@ -321,6 +382,20 @@ def main() -> int:
                 say(f"   {label:<22} {statistics.median(through):>10.2f} "
                     f"{percentile(through, 0.99):>10.2f} {statistics.median(direct):>10.2f} "
                     f"{percentile(direct, 0.99):>10.2f}")
+        if 4 in only:
+            count, duration = (100, 10) if options.quick else (400, 30)
+            say(f"\n4. All 256 ids in use (lab): 8 modules beside 256 (4 flows each), every "
+                f"status once a second; CPU over {duration} s linked, {count} commands to the "
+                f"last id")
+            say(f"   {'modules':>7} {'ready s':>13} {'CPU %':>11} {'RSS MiB':>11} "
+                f"{'bit/s':>8} {'cmd med ms':>10} {'p99':>7}   (robot/pilot)")
+            link.apply("lab")
+            for modules in (8, 256, 8, 256):  # interleaved: each size twice
+                f = many_ids(link, modules, count, duration)
+                say(f"   {modules:>7} {f['ready robot']:>6.1f}/{f['ready pilot']:<6.1f} "
+                    f"{f['cpu robot']:>5.1f}/{f['cpu pilot']:<5.1f} "
+                    f"{f['mib robot']:>5.0f}/{f['mib pilot']:<5.0f} {f['bits']:>8.0f} "
+                    f"{f['median']:>10.2f} {f['p99']:>7.2f}")
     finally:
         link.down()
     return 0

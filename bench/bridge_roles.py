@@ -8,6 +8,8 @@
   below one encoder step) or ``moving`` (every joint swinging);
 * ``ping-sender TARGET COUNT RATE`` -- writes ``(ping <time>) seq`` over tcp;
 * ``ping-receiver PORT`` -- prints ``latency_ms <x>`` for each ping;
+* ``statuses N RATE`` -- N GYM-like modules' ``/m<i>/status:o``, each written
+  ``(seq idle 0.0)`` RATE times a second (spread over the period);
 * ``blob-sender TARGET SIZE COUNT RATE CARRIER`` / ``blob-receiver PORT`` -- the
   whole-message baseline: Bottles holding SIZE bytes over YARP's udp carrier.
 """
@@ -84,6 +86,17 @@ def ping_receiver(name: str) -> None:
     time.sleep(3600)
 
 
+def statuses(count: int, rate: float) -> None:
+    ports = [Port(f"/m{i}/status:o") for i in range(count)]
+    print("ready", flush=True)
+    seq, pause = 0, 1.0 / rate / count
+    while True:
+        seq += 1
+        for port in ports:
+            port.write(Bottle([seq, "idle", 0.0]))
+            time.sleep(pause)
+
+
 def blob_sender(target: str, size: int, count: int, rate: float, carrier: str) -> None:
     port = Port("/bench/blobs")
     while port.output_count == 0:
@@ -110,6 +123,8 @@ if __name__ == "__main__":
         ping_sender(args[0], int(args[1]), float(args[2]))
     elif role == "ping-receiver":
         ping_receiver(args[0])
+    elif role == "statuses":
+        statuses(int(args[0]), float(args[1]))
     elif role == "blob-sender":
         blob_sender(args[0], int(args[1]), int(args[2]), float(args[3]), args[4])
     elif role == "blob-receiver":
