@@ -49,7 +49,7 @@ from bridge.emulation import EmulatedLink  # noqa: E402
 from bridge_harness import HERE as TEST_HELPERS, PYTHON, TwoPCs  # noqa: E402
 from harness import YarpWorld, lite_implementation, wait_until  # noqa: E402
 from system.processes import descendants, usage  # noqa: E402
-from host import say_machine  # noqa: E402  (bench/ is the script's folder)
+from host import cpu_seconds, say_machine  # noqa: E402  (bench/ is the script's folder)
 
 ROLES = str(HERE / "bridge_roles.py")
 LITE = lite_implementation()
@@ -261,19 +261,6 @@ def percentile(values: List[float], q: float) -> float:
 
 
 # -- 4: all 256 ids -----------------------------------------------------------------------
-
-def cpu_seconds(pid: int) -> float:
-    """utime + stime of ``pid`` and its descendants (a wrapper may run the bridge)."""
-    total = 0
-    for one in [pid, *descendants(pid)]:
-        try:
-            with open(f"/proc/{one}/stat") as stat:
-                fields = stat.read().rsplit(")", 1)[1].split()
-            total += int(fields[11]) + int(fields[12])
-        except (OSError, IndexError, ValueError):
-            continue
-    return total / os.sysconf("SC_CLK_TCK")
-
 
 def resident_mib(pid: int) -> float:
     return sum((usage(one) or (0, 0))[0] for one in [pid, *descendants(pid)]) / 1024

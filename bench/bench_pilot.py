@@ -27,7 +27,6 @@ display, the PI's librviz on Mesa's software OpenGL.
 from __future__ import annotations
 
 import argparse
-import os
 import re
 import statistics
 import sys
@@ -42,12 +41,11 @@ sys.path.insert(0, str(ROOT))
 from nodekit.logs import LOG_TIME_ENV  # noqa: E402
 from system.compare import open_link  # noqa: E402
 from system.display import display_env, private_display  # noqa: E402
-from system.processes import Proc, descendants  # noqa: E402
+from system.processes import Proc  # noqa: E402
 from system.topology import PYTHON, Topology  # noqa: E402
-from host import say_machine  # noqa: E402  (bench/ is the script's folder)
+from host import cpu_seconds, say_machine  # noqa: E402  (bench/ is the script's folder)
 
 DRIVER = ROOT / "tests" / "system" / "pi_driver.py"
-TICKS = os.sysconf("SC_CLK_TCK")
 #: A layout with the camera and no 3-D view: the PI's own cost, librviz's rendering aside.
 BENCH_LAYOUTS = """
 [layout camera-only]
@@ -153,18 +151,6 @@ def publisher(count: int) -> int:
         print(f"SENT {at:.6f} look_at {x:.3f} {y:.3f}", flush=True)
     print("DONE", flush=True)
     return 0
-
-
-def cpu_seconds(pid: int) -> float:
-    total = 0
-    for each in [pid, *descendants(pid)]:
-        try:
-            with open(f"/proc/{each}/stat") as stat:
-                fields = stat.read().rsplit(")", 1)[1].split()
-            total += int(fields[11]) + int(fields[12])
-        except (OSError, IndexError, ValueError):
-            pass
-    return total / TICKS
 
 
 def start_pi(topology: Topology, display: str, layout: str, layouts: Path,

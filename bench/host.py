@@ -31,3 +31,19 @@ def describe() -> str:
 
 def say_machine(when: str = "") -> None:
     print(f"machine{' ' + when if when else ''}: {describe()}", flush=True)
+
+
+def cpu_seconds(pid: int) -> float:
+    """CPU time (user + system, s) of ``pid`` and its descendants, from /proc: a process
+    measured from outside, through whatever wrapper (a network namespace, a shell) runs it."""
+    from system.processes import descendants
+
+    total = 0
+    for each in [pid, *descendants(pid)]:
+        try:
+            with open(f"/proc/{each}/stat") as stat:
+                fields = stat.read().rsplit(")", 1)[1].split()
+            total += int(fields[11]) + int(fields[12])
+        except (OSError, IndexError, ValueError):
+            continue
+    return total / os.sysconf("SC_CLK_TCK")
