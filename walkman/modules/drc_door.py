@@ -82,7 +82,7 @@ class Module(GraspTask):
         position, _ = self.pose(self.hand)
         hinge = door["hinge"] + door["axis"] * float(door["axis"] @ (position - door["hinge"]))
         # Check the end of the push before moving: a door opened too far is out of reach.
-        end = pin.exp3(door["axis"] * signed) @ (position - hinge) + hinge
+        end = self.swung(position, signed)
         self.reachable(self.hand, end, what="door's opening arc end")
         self.arc(self.hand, hinge, door["axis"], signed, OPEN_SPEED)
         door["opened"] += angle
@@ -91,16 +91,21 @@ class Module(GraspTask):
         """Let the lever back up in the grip before opening the hand: its spring pushes the
         hand up (8 N*m at 1 rad: ~90 N at the grip), and let go at once it snaps up and takes
         that push off a free-standing robot's front, tipping it onto its toes."""
-        door, turned = self.target, self.target.get("turned", 0.0) if self.target else 0.0
-        if not turned:
+        door = self.target
+        if not door.get("turned"):
             super()._start_ungrasp()
             return
-        swing = pin.exp3(door["axis"] * door["side"] * door["opened"])
-        hinge = door["hinge"]
-        pivot = swing @ (door["pivot"] - hinge) + hinge   # where the door took the lever
-        self.arc(self.hand, pivot, swing @ door["normal"], turned, TURN_SPEED)
+        opened = door["side"] * door["opened"]
+        pivot = self.swung(door["pivot"], opened)          # where the door took the lever
+        normal = pin.exp3(door["axis"] * opened) @ door["normal"]
+        self.arc(self.hand, pivot, normal, door["turned"], TURN_SPEED)
         door["turned"] = 0.0
         self.then(super()._start_ungrasp)
+
+    def swung(self, point: np.ndarray, angle: float) -> np.ndarray:
+        """``point`` carried by the door turning ``angle`` rad (signed) about its hinge."""
+        door = self.target
+        return pin.exp3(door["axis"] * angle) @ (point - door["hinge"]) + door["hinge"]
 
     def _start_move_away(self) -> None:
         position, _ = self.pose(self.hand)
