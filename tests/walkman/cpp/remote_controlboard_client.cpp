@@ -3,7 +3,8 @@
 //   remote_controlboard_client REMOTE LOCAL CARRIER AXIS TARGET_DEG
 // Prints one line per step ("axes 2", "name 0 NeckYawj", "encoder 0 1.5", ...) and
 // "reached <mode> <deg>" when the encoder got within 1 degree of the target in
-// position mode (IPositionControl::positionMove) and then in position-direct mode
+// position mode (IPositionControl::positionMove), "motion done 1" once checkMotionDone
+// says the trajectory finished, and then in position-direct mode
 // (IPositionDirect::setPosition); exits 1 with a reason otherwise.
 #include <yarp/os/Network.h>
 #include <yarp/os/Property.h>
@@ -89,8 +90,13 @@ int main(int argc, char** argv) {
     pos->setRefSpeed(axis, 40.0);
     pos->positionMove(axis, target);
     if (!reach(enc, axis, target, "position")) return 1;
+    // The encoder comes within a degree while the trajectory may still be finishing: poll
+    // checkMotionDone the way iCub modules do (yarp::dev::IPositionControl's idiom).
     bool done = false;
-    pos->checkMotionDone(axis, &done);
+    for (int i = 0; i < 100 && !done; i++) {  // 5 s
+        pos->checkMotionDone(axis, &done);
+        if (!done) yarp::os::Time::delay(0.05);
+    }
     std::printf("motion done %d\n", done ? 1 : 0);
 
     modes->setControlMode(axis, VOCAB_CM_POSITION_DIRECT);
