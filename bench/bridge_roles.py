@@ -2,10 +2,12 @@
 
 ``python bridge_roles.py ROLE ARGS...``:
 
-* ``hal MODE`` -- a synthetic HAL: answers ``/walkman/rpc:i [get] chains`` with
-  the grouping of ``models/hal_chains.ini`` and streams every chain's
-  ``stateSI:o`` at 100 Hz; MODE ``still`` (a robot standing, sensor noise
-  below one encoder step) or ``moving`` (every joint swinging);
+* ``hal MODE [RATE]`` -- a synthetic HAL: answers ``/walkman/rpc:i [get] chains``
+  with the grouping of ``models/hal_chains.ini`` and streams every chain's
+  ``stateSI:o`` at RATE Hz (default 100); MODE ``still`` (a robot standing, sensor
+  noise below one encoder step) or ``moving`` (every joint swinging);
+* ``readers PORT...`` -- a reader port ``/bench/read<i>`` per PORT, connected from
+  it over tcp (as ``yarp connect`` would); prints ``ready`` once all are;
 * ``ping-sender TARGET COUNT RATE`` -- writes ``(ping <time>) seq`` over tcp;
 * ``ping-receiver PORT`` -- prints ``latency_ms <x>`` for each ping;
 * ``statuses N RATE`` -- N GYM-like modules' ``/m<i>/status:o``, each written
@@ -33,7 +35,7 @@ from yarp_lite.port import Port  # noqa: E402
 from yarp_lite.rpc import RpcServer  # noqa: E402
 
 
-def hal(mode: str) -> None:
+def hal(mode: str, rate: float = 100.0) -> None:
     config = load_config(ROOT / "models" / "hal_chains.ini")
     chains = config.chains
     RpcServer(protocol.robot_rpc_name("walkman"),
@@ -61,7 +63,19 @@ def hal(mode: str) -> None:
             ports[name].write(protocol.encode_state_si(ChainState(
                 seq, t, tuple(q), tuple(qdot), tuple(tau), tuple(temperature))))
             offset += n
-        time.sleep(0.01)
+        time.sleep(1.0 / rate)
+
+
+def readers(sources: list) -> None:
+    from yarp_lite.network import connect
+
+    ports = [Port(f"/bench/read{i}", reader=lambda bottle: None) for i in range(len(sources))]
+    for source, port in zip(sources, ports):
+        while port.input_count == 0:
+            connect(source, port.name, "tcp")
+            time.sleep(0.2)
+    print("ready", flush=True)
+    time.sleep(3600)
 
 
 def ping_sender(target: str, count: int, rate: float) -> None:
@@ -118,7 +132,9 @@ def blob_receiver(name: str) -> None:
 if __name__ == "__main__":
     role, args = sys.argv[1], sys.argv[2:]
     if role == "hal":
-        hal(args[0])
+        hal(args[0], *(float(a) for a in args[1:2]))
+    elif role == "readers":
+        readers(args)
     elif role == "ping-sender":
         ping_sender(args[0], int(args[1]), float(args[2]))
     elif role == "ping-receiver":

@@ -266,6 +266,38 @@ def test_subscriptions_and_registrations_survive_a_server_restart(lite_world, po
     wait_until(lambda: sender.output_count == 1, timeout=10)
 
 
+def test_noticing_a_restart_costs_one_query_per_name_server_not_a_list_per_port(
+        lite_world, ports, monkeypatch):
+    from yarp_lite.port import RegistrationKeeper
+
+    for index in range(6):
+        ports(Port, f"/keep/p{index}", reader=lambda bottle: None)
+    asked = {"query": [], "list": 0}
+    query, listing = NameClient.query, NameClient.list
+
+    def counted_query(client, name):
+        asked["query"].append(name)
+        return query(client, name)
+
+    def counted_list(client):
+        asked["list"] += 1
+        return listing(client)
+
+    monkeypatch.setattr(NameClient, "query", counted_query)
+    monkeypatch.setattr(NameClient, "list", counted_list)
+    keeper = RegistrationKeeper.instance()
+    keeper.check_all()
+    keeper.check_all()
+    assert len(asked["query"]) == 2 and asked["list"] == 0, asked
+    assert asked["query"][0] != asked["query"][1]  # each port's turn comes
+    lite_world.stop_server()
+    lite_world.start_server()
+    keeper.check_all()
+    assert asked["list"] == 1  # the one asked about was lost: find the others
+    for index in range(6):
+        assert query(NameClient(), f"/keep/p{index}") is not None
+
+
 # -- bad input -----------------------------------------------------------------------------
 
 
