@@ -6,6 +6,9 @@ Measures on loopback, each peer in its own process:
 * RPC round trip of a 10-int Bottle (median, p99) -- yarp_lite<->yarp_lite,
   C++<->C++ (``cpp/yarp_bench.cpp`` linked to the reference build), rospy
   topic ping-pong over TCPROS, and the mixed yarp_lite<->C++ pairs;
+* the server side alone: one real C++ client against ``yarp rpcserver --echo``
+  and ``yarp-lite rpcserver --echo``, a C++ ``Port`` and a Python ``RpcServer``,
+  interleaved round by round;
 * one-way throughput of Bottles holding a 1 MB blob;
 * name server cost: one ``query`` round trip, and 100 concurrent
   registrations, against ``yarp-lite server`` and ``yarpserver``.
@@ -284,6 +287,44 @@ class Bench:
                                          self.rpc_count]), "rpc").split()
         return {"median_us": float(words[1]), "p99_us": float(words[2])}
 
+    def server_side(self) -> Dict[str, List[float]]:
+        """One real C++ client against four echo servers, in turn, round after round.
+
+        The pairs compared: the ``rpcserver --echo`` tools (real ``yarp`` and
+        ``yarp-lite``), and the library servers (a C++ ``Port`` replying from its
+        reader, and a Python :class:`~yarp_lite.rpc.RpcServer`).  Each round runs
+        every server once, in a rotated order, so load drifts hit all alike.
+        """
+        from yarp_lite.nameclient import NameClient
+        from yarp_lite.nameconfig import read_server_address
+
+        servers = {
+            "yarp rpcserver": [str(self.prefix / "bin" / "yarp"), "rpcserver", "--echo",
+                               "/bench/s/real_tool"],
+            "yarp-lite rpcserver": [PYTHON, "-m", "yarp_lite", "rpcserver", "--echo",
+                                    "/bench/s/lite_tool"],
+            "C++ Port": [str(self.cpp), "rpc-server", "/bench/s/cpp"],
+            "yarp_lite RpcServer": self.role("lite-rpc-server", "/bench/s/lite"),
+        }
+        names = {label: argv[-1] for label, argv in servers.items()}
+        client = NameClient(address=read_server_address("/root", self.env), environ=self.env)
+        for label, argv in servers.items():
+            self.spawn(argv, wait_ready=False)
+        deadline = time.time() + 30
+        while not all(client.query(name) for name in names.values()):
+            if time.time() > deadline:
+                raise RuntimeError("echo servers did not register")
+            time.sleep(0.2)
+        rounds, count = (5, 1000) if self.quick else (15, 3000)
+        medians: Dict[str, List[float]] = {label: [] for label in servers}
+        labels = list(servers)
+        for turn in range(rounds):
+            for label in labels[turn % 4:] + labels[:turn % 4]:
+                words = _line_starting(self.run([str(self.cpp), "rpc-client", names[label],
+                                                 count]), "rpc").split()
+                medians[label].append(float(words[1]))
+        return medians
+
     def throughput_lite(self) -> float:
         sink = self.spawn(self.role("lite-sink", "/bench/lite/sink", self.blob_count))
         self.run(self.role("lite-source", "/bench/lite/source", "/bench/lite/sink",
@@ -382,11 +423,11 @@ def main() -> int:
     parser.add_argument("--role", nargs="+", help=argparse.SUPPRESS)
     parser.add_argument("--json", help="also write the figures to this file")
     options = parser.parse_args()
-    say_machine()
-    if options.role:
+    if options.role:  # a child: its stdout is its figures, nothing else
         name, *args = options.role
         ROLES[name](*[int(a) if a.lstrip("-").isdigit() else a for a in args])
         return 0
+    say_machine()
 
     bench = Bench(options.quick)
     results: Dict[str, object] = {}
@@ -400,6 +441,8 @@ def main() -> int:
             results["rpc_cpp"] = bench.rpc_cpp_cpp()
             results["rpc_lite_to_cpp"] = bench.rpc_lite_to_cpp()
             results["rpc_cpp_to_lite"] = bench.rpc_cpp_to_lite()
+            print("  server side, one C++ client, interleaved ...", flush=True)
+            results["server_side"] = bench.server_side()
         results["rpc_rospy"] = bench.rpc_rospy()
         print("  1 MB throughput ...", flush=True)
         results["mb_lite"] = bench.throughput_lite()
@@ -440,6 +483,19 @@ def report(results: Dict[str, object]) -> None:
     if results.get("rpc_lite") and results.get("rpc_cpp"):
         ratio = results["rpc_lite"]["median_us"] / results["rpc_cpp"]["median_us"]
         print(f"  ratio yarp_lite / C++ (median)                {ratio:8.2f}   (goal <= 1.0)")
+    sides = results.get("server_side")
+    if sides:
+        rounds = len(next(iter(sides.values())))
+        print()
+        print(f"Server side: a C++ RpcClient against each echo server, {rounds} interleaved rounds")
+        print("  (microseconds: median of the rounds' medians, and the rounds' range)")
+        middle = {label: statistics.median(values) for label, values in sides.items()}
+        for label, values in sides.items():
+            print(f"  {label:<28} {middle[label]:8.1f}   {min(values):7.1f} .. {max(values):7.1f}")
+        print(f"  ratio yarp-lite rpcserver / yarp rpcserver    "
+              f"{middle['yarp-lite rpcserver'] / middle['yarp rpcserver']:6.2f}   (goal <= 1.0)")
+        print(f"  ratio RpcServer / C++ Port                    "
+              f"{middle['yarp_lite RpcServer'] / middle['C++ Port']:6.2f}   (goal <= 1.0)")
     print()
     print("One-way throughput, Bottles with a 1 MB blob (MB/s)")
     print(f"  yarp_lite  -> yarp_lite                     {mb('mb_lite')}")

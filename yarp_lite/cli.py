@@ -535,20 +535,22 @@ def cmd_rpcserver(args: List[str], admin: bool) -> int:
     port = Port(rpc=True)
     port.open(args[0])
     lines = _stdin_lines()
+    waiting = "Waiting for a message..."
     try:
+        out(waiting)
         while True:
-            out("Waiting for a message...")
             command_bottle = port.read(will_reply=True)
             if command_bottle is None:
                 return 0
-            out(f"Message: {format_bottle(command_bottle)}")
-            out("Reply: ")
-            if echo:
-                response = command_bottle
+            shown = [f"Message: {format_bottle(command_bottle)}", "Reply: "]
+            if echo:  # one write per message (replying first lost the interpreter to it)
+                out("\n".join(shown if stop else shown + [waiting]))
+                port.reply(command_bottle)
             else:
-                line = next(lines, None)
-                response = Bottle.from_text(line or "")
-            port.reply(response)
+                out("\n".join(shown))
+                port.reply(Bottle.from_text(next(lines, None) or ""))
+                if not stop:
+                    out(waiting)
             if stop:
                 return 0
     except KeyboardInterrupt:

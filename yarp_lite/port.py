@@ -246,11 +246,10 @@ class _Handoff:
                 self.item, self.taken = (message, route), False
                 self.reply_ready, self.reply_value, self.reply_wanted = False, None, False
                 self.cond.notify_all()
-                while not self.taken and not self.closed:
+                # One wake-up: when the reader took it (no reply promised), or replied.
+                while not self.closed and not (
+                        self.taken and (not self.reply_wanted or self.reply_ready)):
                     self.cond.wait()
-                if self.reply_wanted:
-                    while not self.reply_ready and not self.closed:
-                        self.cond.wait()
                 return self.reply_value
 
     def take(self, timeout: Optional[float], will_reply: bool) -> Optional[Tuple[Incoming, Route]]:
@@ -269,7 +268,8 @@ class _Handoff:
                 self.taken = True
                 self.item = None
                 self.reply_wanted = will_reply and item[0].wants_reply
-                self.cond.notify_all()
+                if not self.reply_wanted:  # a promised reply wakes the sender instead
+                    self.cond.notify_all()
                 return item
             finally:
                 self.readers -= 1

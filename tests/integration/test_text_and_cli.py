@@ -45,6 +45,40 @@ def test_text_ack_carrier_replies_and_acknowledges(lite_world):
         assert answer[:3] == ["Welcome me", "3", "<ACK>"]
 
 
+@pytest.mark.parametrize("options, stdin, replies", [
+    (["--echo"], "", ["1 2", "hello"]),
+    ([], "ten\n(20 30)\n", ["ten", "(20 30)"]),       # what the user types is the reply
+    (["--stop", "--echo"], "", ["1 2"]),                # one request, then it exits
+])
+def test_rpcserver_answers_and_shows_each_message(lite_world, lite, options, stdin, replies):
+    import subprocess
+
+    server = subprocess.Popen([*lite.tool, "rpcserver", *options, "/cli/server"],
+                              env=lite_world.env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                              stderr=subprocess.DEVNULL, text=True)
+    try:
+        server.stdin.write(stdin)
+        server.stdin.flush()
+        wait_until(lambda: NameClient().query("/cli/server") is not None)
+        result = lite_world.run_tool(lite, "rpc", "/cli/server", input_text="1 2\nhello\n")
+        answers = [line.split("Response:", 1)[1].strip() for line in result.stdout.splitlines()
+                   if line.startswith("Response:")]
+        assert answers == replies, result.stdout + result.stderr
+        if "--stop" in options:
+            assert server.wait(timeout=10) == 0
+        server.kill()
+        shown = server.communicate(timeout=10)[0].splitlines()
+    finally:
+        server.kill()
+        server.wait()
+    expected = ["Waiting for a message..."]
+    for request in ["1 2", "hello"][:len(replies)]:
+        expected += [f"Message: {request}", "Reply: "]
+        if "--stop" not in options:
+            expected.append("Waiting for a message...")
+    assert [line for line in shown if not line.startswith("[")] == expected
+
+
 def test_unknown_carrier_is_a_clear_error(lite_world):
     with Port("/u/in", reader=lambda b: None), Port("/u/out"):
         outcome = network.connect("/u/out", "/u/in", "carrier_pigeon")
