@@ -11,6 +11,7 @@ against the 2 ms budget of a 500 Hz loop, and the task's outcome in the scene.
 
 from __future__ import annotations
 
+import argparse
 import time
 from typing import Callable, Dict, List, Tuple
 
@@ -65,6 +66,7 @@ def timed_ticks(module: OfflineModule) -> List[float]:
 
 
 def main() -> int:
+    argparse.ArgumentParser(description=__doc__.split("\n\n")[0]).parse_args()
     say_machine()
     print(f"{'task':10s} {'step':54s} {'sim s':>7s}")
     summary = []
