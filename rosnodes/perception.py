@@ -17,7 +17,9 @@ on the CPU (OSMesa, no display needed) at ``--rate`` Hz:
 
 All in the ``multisense_optical_frame`` (z forward, x right, y down).  The
 geometry (:func:`intrinsics`, :func:`cloud_points`) is pure numpy, tested
-without a renderer.
+without a renderer.  Frames are due at the rate asked whatever one costs
+(:class:`FrameClock`), and every 10 s the node logs the rate it delivered and
+the median time of each stage (render, cloud, messages, publish).
 """
 
 from __future__ import annotations
@@ -26,10 +28,11 @@ import argparse
 import logging
 import math
 import os
+import statistics
 import sys
 import threading
 import time
-from typing import Optional, Tuple
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -37,6 +40,8 @@ log = logging.getLogger("walkman.perception")
 
 FRAME = "multisense_optical_frame"
 CAMERA = "multisense"
+#: How often the node logs its frame rate and where a frame's time goes.
+SUMMARY_PERIOD_S = 10.0
 
 
 def intrinsics(width: int, height: int, fovy_deg: float) -> Tuple[float, float, float]:
@@ -60,41 +65,120 @@ def cloud_points(depth: np.ndarray, rgb: np.ndarray, f: float, cx: float, cy: fl
     return points
 
 
+class StageTimes:
+    """Per-frame seconds of each stage, summarised for the log (and bench_perception)."""
+
+    def __init__(self) -> None:
+        self.samples: Dict[str, List[float]] = {}
+        self.since = time.monotonic()
+
+    def add(self, stage: str, seconds: float) -> None:
+        self.samples.setdefault(stage, []).append(seconds)
+
+    def summary(self) -> str:
+        """``N frames in S s (R Hz); render 120.3 ms, ...`` (medians), then start afresh."""
+        elapsed = time.monotonic() - self.since
+        count = len(self.samples.get("render", []))
+        parts = [f"{stage} {statistics.median(values) * 1e3:.1f} ms"
+                 for stage, values in self.samples.items() if values]
+        self.samples, self.since = {}, time.monotonic()
+        return (f"{count} frames in {elapsed:.1f} s ({count / elapsed:.2f} Hz); "
+                f"median per frame: {', '.join(parts) or 'none'}")
+
+
+class FrameClock:
+    """Frames at the rate asked, whatever a frame costs: each is due a period after the
+    last was due (waiting a whole period after the work made 2 Hz into 1/(0.5 s + render)),
+    and a frame that fell behind is taken now, not caught up in a burst."""
+
+    def __init__(self, rate: float, clock=time.monotonic) -> None:
+        self.period = 1.0 / rate
+        self.clock = clock
+        self.due = clock()
+
+    def wait(self) -> float:
+        """Seconds to wait until the next frame is due (0: now); that frame is then taken."""
+        now = self.clock()
+        self.due = max(self.due + self.period, now)
+        return self.due - now
+
+
 class SceneCamera:
-    """A MuJoCo copy of the scene, posed from the simulator, rendered off-screen."""
+    """A MuJoCo copy of the scene, posed from the simulator, rendered off-screen.
+
+    One pass gives both images: the scene is drawn once and its colour and depth
+    buffers read together (``mujoco.Renderer`` draws it twice, once per buffer,
+    with a full ``mj_forward`` each time), and the pose needs only kinematics.
+    Depth comes back as OpenGL's reversed-Z buffer and is turned into metres
+    the way ``mujoco.Renderer`` does; the buffers are reused frame to frame.
+
+    The off-screen buffer has no multisampling: resolving a multisampled depth
+    buffer put the far floor up to 0.11 m out (at 9-11 m, against a ray cast),
+    which is why ``mujoco.Renderer`` draws depth in a separate segmented pass.
+    Without it depth matches a ray cast to micrometres and colour loses only
+    its anti-aliased edges (a camera's own pixels are not anti-aliased either).
+    """
 
     def __init__(self, width: int, height: int) -> None:
         import mujoco
+        from mujoco import gl_context
 
         from walkman.hal.sim import SCENE_PATH
 
         self.mujoco = mujoco
         self.model = mujoco.MjModel.from_xml_path(str(SCENE_PATH))
+        self.model.vis.quality.offsamples = 0          # exact depth (see above)
         self.data = mujoco.MjData(self.model)
         mujoco.mj_resetDataKeyframe(self.model, self.data, 0)
-        self.renderer = mujoco.Renderer(self.model, height, width)
         self.width, self.height = width, height
+        self.gl = gl_context.GLContext(width, height)
+        self.gl.make_current()
+        self.scene = mujoco.MjvScene(self.model, maxgeom=10000)
+        self.option = mujoco.MjvOption()
+        self.view = mujoco.MjvCamera()
+        self.view.type = mujoco.mjtCamera.mjCAMERA_FIXED
+        self.view.fixedcamid = self.model.cam(CAMERA).id
+        self.context = mujoco.MjrContext(self.model, mujoco.mjtFontScale.mjFONTSCALE_150)
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self.context)
+        self.context.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
+        self.rect = mujoco.MjrRect(0, 0, width, height)
+        self._rgb = np.empty((height, width, 3), np.uint8)
+        self._depth = np.empty((height, width), np.float32)
         self.fovy = float(self.model.cam(CAMERA).fovy[0])
-        self.far = float(self.model.vis.map.zfar * self.model.stat.extent)
+        extent = self.model.stat.extent
+        near = np.float32(self.model.vis.map.znear * extent)
+        far = np.float32(self.model.vis.map.zfar * extent)
+        self.far = float(far)
+        # OpenGL's perspective matrix in reversed-Z, as mujoco.Renderer undoes it.
+        c = -(far + near) / (far - near)
+        d = -(np.float32(2) * far * near) / (far - near)
+        self._c, self._d = np.float32(-0.5) * c - np.float32(0.5), np.float32(-0.5) * d
 
     @property
     def nq(self) -> int:
         return int(self.model.nq)
 
     def render(self, qpos: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """Colour (rgb8) and depth (metres, NaN = nothing within the far plane)."""
+        mujoco = self.mujoco
         self.data.qpos[:] = qpos
-        self.mujoco.mj_forward(self.model, self.data)
-        self.renderer.update_scene(self.data, camera=CAMERA)
-        rgb = self.renderer.render().copy()
-        self.renderer.enable_depth_rendering()
-        self.renderer.update_scene(self.data, camera=CAMERA)
-        depth = self.renderer.render().astype(np.float32)
-        self.renderer.disable_depth_rendering()
+        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_camlight(self.model, self.data)
+        self.gl.make_current()
+        mujoco.mjv_updateScene(self.model, self.data, self.option, None, self.view,
+                               mujoco.mjtCatBit.mjCAT_ALL, self.scene)
+        mujoco.mjr_render(self.rect, self.scene, self.context)
+        mujoco.mjr_readPixels(self._rgb, self._depth, self.rect, self.context)
+        rgb = np.flipud(self._rgb).copy()  # OpenGL's rows start at the bottom
+        depth = (self._d / (np.flipud(self._depth).astype(np.float64) + self._c)
+                 ).astype(np.float32)
         depth[depth >= 0.99 * self.far] = np.nan
         return rgb, depth
 
     def close(self) -> None:
-        self.renderer.close()
+        self.gl.make_current()
+        self.context.free()
+        self.gl.free()
 
 
 class PerceptionNode:
@@ -107,6 +191,7 @@ class PerceptionNode:
         self.world_time = 0.0
         self._lock = threading.Lock()
         self.frames = 0
+        self.stages = StageTimes()
 
     def open_yarp(self, keeper) -> None:
         from walkman.hal import protocol
@@ -135,7 +220,10 @@ class PerceptionNode:
             world = None if self.world is None else self.world.copy()
         if world is None:
             return None
+        started = time.perf_counter()
         rgb, depth = self.camera.render(world)
+        rendered = time.perf_counter()
+        self.stages.add("render", rendered - started)
         f, cx, cy = intrinsics(self.camera.width, self.camera.height, self.camera.fovy)
         height, width = rgb.shape[:2]
         image = Image(height=height, width=width, encoding="rgb8", is_bigendian=0,
@@ -146,6 +234,8 @@ class PerceptionNode:
                           D=[0.0] * 5, K=[f, 0, cx, 0, f, cy, 0, 0, 1],
                           R=[1, 0, 0, 0, 1, 0, 0, 0, 1], P=[f, 0, cx, 0, 0, f, cy, 0, 0, 0, 1, 0])
         points = cloud_points(depth, rgb, f, cx, cy, self.step)
+        clouded = time.perf_counter()
+        self.stages.add("cloud", clouded - rendered)
         fields = [PointField("x", 0, PointField.FLOAT32, 1), PointField("y", 4, PointField.FLOAT32, 1),
                   PointField("z", 8, PointField.FLOAT32, 1),
                   PointField("rgb", 12, PointField.FLOAT32, 1)]
@@ -156,6 +246,7 @@ class PerceptionNode:
         self.frames += 1
         for msg in (image, depth_image, info, cloud):
             msg.header.stamp, msg.header.frame_id, msg.header.seq = stamp, FRAME, self.frames
+        self.stages.add("messages", time.perf_counter() - clouded)
         return image, depth_image, info, cloud
 
 
@@ -205,7 +296,8 @@ def main(argv=None) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     said = 0.0
-    while not stop.wait(1.0 / options.rate):
+    frames_due = FrameClock(options.rate)
+    while not stop.wait(frames_due.wait()):
         if not publishers:
             continue
         import rospy
@@ -217,11 +309,16 @@ def main(argv=None) -> int:
                          "the sim?)", options.robot)
                 said = time.monotonic()
             continue
+        published = time.perf_counter()
         for key, msg in zip(("image", "depth", "info", "cloud"), frames):
             publishers[key].publish(msg)
+        node.stages.add("publish", time.perf_counter() - published)
+        if time.monotonic() - node.stages.since >= SUMMARY_PERIOD_S:
+            log.info("perception: %s", node.stages.summary())
         if node.frames == 1:
             log.info("perception: first frame published (%dx%d, cloud %dx%d)", options.width,
                      options.height, frames[3].width, frames[3].height)
+            node.stages.summary()  # the rate counts from here, not from the wait for the HAL
     keeper.stop()
     node.camera.close()
     ros.stop()
