@@ -129,8 +129,9 @@ def rospy_latency(topology: Topology, count: int) -> List[float]:
     return one_way(sent_at(proc), topology)
 
 
-def publisher(count: int) -> int:
-    """Run on the pilot PC: publish look_at commands as ``rostopic pub`` would."""
+def publisher(count: int, base: float = 1.5) -> int:
+    """Run on the pilot PC: publish look_at commands as ``rostopic pub`` would (targets from
+    ``base``: runs with different bases are told apart in gaze_control's log)."""
     import rospy
     from rosnodes.msgs import ensure_importable
 
@@ -144,7 +145,7 @@ def publisher(count: int) -> int:
         time.sleep(0.05)
     time.sleep(0.5)
     for index in range(count):
-        x, y = target(index, 1.5)
+        x, y = target(index, base)
         time.sleep(0.25)
         at = time.time()
         topic.publish(Command(command="look_at", numbers=[x, y, 0.1], sender="bench"))
@@ -216,9 +217,10 @@ def main(argv: Optional[List[str]] = None) -> int:
                         help="drc on loopback even when an emulated link could be built")
     parser.add_argument("--only", default="lab,drc", help="topologies (default %(default)s)")
     parser.add_argument("--publisher", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--base", type=float, default=1.5, help=argparse.SUPPRESS)
     options = parser.parse_args(argv)
     if options.publisher is not None:
-        return publisher(options.publisher)
+        return publisher(options.publisher, options.base)
     say_machine()
     options.count = 60 if options.quick else 200
     options.seconds = 15.0 if options.quick else 30.0
