@@ -15,6 +15,7 @@ import logging
 import os
 import sys
 import threading
+import time
 from typing import Callable, Dict, List, Optional, Sequence
 
 from yarp_lite import __version__, nameconfig, network
@@ -532,27 +533,37 @@ def cmd_rpcserver(args: List[str], admin: bool) -> int:
             raise UsageError(f"option not recognized: {option}")
     if len(args) != 1:
         raise UsageError("yarp-lite rpcserver [--single] [--stop] [--echo] /port/name")
-    port = Port(rpc=True)
-    port.open(args[0])
     lines = _stdin_lines()
     waiting = "Waiting for a message..."
+    serial = threading.Lock()  # one message at a time, as YARP's read: replies pair up
+
+    def answer(request: Bottle, then: str = waiting) -> Bottle:
+        """Show the message and choose its reply: itself, or the next line of stdin."""
+        with serial:
+            shown = f"Message: {format_bottle(request)}\nReply: "
+            if echo:  # one write per message, before the reply leaves
+                out(shown + (f"\n{then}" if then else ""))
+                return request
+            out(shown)
+            reply = Bottle.from_text(next(lines, None) or "")
+            if then:
+                out(then)
+            return reply
+
+    # With --stop we read and reply here, so the reply has left when we return; else each
+    # message is answered on its connection's own thread (no hand-off to this one).
+    port = Port(rpc=True, reader=None if stop else answer)
+    port.open(args[0])
     try:
         out(waiting)
-        while True:
-            command_bottle = port.read(will_reply=True)
-            if command_bottle is None:
-                return 0
-            shown = [f"Message: {format_bottle(command_bottle)}", "Reply: "]
-            if echo:  # one write per message (replying first lost the interpreter to it)
-                out("\n".join(shown if stop else shown + [waiting]))
-                port.reply(command_bottle)
-            else:
-                out("\n".join(shown))
-                port.reply(Bottle.from_text(next(lines, None) or ""))
-                if not stop:
-                    out(waiting)
-            if stop:
-                return 0
+        if stop:
+            request = port.read(will_reply=True)
+            if request is not None:
+                port.reply(answer(request, then=""))
+            return 0
+        while port.is_open:
+            time.sleep(0.5)
+        return 0
     except KeyboardInterrupt:
         return 0
     finally:
