@@ -196,8 +196,6 @@ class ModuleRunner:
         self.exit_code = EXIT_QUIT
         self._robot_alive = True
         self._status_before_loss = ""
-        self._lost_at: Optional[float] = None   # monotonic time the robot went silent
-        self._lost_total = 0.0                  # seconds it was silent before that
         self.start_pending = False
         self._status_at_pause: Optional[Tuple[str, list]] = None
 
@@ -266,7 +264,7 @@ class ModuleRunner:
         thread = self.thread
         if isinstance(thread, ControlThread):
             thread.robot, thread.kinematics = self.robot, self.kinematics
-            thread.clock = self.control_clock
+            thread.clock = self.robot.clock.now
         self.robot_ready.set()
         self.wake.set()
 
@@ -304,27 +302,15 @@ class ModuleRunner:
         if alive != self._robot_alive:
             self._robot_alive = alive
             if alive:
-                if self._lost_at is not None:
-                    self._lost_total += time.monotonic() - self._lost_at
-                    self._lost_at = None
                 self.warn(f"{self.name}: the robot (HAL) is back; running again")
                 self.interfaces.set_status(self._status_before_loss or "running")
             else:
-                self._lost_at = time.monotonic()
                 self._status_before_loss = self.interfaces.state
                 self.warn(f"{self.name}: lost the robot (HAL silent for "
                           f"{robot.state_age:.1f} s); control paused until it is back")
                 self.interfaces.set_status("waiting_hal")
             self.wake.set()
         return alive
-
-    def control_clock(self) -> float:
-        """A module's clock: the wall clock, standing still while the robot is lost, so a
-        trajectory goes on from where it paused instead of jumping ahead when it is back
-        (an arm leaping along its path next to a valve or a door is a hazard)."""
-        now = time.monotonic()
-        lost = self._lost_total + (now - self._lost_at if self._lost_at is not None else 0.0)
-        return now - lost
 
     def hold(self, after: str) -> None:
         """Keep the robot where it is after ``after``; if even that fails, the pilot hears it."""

@@ -86,8 +86,8 @@ class GenericThread:
                  on_status_change=lambda: None) -> None:
         self.name = name
         self.config = config
-        #: Where modules read time: under the runner the wall clock (standing still while
-        #: the robot is lost: ModuleRunner.control_clock), simulated time offline.
+        #: Where modules read time: under the runner the robot's time once it is connected
+        #: (:class:`walkman.hal.clock.RobotClock`), simulated time offline.
         self.clock: Callable[[], float] = time.monotonic
         self.thread_period = float(config.get("thread_period", 10)) / 1000.0
         self.command_interface = _CommandView(interfaces)

@@ -46,6 +46,7 @@ from typing import Dict, List, Optional, Sequence, Set, Tuple
 import numpy as np
 
 from walkman.hal import controlboard, protocol
+from walkman.hal.clock import RobotClock
 from walkman.hal.controlboard import ControlBoardError
 from walkman.hal.protocol import HalProtocolError, HalUsageError
 from walkman.model.description import CHAINS, walkman
@@ -61,6 +62,8 @@ log = logging.getLogger("walkman.robot")
 
 #: State older than this means the HAL is gone.
 STALE_AFTER = 0.5
+#: How far the robot's clock runs on past the newest state at least (s): a few HAL periods.
+MIN_CLOCK_AHEAD = 0.01
 
 
 def check_reference(q: Sequence[float], names: Sequence[str], lower: np.ndarray,
@@ -163,6 +166,8 @@ class Robot(WholeBody):
         self.owner = owner.rstrip("/")
         #: Read each chain's state at most this often (the newest; see :func:`walkman.hal.protocol.state_interval`).
         self.state_interval = state_interval
+        #: The robot's time, for a module's trajectories (:mod:`walkman.hal.clock`).
+        self.clock = RobotClock(max_ahead=max(2 * state_interval, MIN_CLOCK_AHEAD))
         self.robot = robot
         self.model = model or walkman()
         self.nameclient = nameclient or NameClient()
@@ -342,6 +347,7 @@ class Robot(WholeBody):
         except HalProtocolError as exc:
             log.warning("%s: bad state from the HAL on %s: %s", self.owner, chain, exc)
             return
+        self.clock.observe(state.time)
         self._store(chain, state.seq, state.q, state.qdot, state.tau, state.temperature)
 
     def _on_state_ext(self, chain: str, indices: List[int], bottle: Bottle,
@@ -354,6 +360,8 @@ class Robot(WholeBody):
             log.warning("%s: bad stateExt from %s: %s", self.owner, chain, exc)
             return
         stamp = controlboard.Stamp.from_envelope(envelope)
+        if stamp is not None:
+            self.clock.observe(stamp.time)
         zeros = [0.0] * len(indices)
         self._store(chain, stamp.count if stamp else 0, np.radians(data.position),
                     np.radians(data.velocity) if data.velocity else zeros,

@@ -2,7 +2,8 @@
 
 Theory of operation
 -------------------
-One thread steps the backend at 1 kHz of wall-clock time.  Before each step
+One thread steps the backend at 1 kHz of wall-clock time (on a loaded machine slower,
+never in long bursts: ``MAX_LAG_S``; modules follow the robot's time).  Before each step
 it applies the newest command each chain received; every ``period_ms`` it
 snapshots the state of every chain; every 10 ms the F/T sensors and the IMU.
 Snapshots go to a single publisher thread that writes the ports, so a slow
@@ -58,6 +59,11 @@ log = logging.getLogger("walkman.hal")
 SENSOR_PERIOD_S = 0.01
 WORLD_PERIOD_S = 1.0 / 30
 STATUS_PERIOD_S = 5.0
+#: How far the physics may fall behind the wall clock and catch up by stepping back to back;
+#: further behind, simulated time slips instead (an overrun).  Modules run on the robot's time
+#: (walkman.hal.clock), so a slip only slows the world down, where a long burst of catch-up
+#: steps would leave the controllers' commands far apart in simulated time.
+MAX_LAG_S = 0.005
 PUBLISHED_HISTORY = 2048  # state publications remembered for latency (2 s at 1 kHz)
 
 
@@ -382,7 +388,7 @@ class HalServer:
                 delay = deadline - time.perf_counter()
                 if delay > 0:
                     time.sleep(delay)
-                elif delay < -0.05:
+                elif delay < -MAX_LAG_S:
                     self.overruns += 1
                     deadline = time.perf_counter()  # fell behind: do not try to catch up
 

@@ -1,0 +1,71 @@
+"""The robot's clock: the time a module's trajectories run on.
+
+Theory of operation
+-------------------
+A module times its trajectories by the robot, not by the wall clock.  The simulated robot's
+physics runs slower than real time whenever its machine is loaded (the HAL never bursts to
+catch up); a module timed by the wall clock then runs its references ahead of the physics --
+a walking robot's feet land late and the ZMP leaves the feet.  Real YARP does the same with a
+network clock (``YARP_CLOCK``, published by the simulator), ROS with ``/use_sim_time``; on
+the real robot the robot's time is real time and nothing changes.
+
+Every state the robot streams carries its time (``stateSI``: the HAL's time; ``stateExt``:
+the device's stamp).  The clock reads the newest robot time plus the wall time since it
+arrived, at most ``max_ahead`` (so it advances smoothly between two states, and waits when
+the robot is slower than the wall or silent: a trajectory goes on from where it stood when
+the robot is back, instead of leaping ahead).  It never goes backwards: the chains' states
+arrive one by one, so a slightly older one is ignored, and a robot restarted from time 0
+continues the clock from where it stood.  Before the first state it is the wall
+clock.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Callable, Optional
+
+#: A state this much older (s) than the newest comes from a restarted robot; less, from a
+#: chain whose state was on its way while another's arrived.
+RESTART_STEP_BACK = 0.1
+
+
+class RobotClock:
+    """Monotonic seconds that follow the robot's own time (see the module's docstring)."""
+
+    def __init__(self, max_ahead: float, wall: Callable[[], float] = time.monotonic) -> None:
+        self.max_ahead = max_ahead
+        self._wall = wall
+        self._lock = threading.Lock()
+        self._offset: Optional[float] = None  # clock = offset + robot time (+ extrapolation)
+        self._robot_time = 0.0
+        self._received_at = 0.0
+        self._last = -float("inf")
+
+    def observe(self, robot_time: float) -> None:
+        """A state stamped ``robot_time`` (s) arrived now."""
+        received_at = self._wall()
+        with self._lock:
+            if self._offset is None:
+                self._offset = max(received_at, self._last) - robot_time
+            elif robot_time < self._robot_time - RESTART_STEP_BACK:
+                # The robot restarted: go on from where the clock stands.
+                self._offset = self._value(received_at) - robot_time
+            elif robot_time <= self._robot_time:
+                return  # an older state (chains arrive one by one): the clock has it
+            self._robot_time, self._received_at = robot_time, received_at
+
+    def now(self) -> float:
+        wall = self._wall()
+        with self._lock:
+            return self._value(wall)
+
+    def _value(self, wall: float) -> float:
+        """The clock at ``wall``, never below what it said before (lock held)."""
+        if self._offset is None:
+            value = wall
+        else:
+            ahead = min(max(wall - self._received_at, 0.0), self.max_ahead)
+            value = self._offset + self._robot_time + ahead
+        self._last = max(self._last, value)
+        return self._last
