@@ -10,12 +10,14 @@ network clock (``YARP_CLOCK``, published by the simulator), ROS with ``/use_sim_
 the real robot the robot's time is real time and nothing changes.
 
 Every state the robot streams carries its time (``stateSI``: the HAL's time; ``stateExt``:
-the device's stamp).  The clock reads the newest robot time plus the wall time since it
-arrived, at most ``max_ahead`` (so it advances smoothly between two states, and waits when
-the robot is slower than the wall or silent: a trajectory goes on from where it stood when
-the robot is back, instead of leaping ahead).  It never goes backwards: the chains' states
-arrive one by one, so a slightly older one is ignored, and a robot restarted from time 0
-continues the clock from where it stood.  Before the first state it is the wall
+the device's stamp; a robot that stamps nothing: when its state arrived).  The clock reads the
+newest robot time plus the wall time since it arrived, at most ``max_ahead``: it advances
+smoothly between two states and waits when the robot is slower than the wall or silent.
+It never goes backwards (the chains' states arrive one by one: a slightly older one is
+ignored) and never leaps: when the robot is back from a silence, restarted from time 0, or
+its time ran on further than the wall meanwhile (a connection remade, a wall clock set
+forward), the clock goes on from where it stood -- a trajectory goes on from where it paused
+instead of jumping ahead (an arm leaping along its path next to a valve is a hazard).  Before the first state it is the wall
 clock.
 """
 
@@ -27,14 +29,17 @@ from typing import Callable, Optional
 
 #: A state this much older (s) than the newest comes from a restarted robot; less, from a
 #: chain whose state was on its way while another's arrived.
-RESTART_STEP_BACK = 0.1
+RESTART_STEP_BACK = 0.5
 
 
 class RobotClock:
     """Monotonic seconds that follow the robot's own time (see the module's docstring)."""
 
-    def __init__(self, max_ahead: float, wall: Callable[[], float] = time.monotonic) -> None:
+    def __init__(self, max_ahead: float, silence: float,
+                 wall: Callable[[], float] = time.monotonic) -> None:
         self.max_ahead = max_ahead
+        #: No state for this long (s) is a silence: the robot is lost until the next one.
+        self.silence = silence
         self._wall = wall
         self._lock = threading.Lock()
         self._offset: Optional[float] = None  # clock = offset + robot time (+ extrapolation)
@@ -48,11 +53,14 @@ class RobotClock:
         with self._lock:
             if self._offset is None:
                 self._offset = max(received_at, self._last) - robot_time
-            elif robot_time < self._robot_time - RESTART_STEP_BACK:
-                # The robot restarted: go on from where the clock stands.
-                self._offset = self._value(received_at) - robot_time
-            elif robot_time <= self._robot_time:
-                return  # an older state (chains arrive one by one): the clock has it
+            else:
+                step = robot_time - self._robot_time
+                if -RESTART_STEP_BACK <= step <= 0:
+                    return  # an older state (chains arrive one by one): the clock has it
+                waited = received_at - self._received_at
+                if step < 0 or waited > self.silence or step > waited + self.max_ahead:
+                    # restarted, back from a silence, or its time ran on without us
+                    self._offset = self._value(received_at) - robot_time
             self._robot_time, self._received_at = robot_time, received_at
 
     def now(self) -> float:

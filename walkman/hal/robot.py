@@ -167,7 +167,8 @@ class Robot(WholeBody):
         #: Read each chain's state at most this often (the newest; see :func:`walkman.hal.protocol.state_interval`).
         self.state_interval = state_interval
         #: The robot's time, for a module's trajectories (:mod:`walkman.hal.clock`).
-        self.clock = RobotClock(max_ahead=max(2 * state_interval, MIN_CLOCK_AHEAD))
+        self.clock = RobotClock(max_ahead=max(2 * state_interval, MIN_CLOCK_AHEAD),
+                                silence=STALE_AFTER)
         self.robot = robot
         self.model = model or walkman()
         self.nameclient = nameclient or NameClient()
@@ -360,8 +361,7 @@ class Robot(WholeBody):
             log.warning("%s: bad stateExt from %s: %s", self.owner, chain, exc)
             return
         stamp = controlboard.Stamp.from_envelope(envelope)
-        if stamp is not None:
-            self.clock.observe(stamp.time)
+        self.clock.observe(stamp.time if stamp is not None else time.monotonic())
         zeros = [0.0] * len(indices)
         self._store(chain, stamp.count if stamp else 0, np.radians(data.position),
                     np.radians(data.velocity) if data.velocity else zeros,
