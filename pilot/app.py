@@ -19,6 +19,7 @@ the current state from the latched status topics.
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import logging
 import os
 import signal
@@ -86,6 +87,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     from nodekit.logs import configure_logging
 
     configure_logging("pilot")
+    faulthandler.enable()   # a crash in Qt or librviz leaves every thread's stack on stderr
     name = options.name or f"pi_{os.uname().nodename.replace('-', '_')}_{os.getpid()}"
     from python_qt_binding.QtWidgets import QApplication
 

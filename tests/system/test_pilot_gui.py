@@ -62,7 +62,8 @@ def valve_angle(topology) -> float:
 def start_pi(pc: Pc, display: str, phase: str, out, *args: str, name: str = "",
              layout: str = "main-pilot") -> Proc:
     pc.extra_env.update(display_env(display), PI_LAYOUT=layout,
-                        PI_NAME=name or f"pi_test_{phase}")
+                        PI_NAME=name or f"pi_test_{phase}",
+                        PYTHONFAULTHANDLER="1")  # a crash in Qt/librviz shows its stacks
     return pc.start(name or f"pi_{phase}", [PYTHON, str(DRIVER), phase, str(out), *args],
                     stdin=True)
 

@@ -9,16 +9,17 @@ a walking robot's feet land late and the ZMP leaves the feet.  Real YARP does th
 network clock (``YARP_CLOCK``, published by the simulator), ROS with ``/use_sim_time``; on
 the real robot the robot's time is real time and nothing changes.
 
-Every state the robot streams carries its time (``stateSI``: the HAL's time; ``stateExt``:
-the device's stamp; a robot that stamps nothing: when its state arrived).  The clock reads the
-newest robot time plus the wall time since it arrived, at most ``max_ahead``: it advances
-smoothly between two states and waits when the robot is slower than the wall or silent.
-It never goes backwards (the chains' states arrive one by one: a slightly older one is
-ignored) and never leaps: when the robot is back from a silence, restarted from time 0, or
-its time ran on further than the wall meanwhile (a connection remade, a wall clock set
-forward), the clock goes on from where it stood -- a trajectory goes on from where it paused
-instead of jumping ahead (an arm leaping along its path next to a valve is a hazard).  Before the first state it is the wall
-clock.
+Every state our HAL streams carries its time (``stateSI``); a plain YARP robot's state
+(``stateExt``) is timed by when it arrived, since a device's stamp need not move
+(``fakeMotionControl`` stamps time 0), and the module then runs on the wall clock as before.
+The clock reads the newest robot time plus the wall time since it arrived, at most
+``max_ahead``: it advances smoothly between two states and waits when the robot is slower
+than the wall or silent.  It never goes backwards (the chains' states arrive one by one: a
+slightly older one is ignored) and never leaps: when the robot is back from a silence,
+restarted from time 0, or its time ran on further than the wall meanwhile (a connection
+remade, a wall clock set forward), the clock goes on from where it stood -- a trajectory goes
+on from where it paused instead of jumping ahead (an arm leaping along its path next to a
+valve is a hazard).  Before the first state it is the wall clock.
 """
 
 from __future__ import annotations

@@ -361,7 +361,8 @@ class Robot(WholeBody):
             log.warning("%s: bad stateExt from %s: %s", self.owner, chain, exc)
             return
         stamp = controlboard.Stamp.from_envelope(envelope)
-        self.clock.observe(stamp.time if stamp is not None else time.monotonic())
+        # Timed by arrival: a YARP device's stamp need not move (fakeMotionControl's is 0).
+        self.clock.observe(time.monotonic())
         zeros = [0.0] * len(indices)
         self._store(chain, stamp.count if stamp else 0, np.radians(data.position),
                     np.radians(data.velocity) if data.velocity else zeros,
