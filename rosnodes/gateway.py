@@ -219,9 +219,12 @@ class Gateway:
                  ", ".join(self.modules))
 
     def _find_peers(self) -> None:
-        """Read every other station's ``sent:o``, found on the name server every 2 s."""
+        """Read every other station's ``sent:o``, found on the name server at once and then
+        every 2 s (a station that waited first missed what the others sent meanwhile)."""
         pattern = re.compile(r"^/pilot_gateway/(\d+)/sent:o$")
-        while not self._stop.wait(2.0):
+        first = True
+        while first or not self._stop.wait(2.0):
+            first = False
             try:
                 names = [c.name for c in self.nameclient.list()]
             except YarpError:

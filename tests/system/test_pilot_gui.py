@@ -132,6 +132,10 @@ def test_two_pilot_pcs_see_each_others_commands_and_a_pi_survives_restarts(
                           name="pi_status", layout="status-pilot")
         for pi in (main, status):
             pi.wait_for(r"STEP ready|FAIL", 120)
+        # each station's gateway reads the other's sent commands (a record sent before that
+        # connection exists is not shown: YARP streams keep no history)
+        drc.process("gateway").wait_for(r"connected /pilot_gateway/2/sent:o", 30)
+        second_pilot_pc.processes["gateway"].wait_for(r"connected /pilot_gateway/1/sent:o", 30)
         for pi in (main, status):
             pi.send("go\n")
         status.wait_for(r"DONE|FAIL", 60)
