@@ -222,18 +222,18 @@ class Gateway:
         """Read every other station's ``sent:o``, found on the name server at once and then
         every 2 s (a station that waited first missed what the others sent meanwhile)."""
         pattern = re.compile(r"^/pilot_gateway/(\d+)/sent:o$")
-        first = True
-        while first or not self._stop.wait(2.0):
-            first = False
+        while True:
             try:
                 names = [c.name for c in self.nameclient.list()]
             except YarpError:
-                continue
+                names = []
             for name in names:
                 found = pattern.match(name)
                 if found and int(found.group(1)) != self.station and name not in self._peers:
                     self._peers.add(name)
                     self.keeper.want(name, self.sent_in.name, self.sent_in, ours_is_source=False)
+            if self._stop.wait(2.0):
+                return
 
     def _on_peer_sent(self, bottle: Bottle) -> None:
         fields = parse_sent(bottle)
