@@ -233,8 +233,9 @@ class PilotLink:
     def switch(self, module: str, word: str) -> str:
         """Send a lifecycle command; returns "" or why it could not leave."""
         sender = self._senders.get(module)
-        if sender is None:
-            return "the PI is not connected to the pilot roscore yet"
+        problem = self._cannot_send(module, sender, "switch")
+        if problem:
+            return problem
         from walkman_msgs.msg import Switch
 
         sender.switch.publish(Switch(command=word, seq=0, sender=self.name))
@@ -244,8 +245,9 @@ class PilotLink:
                 dangerous: bool = False) -> str:
         """Send a command (a dangerous one counts down at the gateway; again cancels it)."""
         sender = self._senders.get(module)
-        if sender is None:
-            return "the PI is not connected to the pilot roscore yet"
+        problem = self._cannot_send(module, sender, "command")
+        if problem:
+            return problem
         bad = [v for v in numbers if not math.isfinite(v)]
         if bad:
             return f"{name}: {bad[0]} is not a finite number"
@@ -254,6 +256,24 @@ class PilotLink:
         sender.command.publish(Command(command=name, words=[], numbers=list(map(float, numbers)),
                                        text="", dangerous=dangerous, countdown=0.0, seq=0,
                                        sender=self.name))
+        return ""
+
+    def cannot_send(self, module: str, topic: str = "command") -> str:
+        """Why a message on ``/module/topic`` (``switch`` or ``command``) would go nowhere,
+        or "".
+
+        A ROS publisher drops what it publishes while no subscriber is connected (at
+        start, a moment after registering; while the gateway is down): refused, not lost.
+        """
+        return self._cannot_send(module, self._senders.get(module), topic)
+
+    @staticmethod
+    def _cannot_send(module: str, sender: Optional[_Sender], topic: str) -> str:
+        if sender is None:
+            return "the PI is not connected to the pilot roscore yet"
+        if getattr(sender, topic).get_num_connections() == 0:
+            return (f"no gateway listens to /{module}/{topic} on the pilot roscore yet "
+                    f"(is walkman-pilot-gateway running?); nothing was sent")
         return ""
 
     # -- ROS -------------------------------------------------------------------------------

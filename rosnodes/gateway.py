@@ -243,6 +243,8 @@ class Gateway:
             return
         station, sender, module, port, text, seq = fields
         if station != self.station:
+            log.info("gateway: station %d sent to /%s/%s:i: %s (from %s)", station, module,
+                     port, text, sender)
             self._publish_sent(module, port, text, seq, sender, station)
 
     def _on_status(self, link: ModuleLink, bottle: Bottle) -> None:

@@ -92,16 +92,29 @@ def wait_word(word: str, timeout: float) -> None:
     fail(f"the test never said {word!r}")
 
 
-def click(button: QPushButton, what: str) -> None:
+def click(button: QPushButton, what: str, owner=None) -> None:
+    """Click; with ``owner`` (the button's module widget), a refusal it shows fails."""
     if not button.isEnabled():
         fail(f"{what} is disabled")
+    shown = owner.warnings.count() if owner is not None else 0
     QTest.mouseClick(button, Qt.LeftButton)
     say(f"CLICK {what}")
+    if owner is not None and owner.warnings.count() > shown \
+            and "not sent:" in owner.warnings.item(0).text():
+        fail(f"{what} was refused: {owner.warnings.item(0).text()}")
+
+
+def wait_sendable(module: str) -> None:
+    """Until the gateway's subscribers hear this PI (what the PI publishes before is refused,
+    ROS would drop it): a pilot would see "not sent" and click again, the test waits."""
+    wait(lambda: not (window.link.cannot_send(module, "switch")
+                      or window.link.cannot_send(module, "command")), 30,
+         f"the gateway's subscriptions to our {module} commands")
 
 
 def do(module: str, command: str, state: str, timeout: float = 60.0) -> None:
     task = widget(module)
-    click(task.buttons[command], f"{module} {command}")
+    click(task.buttons[command], f"{module} {command}", task)
     wait(lambda: task.state == state, timeout, f"{module} {state} after {command}")
     say(f"STEP {module} {command} -> {state}")
 
@@ -137,14 +150,16 @@ def view_pixels(disable: str = "") -> int:
 def first() -> None:
     gaze = next(w for w in window.module_widgets["gaze_control"])
     wait(lambda: gaze.state is not None, 60, "gaze_control's status")
-    click(gaze.switch_buttons["start"], "gaze_control start")
+    wait_sendable("gaze_control")
+    click(gaze.switch_buttons["start"], "gaze_control start", gaze)
     wait(lambda: gaze.state == "ready", 30, "gaze_control ready")
     say("STEP gaze_control started")
     valve = widget("drc_valve")
     wait(lambda: valve.state is not None, 60, "drc_valve's status")
     if valve.switch_buttons["pause"].isEnabled() or valve.switch_buttons["resume"].isEnabled():
         fail("pause/resume enabled before the module runs")
-    click(valve.switch_buttons["start"], "drc_valve start")
+    wait_sendable("drc_valve")
+    click(valve.switch_buttons["start"], "drc_valve start", valve)
     wait(lambda: valve.state == "idle", 30, "drc_valve idle")
     if valve.switch_buttons["start"].isEnabled():
         fail("start still enabled while the module runs")
@@ -166,20 +181,21 @@ def second() -> None:
     # A new PI shows the current state at once (latched status), not "not running".
     wait(lambda: valve.state == "reached", 15, "the restarted PI to show reached")
     say("STEP restarted PI shows reached")
+    wait_sendable("drc_valve")
     do("drc_valve", "approach", "approached")
     do("drc_valve", "grasp", "grasped")
     turn = valve.buttons["turn"]
-    click(turn, "drc_valve turn (first click)")
+    click(turn, "drc_valve turn (first click)", valve)
     wait(lambda: turn.waiting, 10, "the turn's countdown")
     # At once: the cancel must reach the gateway within its 3 s countdown (a screenshot
     # taken here first made a loaded CI's cancel arrive after the turn had left).
-    click(turn, "drc_valve turn (second click: cancel)")
+    click(turn, "drc_valve turn (second click: cancel)", valve)
     wait(lambda: not turn.waiting and "cancelled" in turn.text(), 10, "the cancel")
     pump(4.0)                                   # past the countdown: nothing may leave
     if valve.state != "grasped":
         fail(f"the cancelled turn moved the module to {valve.state}")
     say("STEP cancelled turn never sent")
-    click(turn, "drc_valve turn")
+    click(turn, "drc_valve turn", valve)
     wait(lambda: turn.waiting, 10, "the turn's countdown")
     pump(0.6)
     window.screenshot(OUT / "countdown.png")     # this one runs out: the turn leaves
@@ -212,8 +228,9 @@ def second() -> None:
 def start_gaze():
     gaze = widget("gaze_control")
     wait(lambda: gaze.presence == "running", 60, "gaze_control's status")
+    wait_sendable("gaze_control")
     if gaze.state != "ready" and gaze.switch_buttons["start"].isEnabled():
-        click(gaze.switch_buttons["start"], "gaze_control start")
+        click(gaze.switch_buttons["start"], "gaze_control start", gaze)
     wait(lambda: gaze.state == "ready", 30, "gaze_control ready")
     return gaze
 
@@ -223,13 +240,13 @@ def send_look_at(gaze, x: float) -> None:
     if hasattr(gaze, "buttons"):
         for field, value in zip(gaze.fields["look_at"], (x, 0.2, 0.1)):
             field.setValue(value)
-        click(gaze.buttons["look_at"], f"look_at {x:.3f}")
+        click(gaze.buttons["look_at"], f"look_at {x:.3f}", gaze)
         return
     gaze.command_box.setCurrentText("look_at")
     pump(0.1)
     for field, value in zip(gaze.number_fields, (x, 0.2, 0.1)):
         field.setValue(value)
-    click(gaze.send_button, f"send look_at {x:.3f}")
+    click(gaze.send_button, f"send look_at {x:.3f}", gaze)
 
 
 def drag_marker() -> None:
@@ -313,6 +330,7 @@ def peer() -> None:
     wait(lambda: cloud_connected(*librviz.values()), 30,
          "librviz's subscription to the restarted bridge's cloud")
     say("STEP librviz connected to the restarted bridge")
+    wait_sendable("gaze_control")           # the gateway subscribes again on the new roscore
     send_look_at(gaze, x + 0.1)
     say("STEP sent after the restarts")
     pump(8.0)                               # librviz's new frame, the robot's TF

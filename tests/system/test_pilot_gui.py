@@ -91,7 +91,7 @@ def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
     assert math.isclose(turned, math.pi / 2, rel_tol=0.15), turned
     # The cancelled turn never left the gateway: one turn reached the module.
     gateway = drc.process("gateway").output()
-    sent_turns = re.findall(r"sent to /drc_valve/command:i: \(turn ", gateway)
+    sent_turns = re.findall(r"gateway: sent to /drc_valve/command:i: \(turn ", gateway)
     assert len(sent_turns) == 1, gateway[-3000:]
     assert "cancelled" in gateway
     # Every command is attributed to the PI that sent it.
