@@ -258,14 +258,15 @@ class PilotLink:
                                        sender=self.name))
         return ""
 
-    def cannot_send(self, module: str, topic: str = "command") -> str:
-        """Why a message on ``/module/topic`` (``switch`` or ``command``) would go nowhere,
-        or "".
+    def cannot_send(self, module: str) -> str:
+        """Why a switch or command to ``module`` would go nowhere now, or "".
 
         A ROS publisher drops what it publishes while no subscriber is connected (at
         start, a moment after registering; while the gateway is down): refused, not lost.
         """
-        return self._cannot_send(module, self._senders.get(module), topic)
+        sender = self._senders.get(module)
+        return (self._cannot_send(module, sender, "switch")
+                or self._cannot_send(module, sender, "command"))
 
     @staticmethod
     def _cannot_send(module: str, sender: Optional[_Sender], topic: str) -> str:
@@ -303,9 +304,7 @@ class PilotLink:
         # Subscribers connect to the publishers a moment after registering: until then a
         # message published here would go nowhere.
         deadline = time.monotonic() + 3.0
-        while time.monotonic() < deadline and not all(
-                s.switch.get_num_connections() and s.command.get_num_connections()
-                for s in self._senders.values()):
+        while time.monotonic() < deadline and any(map(self.cannot_send, self.modules)):
             time.sleep(0.05)
         self.post(RosEvent(True))
         log.info("pilot: %s on the pilot roscore, %d modules", self.name, len(self.modules))

@@ -57,3 +57,11 @@ def test_before_the_roscore_nothing_can_leave():
     link = PilotLink("pi_test", ["gaze_control"], post=lambda event: None)
     assert "not connected to the pilot roscore" in link.command("gaze_control", "look_at", [1])
     assert "not connected to the pilot roscore" in link.switch("gaze_control", "start")
+
+
+def test_cannot_send_names_the_first_topic_no_gateway_listens_to():
+    link = link_with(Publisher(1), Publisher(0))
+    assert "/gaze_control/command" in link.cannot_send("gaze_control")
+    link = link_with(Publisher(0), Publisher(1))
+    assert "/gaze_control/switch" in link.cannot_send("gaze_control")
+    assert link_with(Publisher(1), Publisher(1)).cannot_send("gaze_control") == ""
