@@ -461,7 +461,10 @@ class TcpChannel:
 
     def _receive_loop(self, connection: _Connection) -> None:
         sock = connection.sock
-        sock.settimeout(0.25)
+        try:
+            sock.settimeout(0.25)
+        except OSError:  # dropped (and closed) before this thread ran: nothing to receive
+            return
         if not self._handle_frames(connection, connection.early_frames):
             return
         connection.early_frames = []

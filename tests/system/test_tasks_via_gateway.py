@@ -4,6 +4,7 @@ The HAL (MuJoCo) at the task's station, the module under the supervisor, the gat
 the pilot uses ``rosservice call`` alone, and the scene is read from the HAL's world port.
 """
 
+import itertools
 import math
 import sys
 
@@ -20,30 +21,57 @@ GRASP = (("reach", "reached"), ("approach", "approached"), ("grasp", "grasped"))
 
 
 class RosPilot:
-    """One module piloted with ``rosservice call`` on the gateway's services."""
+    """One module piloted with ``rosservice call``, its states and warnings followed with
+    ``rostopic echo`` (which sees every state, even one shorter than a service call)."""
 
     def __init__(self, pc, module: str) -> None:
         self.pc, self.module = pc, module
+        self.states = pc.start(f"{module}-states",
+                               ["rostopic", "echo", f"/{module}/status/state"])
+        self.warnings = pc.start(f"{module}-warnings",
+                                 ["rostopic", "echo", f"/{module}/warning/text"])
+        # The module sends its status every second: the first one says we are subscribed.
+        self.states.wait_for(r'^"', 30)
 
     def call(self, service: str, request: str = "") -> str:
         args = ["rosservice", "call", f"/{self.module}/{service}"] + ([request] if request else [])
         return self.pc.run(args, timeout=60).output()
 
-    def state(self) -> str:
-        out = self.call("get_status")
-        return out.split('state: "')[1].split('"')[0] if 'state: "' in out else ""
+    def _seen(self) -> list:
+        """Every state the status topic said so far, in order."""
+        return [line.strip('"') for line in list(self.states.lines) if line.startswith('"')]
 
     def wait_state(self, state: str, timeout: float = 60, after: str = "") -> None:
-        wait_until(lambda: self.state() == state, timeout,
-                   message=f"{self.module} {state} after {after}")
+        """Until the module's latest status says ``state``."""
+        wait_until(lambda: self._seen()[-1:] == [state], timeout,
+                   message=f"{self.module} {state} after {after} (states: {self._seen()[-5:]})")
 
     def send(self, request: str) -> None:
         reply = self.call("send_command", request)
         assert "ok: True" in reply, reply
 
     def step(self, request: str, state: str, timeout: float = 60) -> None:
+        """Send, and wait until the module has said ``state`` since; from ``state`` back to
+        it, see it leave first."""
+        mark = len(self._seen())
+        was = self._seen()[-1]
         self.send(request)
-        self.wait_state(state, timeout, request)
+
+        def reached() -> bool:
+            since = self._seen()[mark:]
+            if was == state:  # only what follows the first other state counts
+                since = list(itertools.dropwhile(lambda seen: seen == state, since))
+            return state in since
+
+        wait_until(reached, timeout, message=f"{self.module} {state} after {request} "
+                                             f"(states since: {self._seen()[mark:][-5:]})")
+
+    def refused(self, request: str, reason: str) -> None:
+        """Send; the module refuses it (its warning says ``reason``) and stays where it was."""
+        was = self._seen()[-1]
+        self.send(request)
+        self.warnings.wait_for(reason, 20)
+        assert self._seen()[-1] == was, self._seen()[-5:]
 
     def steps(self, pairs) -> None:
         for command, state in pairs:
@@ -83,7 +111,7 @@ def pilot_at(make_pc):
 def test_the_valve_task_through_rosservice(pilot_at):
     valve = pilot_at("valve", "drc_valve")
     # Illegal in this state: refused by the module, said on /drc_valve/warning.
-    valve.step("{command: grasp}", "idle", 10)
+    valve.refused("{command: grasp}", "'grasp' is not accepted in state idle")
     valve.step(f"{{text: '{VALVE}'}}", "ready")
     valve.steps(GRASP)
     before = valve.scene("valve")["valve"]
