@@ -80,11 +80,15 @@ def loop(seconds: float) -> dict:
                                     text=True, timeout=30).stdout
         module.terminate()
         _, err = module.communicate(timeout=30)
-        match = re.search(r"period error median ([0-9.]+) ms, p99 ([0-9.]+) ms over (\d+)", err)
+        match = re.search(r"period error median ([0-9.]+) ms, p99 ([0-9.]+) ms over (\d+) "
+                          r"ticks(?: \((\d+) on the robot's states\); "
+                          r"interval error p99 ([0-9.]+) ms)?", err)
         results = {}
         if match:
             results.update(period_median_ms=float(match.group(1)),
-                           period_p99_ms=float(match.group(2)), ticks=int(match.group(3)))
+                           period_p99_ms=float(match.group(2)), ticks=int(match.group(3)),
+                           locked=int(match.group(4) or 0),
+                           interval_p99_ms=float(match.group(5) or "nan"))
         for key in ("sense_to_move_median_ms", "sense_to_move_p99_ms", "real_time_factor",
                     "overruns"):
             found = re.search(rf"\({key} ([0-9.]+)\)", stats_text)
@@ -117,9 +121,11 @@ def main() -> int:
         timing = loop(options.seconds)
         nan = float("nan")
         print(f"GYM module at 500 Hz, sim HAL in real time, {title}, "
-              f"{timing.get('ticks', 0)} ticks")
+              f"{timing.get('ticks', 0)} ticks, {timing.get('locked', 0)} on the robot's states")
         print(f"  loop period error median / p99 (ms)    {timing.get('period_median_ms', nan):8.3f}"
               f" {timing.get('period_p99_ms', nan):8.3f}   (goal p99 <= 0.5)")
+        print(f"  tick interval error p99 (ms)                    "
+              f"{timing.get('interval_p99_ms', nan):8.3f}")
         print(f"  sense -> move median / p99 (ms)         "
               f"{timing.get('sense_to_move_median_ms', nan):8.3f}"
               f" {timing.get('sense_to_move_p99_ms', nan):8.3f}   (goal <= 2)")

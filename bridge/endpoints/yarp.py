@@ -17,7 +17,8 @@ anyone asking.
 
 :class:`RobotStateSink` gathers the HAL's per-chain ``stateSI:o`` into one
 whole-robot reading; :class:`RobotStateSource` republishes it on the pilot
-side as ``/<robot>/<chain>/stateSI:o`` and, for YARP's own tools, as the
+side as ``/<robot>/<chain>/stateSI:o`` (and whole, ``/<robot>/stateSI:o``, as the HAL
+does) and, for YARP's own tools, as the
 control board's ``state:o`` and ``stateExt:o`` (positions, velocities and
 torques; control modes unknown, so marked invalid).
 """
@@ -236,6 +237,7 @@ class RobotStateSource:
         self.nameclient = nameclient
         self.layout: Optional[Layout] = None
         self._ports: Dict[str, Tuple[Port, Port, Port]] = {}
+        self._whole: Optional[Port] = None
         self._rpc: Optional[RpcServer] = None
         self._previous: Optional[RobotState] = None
         self._stamp = Stamp()
@@ -248,6 +250,8 @@ class RobotStateSource:
             self._ports[chain] = tuple(  # type: ignore[assignment]
                 Port(nameclient=self.nameclient).open(names[key], wait=math.inf)
                 for key in ("state", "state_ext", "state_si"))
+        self._whole = Port(nameclient=self.nameclient).open(
+            protocol.whole_state_port_name(self.robot), wait=math.inf)
         self.layout = layout  # before the rpc port opens: its first caller gets the answer
         self._previous = None
         # The HAL's grouping, for whole-body readers on this side (read only: no commands).
@@ -273,6 +277,10 @@ class RobotStateSource:
         pieces = zip(split_by_chain(state.layout, state.q), split_by_chain(state.layout, qdot),
                      split_by_chain(state.layout, state.tau),
                      split_by_chain(state.layout, state.temperature))
+        if self._whole is not None and self._whole.has_outputs:
+            self._whole.write(protocol.encode_state_si(ChainState(
+                self._stamp.count, state.time, tuple(state.q.tolist()), tuple(qdot.tolist()),
+                tuple(state.tau.tolist()), tuple(state.temperature.tolist()))))
         for (chain, q), (_, dq), (_, tau), (_, temperature) in pieces:
             state_port, ext_port, si_port = self._ports[chain]
             q_deg = np.degrees(q)
@@ -290,6 +298,9 @@ class RobotStateSource:
             for port in ports:
                 port.close()
         self._ports = {}
+        if self._whole is not None:
+            self._whole.close()
+            self._whole = None
         if self._rpc is not None:
             self._rpc.close()
             self._rpc = None

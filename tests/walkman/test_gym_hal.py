@@ -271,3 +271,30 @@ def test_temperature_module_reports_round_robin_and_warns(lite_world, lite, tmp_
         pilot.wait_warning("limit 30.05 C", timeout=60)
     finally:
         pilot.close()
+
+
+@pytest.mark.parametrize("whole", [True, False], ids=["whole-robot state", "chain states"])
+@pytest.mark.parametrize("config, period", [("hal_chains.ini", 0.002),
+                                            ("hal_whole_body.ini", 0.001)])
+def test_the_robot_says_when_each_state_round_arrives(lite_world, probe, config, period, whole,
+                                                      monkeypatch):
+    """A round is every chain's state of one HAL step: a module's loop ticks on them.  The
+    HAL streams them in one message; a robot that does not is read chain by chain."""
+    from walkman.hal import protocol
+
+    start_hal(lite_world, "sim", "--config", str(MODELS_DIR / config))
+    if not whole:
+        monkeypatch.setattr(protocol, "whole_state_port_name", lambda robot: "/no/such/port")
+    robot = probe()
+    readers = [p.name for p in robot._ports if p.name.endswith("state:i")]
+    assert readers == (["/test/probe/robot/state:i"] if whole else
+                       [f"/test/probe/robot/{chain}/state:i" for chain in robot.chains])
+    wait_until(lambda: robot.round_period > 0, 10, message="the robot's round period")
+    # Eight chains each counted as a round would say a quarter of a millisecond; a loaded
+    # box may run the HAL slower than real time, never faster.
+    assert period * 0.8 < robot.round_period < period * 5, robot.round_period
+    newest = robot.newest_round
+    arrived = robot.wait_round(newest, 1.0)
+    assert arrived is not None and arrived > newest
+    assert robot.wait_round(time.monotonic() + 10, 0.05) is None  # none from the future
+    assert robot.wait_until_ready(5) and np.all(np.isfinite(robot.sense_position()))

@@ -47,6 +47,7 @@ from typing import Any, Dict, List, Optional, Tuple, Type
 from nodekit.logs import time_prefix
 from walkman.gym import inifile
 from walkman.gym.interfaces import PilotInterfaces, decoder_for
+from walkman.gym.pacing import TickSchedule
 from walkman.gym.lifecycle import (HOOKS, PAUSE_GRACE, IllegalTransition, State, Switch,
                                    next_state, parse_switch, releases, run_hook)
 from walkman.gym.thread import ControlThread, GenericThread
@@ -116,8 +117,7 @@ class ControlLoop(threading.Thread):
     def run(self) -> None:
         runner = self.runner
         self.realtime = make_realtime(CONTROL_PRIORITY)
-        period = runner.thread.thread_period
-        deadline = time.perf_counter()
+        self.schedule = TickSchedule(runner.thread.thread_period, lambda: runner.robot)
         paused_too = runner.thread.runs_while_paused()
         while not self.exit:
             self._serve_request()
@@ -125,12 +125,12 @@ class ControlLoop(threading.Thread):
             if state != State.RUNNING and not (paused_too and state == State.PAUSED):
                 with self.cond:
                     self.cond.wait_for(lambda: self.request is not None or self.exit, 0.1)
-                deadline = time.perf_counter()
+                self.schedule.restart()
                 continue
             if not runner.robot_alive():
                 with self.cond:  # no HAL: do not drive blind; wait for it to come back
                     self.cond.wait_for(lambda: self.request is not None or self.exit, 0.1)
-                deadline = time.perf_counter()
+                self.schedule.restart()
                 continue
             try:
                 if state == State.RUNNING:
@@ -146,17 +146,9 @@ class ControlLoop(threading.Thread):
                             exc_info=True)
                 runner.hold(f"{hook} raised")
                 runner.fail_stop()
-            deadline += period
-            delay = deadline - time.perf_counter()
-            if delay > 0.0003:
-                time.sleep(delay - 0.0002)
-            while time.perf_counter() < deadline:
-                pass  # the last 0.2 ms: sleep is too coarse for a 2 ms period
-            self.period_errors.append(time.perf_counter() - deadline)
+            self.period_errors.append(self.schedule.wait())
             if len(self.period_errors) > 20000:
                 del self.period_errors[:10000]
-            if delay < -0.1:
-                deadline = time.perf_counter()  # far behind: skip rather than burst
 
 
 class ModuleRunner:
@@ -512,8 +504,13 @@ class ModuleRunner:
         errors = sorted(abs(e) for e in self.loop.period_errors)
         if not errors:
             return {}
+        schedule = getattr(self.loop, "schedule", None)
+        intervals = sorted(schedule.interval_errors) if schedule else []
         return {"median_ms": errors[len(errors) // 2] * 1e3,
-                "p99_ms": errors[int(len(errors) * 0.99)] * 1e3, "samples": len(errors)}
+                "p99_ms": errors[int(len(errors) * 0.99)] * 1e3, "samples": len(errors),
+                "locked": schedule.locked_ticks if schedule else 0,
+                "interval_p99_ms": intervals[int(len(intervals) * 0.99)] * 1e3
+                if intervals else math.nan}
 
 
 def parse_args(argv: Optional[List[str]] = None) -> argparse.Namespace:
@@ -601,8 +598,10 @@ def run_module(argv: Optional[List[str]] = None) -> int:
         code = EXIT_QUIT
     stats = runner.period_stats()
     if stats:
-        log.info("%s: loop period error median %.3f ms, p99 %.3f ms over %d ticks", name,
-                 stats["median_ms"], stats["p99_ms"], stats["samples"])
+        log.info("%s: loop period error median %.3f ms, p99 %.3f ms over %d ticks "
+                 "(%d on the robot's states); interval error p99 %.3f ms", name,
+                 stats["median_ms"], stats["p99_ms"], stats["samples"], stats["locked"],
+                 stats["interval_p99_ms"])
     stuck = runner.loop.request is not None  # the control thread never took its last hook
     runner.close()  # unregister the ports either way
     if stuck or code == EXIT_ESCALATED:

@@ -9,6 +9,9 @@ we add beside YARP's protocols:
                   temperature[N]`` in SI units (rad, rad/s, N*m, deg C): the
                   compact, stamped state the bridge's Table 1 codec carries
                   (standard clients read ``stateExt:o`` and never see it)
+``/<robot>/stateSI:o``  the same vector for the whole robot, its joints in the
+                  order of ``[get] chains``: one message per robot step, so a
+                  whole-body client wakes once per state instead of once per chain
 ``/<robot>/rpc:i`` ``[get] chains`` -> ``((chain name...) ...)``: the grouping, so
                   a whole-body client finds every chain without a config;
                   ``[get] stats``; ``[set] harness on|off``; simulation only:
@@ -54,6 +57,11 @@ def port_names(robot: str, chain: str) -> dict:
     return {"state": f"{base}/state:o", "state_ext": f"{base}/stateExt:o",
             "state_si": f"{base}/stateSI:o", "command": f"{base}/command:i",
             "rpc": f"{base}/rpc:i"}
+
+
+def whole_state_port_name(robot: str) -> str:
+    """The whole robot's SI state, every chain in one message."""
+    return f"/{robot}/stateSI:o"
 
 
 def robot_rpc_name(robot: str) -> str:
@@ -140,8 +148,11 @@ def decode_inertial(bottle: Bottle) -> Tuple[List[float], List[float], List[floa
 
 
 def state_interval(period: float) -> float:
-    """How often a reader running every ``period`` seconds needs the joints' state: twice
-    per period, and at least every 20 ms.  The HAL streams each chain at 500 Hz: a
-    100 Hz module decoding all of it spent most of its time on states it never used, and
-    on 2 cores the readers together starved the HAL itself."""
-    return min(0.02, max(0.0, period) / 2)
+    """How often a reader running every ``period`` seconds needs the joints' state: a bit
+    more than twice per period, and at least every 20 ms.  The HAL streams each chain at
+    500 Hz: a 100 Hz module decoding all of it spent most of its time on states it never
+    used, and on 2 cores the readers together starved the HAL itself.  Not exactly twice:
+    a 500 Hz module over a 1 kHz robot must read every state as it comes, for its loop
+    ticks on them (:mod:`walkman.gym.pacing`); a reader pausing a full millisecond after
+    each read left every other one waiting or skipped."""
+    return min(0.02, max(0.0, period) * 0.4)

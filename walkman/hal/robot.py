@@ -40,8 +40,9 @@ import math
 import threading
 import time
 from abc import ABC, abstractmethod
+from collections import deque
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Sequence, Set, Tuple
+from typing import Deque, Dict, List, Optional, Sequence, Set, Tuple
 
 import numpy as np
 
@@ -138,6 +139,20 @@ class WholeBody(ABC):
     def wait_until_ready(self, timeout: float = 10.0) -> bool:
         return True
 
+    #: When the newest state round (every chain's state of one robot step) arrived
+    #: (``time.monotonic``); 0: none yet.
+    newest_round: float = 0.0
+
+    @property
+    def round_period(self) -> float:
+        """Seconds between state rounds; 0: not known, and a module's loop then runs on the
+        wall clock (:mod:`walkman.gym.pacing`)."""
+        return 0.0
+
+    def wait_round(self, after: float, timeout: float) -> Optional[float]:
+        """When a round newer than ``after`` arrived (the newest); None if none in ``timeout``."""
+        return None
+
     def close(self) -> None:
         """Release ports and connections."""
 
@@ -185,6 +200,8 @@ class Robot(WholeBody):
         self._seen = np.zeros(count, dtype=bool)
         self._updated = 0.0
         self._lock = threading.Lock()
+        self._round = threading.Condition(self._lock)  # a round arrived (see wait_round)
+        self._round_spacings: Deque[float] = deque(maxlen=32)
         self._ft: Dict[str, np.ndarray] = {}
         self._imu: Optional[Tuple[List[float], List[float], List[float]]] = None
         self.chains: Dict[str, List[int]] = {}
@@ -218,19 +235,33 @@ class Robot(WholeBody):
             log.info("%s: this robot has no %s; those joints stay unseen", self.owner,
                      ", ".join(sorted(missing)))
             self._seen[[self.index[j] for j in missing]] = True
+        # One reader for the whole robot where the HAL streams it (one wake-up per robot step:
+        # eight chain readers spread one step's state over 0.4 ms, 1.4 ms at p99), else a
+        # reader per chain.
+        whole = None if self.standard else protocol.whole_state_port_name(self.robot)
+        if whole is not None and self.nameclient.query(whole) is None:
+            whole = None
         for chain, indices in self.chains.items():
             names = protocol.port_names(self.robot, chain)
-            reader = self._on_state_ext if self.standard else self._on_state_si
-            state = BufferedPort(nameclient=self.nameclient, min_interval=self.state_interval)
-            state.on_read = lambda b, chain=chain, idx=indices, port=state: reader(
-                chain, idx, b, port.envelope)
-            state.open(f"{self.owner}/robot/{chain}/state:i")
+            if whole is None:
+                reader = self._on_state_ext if self.standard else self._on_state_si
+                state = BufferedPort(nameclient=self.nameclient, min_interval=self.state_interval)
+                state.on_read = lambda b, chain=chain, idx=indices, port=state: reader(
+                    chain, idx, b, port.envelope)
+                state.open(f"{self.owner}/robot/{chain}/state:i")
+                self._ports.append(state)
+                self._persist(names["state_ext" if self.standard else "state_si"], state.name)
             command = Port(nameclient=self.nameclient)
             command.open(f"{self.owner}/robot/{chain}/command:o")
-            self._ports += [state, command]
+            self._ports.append(command)
             self._links[chain] = _ChainLink(chain, indices, command, names["rpc"])
-            self._persist(names["state_ext" if self.standard else "state_si"], state.name)
             self._persist(command.name, names["command"])
+        if whole is not None:  # after the links: its first state may come at once
+            state = BufferedPort(nameclient=self.nameclient, min_interval=self.state_interval,
+                                 on_read=self._on_whole_state_si)
+            state.open(f"{self.owner}/robot/state:i")
+            self._ports.append(state)
+            self._persist(whole, state.name)
         for sensor in (s.name for s in self.model.sensors if s.kind == "ft"):
             port = BufferedPort(nameclient=self.nameclient,
                                 on_read=lambda b, sensor=sensor: self._on_ft(sensor, b))
@@ -351,6 +382,20 @@ class Robot(WholeBody):
         self.clock.observe(state.time)
         self._store(chain, state.seq, state.q, state.qdot, state.tau, state.temperature)
 
+    def _on_whole_state_si(self, bottle: Bottle) -> None:
+        try:
+            state = protocol.decode_state_si(bottle, sum(map(len, self.chains.values())))
+        except HalProtocolError as exc:
+            log.warning("%s: bad whole-robot state from the HAL: %s", self.owner, exc)
+            return
+        self.clock.observe(state.time)
+        start = 0
+        for chain, indices in self.chains.items():
+            end = start + len(indices)
+            self._store(chain, state.seq, state.q[start:end], state.qdot[start:end],
+                        state.tau[start:end], state.temperature[start:end])
+            start = end
+
     def _on_state_ext(self, chain: str, indices: List[int], bottle: Bottle,
                       envelope: str = "") -> None:
         try:
@@ -390,7 +435,12 @@ class Robot(WholeBody):
                 self._temperature[indices] = temperature
             self._seen[indices] = True
             self.last_seq = seq
-            self._updated = time.monotonic()
+            self._updated = now
+            if all(other.seen_at > self.newest_round for other in self._links.values()):
+                if now - self.newest_round < STALE_AFTER:
+                    self._round_spacings.append(now - self.newest_round)
+                self.newest_round = now
+                self._round.notify_all()
 
     def _poll_temperatures(self) -> None:
         """A plain YARP robot streams no temperatures: ask for them once a second."""
@@ -461,6 +511,19 @@ class Robot(WholeBody):
     @property
     def state_age(self) -> float:
         return time.monotonic() - self._updated if self._updated else math.inf
+
+    @property
+    def round_period(self) -> float:
+        """The median spacing of the last rounds (robust to a round lost or late)."""
+        with self._lock:
+            spacings = sorted(self._round_spacings)
+        return spacings[len(spacings) // 2] if len(spacings) >= 8 else 0.0
+
+    def wait_round(self, after: float, timeout: float) -> Optional[float]:
+        with self._round:
+            if self.newest_round <= after and timeout > 0:
+                self._round.wait_for(lambda: self.newest_round > after, timeout)
+            return self.newest_round if self.newest_round > after else None
 
     def sense_position(self) -> np.ndarray:
         with self._lock:

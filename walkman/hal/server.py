@@ -144,6 +144,9 @@ class HalServer:
         self.ft_offsets: Dict[str, analog.AnalogOffsets] = {}  # tare, set on <ft>/analog:o/rpc:i
         self.imu_port: Optional[Port] = None
         self.world_port: Optional[Port] = None
+        self.whole_state_port: Optional[Port] = None
+        #: The backend's joint indices in the order of ``[get] chains`` (the whole state's).
+        self.whole_indices = [i for chain in self.chains.values() for i in chain.indices]
 
     # -- ports -----------------------------------------------------------------------
 
@@ -153,6 +156,8 @@ class HalServer:
         self.ports.append(robot_rpc)
         self.warning_port = self._open(Port(nameclient=self.nameclient),
                                        protocol.hal_warning_port_name(self.robot))
+        self.whole_state_port = self._open(Port(nameclient=self.nameclient),
+                                           protocol.whole_state_port_name(self.robot))
         for chain in self.chains.values():
             names = protocol.port_names(self.robot, chain.name)
             ports = self.chain_ports[chain.name]
@@ -312,6 +317,11 @@ class HalServer:
         q, qdot, tau = backend.positions(), backend.velocities(), backend.torques()
         temperature = backend.temperatures()
         now = time.perf_counter()
+        if self.whole_state_port is not None and self.whole_state_port.has_outputs:
+            every = self.whole_indices
+            self.publisher.publish(self.whole_state_port, protocol.encode_state_si(ChainState(
+                seq, backend.time, q[every].tolist(), qdot[every].tolist(), tau[every].tolist(),
+                temperature[every].tolist())))
         for chain in self.chains.values():
             idx, ports = chain.indices, self.chain_ports[chain.name]
             if ports["state_si"].has_outputs:

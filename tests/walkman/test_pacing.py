@@ -1,0 +1,140 @@
+"""The control loop's schedule (walkman.gym.pacing), on a simulated clock and robot."""
+
+from typing import List, Optional
+
+import pytest
+
+from walkman.gym.pacing import FAR_BEHIND, SLACK, TickSchedule, whole_multiple
+
+MS = 1e-3
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.t = 1.0
+
+    def __call__(self) -> float:
+        return self.t
+
+    def sleep_until(self, deadline: float) -> None:
+        self.t = max(self.t, deadline)
+
+
+class Rounds:
+    """A robot whose state rounds arrive at the given times (and say their spacing)."""
+
+    def __init__(self, clock: Clock, arrivals: List[float], period: float) -> None:
+        self.clock, self.arrivals, self.period = clock, sorted(arrivals), period
+
+    @property
+    def round_period(self) -> float:
+        return self.period
+
+    @property
+    def newest_round(self) -> float:
+        return max([a for a in self.arrivals if a <= self.clock.t], default=0.0)
+
+    def wait_round(self, after: float, timeout: float) -> Optional[float]:
+        if self.newest_round > after:
+            return self.newest_round
+        coming = [a for a in self.arrivals if a > max(after, self.clock.t)]
+        if coming and coming[0] - self.clock.t <= timeout:
+            self.clock.t = coming[0]
+            return coming[0]
+        self.clock.t += max(timeout, 0.0)
+        return None
+
+
+def ticks(schedule: TickSchedule, clock: Clock, count: int, work: float = 0.0) -> List[float]:
+    """When each of ``count`` ticks ran (each taking ``work`` seconds)."""
+    times = []
+    for _ in range(count):
+        schedule.wait()
+        times.append(clock.t)
+        clock.t += work
+    return times
+
+
+def spaced(times: List[float]) -> List[float]:
+    return [round((b - a) / MS, 6) for a, b in zip(times, times[1:])]
+
+
+@pytest.mark.parametrize("period, round_period, expected", [
+    (2 * MS, 2 * MS, True), (2 * MS, 1 * MS, True), (4 * MS, 2 * MS, True),
+    (2.1 * MS, 2 * MS, True), (5 * MS, 2 * MS, False), (1 * MS, 2 * MS, False),
+    (2 * MS, 0.0, False)])
+def test_a_period_locks_only_to_a_whole_number_of_rounds(period, round_period, expected):
+    assert whole_multiple(period, round_period) is expected
+
+
+def test_without_a_robot_the_loop_keeps_the_wall_clock():
+    clock = Clock()
+    schedule = TickSchedule(2 * MS, clock=clock, sleep_until=clock.sleep_until)
+    times = ticks(schedule, clock, 50, work=0.3 * MS)
+    assert spaced(times) == [2.0] * 49
+    assert schedule.locked_ticks == 0
+
+
+@pytest.mark.parametrize("round_period", [2 * MS, 1 * MS])
+def test_the_loop_locks_to_the_robots_rounds(round_period):
+    clock = Clock()
+    # Rounds at a phase the wall schedule would miss by 0.7 ms, for a second.
+    robot = Rounds(clock, [clock.t + 0.7 * MS + k * round_period for k in range(1000)],
+                   round_period)
+    schedule = TickSchedule(2 * MS, lambda: robot, clock=clock, sleep_until=clock.sleep_until)
+    times = ticks(schedule, clock, 100, work=0.3 * MS)
+    # Within two ticks every tick runs the moment a round arrives: sense->move waits for none.
+    assert all(t in robot.arrivals for t in times[2:])
+    assert spaced(times[2:]) == [2.0] * 97
+    assert schedule.locked_ticks >= 98
+
+
+def test_the_loop_follows_the_robots_phase_not_each_rounds_jitter():
+    clock = Clock()
+    # Rounds 0.45 ms late, then 0.1 ms early: followed exactly, the early round after a late
+    # one would arrive 0.55 ms before a deadline moved by the late one: out of the window.
+    jitter = [(0.0, 0.45 * MS, -0.1 * MS)[k % 3] for k in range(1000)]
+    robot = Rounds(clock, [clock.t + k * 2 * MS + j for k, j in enumerate(jitter)], 2 * MS)
+    schedule = TickSchedule(2 * MS, lambda: robot, clock=clock, sleep_until=clock.sleep_until)
+    times = ticks(schedule, clock, 200, work=0.3 * MS)
+    assert schedule.wall_ticks == 0 and all(t in robot.arrivals for t in times)
+    assert max(schedule.interval_errors) == pytest.approx(0.55 * MS)
+
+
+def test_a_robot_at_another_rate_leaves_the_loop_on_the_wall_clock():
+    clock = Clock()
+    robot = Rounds(clock, [clock.t + k * 2 * MS for k in range(1000)], 2 * MS)
+    schedule = TickSchedule(5 * MS, lambda: robot, clock=clock, sleep_until=clock.sleep_until)
+    times = ticks(schedule, clock, 40)
+    assert spaced(times) == [5.0] * 39
+    assert schedule.locked_ticks == 0
+
+
+def test_a_silent_robot_costs_a_slack_per_tick_and_the_loop_finds_it_again():
+    clock = Clock()
+    start = clock.t
+    before = [start + k * 2 * MS for k in range(50)]                 # 100 ms of rounds
+    after = [start + 300.9 * MS + k * 2 * MS for k in range(100)]     # silent 200 ms, new phase
+    robot = Rounds(clock, before + after, 2 * MS)
+    schedule = TickSchedule(2 * MS, lambda: robot, clock=clock, sleep_until=clock.sleep_until)
+    times = ticks(schedule, clock, 200)
+    silent = [t for t in times if start + 101 * MS < t < start + 300 * MS]
+    # The loop keeps its rate while the robot is silent (each tick a slack late) ...
+    assert set(spaced(silent)) == {2.0}
+    behind_the_wall = [t - start - round((t - start) / (2 * MS)) * 2 * MS for t in silent]
+    assert all(abs(late - SLACK * 2 * MS) < 1e-9 for late in behind_the_wall)
+    # ... and runs on the robot's rounds again from its second tick after it is back.
+    back = [t for t in times if t > after[0]]
+    assert all(t in robot.arrivals for t in back[1:])
+
+
+@pytest.mark.parametrize("with_robot", [True, False])
+def test_a_tick_that_overran_by_far_starts_the_schedule_again_without_a_burst(with_robot):
+    clock = Clock()
+    robot = Rounds(clock, [clock.t + k * 2 * MS for k in range(1000)], 2 * MS)
+    schedule = TickSchedule(2 * MS, lambda: robot if with_robot else None, clock=clock,
+                            sleep_until=clock.sleep_until)
+    ticks(schedule, clock, 10)
+    clock.t += FAR_BEHIND + 0.05                 # run() blocked for 150 ms
+    times = ticks(schedule, clock, 10)
+    assert min(spaced(times)) >= 1.5             # not 75 ticks at once to catch up
