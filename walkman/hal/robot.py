@@ -256,6 +256,8 @@ class Robot(WholeBody):
             self._ports.append(command)
             self._links[chain] = _ChainLink(chain, indices, command, names["rpc"])
             self._persist(command.name, names["command"])
+        log.info("%s: reading the robot's state %s", self.owner,
+                 f"whole from {whole}" if whole else f"chain by chain ({len(self.chains)})")
         if whole is not None:  # after the links: its first state may come at once
             state = BufferedPort(nameclient=self.nameclient, min_interval=self.state_interval,
                                  on_read=self._on_whole_state_si)

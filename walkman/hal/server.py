@@ -151,13 +151,15 @@ class HalServer:
     # -- ports -----------------------------------------------------------------------
 
     def open(self, wait: float = math.inf) -> None:
+        # Before /<robot>/rpc:i: a client that finds the HAL there looks for this port at once.
+        self.whole_state_port = Port(nameclient=self.nameclient).open(
+            protocol.whole_state_port_name(self.robot), wait=wait)
+        self.ports.append(self.whole_state_port)
         robot_rpc = RpcServer(nameclient=self.nameclient, handler=self._robot_rpc)
         robot_rpc.open(protocol.robot_rpc_name(self.robot), wait=wait)
         self.ports.append(robot_rpc)
         self.warning_port = self._open(Port(nameclient=self.nameclient),
                                        protocol.hal_warning_port_name(self.robot))
-        self.whole_state_port = self._open(Port(nameclient=self.nameclient),
-                                           protocol.whole_state_port_name(self.robot))
         for chain in self.chains.values():
             names = protocol.port_names(self.robot, chain.name)
             ports = self.chain_ports[chain.name]
@@ -199,8 +201,8 @@ class HalServer:
     def close(self) -> None:
         self.running = False
         self.publisher.stop()
-        # /<robot>/rpc:i last: a client that finds chains without it takes us for a plain
-        # YARP robot (see walkman.hal.robot).
+        # /<robot>/rpc:i after the chains (only the whole state goes later): a client that
+        # finds chains without it takes us for a plain YARP robot (see walkman.hal.robot).
         for port in reversed(self.ports):
             port.close()
         self.backend.close()
