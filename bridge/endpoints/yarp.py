@@ -278,9 +278,10 @@ class RobotStateSource:
                      split_by_chain(state.layout, state.tau),
                      split_by_chain(state.layout, state.temperature))
         if self._whole is not None and self._whole.has_outputs:
-            self._whole.write(protocol.encode_state_si(ChainState(
+            self._whole.write(protocol.encode_whole_state(ChainState(
                 self._stamp.count, state.time, tuple(state.q.tolist()), tuple(qdot.tolist()),
-                tuple(state.tau.tolist()), tuple(state.temperature.tolist()))))
+                tuple(state.tau.tolist()), tuple(state.temperature.tolist())),
+                [joint for _, joints in state.layout.chains for joint in joints]))
         for (chain, q), (_, dq), (_, tau), (_, temperature) in pieces:
             state_port, ext_port, si_port = self._ports[chain]
             q_deg = np.degrees(q)

@@ -273,28 +273,45 @@ def test_temperature_module_reports_round_robin_and_warns(lite_world, lite, tmp_
         pilot.close()
 
 
-@pytest.mark.parametrize("whole", [True, False], ids=["whole-robot state", "chain states"])
 @pytest.mark.parametrize("config, period", [("hal_chains.ini", 0.002),
                                             ("hal_whole_body.ini", 0.001)])
-def test_the_robot_says_when_each_state_round_arrives(lite_world, probe, config, period, whole,
-                                                      monkeypatch):
+def test_the_robot_says_when_each_state_round_arrives(lite_world, config, period, monkeypatch):
     """A round is every chain's state of one HAL step: a module's loop ticks on them.  The
     HAL streams them in one message; a robot that does not is read chain by chain."""
     from walkman.hal import protocol
+    from walkman.hal.robot import Robot
 
     start_hal(lite_world, "sim", "--config", str(MODELS_DIR / config))
-    if not whole:
-        monkeypatch.setattr(protocol, "whole_state_port_name", lambda robot: "/no/such/port")
-    robot = probe()
-    readers = [p.name for p in robot._ports if p.name.endswith("state:i")]
-    assert readers == (["/test/probe/robot/state:i"] if whole else
-                       [f"/test/probe/robot/{chain}/state:i" for chain in robot.chains])
-    wait_until(lambda: robot.round_period > 0, 10, message="the robot's round period")
-    # Eight chains each counted as a round would say a quarter of a millisecond; a loaded
-    # box may run the HAL slower than real time, never faster.
-    assert period * 0.8 < robot.round_period < period * 5, robot.round_period
-    newest = robot.newest_round
-    arrived = robot.wait_round(newest, 1.0)
-    assert arrived is not None and arrived > newest
-    assert robot.wait_round(time.monotonic() + 10, 0.05) is None  # none from the future
-    assert robot.wait_until_ready(5) and np.all(np.isfinite(robot.sense_position()))
+    robots = []
+    try:
+        whole = Robot("/test/whole")                          # as a 500 Hz module reads
+        slow = Robot("/test/slow", state_interval=protocol.state_interval(0.1))  # a 10 Hz one
+        robots += [whole, slow]
+        with monkeypatch.context() as patch:
+            patch.setattr(protocol, "whole_state_port_name", lambda robot: "/no/such/port")
+            chains = Robot("/test/chains")
+        robots.append(chains)
+        readers = {robot.owner: [p.name for p in robot._ports if p.name.endswith("state:i")]
+                   for robot in robots}
+        assert readers["/test/whole"] == ["/test/whole/robot/state:i"]
+        assert readers["/test/chains"] == [f"/test/chains/robot/{chain}/state:i"
+                                           for chain in chains.chains]
+        for robot in (whole, chains):
+            wait_until(lambda: robot.round_period > 0, 10, message=f"{robot.owner} rounds")
+            # Eight chains each counted as a round would say a quarter of a millisecond; a
+            # loaded box may run the HAL slower than real time, never faster.
+            assert period * 0.8 < robot.round_period < period * 5, robot.round_period
+            newest = robot.newest_round
+            arrived = robot.wait_round(newest, 1.0)
+            assert arrived is not None and arrived > newest
+            assert robot.wait_round(time.monotonic() + 10, 0.05) is None  # none from the future
+        # Read whole or chain by chain, the same joints in the same places.
+        assert np.allclose(whole.sense_position(), chains.sense_position(), atol=2e-3)
+        # A reader throttled to fewer states than the robot's sees its own rhythm: no rounds
+        # for a loop to lock on.
+        assert slow.wait_until_ready(5)
+        time.sleep(1.0)
+        assert slow.round_period == 0.0 and slow.newest_round > 0
+    finally:
+        for robot in robots:
+            robot.close()

@@ -61,7 +61,7 @@ def spaced(times: List[float]) -> List[float]:
 
 @pytest.mark.parametrize("period, round_period, expected", [
     (2 * MS, 2 * MS, True), (2 * MS, 1 * MS, True), (4 * MS, 2 * MS, True),
-    (2.1 * MS, 2 * MS, True), (5 * MS, 2 * MS, False), (1 * MS, 2 * MS, False),
+    (2.04 * MS, 2 * MS, True), (2.1 * MS, 2 * MS, False), (5 * MS, 2 * MS, False), (1 * MS, 2 * MS, False),
     (2 * MS, 0.0, False)])
 def test_a_period_locks_only_to_a_whole_number_of_rounds(period, round_period, expected):
     assert whole_multiple(period, round_period) is expected
@@ -138,3 +138,47 @@ def test_a_tick_that_overran_by_far_starts_the_schedule_again_without_a_burst(wi
     clock.t += FAR_BEHIND + 0.05                 # run() blocked for 150 ms
     times = ticks(schedule, clock, 10)
     assert min(spaced(times)) >= 1.5             # not 75 ticks at once to catch up
+
+
+def test_a_robot_a_little_slower_is_followed_and_one_slower_still_is_not():
+    for robot_period, locks in ((2.04 * MS, True), (2.14 * MS, False)):
+        clock = Clock()
+        robot = Rounds(clock, [clock.t + k * robot_period for k in range(2000)], robot_period)
+        schedule = TickSchedule(2 * MS, lambda: robot, clock=clock,
+                                sleep_until=clock.sleep_until)
+        times = ticks(schedule, clock, 400, work=0.3 * MS)
+        intervals = spaced(times[2:])
+        if locks:   # at the robot's rate, every tick on a round
+            assert schedule.wall_ticks <= 2 and min(intervals) == max(intervals) == 2.04
+        else:       # the wall clock's, never faster
+            assert schedule.locked_ticks == 0 and set(intervals) == {2.0}
+
+
+@pytest.mark.parametrize("case", ["phase jump", "1 kHz, a round lost"])
+def test_finding_the_robots_phase_again_never_ticks_too_soon(case):
+    clock = Clock()
+    start = clock.t
+    if case == "phase jump":    # the HAL slipped 0.6 ms (an overrun) 100 ms in
+        arrivals = [start + k * 2 * MS + (0.6 * MS if k >= 50 else 0.0) for k in range(500)]
+        robot = Rounds(clock, arrivals, 2 * MS)
+    else:                       # a 1 kHz robot whose round 101 never reached us
+        arrivals = [start + k * MS for k in range(1000) if k != 101]
+        robot = Rounds(clock, arrivals, MS)
+    schedule = TickSchedule(2 * MS, lambda: robot, clock=clock, sleep_until=clock.sleep_until)
+    times = ticks(schedule, clock, 300, work=0.3 * MS)
+    assert min(spaced(times)) >= 2 * 0.75       # ms
+    assert schedule.wall_ticks <= 4 and all(t in robot.arrivals for t in times[-100:])
+
+
+def test_a_stall_of_robot_and_loop_together_is_no_burst():
+    clock = Clock()
+    start = clock.t
+    # Rounds for 100 ms, nothing while the whole box stalls 150 ms, rounds again after.
+    arrivals = [start + k * 2 * MS for k in range(50)] + \
+        [start + 260 * MS + k * 2 * MS for k in range(200)]
+    robot = Rounds(clock, arrivals, 2 * MS)
+    schedule = TickSchedule(2 * MS, lambda: robot, clock=clock, sleep_until=clock.sleep_until)
+    ticks(schedule, clock, 50)
+    clock.t = start + 250 * MS                   # the loop wakes first, robot still silent
+    times = ticks(schedule, clock, 60)
+    assert min(spaced(times)) >= 2 * 0.75

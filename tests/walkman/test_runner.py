@@ -146,6 +146,8 @@ class Robot:
     """Stands for the HAL's whole-body interface; holding is what goes wrong."""
 
     connected = True
+    round_period = 0.0   # rounds unknown: the loop runs on the wall clock
+    newest_round = 0.0
 
     def __init__(self, hold) -> None:
         self._hold = hold

@@ -114,6 +114,20 @@ def test_state_round_trip():
         protocol.decode_state_si(Bottle([1, 2.0, 2.0, *([0.0] * 8)]), 2)
 
 
+def test_the_whole_robot_state_names_its_joints_order():
+    state = protocol.ChainState(5, 1.25, (0.1, 0.2), (0.0, 1.0), (3.0, 4.0), (30.0, 31.0))
+    wire = protocol.encode_whole_state(state, ["NeckYawj", "NeckPitchj"])
+    assert protocol.decode_whole_state(wire, ["NeckYawj", "NeckPitchj"]) == state
+    # The same joints grouped otherwise (a HAL restarted with another configuration) are
+    # refused: their positions would land on the wrong joints.
+    with pytest.raises(HalProtocolError, match="groups the joints differently"):
+        protocol.decode_whole_state(wire, ["NeckPitchj", "NeckYawj"])
+    with pytest.raises(HalProtocolError, match="expected 11 for 2 joints"):
+        protocol.decode_whole_state(protocol.encode_state_si(state), ["NeckYawj", "NeckPitchj"])
+    with pytest.raises(HalProtocolError, match="empty"):
+        protocol.decode_whole_state(Bottle([]), ["NeckYawj"])
+
+
 # -- EtherCAT packets (Figure 4) ----------------------------------------------------------------------
 
 def test_packet_sizes_follow_figure_4():

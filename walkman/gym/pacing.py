@@ -13,15 +13,25 @@ arrive a whole number of times per period -- 500 Hz over 500 Hz or over 1 kHz,
 as on the real robot's EtherCAT -- the schedule *locks* to them:
 
 * the tick due at ``deadline`` runs as soon as a round arrives within a quarter
-  period before it to a quarter after it (``LEAD``, ``SLACK``); the next
-  deadline moves a fifth of the way towards that round (``PHASE_GAIN``), so the
-  schedule follows the robot's phase but not each round's jitter (following
-  each round exactly, a round 0.4 ms late made the next, on time, look 0.4 ms
-  early: a sixth of the rounds fell outside the window);
+  period before it to a quarter after it (``LEAD``, ``SLACK``; never wider than
+  one round, so a loop over several rounds a period cannot take the earliest
+  each time and run fast); the next deadline moves a fifth of the way towards
+  that round (``PHASE_GAIN``), so the schedule follows the robot's phase but
+  not each round's jitter (following each round exactly, a round 0.4 ms late
+  made the next, on time, look 0.4 ms early: a sixth fell outside the window);
 * a round that does not come in that window (a robot late, silent, or
   restarting) and the tick runs on the wall clock at the window's end; the next
-  deadline is then counted from the newest round, so a loop that lost (or never
-  had) the robot's phase finds it again at its next tick.
+  deadline is then a whole number of rounds after the newest, so a loop that
+  lost (or never had) the robot's phase finds it again -- never sooner than
+  ``MIN_GAP`` of a period after this tick;
+* far behind (``FAR_BEHIND``: ``run()`` or the whole machine stalled), the
+  schedule starts again from now: no burst of ticks to catch up.
+
+Only a robot that says its rounds come every robot step (the client reads every
+state: see :attr:`walkman.hal.robot.Robot.round_period`) and a period within 3 %
+of a whole number of them lock: a slower reader's rhythm is its own, not the
+robot's, and a robot a little off the loop's rate would drag it out of its
+window and back.
 
 A tick's lateness is counted from its round when locked (from its deadline
 otherwise); :attr:`TickSchedule.interval_errors` keeps how far each interval
@@ -38,6 +48,7 @@ is the only place it blocks, through the robot's ``wait_round`` or ``sleep_until
 
 from __future__ import annotations
 
+import math
 import time
 from collections import deque
 from typing import Callable, Deque, Optional, Protocol
@@ -48,8 +59,12 @@ LEAD = 0.25
 SLACK = 0.25
 #: How much of a round's offset from its deadline the next deadline takes on.
 PHASE_GAIN = 0.2
-#: A period is a whole number of rounds when within this fraction of one.
-MULTIPLE_TOLERANCE = 0.1
+#: A period is a whole number of rounds when within this fraction of one: less than the
+#: schedule can follow in a tick (PHASE_GAIN x SLACK), or a robot a little slower than the
+#: loop drags it out of its window and back, ticking faster than either.
+MULTIPLE_TOLERANCE = 0.03
+#: After a tick on the wall clock, the next comes at least this fraction of a period later.
+MIN_GAP = 0.75
 #: Further behind than this (s), the schedule starts again rather than bursting.
 FAR_BEHIND = 0.1
 
@@ -122,27 +137,41 @@ class TickSchedule:
 
     def _wait(self) -> float:
         due = self.deadline + self.period
-        robot = self._rounds()
-        if robot is not None:
-            arrived = robot.wait_round(due - LEAD * self.period,
-                                       due + SLACK * self.period - self._clock())
-            if arrived is not None:
-                # Follow the robot's phase, not each round's jitter: a round late by 0.4 ms
-                # must not make the next (on time) look 0.4 ms early.  A round far past the
-                # deadline means we were late (run() overran): count from it, no burst.
-                offset = arrived - due
-                self.deadline = arrived if offset > SLACK * self.period else \
-                    due + PHASE_GAIN * offset
-                self.locked_ticks += 1
-                return self._clock() - arrived
-            late = self._clock() - due
-            newest = robot.newest_round
-            # Find the robot's phase again: the next round is due a period after the newest.
-            self.deadline = newest if self._clock() - newest < self.period else due
-            self.wall_ticks += 1
-            return late
-        self._sleep_until(due)
         now = self._clock()
-        self.deadline = due if now - due < FAR_BEHIND else now  # far behind: skip, no burst
+        if now - due > FAR_BEHIND:  # run() or the whole box stalled: start again, no burst
+            self.deadline = now
+            self.wall_ticks += 1
+            return now - due
+        robot = self._rounds()
+        if robot is None:
+            self._sleep_until(due)
+            now = self._clock()
+            self.deadline = due if now - due < FAR_BEHIND else now
+            self.wall_ticks += 1
+            return now - due
+        # The window holds one round at most: a loop over several rounds a period must not
+        # take the earliest each time and run fast.
+        rounds = robot.round_period
+        lead = min(LEAD * self.period, 0.45 * rounds)
+        slack = min(SLACK * self.period, 0.45 * rounds)
+        arrived = robot.wait_round(due - lead, due + slack - now)
+        if arrived is not None:
+            # Follow the robot's phase, not each round's jitter: a round late by 0.4 ms
+            # must not make the next (on time) look 0.4 ms early.  A round far past the
+            # deadline means we were late (run() overran): count from it, no burst.
+            offset = arrived - due
+            self.deadline = arrived if offset > slack else due + PHASE_GAIN * offset
+            self.locked_ticks += 1
+            return self._clock() - arrived
+        now = self._clock()
+        earliest = now - (1 - MIN_GAP) * self.period  # the next tick no sooner than MIN_GAP
+        newest = robot.newest_round
+        if now - newest < self.period:
+            # Find the robot's phase again: the next tick on a round, a whole number of
+            # rounds after the newest, and not too soon.
+            skipped = max(0, math.ceil((earliest - newest) / rounds))
+            self.deadline = newest + skipped * rounds
+        else:
+            self.deadline = max(due, earliest)
         self.wall_ticks += 1
         return now - due

@@ -10,8 +10,9 @@ we add beside YARP's protocols:
                   compact, stamped state the bridge's Table 1 codec carries
                   (standard clients read ``stateExt:o`` and never see it)
 ``/<robot>/stateSI:o``  the same vector for the whole robot, its joints in the
-                  order of ``[get] chains``: one message per robot step, so a
-                  whole-body client wakes once per state instead of once per chain
+                  order of ``[get] chains``, then the CRC-32 of those joint names
+                  in that order: one message per robot step, so a whole-body
+                  client wakes once per state instead of once per chain
 ``/<robot>/rpc:i`` ``[get] chains`` -> ``((chain name...) ...)``: the grouping, so
                   a whole-body client finds every chain without a config;
                   ``[get] stats``; ``[set] harness on|off``; simulation only:
@@ -34,6 +35,7 @@ applied.
 from __future__ import annotations
 
 import math
+import zlib
 from dataclasses import dataclass
 from typing import List, Sequence, Tuple
 
@@ -128,6 +130,32 @@ def decode_state_si(bottle: Bottle, joints: int) -> ChainState:
     n = joints
     return ChainState(int(values[0]), values[1], values[3:3 + n], values[3 + n:3 + 2 * n],
                       values[3 + 2 * n:3 + 3 * n], values[3 + 3 * n:3 + 4 * n])
+
+
+def grouping_fingerprint(joint_names: Sequence[str]) -> float:
+    """The joints of a whole-robot state, in order, as one float64 (a CRC-32: exact)."""
+    return float(zlib.crc32(" ".join(joint_names).encode()))
+
+
+def encode_whole_state(state: ChainState, joint_names: Sequence[str]) -> Bottle:
+    """``stateSI`` for the whole robot, then the fingerprint of its joints' order."""
+    bottle = encode_state_si(state)
+    bottle.append(grouping_fingerprint(joint_names))
+    return bottle
+
+
+def decode_whole_state(bottle: Bottle, joint_names: Sequence[str]) -> ChainState:
+    """The whole robot's state, refused when its joints are not in ``joint_names``' order:
+    a HAL restarted with another grouping would put positions on the wrong joints."""
+    if not len(bottle):
+        raise HalProtocolError("whole-robot stateSI is empty")
+    *values, fingerprint = bottle
+    state = decode_state_si(Bottle(values), len(joint_names))
+    if fingerprint != grouping_fingerprint(joint_names):
+        raise HalProtocolError("whole-robot stateSI groups the joints differently from when "
+                               "this client connected (the HAL restarted with another "
+                               "configuration?)")
+    return state
 
 
 def encode_ft(wrench: Sequence[float]) -> Bottle:

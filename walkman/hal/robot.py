@@ -55,6 +55,7 @@ from walkman.model.description import Robot as RobotModel
 from yarp_lite import network
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.buffered_port import BufferedPort
+from yarp_lite.bursts import Burst
 from yarp_lite.errors import NetworkError, YarpError
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
@@ -202,6 +203,9 @@ class Robot(WholeBody):
         self._lock = threading.Lock()
         self._round = threading.Condition(self._lock)  # a round arrived (see wait_round)
         self._round_spacings: Deque[float] = deque(maxlen=32)
+        self._round_steps: Deque[int] = deque(maxlen=32)  # robot steps between rounds
+        self._round_seq = 0
+        self._bad_whole = Burst()
         self._ft: Dict[str, np.ndarray] = {}
         self._imu: Optional[Tuple[List[float], List[float], List[float]]] = None
         self.chains: Dict[str, List[int]] = {}
@@ -243,7 +247,12 @@ class Robot(WholeBody):
             whole = None
         for chain, indices in self.chains.items():
             names = protocol.port_names(self.robot, chain)
-            if whole is None:
+            command = Port(nameclient=self.nameclient)
+            command.open(f"{self.owner}/robot/{chain}/command:o")
+            self._ports.append(command)
+            self._links[chain] = _ChainLink(chain, indices, command, names["rpc"])
+            self._persist(command.name, names["command"])
+            if whole is None:  # after the link: the first state may come at once
                 reader = self._on_state_ext if self.standard else self._on_state_si
                 state = BufferedPort(nameclient=self.nameclient, min_interval=self.state_interval)
                 state.on_read = lambda b, chain=chain, idx=indices, port=state: reader(
@@ -251,11 +260,9 @@ class Robot(WholeBody):
                 state.open(f"{self.owner}/robot/{chain}/state:i")
                 self._ports.append(state)
                 self._persist(names["state_ext" if self.standard else "state_si"], state.name)
-            command = Port(nameclient=self.nameclient)
-            command.open(f"{self.owner}/robot/{chain}/command:o")
-            self._ports.append(command)
-            self._links[chain] = _ChainLink(chain, indices, command, names["rpc"])
-            self._persist(command.name, names["command"])
+        #: The joints of a whole-robot state, in its order (the grouping's).
+        self._whole_joints = [self.joint_names[i] for indices in self.chains.values()
+                              for i in indices]
         log.info("%s: reading the robot's state %s", self.owner,
                  f"whole from {whole}" if whole else f"chain by chain ({len(self.chains)})")
         if whole is not None:  # after the links: its first state may come at once
@@ -386,9 +393,11 @@ class Robot(WholeBody):
 
     def _on_whole_state_si(self, bottle: Bottle) -> None:
         try:
-            state = protocol.decode_state_si(bottle, sum(map(len, self.chains.values())))
-        except HalProtocolError as exc:
-            log.warning("%s: bad whole-robot state from the HAL: %s", self.owner, exc)
+            state = protocol.decode_whole_state(bottle, self._whole_joints)
+        except HalProtocolError as exc:  # refused, so the robot looks away: the module holds
+            if self._bad_whole.record():
+                log.warning("%s: whole-robot state from the HAL refused (#%d of this burst): "
+                            "%s", self.owner, self._bad_whole.count, exc)
             return
         self.clock.observe(state.time)
         start = 0
@@ -441,7 +450,8 @@ class Robot(WholeBody):
             if all(other.seen_at > self.newest_round for other in self._links.values()):
                 if now - self.newest_round < STALE_AFTER:
                     self._round_spacings.append(now - self.newest_round)
-                self.newest_round = now
+                    self._round_steps.append(seq - self._round_seq)
+                self.newest_round, self._round_seq = now, seq
                 self._round.notify_all()
 
     def _poll_temperatures(self) -> None:
@@ -516,10 +526,16 @@ class Robot(WholeBody):
 
     @property
     def round_period(self) -> float:
-        """The median spacing of the last rounds (robust to a round lost or late)."""
+        """The median spacing of the last rounds (robust to a round lost or late) -- when
+        they come every robot step (by the state count) and still come.  A reader throttled
+        to fewer (``state_interval``) sees its own rhythm, not the robot's: 0, unknown."""
         with self._lock:
             spacings = sorted(self._round_spacings)
-        return spacings[len(spacings) // 2] if len(spacings) >= 8 else 0.0
+            steps = sorted(self._round_steps)
+            fresh = time.monotonic() - self.newest_round < STALE_AFTER
+        if len(spacings) < 8 or not fresh or steps[len(steps) // 2] != 1:
+            return 0.0
+        return spacings[len(spacings) // 2]
 
     def wait_round(self, after: float, timeout: float) -> Optional[float]:
         with self._round:

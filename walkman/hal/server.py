@@ -147,6 +147,7 @@ class HalServer:
         self.whole_state_port: Optional[Port] = None
         #: The backend's joint indices in the order of ``[get] chains`` (the whole state's).
         self.whole_indices = [i for chain in self.chains.values() for i in chain.indices]
+        self.whole_joints = [j for chain in self.chains.values() for j in chain.joints]
 
     # -- ports -----------------------------------------------------------------------
 
@@ -321,9 +322,9 @@ class HalServer:
         now = time.perf_counter()
         if self.whole_state_port is not None and self.whole_state_port.has_outputs:
             every = self.whole_indices
-            self.publisher.publish(self.whole_state_port, protocol.encode_state_si(ChainState(
+            self.publisher.publish(self.whole_state_port, protocol.encode_whole_state(ChainState(
                 seq, backend.time, q[every].tolist(), qdot[every].tolist(), tau[every].tolist(),
-                temperature[every].tolist())))
+                temperature[every].tolist()), self.whole_joints))
         for chain in self.chains.values():
             idx, ports = chain.indices, self.chain_ports[chain.name]
             if ports["state_si"].has_outputs:
