@@ -238,6 +238,7 @@ class RobotStateSource:
         self.layout: Optional[Layout] = None
         self._ports: Dict[str, Tuple[Port, Port, Port]] = {}
         self._whole: Optional[Port] = None
+        self._whole_joints: List[str] = []
         self._rpc: Optional[RpcServer] = None
         self._previous: Optional[RobotState] = None
         self._stamp = Stamp()
@@ -252,6 +253,7 @@ class RobotStateSource:
                 for key in ("state", "state_ext", "state_si"))
         self._whole = Port(nameclient=self.nameclient).open(
             protocol.whole_state_port_name(self.robot), wait=math.inf)
+        self._whole_joints = [joint for _, joints in layout.chains for joint in joints]
         self.layout = layout  # before the rpc port opens: its first caller gets the answer
         self._previous = None
         # The HAL's grouping, for whole-body readers on this side (read only: no commands).
@@ -281,7 +283,7 @@ class RobotStateSource:
             self._whole.write(protocol.encode_whole_state(ChainState(
                 self._stamp.count, state.time, tuple(state.q.tolist()), tuple(qdot.tolist()),
                 tuple(state.tau.tolist()), tuple(state.temperature.tolist())),
-                [joint for _, joints in state.layout.chains for joint in joints]))
+                self._whole_joints))
         for (chain, q), (_, dq), (_, tau), (_, temperature) in pieces:
             state_port, ext_port, si_port = self._ports[chain]
             q_deg = np.degrees(q)

@@ -260,9 +260,13 @@ class Robot(WholeBody):
                 state.open(f"{self.owner}/robot/{chain}/state:i")
                 self._ports.append(state)
                 self._persist(names["state_ext" if self.standard else "state_si"], state.name)
-        #: The joints of a whole-robot state, in its order (the grouping's).
+        #: The joints of a whole-robot state, in its order (the grouping's), and each
+        #: chain's slice of it: worked out once, not for every state.
         self._whole_joints = [self.joint_names[i] for indices in self.chains.values()
                               for i in indices]
+        ends = np.cumsum([len(indices) for indices in self.chains.values()])
+        self._whole_slices = [(chain, slice(end - len(indices), end))
+                              for (chain, indices), end in zip(self.chains.items(), ends)]
         log.info("%s: reading the robot's state %s", self.owner,
                  f"whole from {whole}" if whole else f"chain by chain ({len(self.chains)})")
         if whole is not None:  # after the links: its first state may come at once
@@ -400,12 +404,9 @@ class Robot(WholeBody):
                             "%s", self.owner, self._bad_whole.count, exc)
             return
         self.clock.observe(state.time)
-        start = 0
-        for chain, indices in self.chains.items():
-            end = start + len(indices)
-            self._store(chain, state.seq, state.q[start:end], state.qdot[start:end],
-                        state.tau[start:end], state.temperature[start:end])
-            start = end
+        for chain, part in self._whole_slices:
+            self._store(chain, state.seq, state.q[part], state.qdot[part], state.tau[part],
+                        state.temperature[part])
 
     def _on_state_ext(self, chain: str, indices: List[int], bottle: Bottle,
                       envelope: str = "") -> None:
