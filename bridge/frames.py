@@ -5,11 +5,12 @@ Theory of operation
 Everything one side has to say during a period T travels in one frame::
 
     frame  := varint(len(body)) body trailer
-    body   := flags [varint ack] [varint seq] entry*          (data)
+    body   := flags [varint ack] [varint seq] [presence] entry*   (data)
             | HELLO version side fingerprint[8] session[8] nonce[16] keyed
             | AUTH proof[16]
             | RESUME varint(accepted)
     entry  := id head [varint length] payload
+    presence := varint(n) (id kinds)*n        ids increasing; kinds: bit k = kind k
     head   := kind << 5 | DELTA << 4 | length (0..14; 15 = a varint length follows)
 
 ``id`` is the 8-bit id from the configuration -- the only header a message
@@ -20,7 +21,10 @@ framing, where YARP spends 30 and ROS more.
 Reliable entries (pilot commands, warnings) are numbered: ``seq`` is the number
 of the first reliable entry in the frame, the others follow in order.
 ``ack`` tells the peer the highest number accepted so far, so it can forget
-what it journalled.  A connection opens with HELLO and AUTH from each side and
+what it journalled.  ``presence`` (sent on a new connection and when it changes)
+lists which flows have the module's end connected on the sender's side, so the
+receiver shows a module's stand-in ports only while the module exists
+(:mod:`bridge.presence`).  A connection opens with HELLO and AUTH from each side and
 a RESUME (the highest number already accepted from the peer's journal
 session): the sender resends everything after it, so nothing is lost or
 repeated across reconnects.
@@ -37,12 +41,12 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass, field
 from enum import IntFlag
-from typing import Iterable, List, Optional, Tuple, Union
+from typing import FrozenSet, Iterable, List, Optional, Tuple, Union
 
 from bridge.errors import BridgeProtocolError, BridgeUsageError, NeedMoreData
 from bridge.wire import Buffer, get_varint, put_varint, take
 
-PROTOCOL_VERSION = 2
+PROTOCOL_VERSION = 3
 DEFAULT_MAX_FRAME = 4 << 20
 #: Frames of the handshake are tiny; a bigger one is refused before it is buffered.
 MAX_HANDSHAKE_FRAME = 64
@@ -58,9 +62,14 @@ class Flags(IntFlag):
     HELLO = 0x04
     RESUME = 0x08
     AUTH = 0x10
+    PRESENCE = 0x20
 
 
-_KNOWN_FLAGS = int(Flags.ACK | Flags.SEQ | Flags.HELLO | Flags.RESUME | Flags.AUTH)
+_KNOWN_FLAGS = int(Flags.ACK | Flags.SEQ | Flags.HELLO | Flags.RESUME | Flags.AUTH |
+                   Flags.PRESENCE)
+
+#: Which flows are present: ``(id, kind)`` pairs.
+Presence = FrozenSet[Tuple[int, int]]
 
 
 @dataclass(frozen=True)
@@ -76,6 +85,7 @@ class DataFrame:
     entries: Tuple[Entry, ...] = ()
     ack: Optional[int] = None
     seq: Optional[int] = None
+    presence: Optional[Presence] = None
 
 
 @dataclass(frozen=True)
@@ -126,17 +136,52 @@ def entry_bytes(entry: Entry) -> bytes:
 
 
 def data_body(entries: Iterable[Entry] = (), ack: Optional[int] = None,
-              seq: Optional[int] = None, encoded: Optional[List[bytes]] = None) -> bytes:
+              seq: Optional[int] = None, encoded: Optional[List[bytes]] = None,
+              presence: Optional[Presence] = None) -> bytes:
     """A data frame's body; ``encoded`` may hold entries already through :func:`entry_bytes`."""
-    flags = (Flags.ACK if ack is not None else 0) | (Flags.SEQ if seq is not None else 0)
+    flags = (Flags.ACK if ack is not None else 0) | (Flags.SEQ if seq is not None else 0) | \
+        (Flags.PRESENCE if presence is not None else 0)
     body = bytearray((flags,))
     if ack is not None:
         put_varint(body, ack)
     if seq is not None:
         put_varint(body, seq)
+    if presence is not None:
+        body += presence_bytes(presence)
     for chunk in encoded if encoded is not None else (entry_bytes(e) for e in entries):
         body += chunk
     return bytes(body)
+
+
+def presence_bytes(presence: Presence) -> bytes:
+    """``varint(n) (id kinds)*n``: one byte of kinds per module present."""
+    kinds: dict = {}
+    for ident, kind in presence:
+        if not 0 <= ident <= 255 or not 0 <= kind <= MAX_KIND:
+            raise BridgeUsageError(f"present flow id {ident} kind {kind} out of range")
+        kinds[ident] = kinds.get(ident, 0) | 1 << kind
+    out = bytearray()
+    put_varint(out, len(kinds))
+    for ident in sorted(kinds):
+        out += bytes((ident, kinds[ident]))
+    return bytes(out)
+
+
+def _parse_presence(body: bytes, pos: int) -> Tuple[Presence, int]:
+    count, pos = get_varint(body, pos, "presence count")
+    if count > 256:
+        raise BridgeProtocolError(f"presence lists {count} modules; ids have 8 bits")
+    pairs, previous = [], -1
+    for _ in range(count):
+        pair, pos = take(body, pos, 2, "presence entry")
+        ident, kinds = pair[0], pair[1]
+        if ident <= previous:
+            raise BridgeProtocolError(f"presence ids not increasing at id {ident}")
+        if not kinds:
+            raise BridgeProtocolError(f"presence lists id {ident} with no kind")
+        previous = ident
+        pairs += [(ident, kind) for kind in range(MAX_KIND + 1) if kinds >> kind & 1]
+    return frozenset(pairs), pos
 
 
 def hello_body(hello: Hello) -> bytes:
@@ -170,7 +215,7 @@ def body_of(frame: Frame) -> bytes:
         return auth_body(frame)
     if isinstance(frame, Resume):
         return resume_body(frame)
-    return data_body(frame.entries, frame.ack, frame.seq)
+    return data_body(frame.entries, frame.ack, frame.seq, presence=frame.presence)
 
 
 def parse_body(body: bytes) -> Frame:
@@ -195,11 +240,13 @@ def parse_body(body: bytes) -> Frame:
             if pos != len(body):
                 raise BridgeProtocolError("bytes after RESUME")
             return Resume(accepted)
-        ack = seq = None
+        ack = seq = presence = None
         if flags & Flags.ACK:
             ack, pos = get_varint(body, pos, "ack")
         if flags & Flags.SEQ:
             seq, pos = get_varint(body, pos, "seq")
+        if flags & Flags.PRESENCE:
+            presence, pos = _parse_presence(body, pos)
         entries = []
         while pos < len(body):
             if pos + 2 > len(body):
@@ -215,7 +262,7 @@ def parse_body(body: bytes) -> Frame:
             entries.append(Entry(ident, head >> 5, payload, bool(head & 0x10)))
     except NeedMoreData as exc:
         raise BridgeProtocolError(f"frame truncated inside: {exc}") from None
-    return DataFrame(tuple(entries), ack, seq)
+    return DataFrame(tuple(entries), ack, seq, presence)
 
 
 def _parse_hello(body: bytes) -> Hello:

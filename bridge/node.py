@@ -8,11 +8,15 @@ roscore, so the bridge can start before them (and survives their restarts:
 ports re-register, the :class:`~nodekit.connections.ConnectionKeeper` remakes
 connections, :class:`~nodekit.ros_node.RosNode` re-registers topics).
 
-Data flows sink -> channel -> (link) -> channel -> source.  Reliable messages
+Data flows sink -> channel -> (link) -> channel -> source.  A module's
+stand-in ports (the pilot's ``/M/switch:i``, ``/M/status:o``...) are open only
+while the peer reports the module's own ports connected (:mod:`bridge.presence`);
+the same thread that opened the endpoints keeps them in step.  Reliable messages
 (pilot commands, warnings) go through the journal on both sides; the delivery
 thread writes the inbox to the local ports in order, one flow at a time, and
-keeps a message until its port is connected -- a command sent while a module
-is down waits for the module, it is not lost.
+keeps a message until its port is connected -- a command already taken when
+its module went down (or sent while the link is down) waits for the module, it
+is not lost.
 
 The bridge describes itself on ``/bridge/<side>/status:o`` (every second) and
 answers ``status`` on ``/bridge/<side>/rpc:i``, for ``yarp rpc`` and scripts:
@@ -31,12 +35,14 @@ from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
 from bridge import compact
+from bridge import presence as presence_rules
 from bridge import status as status_codec
 from bridge.config import PILOT, ROBOT, BridgeConfig, Channel
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeProtocolError
 from bridge.journal import Journal, QueueFull
 from bridge.link import LinkKey
+from bridge.presence import Presence, PresenceMemory
 from bridge.tcp_channel import BOTTLE, STATE, Route, TcpChannel
 from bridge.udp_channel import UdpChannel, UdpRoute
 from yarp_lite.bottle import Bottle
@@ -52,6 +58,8 @@ Key = Tuple[int, int]
 
 #: Seconds after a pilot's command reaches a module during which its status changes are events.
 COMMAND_WINDOW = 1.0
+#: How often a bridge looks whether its modules' ports are connected, and its stand-ins in step.
+PRESENCE_PERIOD = 0.2
 
 
 class StatusEvents:
@@ -113,6 +121,14 @@ class Bridge:
         self.keeper = None
         self.ros_node = None
         self.state_key: Optional[Key] = None
+        self._stand_in_keys = presence_rules.stand_ins(config, side)
+        self._watched = presence_rules.watched(config, side)
+        self._module_ends: Dict[Key, Any] = {}   # endpoints whose program's port is watched
+        self._stand_ins: Dict[Key, Any] = {}     # stand-in endpoints open now
+        self._presence_memory = PresenceMemory(state_dir, config)
+        self._peer_presence: Presence = self._presence_memory.load()
+        self._presence_wake = threading.Event()
+        self._presence_known = threading.Event()
         tcp_routes, udp_routes = self._routes()
         self.tcp = TcpChannel(side=side, peer=peer, port=tcp_port,
                               listen=(side == ROBOT) if listen is None else listen,
@@ -120,7 +136,8 @@ class Bridge:
                               routes=tcp_routes, period=config.period,
                               on_message=self._on_message, on_reliable=self._deliver_wake.set,
                               on_connected=self._on_link_up, link_timeout=link_timeout,
-                              key=key, on_keys=self._on_keys)
+                              key=key, on_keys=self._on_keys, presence=self.local_presence,
+                              on_presence=self._on_peer_presence)
         self.udp = UdpChannel(peer=peer, port=udp_port, peer_port=peer_udp_port or udp_port,
                               routes=udp_routes, gather=config.gather,
                               on_message=self._on_message, rate=udp_rate) if udp_routes else None
@@ -169,9 +186,9 @@ class Bridge:
         self._threads.append(thread)
 
     def _open_endpoints(self) -> None:
+        """Open every endpoint but the stand-ins, then keep the stand-ins in step."""
         from nodekit.connections import ConnectionKeeper
-        from bridge.endpoints.yarp import (RobotStateSink, RobotStateSource,
-                                           YarpSink, YarpSource)
+        from bridge.endpoints.yarp import RobotStateSink, RobotStateSource
 
         yarp_channels = [c for c in self.config.channels if c.middleware == "yarp"]
         ros_channels = [c for c in self.config.channels if c.middleware == "ros"]
@@ -183,12 +200,13 @@ class Bridge:
             for channel in yarp_channels:
                 if self._stop.is_set():
                     return
+                if channel.key in self._stand_in_keys:
+                    continue
+                endpoint = self._open_yarp_endpoint(channel)
+                if channel.key in self._watched:
+                    self._module_ends[channel.key] = endpoint
                 if channel.source == self.side:
-                    self._sinks.append(YarpSink(channel, self.nameclient, self.keeper,
-                                                self._submit))
-                else:
-                    self._sources[channel.key] = YarpSource(channel, self.nameclient,
-                                                            self.keeper)
+                    self._sinks.append(endpoint)
             if self.config.robot_state is not None:
                 _, robot, _ = self.config.robot_state
                 if self.side == ROBOT:
@@ -203,10 +221,80 @@ class Bridge:
         except Exception:
             log.exception("opening the endpoints failed")
             raise
+        # Connect to the modules already here before saying which are: a bridge that
+        # restarts must not tell the peer, for a moment, that every module has gone.
+        self.keeper.check_now()
+        self._stop.wait(PRESENCE_PERIOD)
+        self._presence_known.set()
         self.keeper.start()
         self._deliver_wake.set()
         log.info("bridge %s side ready: %d flows out, %d in", self.side,
                  len(self.config.sending(self.side)), len(self.config.receiving(self.side)))
+        self._keep_presence()
+
+    def _open_yarp_endpoint(self, channel: Channel) -> Any:
+        from bridge.endpoints.yarp import YarpSink, YarpSource
+
+        if channel.source == self.side:
+            return YarpSink(channel, self.nameclient, self.keeper, self._submit)
+        source = YarpSource(channel, self.nameclient, self.keeper)
+        self._sources[channel.key] = source
+        return source
+
+    # -- presence ------------------------------------------------------------------------
+
+    def local_presence(self) -> Optional[Presence]:
+        """The watched flows whose program's port is connected here (told to the peer);
+        None until the endpoints are open and connected to the modules already running."""
+        if not self._presence_known.is_set():
+            return None
+        return frozenset(key for key, endpoint in list(self._module_ends.items())
+                         if endpoint.linked)
+
+    def _on_peer_presence(self, flows: Presence) -> None:
+        self._peer_presence = flows
+        self._presence_wake.set()
+
+    def _keep_presence(self) -> None:
+        """Tell the peer at once when a module's ports come or go here; open and close
+        the stand-ins as the peer's word says."""
+        told: Optional[Presence] = None
+        kept = self._peer_presence
+        while not self._stop.is_set():
+            here = self.local_presence()
+            if here != told:
+                told = here
+                self.tcp.kick()
+            peer = self._peer_presence
+            if peer != kept:
+                kept = peer
+                self._presence_memory.save(peer)
+            self._follow(peer & self._stand_in_keys)
+            self._presence_wake.wait(PRESENCE_PERIOD)
+            self._presence_wake.clear()
+
+    def _follow(self, wanted: Presence) -> None:
+        opened: Dict[str, List[str]] = {}
+        closed: Dict[str, List[str]] = {}
+        for key in sorted(self._stand_in_keys):
+            if self._stop.is_set():
+                return
+            channel = self.config.channel(key)
+            if key in wanted and key not in self._stand_ins:
+                self._stand_ins[key] = endpoint = self._open_yarp_endpoint(channel)
+                opened.setdefault(channel.label.split("/")[0], []).append(endpoint.port.name)
+            elif key not in wanted and key in self._stand_ins:
+                endpoint = self._stand_ins.pop(key)
+                self._sources.pop(key, None)
+                endpoint.close()
+                closed.setdefault(channel.label.split("/")[0], []).append(endpoint.port.name)
+        peer = "pilot" if self.side == ROBOT else "robot"
+        for module, names in opened.items():
+            log.info("%s is on the %s: opened %s", module, peer, ", ".join(names))
+        for module, names in closed.items():
+            log.info("%s left the %s: closed %s", module, peer, ", ".join(names))
+        if opened:
+            self._deliver_wake.set()
 
     def _start_ros(self, channels: List[Channel]) -> None:
         from bridge.endpoints.ros import RosSink, RosSource
@@ -343,6 +431,8 @@ class Bridge:
             "delivered": self.delivered,
             "internal_errors": self.internal_errors,
             "authenticated": self.tcp.key.keyed,
+            "modules_here": self._modules(self.local_presence() or frozenset()),
+            "modules_shown": self._modules(frozenset(self._stand_ins)),
             "dropped": self._dropped(),
             "tcp": {**asdict(stats), "drops": dict(self.tcp.drops.counts),
                     "last_drop": self.tcp.drops.last_error},
@@ -355,6 +445,11 @@ class Bridge:
                 for name, flow in udp["flows"].items()}
             out["udp"] = udp
         return out
+
+    def _modules(self, flows: Presence) -> List[str]:
+        """The modules that have any of ``flows``."""
+        names = {self.config.channel(key).label.split("/")[0] for key in flows}
+        return sorted(names)
 
     def _dropped(self) -> Dict[str, int]:
         """Drops by reason, summed over the channels and the delivery side."""
@@ -390,7 +485,9 @@ class Bridge:
         self.tcp.stop()
         if self.udp is not None:
             self.udp.stop()
-        for endpoint in [*self._sinks, *self._sources.values(), *self._ros_sinks]:
+        endpoints = {id(e): e for e in [*self._sinks, *self._sources.values(),
+                                        *self._stand_ins.values(), *self._ros_sinks]}
+        for endpoint in endpoints.values():
             try:
                 endpoint.close()
             except Exception:  # noqa: BLE001 -- closing is best effort

@@ -54,7 +54,7 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 from bridge import compact, drops, frames
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeError, BridgeProtocolError
-from bridge.frames import DataFrame, Entry
+from bridge.frames import DataFrame, Entry, Presence
 from bridge.journal import Journal
 from bridge.link import (FrameReceived, LinkConnection, LinkKey, LinkUp, PeerAuthenticated,
                          PeerHello)
@@ -148,6 +148,8 @@ class _Connection:
     closed: bool = False
     #: data frames that came in the same read as the peer's last handshake message
     early_frames: List[DataFrame] = field(default_factory=list)
+    #: the presence last told the peer on this connection (None: not yet)
+    presence_sent: Optional[Presence] = None
 
 
 class TcpChannel:
@@ -155,7 +157,11 @@ class TcpChannel:
 
     ``on_message(key, value)`` receives streaming values (a Bottle or a
     :class:`RobotState`); reliable ones land in the journal's inbox and
-    ``on_reliable()`` is called so the owner delivers them.
+    ``on_reliable()`` is called so the owner delivers them.  ``presence()``
+    says which flows have their module end connected here (None while not yet
+    known); it goes to the peer
+    on each new connection and whenever it changes (call :meth:`kick` to send a
+    change at once), and the peer's arrives through ``on_presence(flows)``.
     """
 
     def __init__(self, *, side: str, peer: str, port: int, listen: bool, config_text: str,
@@ -163,8 +169,12 @@ class TcpChannel:
                  on_message: Callable[[Key, Any], None], on_reliable: Callable[[], None],
                  on_connected: Callable[[], None] = lambda: None,
                  link_timeout: float = 5.0, bind_host: str = "",
-                 key: Optional[LinkKey] = None, on_keys: Optional[KeysHook] = None) -> None:
+                 key: Optional[LinkKey] = None, on_keys: Optional[KeysHook] = None,
+                 presence: Callable[[], Optional[Presence]] = frozenset,
+                 on_presence: Callable[[Presence], None] = lambda flows: None) -> None:
         self.side = side
+        self.presence = presence
+        self.on_presence = on_presence
         self.key = key if key is not None else LinkKey.none()
         self.on_keys = on_keys
         self.peer_host = peer
@@ -517,6 +527,12 @@ class TcpChannel:
         self.stats.frames_in += 1
         if frame.ack is not None:
             self.journal.acknowledge(frame.ack)
+        if frame.presence is not None:  # before the entries: they may need a stand-in
+            try:
+                self.on_presence(frame.presence)
+            except Exception:  # noqa: BLE001 -- a consumer's bug; the next change says it again
+                self.stats.internal_errors += 1
+                log.exception("TCP channel: taking the peer's presence failed (a bug)")
         seq = frame.seq
         new_reliable = False
         for entry in frame.entries:
@@ -650,13 +666,20 @@ class TcpChannel:
                 encoded.extend(self._streaming_entries(connection, only=streams))
         accepted = self.journal.accepted(connection.session)
         ack = accepted if accepted != connection.ack_sent else None
+        present = self.presence()  # None: not known yet
+        presence = present if present is not None and present != connection.presence_sent \
+            else None
         now = time.monotonic()
-        if not encoded and ack is None and now - connection.last_tx < KEEPALIVE:
+        if not encoded and ack is None and presence is None and \
+                now - connection.last_tx < KEEPALIVE:
             return
-        frame = connection.link.send_data(frames.data_body(ack=ack, seq=seq, encoded=encoded))
+        frame = connection.link.send_data(frames.data_body(ack=ack, seq=seq, encoded=encoded,
+                                                           presence=presence))
         connection.sock.sendall(frame)
         connection.last_tx = now
         connection.ack_sent = accepted
+        if presence is not None:
+            connection.presence_sent = presence
         if reliable:
             connection.sent_upto = reliable[-1].seq
             self.stats.reliable_sent += len(reliable)

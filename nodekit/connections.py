@@ -44,9 +44,12 @@ class ConnectionKeeper:
         self._thread: Optional[threading.Thread] = None
 
     def want(self, source: str, target: str, port: Port, ours_is_source: bool,
-             carrier: str = "tcp") -> None:
+             carrier: str = "tcp") -> _Wanted:
+        """Keep ``source -> target`` connected; the handle answers :meth:`connected`."""
+        wanted = _Wanted(source, target, carrier, port, ours_is_source)
         with self._lock:
-            self._wanted.append(_Wanted(source, target, carrier, port, ours_is_source))
+            self._wanted.append(wanted)
+        return wanted
 
     def forget(self, port: Port) -> None:
         with self._lock:
@@ -63,6 +66,7 @@ class ConnectionKeeper:
             self._thread.join(timeout=3)
 
     def connected(self, wanted: _Wanted) -> bool:
+        """Is that connection up now (its other end alive)?"""
         if wanted.ours_is_source:
             return any(r.target == wanted.target for r in wanted.port.output_routes())
         return any(r.source == wanted.source for r in wanted.port.input_routes())

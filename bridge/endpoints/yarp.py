@@ -60,16 +60,23 @@ class YarpSink:
         # Set before the port opens: a writer may connect and send at once (a pilot command
         # taken between the two was acknowledged and lost; found by walkman-chaos).
         self._submit = submit
+        self._keeper = keeper
         self.port = Port(nameclient=nameclient, reader=self._on_bottle)
         self.port.open(channel.listen_port, wait=math.inf)
-        if channel.feed_port:
-            keeper.want(channel.feed_port, self.port.name, self.port, ours_is_source=False)
+        self._feed = keeper.want(channel.feed_port, self.port.name, self.port,
+                                 ours_is_source=False) if channel.feed_port else None
+
+    @property
+    def linked(self) -> bool:
+        """Is the program's port this sink reads from connected (the module there)?"""
+        return self._feed is not None and self._keeper.connected(self._feed)
 
     def _on_bottle(self, bottle: Bottle) -> None:
         self._submit(self.channel, bottle)
         return None
 
     def close(self) -> None:
+        self._keeper.forget(self.port)
         self.port.close()
 
 
@@ -79,10 +86,16 @@ class YarpSource:
     def __init__(self, channel: Channel, nameclient: NameClient,
                  keeper: ConnectionKeeper) -> None:
         self.channel = channel
+        self._keeper = keeper
         self.port = Port(nameclient=nameclient)
         self.port.open(channel.emit_port, wait=math.inf)
-        if channel.deliver_port:
-            keeper.want(self.port.name, channel.deliver_port, self.port, ours_is_source=True)
+        self._delivery = keeper.want(self.port.name, channel.deliver_port, self.port,
+                                     ours_is_source=True) if channel.deliver_port else None
+
+    @property
+    def linked(self) -> bool:
+        """Is the program's port this source writes to connected (the module there)?"""
+        return self._delivery is not None and self._keeper.connected(self._delivery)
 
     @property
     def ready(self) -> bool:
@@ -95,6 +108,7 @@ class YarpSource:
         return self.port.write(bottle)
 
     def close(self) -> None:
+        self._keeper.forget(self.port)
         self.port.close()
 
 

@@ -27,7 +27,23 @@ def send(pcs: TwoPCs, first: int, last: int, interval: float = 0.05) -> Proc:
                             str(last), str(interval), name=f"sender {first}-{last}")
 
 
+GYM_PORTS = ("switch:i", "command:i", "status:o", "warning:o")
+
+
+def shown(pcs: TwoPCs, lite: Implementation, module: str = "counter") -> bool:
+    """Does the pilot's name server show each of the module's four ports (the bridge's
+    stand-ins, open while the module runs on the robot)?"""
+    return all(exists(pcs.pilot, lite, f"/{module}/{port}") for port in GYM_PORTS)
+
+
+def wait_shown(pcs: TwoPCs, lite: Implementation, module: str = "counter") -> None:
+    wait_until(lambda: shown(pcs, lite, module), 60,
+               message=f"the robot's /{module} shown on the pilot's name server")
+
+
 def switch(pcs: TwoPCs, lite: Implementation, word: str, seq: int) -> None:
+    """``yarp write`` to the module's switch, once the pilot's name server shows the module."""
+    wait_shown(pcs, lite)
     result = pcs.pilot.world.run_tool(lite, "write", f"/test/switch{seq}", "/counter/switch:i",
                                       input_text=f"{word} {seq}\n")
     assert result.returncode == 0, result.stdout + result.stderr

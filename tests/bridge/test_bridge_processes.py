@@ -14,7 +14,8 @@ import pytest
 
 from bridge_harness import PYTHON, TwoPCs
 from harness import wait_until
-from pilot_side import bridge_status, executed, exists, send, switch, wait_nothing_in_flight
+from pilot_side import (GYM_PORTS, bridge_status, executed, exists, send, switch,
+                        wait_nothing_in_flight, wait_shown)
 
 CONFIG = """<bridge period="0.2" gather="0.4">
   <modules>
@@ -62,6 +63,7 @@ def test_switch_command_and_status_cross_the_bridge(pcs, lite, counter_env, orde
         pcs.start_bridge(pcs.robot)
         pcs.start_bridge(pcs.pilot)
     pcs.wait_linked()
+    wait_shown(pcs, lite)
     reader = pcs.pilot.world.tool(lite, "read", "/test/status", "/counter/status:o")
     switch(pcs, lite, "start", 2)
     sender = send(pcs, 1, 5)
@@ -71,6 +73,10 @@ def test_switch_command_and_status_cross_the_bridge(pcs, lite, counter_env, orde
     # The pilot reads the robot's status on its own name server, under the original name
     # ("counting", dictionary-coded as its second state: b, with the last sequence number).
     reader.wait_for(r"^\d+ b 5$", 20)
+    # gaze_control is configured but not running on the robot: the pilot does not see it.
+    assert not any(exists(pcs.pilot, lite, f"/gaze_control/{port}") for port in GYM_PORTS)
+    status = bridge_status(pcs.pilot, lite)
+    assert "(modules_shown (counter))" in status, status
 
 
 def test_the_robot_state_crosses_in_the_table_1_codec(pcs, lite):
@@ -131,13 +137,19 @@ def test_no_command_lost_or_run_twice_through_kills_and_restarts(pcs, lite, coun
     pcs.robot.world.start_server()
     progress(45, timeout=60)
 
-    # The module dies; commands sent meanwhile wait in the bridge for its return.
+    # The module dies: its ports leave the pilot's name server too, as they would on one
+    # name server; the pilot's commands are refused until it is back, then run.
     module.kill(signal.SIGKILL)
     wait_until(lambda: not exists(pcs.robot, lite, "/counter/command:i"), 30,
                message="the module's command port gone with it")
-    assert send(pcs, 46, 50).wait(60) == 0
+    wait_until(lambda: not any(exists(pcs.pilot, lite, f"/counter/{port}") for port in
+                               GYM_PORTS), 30,
+               message="the module's stand-ins gone from the pilot's name server")
+    sender = send(pcs, 46, 50)
+    sender.wait_for(r"^not accepted 46$", 30)
     start_counter(pcs).wait_for("ready for the pilot", 60)
     switch(pcs, lite, "start", 3)
+    assert sender.wait(60) == 0, sender.output()
     progress(50, timeout=60)
 
     wait_nothing_in_flight(pcs, lite)
@@ -159,6 +171,7 @@ def test_a_real_yarp_pilot_and_name_server_see_no_difference(tmp_path, reference
         pcs.start_bridge(pcs.robot)
         pcs.start_bridge(pcs.pilot)
         pcs.wait_linked()
+        wait_shown(pcs, lite)
         reader = pcs.pilot.world.tool(reference, "read", "/test/status", "/counter/status:o")
         writer = pcs.pilot.world.tool(reference, "write", "/test/w", "/counter/switch:i",
                                       stdin=True)

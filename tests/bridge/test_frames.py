@@ -13,8 +13,11 @@ from codec_helpers import FUZZ
 
 entries = st.builds(Entry, st.integers(0, 255), st.integers(0, 7), st.binary(max_size=300),
                     st.booleans())
+presences = st.none() | st.frozensets(st.tuples(st.integers(0, 255), st.integers(0, 7)),
+                                       max_size=20)
 data_frames = st.builds(DataFrame, st.lists(entries, max_size=6).map(tuple),
-                        st.none() | st.integers(0, 2 ** 40), st.none() | st.integers(0, 2 ** 40))
+                        st.none() | st.integers(0, 2 ** 40), st.none() | st.integers(0, 2 ** 40),
+                        presences)
 hellos = st.builds(Hello, st.sampled_from(["robot", "pilot"]), st.binary(min_size=8, max_size=8),
                    st.integers(0, 2 ** 64 - 1), st.binary(min_size=16, max_size=16),
                    st.booleans())
@@ -74,10 +77,10 @@ def test_a_huge_declared_length_is_refused_without_waiting():
 
 def test_unknown_flags_and_malformed_handshake_frames_are_refused():
     with pytest.raises(BridgeProtocolError, match="unknown bits"):
-        frames.parse_body(b"\x40")
+        frames.parse_body(b"\x80")
     with pytest.raises(BridgeProtocolError, match="malformed HELLO"):
-        frames.parse_body(b"\x04\x02r")
-    with pytest.raises(BridgeProtocolError, match="protocol 1, we speak 2"):
+        frames.parse_body(b"\x04\x03r")
+    with pytest.raises(BridgeProtocolError, match="protocol 1, we speak 3"):
         frames.parse_body(b"\x04\x01r" + bytes(16))
     good = frames.hello_body(Hello("robot", bytes(8), 1, bytes(16)))
     with pytest.raises(BridgeProtocolError, match="unknown side"):
@@ -86,6 +89,28 @@ def test_unknown_flags_and_malformed_handshake_frames_are_refused():
         frames.parse_body(good[:-1] + b"\x07")
     with pytest.raises(BridgeProtocolError, match="malformed AUTH"):
         frames.parse_body(b"\x10" + bytes(3))
+
+
+def test_presence_costs_two_bytes_a_module_and_an_empty_one_is_said():
+    present = frozenset({(7, 0), (7, 1), (7, 2), (7, 3), (2, 2)})
+    body = frames.data_body(presence=present)
+    assert body == bytes((0x20, 2, 2, 0b100, 7, 0b1111))
+    assert frames.parse_body(body) == DataFrame(presence=present)
+    assert frames.parse_body(frames.data_body(presence=frozenset())) == \
+        DataFrame(presence=frozenset())
+    assert frames.parse_body(frames.data_body()).presence is None
+
+
+@pytest.mark.parametrize("body, problem", [
+    (bytes((0x20, 2, 7, 1, 2, 1)), "not increasing at id 2"),
+    (bytes((0x20, 2, 7, 1, 7, 1)), "not increasing at id 7"),
+    (bytes((0x20, 1, 7, 0)), "id 7 with no kind"),
+    (bytes((0x20, 0x81, 0x02)), "lists 257 modules"),
+    (bytes((0x20, 2, 7, 1)), "truncated inside: presence entry"),
+])
+def test_a_malformed_presence_is_named(body, problem):
+    with pytest.raises(BridgeProtocolError, match=problem):
+        frames.parse_body(body)
 
 
 def test_entry_cut_inside_is_named():
@@ -98,5 +123,7 @@ def test_local_misuse_is_a_usage_error():
         frames.entry_bytes(Entry(256, 0, b""))
     with pytest.raises(BridgeUsageError):
         frames.hello_body(Hello("robot", b"short", 1))
+    with pytest.raises(BridgeUsageError):
+        frames.presence_bytes(frozenset({(3, 8)}))
     with pytest.raises(BridgeUsageError):
         frames.auth_body(Auth(b"short"))

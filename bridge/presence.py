@@ -1,0 +1,106 @@
+"""Presence: a module's stand-in ports exist on one side only while the module exists on the other.
+
+Theory of operation
+-------------------
+Each bridged YARP flow has at most one *module end*: the side whose endpoint
+connects to a program's port (the robot's bridge reads ``/M/status:o`` and writes
+``/M/switch:i``).  The other side's endpoint is then a *stand-in*: it opens the
+program's own name (``/M/status:o``, ``/M/switch:i`` on the pilot's name server)
+for local programs.  A side watches its module ends -- is the connection to the
+program up? -- and tells the peer, on every new connection and whenever it
+changes (the ``presence`` of a TCP frame, :mod:`bridge.frames`); the peer opens a
+stand-in while its flow is present and closes it otherwise, so its programs see
+the module come and go as they would on one name server: a pilot's tools can
+tell a running module from an absent one, and a command to an absent module is
+refused at the pilot as in the lab.
+
+While the link is down the peer's last word stands: the stand-ins stay, and a
+command to them waits in the journal for the link, as before.  That word is kept
+in the state directory (:class:`PresenceMemory`), so a bridge restarted during an
+outage shows what it showed before it stopped.  A flow with no module end (a
+custom port both sides' programs connect to) or with one on each side has no
+stand-in and is always open.
+
+This module is pure: which endpoints are stand-ins, which flows a side watches,
+and the remembered word; :class:`bridge.node.Bridge` opens and closes ports.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+from pathlib import Path
+from typing import FrozenSet, Optional, Tuple
+
+from bridge.config import BridgeConfig, Channel
+
+log = logging.getLogger("bridge.presence")
+
+Key = Tuple[int, int]
+Presence = FrozenSet[Key]
+
+
+def module_end(channel: Channel) -> Optional[str]:
+    """The side whose endpoint of ``channel`` connects to a program's port, if exactly one."""
+    if channel.middleware != "yarp":
+        return None
+    at_source = bool(channel.feed_port)
+    at_destination = channel.deliver_port is not None
+    if at_source == at_destination:
+        return None
+    return channel.source if at_source else channel.destination
+
+
+def watched(config: BridgeConfig, side: str) -> Presence:
+    """The flows whose module end is on ``side``: what it tells the peer about."""
+    return frozenset(c.key for c in config.channels if module_end(c) == side)
+
+
+def stand_ins(config: BridgeConfig, side: str) -> Presence:
+    """The flows whose endpoint on ``side`` stands in for a program on the peer's side."""
+    return frozenset(c.key for c in config.channels
+                     if module_end(c) not in (None, side))
+
+
+class PresenceMemory:
+    """The peer's last word on presence, in ``<state_dir>/presence.json``, by flow label.
+
+    Labels (``gaze_control/status``), not ids, so an edited configuration cannot
+    make a remembered id mean another module.  A missing or unreadable file is
+    an empty memory (said once in the log): the link brings the truth.
+    """
+
+    def __init__(self, state_dir: Path, config: BridgeConfig) -> None:
+        self.path = Path(state_dir) / "presence.json"
+        self._labels = {c.key: c.label for c in config.channels}
+        self._keys = {label: key for key, label in self._labels.items()}
+
+    def load(self) -> Presence:
+        try:
+            text = self.path.read_text()
+        except FileNotFoundError:
+            return frozenset()
+        except OSError as exc:
+            log.warning("presence: cannot read %s (%s); no module shown until the link says",
+                        self.path, exc)
+            return frozenset()
+        try:
+            labels = json.loads(text)["present"]
+            if not isinstance(labels, list):
+                raise TypeError("'present' is not a list")
+        except (ValueError, KeyError, TypeError) as exc:
+            log.warning("presence: %s is not a presence file (%s); no module shown until the "
+                        "link says", self.path, exc)
+            return frozenset()
+        return frozenset(self._keys[label] for label in labels if label in self._keys)
+
+    def save(self, presence: Presence) -> None:
+        labels = sorted(self._labels[key] for key in presence if key in self._labels)
+        temporary = self.path.with_suffix(".tmp")
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            temporary.write_text(json.dumps({"present": labels}) + "\n")
+            os.replace(temporary, self.path)
+        except OSError as exc:
+            log.warning("presence: cannot keep the peer's word in %s: %s", self.path, exc)
