@@ -2,24 +2,27 @@
 
 Theory of operation
 -------------------
-Each bridged YARP flow has at most one *module end*: the side whose endpoint
-connects to a program's port (the robot's bridge reads ``/M/status:o`` and writes
-``/M/switch:i``).  The other side's endpoint is then a *stand-in*: it opens the
-program's own name (``/M/status:o``, ``/M/switch:i`` on the pilot's name server)
-for local programs.  A side watches its module ends -- is the connection to the
-program up? -- and tells the peer, on every new connection and whenever it
-changes (the ``presence`` of a TCP frame, :mod:`bridge.frames`); the peer opens a
-stand-in while its flow is present and closes it otherwise, so its programs see
-the module come and go as they would on one name server: a pilot's tools can
-tell a running module from an absent one, and a command to an absent module is
-refused at the pilot as in the lab.
+A bridged YARP flow has a *module end* where the bridge connects to a program's
+port: the sending side when it reads a program's output (the robot's bridge
+reads ``/M/status:o``), else the receiving side when it writes a program's input
+(the robot's bridge writes ``/M/switch:i``).  The other side's endpoint is a
+*stand-in*: it opens that program port's own name (``/M/status:o``,
+``/M/switch:i`` on the pilot's name server) for local programs.  A side watches
+its module ends -- is the connection to the program up? -- and tells the peer,
+on every new connection and whenever it changes (the ``presence`` of a TCP
+frame, :mod:`bridge.frames`); the peer opens a stand-in while its flow is
+present and closes it otherwise, so its programs see the module come and go as
+they would on one name server: a pilot's tools can tell a running module from
+an absent one, and a command to an absent module is refused at the pilot as in
+the lab.
 
 While the link is down the peer's last word stands: the stand-ins stay, and a
 command to them waits in the journal for the link, as before.  That word is kept
 in the state directory (:class:`PresenceMemory`), so a bridge restarted during an
-outage shows what it showed before it stopped.  A flow with no module end (a
-custom port both sides' programs connect to) or with one on each side has no
-stand-in and is always open.
+outage shows what it showed before it stopped.  A flow that connects to no
+program on either side (a custom port both sides' programs connect to) has no
+stand-in and is always open, as is the sender's port of a flow read from a
+program (it is what watches the program).
 
 This module is pure: which endpoints are stand-ins, which flows a side watches,
 and the remembered word; :class:`bridge.node.Bridge` opens and closes ports.
@@ -42,14 +45,14 @@ Presence = FrozenSet[Key]
 
 
 def module_end(channel: Channel) -> Optional[str]:
-    """The side whose endpoint of ``channel`` connects to a program's port, if exactly one."""
+    """The side that watches the program ``channel`` connects to, if any."""
     if channel.middleware != "yarp":
         return None
-    at_source = bool(channel.feed_port)
-    at_destination = channel.deliver_port is not None
-    if at_source == at_destination:
-        return None
-    return channel.source if at_source else channel.destination
+    if channel.feed_port:
+        return channel.source
+    if channel.deliver_port is not None:
+        return channel.destination
+    return None
 
 
 def watched(config: BridgeConfig, side: str) -> Presence:

@@ -15,9 +15,11 @@ the ports and topics the pilot-side programs use (:data:`CONTRACT_TOPICS`,
 :data:`CONTRACT_PORTS`) -- must exist with the same types in both topologies,
 every session step must have its effect, and the robot must execute the same
 commands in the same order.  Latency, rates and completeness are measured and
-reported as degradation, not as failure.  Names that only one topology shows
-(robot internals not bridged by the configuration, the bridge's own ports,
-stand-ins for modules that are not running) are listed as expected.
+reported as degradation, not as failure.  Names only the lab shows (robot
+internals the configuration does not bridge) and the bridge's own names in the
+DRC topology are listed as expected; any other name only the DRC topology shows
+is a difference (the bridge shows a module's ports on the pilot side only while
+the module runs on the robot: :mod:`bridge.presence`).
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ import tempfile
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 from system.session import CANCELLED_COMMAND, MODULES, SessionRecord
 from system.session import run as run_session
@@ -82,11 +84,34 @@ def contract(observed: dict) -> Dict[str, str]:
     return out
 
 
-def extras(lab: dict, drc: dict) -> Dict[str, List[str]]:
+#: Names the pilot's bridge has whatever runs: its status and rpc ports, its ROS node's
+#: services, and the session's reader of its status.
+BRIDGE_OWN_PREFIXES = ("/bridge/pilot/", "/walkman_bridge_pilot/", "/session/bridge/")
+DRC_ONLY = "drc only, the bridge's own"
+
+
+def bridge_own_ports(config: Path = BRIDGE_CONFIG) -> List[str]:
+    """The ports the configuration has the pilot's bridge open for pilot programs to connect
+    to (a custom connection's ``port_to_open``), which no lab program opens."""
+    from bridge.config import PILOT, load
+    from bridge.presence import stand_ins
+
+    loaded = load(config)
+    shown = stand_ins(loaded, PILOT)
+    return sorted(c.listen_port if c.source == PILOT else c.emit_port
+                  for c in loaded.channels
+                  if c.middleware == "yarp" and c.key not in shown and PILOT in
+                  (c.source, c.destination))
+
+
+def extras(lab: dict, drc: dict, own_ports: Sequence[str] = ()) -> Dict[str, List[str]]:
+    """Names one topology shows and the other does not, outside the contract."""
     names = lambda o: set(o["ports"]) | set(o["topics"]) | set(o["services"])  # noqa: E731
     contract_names = set(CONTRACT_TOPICS) | set(CONTRACT_PORTS) | set(CONTRACT_SERVICES)
+    drc_only = names(drc) - names(lab) - contract_names
+    own = {n for n in drc_only if n.startswith(BRIDGE_OWN_PREFIXES) or n in own_ports}
     return {"lab only": sorted(names(lab) - names(drc) - contract_names),
-            "drc only": sorted(names(drc) - names(lab) - contract_names)}
+            DRC_ONLY: sorted(own), "drc only": sorted(drc_only - own)}
 
 
 def window(record: SessionRecord) -> Tuple[float, float]:
@@ -197,7 +222,8 @@ def id_names(config: Path = BRIDGE_CONFIG) -> Dict[int, str]:
 def verdict(lab: dict, drc: dict, lab_record: SessionRecord,
             drc_record: SessionRecord) -> List[str]:
     """Every difference a process could observe; empty when the topologies agree."""
-    problems = []
+    problems = [f"{name}: only in the drc topology (not the bridge's own)"
+                for name in extras(lab, drc, bridge_own_ports())["drc only"]]
     lab_contract, drc_contract = contract(lab), contract(drc)
     for name in lab_contract:
         if lab_contract[name] != drc_contract[name]:
@@ -318,7 +344,7 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
     lab_contract, drc_contract = contract(lab), contract(drc)
     lines += [f"| `{name}` | {lab_contract[name]} | {drc_contract[name]} |"
               for name in lab_contract]
-    for title, names in extras(lab, drc).items():
+    for title, names in extras(lab, drc, bridge_own_ports()).items():
         lines += ["", f"Expected differences, {title} ({len(names)}): " +
                   (", ".join(f"`{n}`" for n in names[:60]) or "none") +
                   (" ..." if len(names) > 60 else "")]

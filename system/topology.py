@@ -355,7 +355,8 @@ _VOLATILE = [(re.compile(r"/pilot_gateway/\d+"), "/pilot_gateway/N"),
              (re.compile(r"/rostopic_\d+_\d+"), "/rostopic"),
              (re.compile(r"/rosservice_\d+_\d+"), "/rosservice"),
              (re.compile(r"/observer\d*"), "/observer"),
-             (re.compile(r"/record_\d+"), "/record")]
+             (re.compile(r"/record_\d+"), "/record"),
+             (re.compile(r"/session_recorder_\d+_\d+"), "/session_recorder")]
 
 
 def normalize(name: str) -> str:

@@ -39,10 +39,13 @@ class End:
         self.streams: List[Tuple[Any, Any]] = []
         self.reliable: List[Bottle] = []
         self.lock = threading.Lock()
+        self.here: Any = frozenset()      # the presence this side tells (None: not known)
+        self.heard: List[Any] = []        # the peer's presences, as they came
         self.channel = TcpChannel(side=side, peer=peer, port=port, listen=listen,
                                   config_text=config_text, journal=self.journal, routes=ROUTES,
                                   period=period, on_message=self._on_message,
-                                  on_reliable=self._drain, link_timeout=2.0, key=key)
+                                  on_reliable=self._drain, link_timeout=2.0, key=key,
+                                  presence=lambda: self.here, on_presence=self.heard.append)
 
     def _on_message(self, key, value) -> None:
         self.streams.append((key, value))
@@ -122,6 +125,30 @@ def test_a_status_event_leaves_at_once_and_a_flood_of_them_is_coalesced(pair):
     robot.channel.post(STATUS, Bottle([103, "c", 0.75]))  # not an event
     time.sleep(0.5)  # the thing under test: many gaps pass and it still waits for T
     assert pilot.streams[-1][1] == Bottle([103, "c", 0.5])
+
+
+def test_presence_is_told_on_each_connection_and_each_change_at_once(pair):
+    robot, pilot = pair(period=30.0)  # no periodic frame within this test
+    wait_until(lambda: pilot.heard == [frozenset()], 3, message="the first word")
+    robot.here = frozenset({STATUS, SWITCH})
+    robot.channel.kick()
+    wait_until(lambda: pilot.heard[-1] == {STATUS, SWITCH}, 3, message="the change")
+    robot.channel.kick()   # nothing changed: nothing said
+    robot.channel.post(STATUS, Bottle([2, "a"]), event=True)
+    wait_until(lambda: pilot.streams, 3, message="an event frame")
+    assert len(pilot.heard) == 2
+    robot.channel._drop("test cut")   # a new connection: told again, unchanged
+    wait_until(lambda: len(pilot.heard) == 3, 10, message="the word on the new link")
+    assert pilot.heard[-1] == {STATUS, SWITCH}
+    robot.here = None      # not known (a bridge still connecting to its modules): not said
+    robot.channel._drop("test cut")
+    wait_until(lambda: robot.channel.connected, 10, message="reconnect")
+    robot.channel.post(STATUS, Bottle([3, "b"]), event=True)
+    wait_until(lambda: len(pilot.streams) == 2, 3, message="an event frame")
+    robot.here = frozenset({SWITCH})
+    robot.channel.kick()
+    wait_until(lambda: pilot.heard[-1] == {SWITCH}, 3, message="the word once known")
+    assert pilot.heard == [frozenset(), {STATUS, SWITCH}, {STATUS, SWITCH}, {SWITCH}]
 
 
 def test_a_dropped_connection_loses_and_repeats_nothing(pair):

@@ -72,10 +72,22 @@ def test_commands_executed_differently_or_a_step_without_effect_are_differences(
 def test_expected_extras_are_listed_not_judged():
     lab, drc = observed_everything(), observed_everything()
     drc["ports"]["/bridge/pilot/status:o"] = []
+    drc["ports"]["/encoder_bridge/switch:i"] = []   # a port_to_open on the pilot
     lab["topics"]["/rosout"] = {"type": "rosgraph_msgs/Log", "pub": [], "sub": []}
-    assert compare.extras(lab, drc) == {"lab only": ["/rosout"],
-                                        "drc only": ["/bridge/pilot/status:o"]}
+    own = compare.bridge_own_ports()
+    assert own == ["/encoder_bridge/switch:i"]       # not its command:o: a stand-in
+    assert compare.extras(lab, drc, own) == {
+        "lab only": ["/rosout"], compare.DRC_ONLY: ["/bridge/pilot/status:o",
+                                                    "/encoder_bridge/switch:i"],
+        "drc only": []}
     assert compare.verdict(lab, drc, session("lab"), session("drc")) == []
+
+
+def test_a_module_shown_only_through_the_bridge_is_a_difference():
+    lab, drc = observed_everything(), observed_everything()
+    drc["ports"]["/drc_door/switch:i"] = []          # a module the robot does not run
+    assert compare.verdict(lab, drc, session("lab"), session("drc")) == [
+        "/drc_door/switch:i: only in the drc topology (not the bridge's own)"]
 
 
 def test_command_latency_is_timed_from_the_gateways_stamp():
