@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The bridge's three benchmarks, on emulated robot and pilot PCs (needs root).
+"""The bridge's benchmarks, on emulated robot and pilot PCs (needs root).
 
 1. **Table 1 bandwidth** -- robot to pilot at T = 1 s: 33 joints (a synthetic
    HAL streaming stateSI, standing still or moving every joint), 7
@@ -22,8 +22,12 @@
    size, interleaved: seconds from a bridge's start to its ports registered, each
    bridge's CPU and memory once linked, the link's bit/s, and the one-way latency
    of commands to the module with the highest id.
+5. **Presence** (lab and drc profiles): a GYM module's four ports opened and
+   closed on the robot again and again; how long until the pilot's name server
+   shows them (the bridge's stand-ins) and stops showing them, against one name
+   server both PCs use (the lab topology over the same link).
 
-Usage: ``.venv/bin/python bench/bench_bridge.py [--quick] [--only 1,2,3,4]``.
+Usage: ``.venv/bin/python bench/bench_bridge.py [--quick] [--only 1,2,3,4,5]``.
 """
 
 from __future__ import annotations
@@ -312,13 +316,59 @@ def many_ids(link: EmulatedLink, modules: int, count: int, duration: float) -> D
             "median": statistics.median(through), "p99": percentile(through, 0.99)}
 
 
+# -- 5: presence ---------------------------------------------------------------------------
+
+PRESENCE_CONFIG = """<bridge period="0.5" gather="0.4">
+  <modules><module name="pm" id="9"/></modules>
+</bridge>"""
+
+
+def presence_delays(cycler, watcher) -> Tuple[List[float], List[float]]:
+    """(appear, disappear) delays in ms: each ``opened``/``closed`` of the cycler against the
+    watcher's next ``shown``/``gone``."""
+    def times(proc, word: str) -> List[float]:
+        return [float(line.split()[1]) for line in proc.lines if line.startswith(word + " ")]
+
+    def pair(starts: List[float], seen: List[float]) -> List[float]:
+        return [(next(t for t in seen if t >= start) - start) * 1000 for start in starts
+                if any(t >= start for t in seen)]
+
+    return (pair(times(cycler, "opened"), times(watcher, "shown")),
+            pair(times(cycler, "closed"), times(watcher, "gone")))
+
+
+def presence(link: EmulatedLink, rounds: int, bridge: bool) -> Tuple[List[float], List[float]]:
+    cycle = [ROLES, "module-cycle", "pm", str(rounds), "3", "3"]
+    # The last of the four the bridge opens and closes: all are shown (gone) once it is.
+    watch = [ROLES, "port-watch", "/pm/warning:o"]
+    if bridge:
+        with bridged(link, PRESENCE_CONFIG) as pcs:
+            pcs.start_bridge(pcs.robot)
+            pcs.start_bridge(pcs.pilot)
+            pcs.wait_linked(60)
+            watcher = pcs.pilot.python(*watch, name="watch")
+            watcher.wait_for("ready", 30)
+            cycler = pcs.robot.python(*cycle, name="module")
+            cycler.wait_for("done", rounds * 6 + 60)
+            time.sleep(2)
+            return presence_delays(cycler, watcher)
+    with one_network(link) as (robot, pilot):
+        watcher = pilot.start([PYTHON, *watch], "watch")
+        watcher.wait_for("ready", 30)
+        cycler = robot.start([PYTHON, *cycle], "module")
+        cycler.wait_for("done", rounds * 6 + 60)
+        time.sleep(2)
+        return presence_delays(cycler, watcher)
+
+
 # -- main ----------------------------------------------------------------------------------
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="shorter runs (noisier figures)")
-    parser.add_argument("--only", default="1,2,3,4", help="which benchmarks (default 1,2,3,4)")
+    parser.add_argument("--only", default="1,2,3,4,5",
+                        help="which benchmarks (default 1,2,3,4,5)")
     parser.add_argument("--losses", default="0,5,10,20,30",
                         help="loss percentages of benchmark 2 (default 0,5,10,20,30)")
     options = parser.parse_args()
@@ -397,6 +447,23 @@ def main() -> int:
                     f"{f['cpu robot']:>5.1f}/{f['cpu pilot']:<5.1f} "
                     f"{f['mib robot']:>5.0f}/{f['mib pilot']:<5.0f} {f['bits']:>8.0f} "
                     f"{f['median']:>10.2f} {f['p99']:>7.2f}")
+        if 5 in only:
+            rounds = 5 if options.quick else 15
+            say(f"\n5. Presence: a module's ports opened and closed on the robot ({rounds} "
+                f"rounds, 3 s each way) until the pilot's name server shows them / stops, ms")
+            say(f"   {'profile':<16} {'appear med':>10} {'max':>7} {'leave med':>10} {'max':>7}"
+                f" {'1 server: appear':>17} {'leave':>7}")
+            for profile, loss in (("lab", 0.0), ("drc", 5.0)):
+                link.apply(profile, loss=loss)
+                appear, leave = presence(link, rounds, bridge=True)
+                appear_1, leave_1 = presence(link, rounds, bridge=False)
+                if not appear or not leave:
+                    say(f"   {profile}: the pilot never saw the module come and go")
+                    continue
+                label = f"{profile} ({loss:g} % loss)"
+                say(f"   {label:<16} {statistics.median(appear):>10.0f} "
+                    f"{max(appear):>7.0f} {statistics.median(leave):>10.0f} {max(leave):>7.0f}"
+                    f" {statistics.median(appear_1):>17.0f} {statistics.median(leave_1):>7.0f}")
     finally:
         link.down()
     return 0

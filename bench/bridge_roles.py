@@ -13,7 +13,12 @@
 * ``statuses N RATE`` -- N GYM-like modules' ``/m<i>/status:o``, each written
   ``(seq idle 0.0)`` RATE times a second (spread over the period);
 * ``blob-sender TARGET SIZE COUNT RATE CARRIER`` / ``blob-receiver PORT`` -- the
-  whole-message baseline: Bottles holding SIZE bytes over YARP's udp carrier.
+  whole-message baseline: Bottles holding SIZE bytes over YARP's udp carrier;
+* ``module-cycle NAME ROUNDS UP DOWN`` -- a GYM module's four ports, opened for UP
+  seconds and closed for DOWN, ROUNDS times; prints ``opened <time>`` once all four
+  are registered and ``closed <time>`` once all are gone (wall clock);
+* ``port-watch PORT`` -- asks its name server for PORT every 10 ms; prints
+  ``shown <time>`` and ``gone <time>`` when the answer changes.
 """
 
 from __future__ import annotations
@@ -129,6 +134,36 @@ def blob_receiver(name: str) -> None:
     time.sleep(3600)
 
 
+def module_cycle(name: str, rounds: int, up: float, down: float) -> None:
+    for _ in range(rounds):
+        ports = [Port(f"/{name}/{port}", reader=(lambda b: None) if port.endswith(":i") else None)
+                 for port in ("switch:i", "command:i", "status:o", "warning:o")]
+        print(f"opened {time.time():.6f}", flush=True)
+        time.sleep(up)
+        for port in ports:
+            port.close()
+        print(f"closed {time.time():.6f}", flush=True)
+        time.sleep(down)
+    print("done", flush=True)
+
+
+def port_watch(name: str) -> None:
+    from yarp_lite.errors import YarpError
+    from yarp_lite.nameclient import NameClient
+
+    client, shown = NameClient(), False
+    print("ready", flush=True)
+    while True:
+        try:
+            now_shown = client.query(name) is not None
+        except YarpError:
+            now_shown = shown
+        if now_shown != shown:
+            shown = now_shown
+            print(f"{'shown' if shown else 'gone'} {time.time():.6f}", flush=True)
+        time.sleep(0.01)
+
+
 if __name__ == "__main__":
     role, args = sys.argv[1], sys.argv[2:]
     if role == "hal":
@@ -145,5 +180,9 @@ if __name__ == "__main__":
         blob_sender(args[0], int(args[1]), int(args[2]), float(args[3]), args[4])
     elif role == "blob-receiver":
         blob_receiver(args[0])
+    elif role == "module-cycle":
+        module_cycle(args[0], int(args[1]), float(args[2]), float(args[3]))
+    elif role == "port-watch":
+        port_watch(args[0])
     else:
         raise SystemExit(f"unknown role {role}")

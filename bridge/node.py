@@ -128,7 +128,7 @@ class Bridge:
         self._presence_memory = PresenceMemory(state_dir, config)
         self._peer_presence: Presence = self._presence_memory.load()
         self._presence_wake = threading.Event()
-        self._presence_known = threading.Event()
+        self._here: Optional[Presence] = None    # watched flows connected, once known
         tcp_routes, udp_routes = self._routes()
         self.tcp = TcpChannel(side=side, peer=peer, port=tcp_port,
                               listen=(side == ROBOT) if listen is None else listen,
@@ -225,7 +225,6 @@ class Bridge:
         # restarts must not tell the peer, for a moment, that every module has gone.
         self.keeper.check_now()
         self._stop.wait(PRESENCE_PERIOD)
-        self._presence_known.set()
         self.keeper.start()
         self._deliver_wake.set()
         log.info("bridge %s side ready: %d flows out, %d in", self.side,
@@ -244,10 +243,12 @@ class Bridge:
     # -- presence ------------------------------------------------------------------------
 
     def local_presence(self) -> Optional[Presence]:
-        """The watched flows whose program's port is connected here (told to the peer);
-        None until the endpoints are open and connected to the modules already running."""
-        if not self._presence_known.is_set():
-            return None
+        """The watched flows whose program's port is connected here, as last looked at
+        (what the TCP channel tells the peer); None until the endpoints are open and
+        connected to the modules already running."""
+        return self._here
+
+    def _look_here(self) -> Presence:
         return frozenset(key for key, endpoint in list(self._module_ends.items())
                          if endpoint.linked)
 
@@ -258,12 +259,11 @@ class Bridge:
     def _keep_presence(self) -> None:
         """Tell the peer at once when a module's ports come or go here; open and close
         the stand-ins as the peer's word says."""
-        told: Optional[Presence] = None
         kept = self._peer_presence
         while not self._stop.is_set():
-            here = self.local_presence()
-            if here != told:
-                told = here
+            here = self._look_here()
+            if here != self._here:
+                self._here = here
                 self.tcp.kick()
             peer = self._peer_presence
             if peer != kept:
