@@ -26,8 +26,11 @@
    closed on the robot again and again; how long until the pilot's name server
    shows them (the bridge's stand-ins) and stops showing them, against one name
    server both PCs use (the lab topology over the same link).
+6. **The pilot's loop** (lab and drc profiles): a pilot's command to a GYM module
+   on the robot until the pilot reads the module's status that answers it (median,
+   p99), through the bridge and with one name server over the same link.
 
-Usage: ``.venv/bin/python bench/bench_bridge.py [--quick] [--only 1,2,3,4,5]``.
+Usage: ``.venv/bin/python bench/bench_bridge.py [--quick] [--only 1,2,3,4,5,6]``.
 """
 
 from __future__ import annotations
@@ -330,8 +333,14 @@ def presence_delays(cycler, watcher) -> Tuple[List[float], List[float]]:
         return [float(line.split()[1]) for line in proc.lines if line.startswith(word + " ")]
 
     def pair(starts: List[float], seen: List[float]) -> List[float]:
-        return [(next(t for t in seen if t >= start) - start) * 1000 for start in starts
-                if any(t >= start for t in seen)]
+        """Each start with the first sighting after it and before the next start (a round
+        the watcher missed has no delay, rather than the next round's)."""
+        out = []
+        for start, end in zip(starts, [*starts[1:], float("inf")]):
+            within = [t for t in seen if start <= t < end]
+            if within:
+                out.append((within[0] - start) * 1000)
+        return out
 
     return (pair(times(cycler, "opened"), times(watcher, "shown")),
             pair(times(cycler, "closed"), times(watcher, "gone")))
@@ -361,14 +370,51 @@ def presence(link: EmulatedLink, rounds: int, bridge: bool) -> Tuple[List[float]
         return presence_delays(cycler, watcher)
 
 
+# -- 6: the pilot's loop --------------------------------------------------------------------
+
+LOOP_CONFIG = """<bridge period="0.5" gather="0.4">
+  <modules><module name="counter" id="3"/></modules>
+</bridge>"""
+COUNTER = ["-m", "walkman.gym.supervisor", "counting_module:Module", "--name", "/counter"]
+
+
+def loop_times(probe) -> Tuple[List[float], int]:
+    values = [float(line.split()[1]) for line in probe.lines if line.startswith("loop_ms ")]
+    return values, sum(line.startswith("lost ") for line in probe.lines)
+
+
+def pilot_loop(link: EmulatedLink, count: int, rate: float,
+               bridge: bool) -> Tuple[List[float], int]:
+    probe_argv = [ROLES, "loop-probe", "counter", str(count), str(rate)]
+    timeout = count / rate * 3 + 120
+    if bridge:
+        with bridged(link, LOOP_CONFIG) as pcs:
+            pcs.robot.python(*COUNTER, name="counter").wait_for("ready for the pilot", 60)
+            pcs.start_bridge(pcs.robot)
+            pcs.start_bridge(pcs.pilot)
+            pcs.wait_linked(60)
+            probe = pcs.pilot.python(*probe_argv, name="probe")
+            probe.wait_for("done", timeout)
+            return loop_times(probe)
+    with one_network(link) as (robot, pilot):
+        env = robot.env
+        env["PYTHONPATH"] = os.pathsep.join([str(TEST_HELPERS), str(ROOT),
+                                             env.get("PYTHONPATH", "")])
+        env["COUNTER_LOG"] = str(robot.root / "executed.log")
+        robot.start([PYTHON, *COUNTER], "counter", env=env).wait_for("ready for the pilot", 60)
+        probe = pilot.start([PYTHON, *probe_argv], "probe")
+        probe.wait_for("done", timeout)
+        return loop_times(probe)
+
+
 # -- main ----------------------------------------------------------------------------------
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="shorter runs (noisier figures)")
-    parser.add_argument("--only", default="1,2,3,4,5",
-                        help="which benchmarks (default 1,2,3,4,5)")
+    parser.add_argument("--only", default="1,2,3,4,5,6",
+                        help="which benchmarks (default 1,2,3,4,5,6)")
     parser.add_argument("--losses", default="0,5,10,20,30",
                         help="loss percentages of benchmark 2 (default 0,5,10,20,30)")
     options = parser.parse_args()
@@ -457,13 +503,31 @@ def main() -> int:
                 link.apply(profile, loss=loss)
                 appear, leave = presence(link, rounds, bridge=True)
                 appear_1, leave_1 = presence(link, rounds, bridge=False)
+                if min(len(appear), len(leave)) < rounds:
+                    say(f"   {profile}: the pilot saw {len(appear)} of {rounds} appearances "
+                        f"and {len(leave)} departures")
                 if not appear or not leave:
-                    say(f"   {profile}: the pilot never saw the module come and go")
                     continue
                 label = f"{profile} ({loss:g} % loss)"
                 say(f"   {label:<16} {statistics.median(appear):>10.0f} "
                     f"{max(appear):>7.0f} {statistics.median(leave):>10.0f} {max(leave):>7.0f}"
                     f" {statistics.median(appear_1):>17.0f} {statistics.median(leave_1):>7.0f}")
+        if 6 in only:
+            count = 100 if options.quick else 400
+            say(f"\n6. The pilot's loop: command -> the module's status answering it, at the "
+                f"pilot ({count} commands at 4 Hz), ms")
+            say(f"   {'profile':<16} {'bridge med':>10} {'p99':>7} {'lost':>5} "
+                f"{'1 server med':>12} {'p99':>7} {'lost':>5}")
+            for profile, loss in (("lab", 0.0), ("drc", 5.0)):
+                link.apply(profile, loss=loss)
+                through, lost = pilot_loop(link, count, 4.0, bridge=True)
+                direct, lost_1 = pilot_loop(link, count, 4.0, bridge=False)
+                label = f"{profile} ({loss:g} % loss)"
+                say(f"   {label:<16} {statistics.median(through):>10.1f} "
+                    f"{percentile(through, 0.99):>7.1f} {lost:>5} "
+                    f"{statistics.median(direct):>12.1f} {percentile(direct, 0.99):>7.1f} "
+                    f"{lost_1:>5}")
+            say("   goal on drc: median <= 100 ms, p99 <= 300 ms")
     finally:
         link.down()
     return 0

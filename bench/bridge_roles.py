@@ -18,7 +18,11 @@
   seconds and closed for DOWN, ROUNDS times; prints ``opened <time>`` once all four
   are registered and ``closed <time>`` once all are gone (wall clock);
 * ``port-watch PORT`` -- asks its name server for PORT every 10 ms; prints
-  ``shown <time>`` and ``gone <time>`` when the answer changes.
+  ``shown <time>`` and ``gone <time>`` when the answer changes;
+* ``loop-probe MODULE COUNT RATE`` -- the pilot's loop: starts the counting GYM
+  module MODULE (``tests/bridge/counting_module.py``), then sends it COUNT numbered
+  commands at RATE Hz and prints ``loop_ms <x>`` when the module's status shows each
+  (``lost <n>`` after 5 s without it).
 """
 
 from __future__ import annotations
@@ -164,6 +168,45 @@ def port_watch(name: str) -> None:
         time.sleep(0.01)
 
 
+def loop_probe(module: str, count: int, rate: float) -> None:
+    import threading
+
+    from yarp_lite.network import connect
+
+    arrived = threading.Condition()
+    latest: list = [None]
+
+    def on_status(bottle: Bottle) -> None:
+        with arrived:
+            latest[0] = bottle
+            arrived.notify_all()
+
+    status = Port("/bench/loop/status:i", reader=on_status)
+    command, switch = Port("/bench/loop/command:o"), Port("/bench/loop/switch:o")
+    while not (status.input_count and command.output_count and switch.output_count):
+        if not status.input_count:
+            connect(f"/{module}/status:o", status.name, "tcp")
+        for port, target in ((command, "command:i"), (switch, "switch:i")):
+            if not port.output_count:
+                port.add_output(f"/{module}/{target}", quiet=True)
+        time.sleep(0.2)
+    switch.write(Bottle(["start", 2]))
+    time.sleep(2.0)
+    print("ready", flush=True)
+    for number in range(3, count + 3):
+        started = time.monotonic()
+        command.write(Bottle([Bottle(["count", number]), number]))
+        with arrived:
+            seen = arrived.wait_for(lambda: latest[0] is not None and len(latest[0]) > 2 and
+                                    latest[0][-1] == number, timeout=5.0)
+        if seen:
+            print(f"loop_ms {(time.monotonic() - started) * 1000:.3f}", flush=True)
+        else:
+            print(f"lost {number}", flush=True)
+        time.sleep(1.0 / rate)
+    print("done", flush=True)
+
+
 if __name__ == "__main__":
     role, args = sys.argv[1], sys.argv[2:]
     if role == "hal":
@@ -184,5 +227,7 @@ if __name__ == "__main__":
         module_cycle(args[0], int(args[1]), float(args[2]), float(args[3]))
     elif role == "port-watch":
         port_watch(args[0])
+    elif role == "loop-probe":
+        loop_probe(args[0], int(args[1]), float(args[2]))
     else:
         raise SystemExit(f"unknown role {role}")

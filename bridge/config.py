@@ -101,6 +101,15 @@ class Channel:
     def key(self) -> Tuple[int, int]:
         return self.id, self.kind
 
+    @property
+    def module(self) -> str:
+        """The module of the configuration this flow belongs to (its label's head)."""
+        return self.label.split("/")[0] if self.middleware == "yarp" else self.label
+
+    def opened_on(self, side: str) -> str:
+        """The YARP port the bridge opens for this flow on ``side``."""
+        return self.listen_port if side == self.source else self.emit_port
+
 
 @dataclass
 class BridgeConfig:

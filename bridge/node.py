@@ -126,7 +126,9 @@ class Bridge:
         self._module_ends: Dict[Key, Any] = {}   # endpoints whose program's port is watched
         self._stand_ins: Dict[Key, Any] = {}     # stand-in endpoints open now
         self._presence_memory = PresenceMemory(state_dir, config)
-        self._peer_presence: Presence = self._presence_memory.load()
+        self._presence_memory_loaded = self._presence_memory.load()
+        self._peer_presence: Presence = self._presence_memory_loaded
+        self._endpoint_lock = threading.Lock()    # stand-ins: open/close vs delivery, stop
         self._presence_wake = threading.Event()
         self._here: Optional[Presence] = None    # watched flows connected, once known
         tcp_routes, udp_routes = self._routes()
@@ -207,6 +209,8 @@ class Bridge:
                     self._module_ends[channel.key] = endpoint
                 if channel.source == self.side:
                     self._sinks.append(endpoint)
+                else:
+                    self._sources[channel.key] = endpoint
             if self.config.robot_state is not None:
                 _, robot, _ = self.config.robot_state
                 if self.side == ROBOT:
@@ -236,9 +240,7 @@ class Bridge:
 
         if channel.source == self.side:
             return YarpSink(channel, self.nameclient, self.keeper, self._submit)
-        source = YarpSource(channel, self.nameclient, self.keeper)
-        self._sources[channel.key] = source
-        return source
+        return YarpSource(channel, self.nameclient, self.keeper)
 
     # -- presence ------------------------------------------------------------------------
 
@@ -258,36 +260,59 @@ class Bridge:
 
     def _keep_presence(self) -> None:
         """Tell the peer at once when a module's ports come or go here; open and close
-        the stand-ins as the peer's word says."""
-        kept = self._peer_presence
+        the stand-ins as the peer's word says.  Never ends before the bridge does: a
+        name server gone in the middle is tried again, a bug is logged and counted."""
+        kept = self._presence_memory_loaded
+        failing = False
         while not self._stop.is_set():
-            here = self._look_here()
-            if here != self._here:
-                self._here = here
-                self.tcp.kick()
-            peer = self._peer_presence
-            if peer != kept:
-                kept = peer
-                self._presence_memory.save(peer)
-            self._follow(peer & self._stand_in_keys)
+            try:
+                here = self._look_here()
+                if here != self._here:
+                    self._here = here
+                    self.tcp.kick()
+                peer = self._peer_presence
+                if peer != kept:
+                    kept = peer
+                    self._presence_memory.save(peer)
+                self._follow(peer & self._stand_in_keys)
+                failing = False
+            except YarpError as exc:
+                if not failing:
+                    log.warning("presence: cannot open or close stand-ins now (%s); trying "
+                                "again", exc)
+                failing = True
+            except Exception:  # noqa: BLE001 -- our bug: seen, counted, and tried again
+                self.internal_errors += 1
+                log.exception("presence: following the peer failed (a bug); trying again")
             self._presence_wake.wait(PRESENCE_PERIOD)
             self._presence_wake.clear()
 
     def _follow(self, wanted: Presence) -> None:
+        """Open the stand-ins ``wanted`` names, close the others -- once a closing one has
+        written what the journal holds for it (a module's last warning reaches the pilot)."""
         opened: Dict[str, List[str]] = {}
         closed: Dict[str, List[str]] = {}
+        pending = {(ident, kind) for _, ident, kind, _ in self.journal.undelivered()}
         for key in sorted(self._stand_in_keys):
             if self._stop.is_set():
                 return
             channel = self.config.channel(key)
             if key in wanted and key not in self._stand_ins:
-                self._stand_ins[key] = endpoint = self._open_yarp_endpoint(channel)
-                opened.setdefault(channel.label.split("/")[0], []).append(endpoint.port.name)
-            elif key not in wanted and key in self._stand_ins:
-                endpoint = self._stand_ins.pop(key)
-                self._sources.pop(key, None)
-                endpoint.close()
-                closed.setdefault(channel.label.split("/")[0], []).append(endpoint.port.name)
+                endpoint = self._open_yarp_endpoint(channel)
+                with self._endpoint_lock:   # stop() closes what is listed, or we do
+                    if self._stop.is_set():
+                        endpoint.close()
+                        return
+                    self._stand_ins[key] = endpoint
+                    if channel.destination == self.side:
+                        self._sources[key] = endpoint
+                opened.setdefault(channel.module, []).append(endpoint.port.name)
+            elif key not in wanted and key in self._stand_ins and key not in pending:
+                with self._endpoint_lock:   # never in the middle of a delivery
+                    endpoint = self._stand_ins.pop(key)
+                    self._sources.pop(key, None)
+                    endpoint.close()
+                closed.setdefault(channel.module, []).append(endpoint.port.name)
         peer = "pilot" if self.side == ROBOT else "robot"
         for module, names in opened.items():
             log.info("%s is on the %s: opened %s", module, peer, ", ".join(names))
@@ -378,12 +403,11 @@ class Bridge:
                                                          f"{kind}")
                     self.journal.delivered(row)
                     continue
-                source = self._sources.get(key)
-                if source is None or not source.ready:
-                    blocked.add(key)
-                    continue
                 try:
-                    ok = source.deliver(compact.decode(payload))
+                    with self._endpoint_lock:   # a stand-in does not close meanwhile
+                        source = self._sources.get(key)
+                        ok = source is not None and source.ready and \
+                            source.deliver(compact.decode(payload))
                 except BridgeProtocolError as exc:
                     self.drops.peer_error(exc, "queued message")
                     self.journal.delivered(row)
@@ -448,7 +472,7 @@ class Bridge:
 
     def _modules(self, flows: Presence) -> List[str]:
         """The modules that have any of ``flows``."""
-        names = {self.config.channel(key).label.split("/")[0] for key in flows}
+        names = {self.config.channel(key).module for key in flows}
         return sorted(names)
 
     def _dropped(self) -> Dict[str, int]:
@@ -480,13 +504,15 @@ class Bridge:
     def stop(self) -> None:
         self._stop.set()
         self._deliver_wake.set()
+        self._presence_wake.set()
         if self.keeper is not None:
             self.keeper.stop()
         self.tcp.stop()
         if self.udp is not None:
             self.udp.stop()
-        endpoints = {id(e): e for e in [*self._sinks, *self._sources.values(),
-                                        *self._stand_ins.values(), *self._ros_sinks]}
+        with self._endpoint_lock:   # a stand-in opened after this closes itself
+            endpoints = {id(e): e for e in [*self._sinks, *self._sources.values(),
+                                            *self._stand_ins.values(), *self._ros_sinks]}
         for endpoint in endpoints.values():
             try:
                 endpoint.close()

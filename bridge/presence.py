@@ -19,10 +19,11 @@ the lab.
 While the link is down the peer's last word stands: the stand-ins stay, and a
 command to them waits in the journal for the link, as before.  That word is kept
 in the state directory (:class:`PresenceMemory`), so a bridge restarted during an
-outage shows what it showed before it stopped.  A flow that connects to no
-program on either side (a custom port both sides' programs connect to) has no
-stand-in and is always open, as is the sender's port of a flow read from a
-program (it is what watches the program).
+outage shows what it showed before it stopped.  The endpoint that watches a
+program is always open (a custom module's ``port_to_open``, the robot's
+``/bridge/robot/M/...``), and so are the robot state's ports and ROS topics, which
+have no module end here.  A stand-in closes only once it has written what the
+journal holds for it, so a module's last warning still reaches the pilot.
 
 This module is pure: which endpoints are stand-ins, which flows a side watches,
 and the remembered word; :class:`bridge.node.Bridge` opens and closes ports.

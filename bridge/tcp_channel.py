@@ -34,7 +34,9 @@ queued, so the pilot sees fresh state instead of a backlog.
 Streaming Bottles travel as deltas against the previous value sent on the same
 connection (:mod:`bridge.compact`), robot state in the Table 1 codec
 (:mod:`bridge.state_codec`); both restart from full values on every new
-connection, so the two ends never disagree.
+connection, so the two ends never disagree.  Which flows have their module
+connected (:mod:`bridge.presence`) is said on each new connection and whenever
+it changes.
 """
 
 from __future__ import annotations
@@ -527,7 +529,9 @@ class TcpChannel:
         self.stats.frames_in += 1
         if frame.ack is not None:
             self.journal.acknowledge(frame.ack)
-        if frame.presence is not None:  # before the entries: they may need a stand-in
+        # Presence is said only when it changes: a replaced connection's last frames must
+        # not overwrite what the current one said.
+        if frame.presence is not None and connection is self._connection:
             try:
                 self.on_presence(frame.presence)
             except Exception:  # noqa: BLE001 -- a consumer's bug; the next change says it again

@@ -98,10 +98,8 @@ def bridge_own_ports(config: Path = BRIDGE_CONFIG) -> List[str]:
 
     loaded = load(config)
     shown = stand_ins(loaded, PILOT)
-    return sorted(c.listen_port if c.source == PILOT else c.emit_port
-                  for c in loaded.channels
-                  if c.middleware == "yarp" and c.key not in shown and PILOT in
-                  (c.source, c.destination))
+    return sorted(c.opened_on(PILOT) for c in loaded.channels
+                  if c.middleware == "yarp" and c.key not in shown)
 
 
 def extras(lab: dict, drc: dict, own_ports: Sequence[str] = ()) -> Dict[str, List[str]]:

@@ -80,6 +80,12 @@ class YarpSink:
         self.port.close()
 
 
+#: Seconds a reliable message waits for a reader of a port local programs connect to
+#: (the pilot's ``/M/warning:o``, just opened) before it is written with nobody reading,
+#: as YARP would: a gateway connects within a second, and nothing waits for ever.
+READER_GRACE = 10.0
+
+
 class YarpSource:
     """A port that gives local programs what arrived from the link."""
 
@@ -89,6 +95,7 @@ class YarpSource:
         self._keeper = keeper
         self.port = Port(nameclient=nameclient)
         self.port.open(channel.emit_port, wait=math.inf)
+        self._opened = time.monotonic()
         self._delivery = keeper.want(self.port.name, channel.deliver_port, self.port,
                                      ours_is_source=True) if channel.deliver_port else None
 
@@ -99,13 +106,18 @@ class YarpSource:
 
     @property
     def ready(self) -> bool:
-        """Can a reliable message be delivered now?"""
-        return self.channel.deliver_port is None or self.port.output_count > 0
+        """Can a reliable message be delivered now?  When its program's port is connected;
+        for a port local programs connect to, when one reads it, or nobody has for
+        :data:`READER_GRACE` since it opened."""
+        if self.port.output_count > 0:
+            return True
+        return self.channel.deliver_port is None and \
+            time.monotonic() - self._opened > READER_GRACE
 
     def deliver(self, bottle: Bottle) -> bool:
         if not self.ready:
             return False
-        return self.port.write(bottle)
+        return self.port.write(bottle) and self.port.is_open
 
     def close(self) -> None:
         self._keeper.forget(self.port)
