@@ -1,8 +1,12 @@
-"""The bridge node's own decisions, without sockets (its wiring is tested as processes)."""
+"""The bridge node's own decisions: status events without sockets, the stand-ins against a
+``yarp-lite server`` (the whole wiring is tested as processes)."""
 
 from __future__ import annotations
 
+import pytest
+
 from bridge.node import COMMAND_WINDOW, StatusEvents
+from harness import free_port, wait_until
 from yarp_lite.bottle import Bottle
 
 
@@ -37,3 +41,75 @@ def test_changing_data_is_an_event_only_right_after_a_command():
     clock.now += COMMAND_WINDOW
     assert not events.is_event(3, status(5, "running", 12.5))
     assert not events.is_event(4, status(2, "running", 1.0))    # modules are apart
+
+
+# -- presence: the pilot's stand-ins, against a yarp-lite server ------------------------------
+
+PRESENCE_CONFIG = """<bridge><modules><module name="gaze_control" id="7"/></modules></bridge>"""
+
+
+@pytest.fixture
+def pilot_bridge(tmp_path, lite_world):
+    from bridge import config as bridge_config
+    from bridge.node import Bridge
+    from nodekit.connections import ConnectionKeeper
+
+    bridge = Bridge(bridge_config.parse(PRESENCE_CONFIG), PRESENCE_CONFIG, side="pilot",
+                    peer="127.0.0.1", tcp_port=free_port(), udp_port=free_port(),
+                    state_dir=tmp_path / "state")
+    bridge.keeper = ConnectionKeeper()       # the endpoints, without the link's threads
+    yield bridge
+    bridge.stop()
+
+
+def shown_here() -> set:
+    from yarp_lite.nameclient import NameClient
+
+    client = NameClient()
+    return {p for p in ("/gaze_control/switch:i", "/gaze_control/command:i",
+                        "/gaze_control/status:o", "/gaze_control/warning:o")
+            if client.query(p) is not None}
+
+
+def test_stand_ins_follow_the_word_and_a_closing_one_writes_its_last_warning(pilot_bridge):
+    from bridge import compact
+    from yarp_lite.bottle import Bottle
+
+    everything = frozenset((7, kind) for kind in range(4))
+    pilot_bridge._follow(everything)
+    assert shown_here() == {"/gaze_control/switch:i", "/gaze_control/command:i",
+                            "/gaze_control/status:o", "/gaze_control/warning:o"}
+    assert pilot_bridge.status()["modules_shown"] == ["gaze_control"]
+    # The module's last warning arrived with the word that it is gone: the warning port
+    # stays until the warning is written, the others close at once.
+    pilot_bridge.journal.accept(1, 1, 7, 3, compact.encode(Bottle([1, "overheating"])))
+    pilot_bridge._follow(frozenset())
+    assert shown_here() == {"/gaze_control/warning:o"}
+    pilot_bridge.journal.delivered(pilot_bridge.journal.undelivered()[0][0])
+    pilot_bridge._follow(frozenset())
+    assert shown_here() == set()
+    assert pilot_bridge.status()["modules_shown"] == []
+
+
+def test_the_presence_thread_follows_the_peer_and_remembers_its_word(pilot_bridge,
+                                                                      tmp_path):
+    import threading
+
+    from bridge import config as bridge_config
+    from bridge.node import Bridge
+
+    thread = threading.Thread(target=pilot_bridge._keep_presence, daemon=True)
+    thread.start()
+    pilot_bridge._on_peer_presence(frozenset({(7, 0), (7, 2)}))   # as a frame would say
+    wait_until(lambda: shown_here() == {"/gaze_control/switch:i", "/gaze_control/status:o"},
+               5, message="the stand-ins the word names")
+    wait_until(lambda: (tmp_path / "state" / "presence.json").exists(), 5,
+               message="the word kept")
+    pilot_bridge.stop()
+    thread.join(5)
+    assert not thread.is_alive() and shown_here() == set()
+    again = Bridge(bridge_config.parse(PRESENCE_CONFIG), PRESENCE_CONFIG, side="pilot",
+                   peer="127.0.0.1", tcp_port=free_port(), udp_port=free_port(),
+                   state_dir=tmp_path / "state")
+    assert again._peer_presence == {(7, 0), (7, 2)}   # a restart in an outage shows them
+    again.journal.close()
