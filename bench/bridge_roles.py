@@ -27,6 +27,7 @@
 
 from __future__ import annotations
 
+import random
 import sys
 import time
 from pathlib import Path
@@ -203,7 +204,9 @@ def loop_probe(module: str, count: int, rate: float) -> None:
             print(f"loop_ms {(time.monotonic() - started) * 1000:.3f}", flush=True)
         else:
             print(f"lost {number}", flush=True)
-        time.sleep(1.0 / rate)
+        # Not a whole number of the module's 10 ms ticks: a fixed interval sent every command
+        # just after a tick, so each waited a whole tick for run().
+        time.sleep(1.0 / rate + random.uniform(0.0, 0.01))
     print("done", flush=True)
 
 
