@@ -321,6 +321,14 @@ def many_ids(link: EmulatedLink, modules: int, count: int, duration: float) -> D
 
 # -- 5: presence ---------------------------------------------------------------------------
 
+
+def each_profile(link: EmulatedLink) -> Iterator[str]:
+    """The lab profile, then drc at 5 % loss, applied to the link in turn; yields the label."""
+    for profile, loss in (("lab", 0.0), ("drc", 5.0)):
+        link.apply(profile, loss=loss)
+        yield f"{profile} ({loss:g} % loss)"
+
+
 PRESENCE_CONFIG = """<bridge period="0.5" gather="0.4">
   <modules><module name="pm" id="9"/></modules>
 </bridge>"""
@@ -499,16 +507,14 @@ def main() -> int:
                 f"rounds, 3 s each way) until the pilot's name server shows them / stops, ms")
             say(f"   {'profile':<16} {'appear med':>10} {'max':>7} {'leave med':>10} {'max':>7}"
                 f" {'1 server: appear':>17} {'leave':>7}")
-            for profile, loss in (("lab", 0.0), ("drc", 5.0)):
-                link.apply(profile, loss=loss)
+            for label in each_profile(link):
                 appear, leave = presence(link, rounds, bridge=True)
                 appear_1, leave_1 = presence(link, rounds, bridge=False)
                 if min(len(appear), len(leave)) < rounds:
-                    say(f"   {profile}: the pilot saw {len(appear)} of {rounds} appearances "
+                    say(f"   {label}: the pilot saw {len(appear)} of {rounds} appearances "
                         f"and {len(leave)} departures")
                 if not appear or not leave:
                     continue
-                label = f"{profile} ({loss:g} % loss)"
                 say(f"   {label:<16} {statistics.median(appear):>10.0f} "
                     f"{max(appear):>7.0f} {statistics.median(leave):>10.0f} {max(leave):>7.0f}"
                     f" {statistics.median(appear_1):>17.0f} {statistics.median(leave_1):>7.0f}")
@@ -518,11 +524,9 @@ def main() -> int:
                 f"pilot ({count} commands at 4 Hz), ms")
             say(f"   {'profile':<16} {'bridge med':>10} {'p99':>7} {'lost':>5} "
                 f"{'1 server med':>12} {'p99':>7} {'lost':>5}")
-            for profile, loss in (("lab", 0.0), ("drc", 5.0)):
-                link.apply(profile, loss=loss)
+            for label in each_profile(link):
                 through, lost = pilot_loop(link, count, 4.0, bridge=True)
                 direct, lost_1 = pilot_loop(link, count, 4.0, bridge=False)
-                label = f"{profile} ({loss:g} % loss)"
                 say(f"   {label:<16} {statistics.median(through):>10.1f} "
                     f"{percentile(through, 0.99):>7.1f} {lost:>5} "
                     f"{statistics.median(direct):>12.1f} {percentile(direct, 0.99):>7.1f} "
