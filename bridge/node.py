@@ -42,7 +42,7 @@ from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeProtocolError
 from bridge.journal import Journal, QueueFull
 from bridge.link import LinkKey
-from bridge.presence import Presence, PresenceMemory
+from bridge.presence import READER_GRACE, Presence, PresenceMemory
 from bridge.tcp_channel import BOTTLE, STATE, Route, TcpChannel
 from bridge.udp_channel import UdpChannel, UdpRoute
 from yarp_lite.bottle import Bottle
@@ -129,6 +129,7 @@ class Bridge:
         self._presence_memory_loaded = self._presence_memory.load()
         self._peer_presence: Presence = self._presence_memory_loaded
         self._endpoint_lock = threading.Lock()    # stand-ins: open/close vs delivery, stop
+        self._leaving: Dict[Key, float] = {}      # stand-ins said gone, still writing
         self._presence_wake = threading.Event()
         self._here: Optional[Presence] = None    # watched flows connected, once known
         tcp_routes, udp_routes = self._routes()
@@ -282,6 +283,8 @@ class Bridge:
                                 "again", exc)
                 failing = True
             except Exception:  # noqa: BLE001 -- our bug: seen, counted, and tried again
+                if self._stop.is_set():
+                    return  # the journal closed under us: stopping, not a bug
                 self.internal_errors += 1
                 log.exception("presence: following the peer failed (a bug); trying again")
             self._presence_wake.wait(PRESENCE_PERIOD)
@@ -293,6 +296,7 @@ class Bridge:
         opened: Dict[str, List[str]] = {}
         closed: Dict[str, List[str]] = {}
         pending = {(ident, kind) for _, ident, kind, _ in self.journal.undelivered()}
+        now = time.monotonic()
         for key in sorted(self._stand_in_keys):
             if self._stop.is_set():
                 return
@@ -307,12 +311,18 @@ class Bridge:
                     if channel.destination == self.side:
                         self._sources[key] = endpoint
                 opened.setdefault(channel.module, []).append(endpoint.port.name)
-            elif key not in wanted and key in self._stand_ins and key not in pending:
-                with self._endpoint_lock:   # never in the middle of a delivery
+            elif key not in wanted and key in self._stand_ins:
+                leaving = self._leaving.setdefault(key, now)
+                if key in pending and now - leaving < READER_GRACE:
+                    continue   # what the journal holds for it first, for a while
+                self._leaving.pop(key, None)
+                with self._endpoint_lock:
                     endpoint = self._stand_ins.pop(key)
                     self._sources.pop(key, None)
-                    endpoint.close()
+                endpoint.close()
                 closed.setdefault(channel.module, []).append(endpoint.port.name)
+            else:
+                self._leaving.pop(key, None)
         peer = "pilot" if self.side == ROBOT else "robot"
         for module, names in opened.items():
             log.info("%s is on the %s: opened %s", module, peer, ", ".join(names))
@@ -403,11 +413,13 @@ class Bridge:
                                                          f"{kind}")
                     self.journal.delivered(row)
                     continue
+                with self._endpoint_lock:   # not closed by _follow() between get and use
+                    source = self._sources.get(key)
                 try:
-                    with self._endpoint_lock:   # a stand-in does not close meanwhile
-                        source = self._sources.get(key)
-                        ok = source is not None and source.ready and \
-                            source.deliver(compact.decode(payload))
+                    # Not under the lock: a reader that never reads would hold every
+                    # stand-in still.  One closed meanwhile says not delivered: kept.
+                    ok = source is not None and source.ready and \
+                        source.deliver(compact.decode(payload))
                 except BridgeProtocolError as exc:
                     self.drops.peer_error(exc, "queued message")
                     self.journal.delivered(row)

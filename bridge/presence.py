@@ -44,6 +44,12 @@ log = logging.getLogger("bridge.presence")
 Key = Tuple[int, int]
 Presence = FrozenSet[Key]
 
+#: Seconds a reliable message waits for a reader of a stand-in local programs read (the
+#: pilot's ``/M/warning:o``, just opened) before it is written with nobody reading, as
+#: YARP would -- a gateway connects within a second -- and a stand-in said gone stays
+#: open for what the journal still holds for it.  Nothing waits for ever.
+READER_GRACE = 10.0
+
 
 def module_end(channel: Channel) -> Optional[str]:
     """The side that watches the program ``channel`` connects to, if any."""

@@ -529,14 +529,6 @@ class TcpChannel:
         self.stats.frames_in += 1
         if frame.ack is not None:
             self.journal.acknowledge(frame.ack)
-        # Presence is said only when it changes: a replaced connection's last frames must
-        # not overwrite what the current one said.
-        if frame.presence is not None and connection is self._connection:
-            try:
-                self.on_presence(frame.presence)
-            except Exception:  # noqa: BLE001 -- a consumer's bug; the next change says it again
-                self.stats.internal_errors += 1
-                log.exception("TCP channel: taking the peer's presence failed (a bug)")
         seq = frame.seq
         new_reliable = False
         for entry in frame.entries:
@@ -570,6 +562,15 @@ class TcpChannel:
         if new_reliable:
             self.kick()  # owe an ack
             self.on_reliable()
+        # After the entries: a module's last warning is journalled before the word that it
+        # left, so its stand-in stays until the warning is written.  Said only when it
+        # changes: a replaced connection's last frames must not overwrite the current word.
+        if frame.presence is not None and connection is self._connection:
+            try:
+                self.on_presence(frame.presence)
+            except Exception:  # noqa: BLE001 -- a consumer's bug; the next change says it again
+                self.stats.internal_errors += 1
+                log.exception("TCP channel: taking the peer's presence failed (a bug)")
 
     def _decode_streaming(self, connection: _Connection, route: Route, entry: Entry) -> Any:
         if route.form == STATE:

@@ -36,6 +36,7 @@ import numpy as np
 from bridge import compact
 from nodekit.connections import ConnectionKeeper
 from bridge.config import Channel
+from bridge.presence import READER_GRACE
 from bridge.state_codec import Layout, RobotState, StateDecoder, StateEncoder, split_by_chain
 from walkman.hal import protocol
 from walkman.hal.protocol import ChainState, HalProtocolError, state_interval
@@ -78,12 +79,6 @@ class YarpSink:
     def close(self) -> None:
         self._keeper.forget(self.port)
         self.port.close()
-
-
-#: Seconds a reliable message waits for a reader of a port local programs connect to
-#: (the pilot's ``/M/warning:o``, just opened) before it is written with nobody reading,
-#: as YARP would: a gateway connects within a second, and nothing waits for ever.
-READER_GRACE = 10.0
 
 
 class YarpSource:

@@ -98,9 +98,10 @@ def test_the_presence_thread_follows_the_peer_and_remembers_its_word(pilot_bridg
     from bridge import config as bridge_config
     from bridge.node import Bridge
 
+    # Said while the bridge was still opening its endpoints (before the thread runs).
+    pilot_bridge._on_peer_presence(frozenset({(7, 0), (7, 2)}))
     thread = threading.Thread(target=pilot_bridge._keep_presence, daemon=True)
     thread.start()
-    pilot_bridge._on_peer_presence(frozenset({(7, 0), (7, 2)}))   # as a frame would say
     wait_until(lambda: shown_here() == {"/gaze_control/switch:i", "/gaze_control/status:o"},
                5, message="the stand-ins the word names")
     wait_until(lambda: (tmp_path / "state" / "presence.json").exists(), 5,

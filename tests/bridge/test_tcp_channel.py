@@ -151,6 +151,17 @@ def test_presence_is_told_on_each_connection_and_each_change_at_once(pair):
     assert pilot.heard == [frozenset(), {STATUS, SWITCH}, {STATUS, SWITCH}, {SWITCH}]
 
 
+def test_a_word_is_taken_after_the_messages_of_its_frame(pair):
+    robot, pilot = pair(period=30.0)  # no periodic frame: one frame carries both
+    wait_until(lambda: pilot.heard, 3, message="the first word")
+    seen = []
+    pilot.channel.on_presence = lambda flows: seen.append((flows, list(pilot.reliable)))
+    robot.here = frozenset({STATUS})             # the module left after its last warning
+    robot.channel.send_reliable(SWITCH, Bottle([1, "overheating"]))
+    wait_until(lambda: seen, 3, message="the word")
+    assert seen == [({STATUS}, [Bottle([1, "overheating"])])]
+
+
 def test_a_dropped_connection_loses_and_repeats_nothing(pair):
     robot, pilot = pair(period=0.2)
     pilot.channel.send_reliable(SWITCH, Bottle(["start", 2]))

@@ -308,7 +308,7 @@ def test_a_status_set_in_run_leaves_at_once_and_a_flood_of_them_is_thinned(make_
         for value in range(2, 52):                                # a status every microsecond
             thread.status_interface.set_status("ok", float(value))
         wait_until(lambda: sent[-1] == [51.0], TIMEOUT, message="the newest of the flood")
-        assert len(sent) - before <= 4, sent[before:]            # 50 ms apart, not 50 sends
+        assert len(sent) - before <= 10, sent[before:]           # 50 ms apart, not 50 sends
     finally:
         runner.quit_requested = True
         runner.wake.set()
