@@ -295,7 +295,7 @@ class Bridge:
         written what the journal holds for it (a module's last warning reaches the pilot)."""
         opened: Dict[str, List[str]] = {}
         closed: Dict[str, List[str]] = {}
-        pending = {(ident, kind) for _, ident, kind, _ in self.journal.undelivered()}
+        pending: Optional[set] = None   # read from the journal only when one is closing
         now = time.monotonic()
         for key in sorted(self._stand_in_keys):
             if self._stop.is_set():
@@ -313,6 +313,8 @@ class Bridge:
                 opened.setdefault(channel.module, []).append(endpoint.port.name)
             elif key not in wanted and key in self._stand_ins:
                 leaving = self._leaving.setdefault(key, now)
+                if pending is None:
+                    pending = {(ident, kind) for _, ident, kind, _ in self.journal.undelivered()}
                 if key in pending and now - leaving < READER_GRACE:
                     continue   # what the journal holds for it first, for a while
                 self._leaving.pop(key, None)
