@@ -359,8 +359,9 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
               "| topic | lab | drc | designed (drc) |", "|---|---|---|---|"]
     lab_rates, drc_rates = rates(lab_record), rates(drc_record)
     designed = {"/joint_states": "1/T = 2 (bridge period 0.5 s)",
-                "/gaze_control/status": "<= 2 (GYM 2 Hz, latest per T)",
-                "/temperature/status": "<= 2", "/multisense/points": "1 (camera rate)",
+                "/gaze_control/status": "2 a second, and each change (GYM; bridge: "
+                                        "latest per T, changes as events)",
+                "/temperature/status": "2 a second, and each change", "/multisense/points": "1 (camera rate)",
                 "/multisense/left/image_color": "1", "/tf": "TF at 10 Hz on new state"}
     for topic in sorted(set(lab_rates) | set(drc_rates)):
         lines.append(f"| `{topic}` | {lab_rates.get(topic, 0):.2f} | "

@@ -291,3 +291,25 @@ def test_a_lost_robot_is_told_and_its_return_too():
     assert runner.robot_alive()
     assert "lost the robot (HAL silent for 0.6 s)" in runner.interfaces.warnings[0]
     assert "the robot (HAL) is back" in runner.interfaces.warnings[1]
+
+
+def test_a_status_set_in_run_leaves_at_once_and_a_flood_of_them_is_thinned(make_runner,
+                                                                          monkeypatch):
+    monkeypatch.setattr(runner_module, "STATUS_PERIOD", 60.0)  # the period alone: a minute
+    runner, thread = running(make_runner)
+    sent: list = []
+    runner.interfaces.send_status = lambda: sent.append(list(runner.interfaces.data))
+    watchdog = in_background(runner.watchdog)
+    try:
+        wait_until(lambda: sent, TIMEOUT, message="the first status")
+        thread.status_interface.set_status("ok", 1.0)            # as run() would
+        wait_until(lambda: sent[-1] == [1.0], TIMEOUT, message="the changed status, now")
+        before = len(sent)
+        for value in range(2, 52):                                # a status every microsecond
+            thread.status_interface.set_status("ok", float(value))
+        wait_until(lambda: sent[-1] == [51.0], TIMEOUT, message="the newest of the flood")
+        assert len(sent) - before <= 4, sent[before:]            # 50 ms apart, not 50 sends
+    finally:
+        runner.quit_requested = True
+        runner.wake.set()
+        watchdog.join(TIMEOUT)

@@ -61,6 +61,9 @@ EXIT_QUIT = 0
 EXIT_ESCALATED = 3
 HOOK_TIMEOUT = 2.0
 STATUS_PERIOD = 0.5
+#: Shortest time between two statuses sent because the module's status changed: a pilot
+#: sees a change at once, and a status that changes every tick costs at most 20 a second.
+STATUS_MIN_GAP = 0.05
 CONNECT_RETRY = 2.0  # s between two attempts to reach a HAL that is not there yet
 DEFAULTS = {"thread_period": 10, "robot_name": "walkman", "urdf_path": ""}
 
@@ -190,10 +193,16 @@ class ModuleRunner:
         self._status_before_loss = ""
         self.start_pending = False
         self._status_at_pause: Optional[Tuple[str, list]] = None
+        self.status_changed = False
 
     def _make_thread(self) -> GenericThread:
         return self.module_class(self.name, self.config, self.interfaces,
-                                 on_status_change=self.wake.set)
+                                 on_status_change=self._on_status_change)
+
+    def _on_status_change(self) -> None:
+        """The module set a new status (control thread): the watchdog sends it now."""
+        self.status_changed = True
+        self.wake.set()
 
     # -- the lifecycle state ------------------------------------------------------------
 
@@ -459,9 +468,12 @@ class ModuleRunner:
 
     def watchdog(self) -> int:
         """Serve the pilot until ``quit``; returns the process exit code."""
-        next_status = 0.0
+        next_status = last_status = 0.0
         while not self.quit_requested:
-            self.wake.wait(STATUS_PERIOD)
+            wait = STATUS_PERIOD
+            if self.status_changed:  # woken too soon after the last status: until the gap
+                wait = max(0.0, last_status + STATUS_MIN_GAP - time.monotonic())
+            self.wake.wait(wait)
             self.wake.clear()
             for problem in self.interfaces.switch.take_rejections() + \
                     self.interfaces.commands.take_rejections():
@@ -480,9 +492,11 @@ class ModuleRunner:
                     (self.robot_ready.is_set() or self.robot_failure is not None):
                 self.switch("start")
             now = time.monotonic()
-            if now >= next_status:
+            if now >= next_status or \
+                    (self.status_changed and now >= last_status + STATUS_MIN_GAP):
+                self.status_changed = False
                 self.interfaces.send_status()
-                next_status = now + STATUS_PERIOD
+                next_status, last_status = now + STATUS_PERIOD, now
             self._heartbeat()
         self.interfaces.send_status()
         return self.exit_code

@@ -8,7 +8,8 @@ wheel turns about its local x axis -- and its radius), then steps through the
 task: ``reach`` (the hand's grip point goes in front of the rim's top),
 ``approach`` (close to the rim), ``grasp`` (the hand closes), ``turn [ANGLE]``
 (the hand follows the rim about the wheel's axis, ANGLE rad, default pi/2;
-repeatable), ``ungrasp``, ``move_away``, ``home``.
+repeatable), ``ungrasp``, ``move_away`` (straight back off the rim along the
+wheel's axis, then to the reach point), ``home``.
 
 Each step is a transition of a table-driven state machine
 (:mod:`walkman.control.fsm`); a command the current state does not accept is
@@ -69,8 +70,15 @@ class Module(GraspTask):
                  "valve")
 
     def _start_move_away(self) -> None:
-        # Back to the reach point: checked reachable at valvedatasent, clear of the wheel.
-        self.line_to(self.hand, self.target["reach"], self.speed)
+        # Straight back off the rim along the wheel's axis first, as far as the reach point is
+        # in front of the grip: on the diagonal from a turned grip to the reach point, a hand
+        # just opened dragged the wheel back by 0.1 rad.  Then to the reach point (checked
+        # reachable at valvedatasent).
+        position, _ = self.pose(self.hand)
+        clear = position - (REACH_GAP - APPROACH_GAP) * self.target["axis"]
+        self.reachable(self.hand, clear, what="point back off the wheel")
+        self.line_to(self.hand, clear, self.speed)
+        self.then(lambda: self.line_to(self.hand, self.target["reach"], self.speed))
 
     def _start_turn(self, angle: float = math.pi / 2) -> None:
         if abs(angle) > 2 * math.pi:
