@@ -19,9 +19,10 @@
    (median, p99), against a direct YARP connection over the same link.
 4. **All 256 ids in use** (lab profile): 256 GYM modules (1024 flows, 512 ports a
    side) against 8, each module's status written once a second on the robot; per
-   size, interleaved: seconds from a bridge's start to its ports registered, each
-   bridge's CPU and memory once linked, the link's bit/s, and the one-way latency
-   of commands to the module with the highest id.
+   size, interleaved: seconds from a bridge's start to its ports registered (and
+   of that, opening its ports and connecting to the modules' ports), each bridge's
+   CPU and memory and the robot name server's CPU once linked, the link's bit/s, and the
+   one-way latency of commands to the module with the highest id.
 5. **Presence** (lab and drc profiles): a GYM module's four ports opened and
    closed on the robot again and again; how long until the pilot's name server
    shows them (the bridge's stand-ins) and stops showing them, against one name
@@ -293,15 +294,17 @@ def many_ids(link: EmulatedLink, modules: int, count: int, duration: float) -> D
             "ready", 120)
         receiver = pcs.robot.python(ROLES, "ping-receiver", last, name="pong")
         receiver.wait_for("ready", 30)
-        started = {}
+        started, phases = {}, {}
         for side in (pcs.robot, pcs.pilot):
             t0 = time.monotonic()
             pcs.start_bridge(side, wait=False)
-            side.bridge.wait_for(r"side ready", 300)
+            ready = side.bridge.wait_for(r"side ready.*opened in ([\d.]+) s.* in ([\d.]+) s", 300)
             started[side.name] = time.monotonic() - t0
+            phases[side.name] = (float(ready.group(1)), float(ready.group(2)))
         pcs.wait_linked(120)
         time.sleep(10)
         pids = {side.name: side.bridge.popen.pid for side in (pcs.robot, pcs.pilot)}
+        pids["robot server"] = pcs.robot.world.server.popen.pid
         cpu_before = {name: cpu_seconds(pid) for name, pid in pids.items()}
         bytes_before = status_numbers(pcs, pcs.robot)["bytes_out"]
         time.sleep(duration)
@@ -314,7 +317,10 @@ def many_ids(link: EmulatedLink, modules: int, count: int, duration: float) -> D
         wait_until(lambda: len(latencies(receiver)) >= count, 60, message="pings")
         through = latencies(receiver)
     return {"ready robot": started["robot"], "ready pilot": started["pilot"],
+            "open robot": phases["robot"][0], "connect robot": phases["robot"][1],
+            "open pilot": phases["pilot"][0], "connect pilot": phases["pilot"][1],
             "cpu robot": cpu["robot"], "cpu pilot": cpu["pilot"],
+            "cpu robot server": cpu["robot server"],
             "mib robot": memory["robot"], "mib pilot": memory["pilot"], "bits": bits,
             "median": statistics.median(through), "p99": percentile(through, 0.99)}
 
@@ -492,13 +498,17 @@ def main() -> int:
             say(f"\n4. All 256 ids in use (lab): 8 modules beside 256 (4 flows each), every "
                 f"status once a second; CPU over {duration} s linked, {count} commands to the "
                 f"last id")
-            say(f"   {'modules':>7} {'ready s':>13} {'CPU %':>11} {'RSS MiB':>11} "
-                f"{'bit/s':>8} {'cmd med ms':>10} {'p99':>7}   (robot/pilot)")
+            say(f"   {'modules':>7} {'ready s':>13} {'open s':>11} {'connect s':>11} "
+                f"{'CPU %':>11} {'server %':>8} {'RSS MiB':>11} {'bit/s':>8} {'cmd med ms':>10} "
+                f"{'p99':>7}   (robot/pilot; server: the robot's name server)")
             link.apply("lab")
             for modules in (8, 256, 8, 256):  # interleaved: each size twice
                 f = many_ids(link, modules, count, duration)
                 say(f"   {modules:>7} {f['ready robot']:>6.1f}/{f['ready pilot']:<6.1f} "
+                    f"{f['open robot']:>5.1f}/{f['open pilot']:<5.1f} "
+                    f"{f['connect robot']:>5.1f}/{f['connect pilot']:<5.1f} "
                     f"{f['cpu robot']:>5.1f}/{f['cpu pilot']:<5.1f} "
+                    f"{f['cpu robot server']:>8.1f} "
                     f"{f['mib robot']:>5.0f}/{f['mib pilot']:<5.0f} {f['bits']:>8.0f} "
                     f"{f['median']:>10.2f} {f['p99']:>7.2f}")
         if 5 in only:

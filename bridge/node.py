@@ -198,6 +198,7 @@ class Bridge:
         if ros_channels:
             self._start_ros(ros_channels)
         self.keeper = ConnectionKeeper()
+        opening = time.monotonic()
         try:
             self._open_status_ports()
             for channel in yarp_channels:
@@ -228,12 +229,15 @@ class Bridge:
             raise
         # Connect to the modules already here before saying which are: a bridge that
         # restarts must not tell the peer, for a moment, that every module has gone.
+        connecting = time.monotonic()
         self.keeper.check_now()
         self._stop.wait(PRESENCE_PERIOD)
         self.keeper.start()
         self._deliver_wake.set()
-        log.info("bridge %s side ready: %d flows out, %d in", self.side,
-                 len(self.config.sending(self.side)), len(self.config.receiving(self.side)))
+        log.info("bridge %s side ready: %d flows out, %d in (ports opened in %.2f s, "
+                 "connected to the modules here in %.2f s)", self.side,
+                 len(self.config.sending(self.side)), len(self.config.receiving(self.side)),
+                 connecting - opening, time.monotonic() - connecting - PRESENCE_PERIOD)
         self._keep_presence()
 
     def _open_yarp_endpoint(self, channel: Channel) -> Any:
