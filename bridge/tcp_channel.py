@@ -25,7 +25,12 @@ a pilot's command, or with a new state: what the pilot waits to see) leaves at o
 too, alone or with other events, at most once per :data:`EVENT_MIN_GAP` per
 flow (later ones are coalesced in the slot), so a pilot's command shows its
 effect within a round trip instead of the next period, and a robot standing
-still sends exactly what the periodic frames send.  Reliable messages come from the :class:`~bridge.journal.Journal`:
+still sends exactly what the periodic frames send.  A frame the pilot waits for (events,
+reliable messages, presence) that the peer has not acknowledged :data:`NUDGE_AFTER` later
+is followed by an empty frame, up to :data:`NUDGES` times, the wait doubling: a lone lost
+segment waits for TCP's retransmission timer (200 ms at least, doubling), while the
+peer's selective acknowledgement of a later one makes the kernel resend it at once.
+Reliable messages come from the :class:`~bridge.journal.Journal`:
 after a reconnect the peer's RESUME says what it already has and the rest is
 sent again, in order.  When the kernel still holds unsent bytes (the link is
 slower than we write), the streaming part of a frame is held back rather than
@@ -77,6 +82,12 @@ MAX_RELIABLE_PER_FRAME = 256
 #: Shortest time between two event sends of one flow; more frequent events wait (coalesced).
 EVENT_MIN_GAP = 0.05
 KEEPALIVE = 1.0
+#: Seconds before an unacknowledged frame the pilot waits for is followed by an empty one:
+#: longer than a receiver may delay its acknowledgement (40 ms on Linux), far shorter than
+#: TCP's retransmission timer.
+NUDGE_AFTER = 0.05
+#: Empty frames at most after one the pilot waits for (the wait doubling each time).
+NUDGES = 3
 #: Where ``struct tcp_info`` (linux/tcp.h) keeps ``tcpi_rtt``, in microseconds.
 TCP_INFO_RTT_OFFSET = 68
 #: Seconds a connection has to complete the handshake.
@@ -108,6 +119,8 @@ class LinkStats:
     reliable_sent: int = 0
     reliable_accepted: int = 0
     connects: int = 0
+    #: empty frames sent after one the pilot waits for that was not acknowledged in time
+    nudges: int = 0
     #: exceptions that are our bugs (logged with their traceback), not the peer's
     internal_errors: int = 0
     last_error: str = ""
@@ -131,6 +144,28 @@ def _unsent_bytes(sock: socket.socket) -> int:
         return struct.unpack("i", raw)[0]
     except OSError:
         return 0
+
+
+@dataclass
+class _Nudges:
+    """When the send thread follows a frame the pilot waits for with an empty one."""
+
+    at: float = math.inf
+    gap: float = NUDGE_AFTER
+    left: int = 0
+
+    def awaited_frame_sent(self, now: float) -> None:
+        self.at, self.gap, self.left = now + NUDGE_AFTER, NUDGE_AFTER, NUDGES
+
+    def take(self, now: float, unacknowledged: bool) -> bool:
+        """Is an empty frame to go now?  Called once ``now >= at``; plans the next one."""
+        if not unacknowledged or self.left <= 0:
+            self.at, self.left = math.inf, 0
+            return False
+        self.left -= 1
+        self.gap *= 2
+        self.at = now + self.gap if self.left > 0 else math.inf
+        return True
 
 
 @dataclass
@@ -590,10 +625,11 @@ class TcpChannel:
 
     def _send_loop(self) -> None:
         next_tick = time.monotonic() + self.period
+        nudges = _Nudges()
         while not self._stopping.is_set():
             with self._wake:
                 while not self._urgent and not self._stopping.is_set():
-                    wake_at = min([next_tick, *self._events.values()])
+                    wake_at = min([next_tick, nudges.at, *self._events.values()])
                     remaining = wake_at - time.monotonic()
                     if remaining <= 0:
                         break
@@ -610,9 +646,15 @@ class TcpChannel:
             if tick:
                 next_tick = max(next_tick + self.period, now)
             if connection is None or connection.closed:
+                nudges.at = math.inf
                 continue
             try:
-                self._send_frame(connection, streams=None if tick else due)
+                nudge = nudges.take(now, _unsent_bytes(connection.sock) > 0) \
+                    if now >= nudges.at else False
+                if self._send_frame(connection, streams=None if tick else due, force=nudge):
+                    nudges.awaited_frame_sent(time.monotonic())
+                if nudge:
+                    self.stats.nudges += 1
             except OSError as exc:
                 self._drop(f"send failed: {exc.strerror or exc}", connection)
             except BridgeError as exc:
@@ -652,9 +694,12 @@ class TcpChannel:
     def _count(self, ident: int, size: int) -> None:
         self.stats.bytes_by_id[ident] = self.stats.bytes_by_id.get(ident, 0) + size
 
-    def _send_frame(self, connection: _Connection, streams: Optional[set]) -> None:
+    def _send_frame(self, connection: _Connection, streams: Optional[set],
+                    force: bool = False) -> bool:
         """One frame: what the journal owes, the ack, and the streaming flows
-        ``streams`` names (``None``: every changed flow, the periodic frame)."""
+        ``streams`` names (``None``: every changed flow, the periodic frame); sent even
+        empty when ``force``.  Says whether it held what a pilot waits for (reliable
+        messages, events, presence)."""
         encoded: List[bytes] = []
         reliable = self.journal.unacknowledged(after=connection.sent_upto,
                                                limit=MAX_RELIABLE_PER_FRAME)
@@ -663,21 +708,24 @@ class TcpChannel:
             encoded.append(frames.entry_bytes(Entry(item.id, item.kind, item.payload)))
             self.stats.payload_out += len(item.payload)
             self._count(item.id, len(encoded[-1]))
+        events = False
         if streams is None or streams:
             backlog = _unsent_bytes(connection.sock)
             if drops.hold_back(backlog):
                 self.drops.drop(Reason.HELD_BACK, f"{backlog} bytes still unsent")
             else:
-                encoded.extend(self._streaming_entries(connection, only=streams))
+                streaming = self._streaming_entries(connection, only=streams)
+                events = streams is not None and bool(streaming)
+                encoded.extend(streaming)
         accepted = self.journal.accepted(connection.session)
         ack = accepted if accepted != connection.ack_sent else None
         present = self.presence()  # None: not known yet
         presence = present if present is not None and present != connection.presence_sent \
             else None
         now = time.monotonic()
-        if not encoded and ack is None and presence is None and \
+        if not encoded and ack is None and presence is None and not force and \
                 now - connection.last_tx < KEEPALIVE:
-            return
+            return False
         frame = connection.link.send_data(frames.data_body(ack=ack, seq=seq, encoded=encoded,
                                                            presence=presence))
         connection.sock.sendall(frame)
@@ -692,3 +740,4 @@ class TcpChannel:
                 self.kick()
         self.stats.frames_out += 1
         self.stats.bytes_out += len(frame)
+        return bool(reliable) or events or presence is not None

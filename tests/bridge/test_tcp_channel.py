@@ -6,6 +6,7 @@ channel's threads and sockets around it: who may connect, who may replace whom.
 
 from __future__ import annotations
 
+import math
 import select
 import socket
 import threading
@@ -125,6 +126,55 @@ def test_a_status_event_leaves_at_once_and_a_flood_of_them_is_coalesced(pair):
     robot.channel.post(STATUS, Bottle([103, "c", 0.75]))  # not an event
     time.sleep(0.5)  # the thing under test: many gaps pass and it still waits for T
     assert pilot.streams[-1][1] == Bottle([103, "c", 0.5])
+
+
+def test_nudges_follow_an_awaited_frame_while_it_is_unacknowledged():
+    from bridge.tcp_channel import NUDGE_AFTER, NUDGES, _Nudges
+
+    nudges = _Nudges()
+    assert nudges.at == math.inf                       # nothing sent: nothing planned
+    nudges.awaited_frame_sent(10.0)
+    assert nudges.at == pytest.approx(10.0 + NUDGE_AFTER)
+    sent = []
+    while nudges.at < math.inf:
+        now = nudges.at
+        if nudges.take(now, unacknowledged=True):
+            sent.append(now)
+    assert len(sent) == NUDGES
+    gaps = [b - a for a, b in zip([10.0, *sent], sent)]
+    assert gaps == pytest.approx([NUDGE_AFTER * 2 ** i for i in range(NUDGES)])
+    nudges.awaited_frame_sent(20.0)                    # acknowledged by the first look:
+    assert not nudges.take(nudges.at, unacknowledged=False)
+    assert nudges.at == math.inf                       # no more
+
+
+def test_an_unacknowledged_event_is_followed_by_empty_frames_and_a_periodic_one_is_not(
+        pair, monkeypatch):
+    from bridge import tcp_channel
+
+    robot, pilot = pair(period=0.1)
+    wait_until(lambda: pilot.heard and robot.heard, 3, message="the first words")
+    time.sleep(2 * tcp_channel.NUDGE_AFTER)           # ... acknowledged
+    monkeypatch.setattr(tcp_channel, "_unsent_bytes", lambda sock: 1)  # never acknowledged
+    for seq in range(2, 12):                          # periodic frames only
+        robot.channel.post(STATUS, Bottle([seq, "a"]))
+        time.sleep(0.05)
+    time.sleep(0.5)
+    assert robot.channel.stats.nudges == 0
+    robot.channel.post(STATUS, Bottle([20, "b"]), event=True)
+    wait_until(lambda: robot.channel.stats.nudges == tcp_channel.NUDGES, 3,
+               message="the nudges")
+    time.sleep(0.5)                                   # the thing under test: no more than that
+    assert robot.channel.stats.nudges == tcp_channel.NUDGES
+    pilot.channel.send_reliable(SWITCH, Bottle(["start", 1]))   # a command is awaited too
+    wait_until(lambda: pilot.channel.stats.nudges == tcp_channel.NUDGES, 3,
+               message="the command's nudges")
+    monkeypatch.setattr(tcp_channel, "_unsent_bytes", lambda sock: 0)  # acknowledged at once
+    robot.channel.post(STATUS, Bottle([21, "c"]), event=True)
+    wait_until(lambda: pilot.streams[-1][1][0] == 21, 3, message="the event")
+    time.sleep(0.5)
+    assert robot.channel.stats.nudges == tcp_channel.NUDGES
+    assert robot.reliable == [Bottle(["start", 1])] and robot.channel.connected
 
 
 def test_presence_is_told_on_each_connection_and_each_change_at_once(pair):
