@@ -315,3 +315,51 @@ def test_the_robot_says_when_each_state_round_arrives(lite_world, config, period
     finally:
         for robot in robots:
             robot.close()
+
+
+def fifo_priorities(pid: int) -> List[int]:
+    """The SCHED_FIFO priorities of a process's threads, read from /proc (policy 1)."""
+    import os
+    from pathlib import Path
+
+    found = []
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:  # the thread ended meanwhile
+            continue
+        rt_priority, policy = int(fields[37]), int(fields[38])  # stat fields 40 and 41
+        if policy == os.SCHED_FIFO:
+            found.append(rt_priority)
+    return sorted(found)
+
+
+@pytest.mark.requires("root")
+def test_the_threads_between_sense_and_move_run_with_real_time_priority(lite_world, lite):
+    """The loops, and the threads that hand a state to the module and its command back to
+    the HAL: a port thread at normal priority made the sense -> move p99 2.6-3.2 ms."""
+    from system.processes import descendants
+    from walkman.gym.runner import CONTROL_PRIORITY, HAL_PRIORITY, PATH_PRIORITY
+
+    hal = start_hal(lite_world, "sim")
+    module = start_module(lite_world, "gaze_control")
+    module.wait_for("ready for the pilot", timeout=60)
+    pilot = Pilot(lite_world, "gaze_control", GAZE_STATUSES)
+    try:
+        pilot.send(lite, "switch", "start")
+        pilot.wait_state("ready")
+        runner = [pid for pid in descendants(module.popen.pid)
+                  if CONTROL_PRIORITY in fifo_priorities(pid)]
+        assert len(runner) == 1, "no module process with a real-time control loop"
+        pilot.send(lite, "command", "look_at 1.0 0.4 0.1")   # the module streams commands
+        pilot.wait_state("tracking")
+        # the HAL: physics, publisher and the command reader of the chain the module moves
+        wait_until(lambda: fifo_priorities(hal.popen.pid).count(PATH_PRIORITY) >= 2, 10,
+                   message=f"the HAL's threads: {fifo_priorities(hal.popen.pid)}")
+        assert HAL_PRIORITY in fifo_priorities(hal.popen.pid)
+        # the module: its control loop and its reader of the robot's state
+        assert fifo_priorities(runner[0]).count(PATH_PRIORITY) >= 1, fifo_priorities(runner[0])
+        pilot.send(lite, "switch", "quit")
+        assert module.wait(timeout=30) == 0
+    finally:
+        pilot.close()

@@ -129,6 +129,8 @@ def test_a_pause_that_loses_the_race_to_a_failing_run_leaves_the_module_stopped(
 
 def test_a_stop_racing_a_failing_run_releases_the_module_once(make_runner):
     runner, module = running(make_runner)
+    module.may_pause.set()  # a safe pause at once: the stop races run() alone (waiting
+    # TIMEOUT for it instead raced this test's own wait for the stop, and often won)
     module.block.set()
     module.fail.set()
     assert module.blocked.wait(TIMEOUT)  # run() is under way...

@@ -250,7 +250,8 @@ class ModuleRunner:
                     self.robot = Robot(self.prefix,
                                        robot=str(self.config.get("robot_name", "walkman")),
                                        nameclient=self.nameclient, connect_timeout=3600,
-                                       state_interval=state_interval(self.thread.thread_period))
+                                       state_interval=state_interval(self.thread.thread_period),
+                                       realtime_readers=True)
                 except NetworkError as exc:
                     log.info("%s: HAL not reachable yet (%s)", self.name, exc)
                     time.sleep(CONNECT_RETRY)
@@ -567,6 +568,11 @@ SWITCH_INTERVAL = 0.0002
 #: Real-time priorities (SCHED_FIFO) of the periodic threads, when allowed.
 HAL_PRIORITY = 60
 CONTROL_PRIORITY = 50
+#: ... and of the threads that carry a state to the loop and a command back (the HAL's
+#: publisher and command readers, a module's state readers): above the module's loop, so
+#: a state it waits for is handed over at once, below the physics.
+PATH_PRIORITY = 55
+_this_thread = threading.local()
 
 
 def make_realtime(priority: int) -> bool:
@@ -583,6 +589,14 @@ def make_realtime(priority: int) -> bool:
         return True
     except (PermissionError, OSError):
         return False
+
+
+def make_realtime_once(priority: int) -> None:
+    """:func:`make_realtime` for a thread this code does not start (a port's reader),
+    called on each message: only the thread's first call asks the kernel."""
+    if not getattr(_this_thread, "realtime_asked", False):
+        _this_thread.realtime_asked = True
+        make_realtime(priority)
 
 
 def run_module(argv: Optional[List[str]] = None) -> int:

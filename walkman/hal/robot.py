@@ -178,8 +178,12 @@ class Robot(WholeBody):
 
     def __init__(self, owner: str, robot: str = "walkman", model: Optional[RobotModel] = None,
                  nameclient: Optional[NameClient] = None, connect_timeout: float = 30.0,
-                 carrier: str = "fast_tcp", state_interval: float = 0.0) -> None:
+                 carrier: str = "fast_tcp", state_interval: float = 0.0,
+                 realtime_readers: bool = False) -> None:
         self.owner = owner.rstrip("/")
+        #: The threads reading the robot's state take a real-time priority (a GYM module's
+        #: runner asks for it: :func:`walkman.gym.runner.make_realtime_once`).
+        self.realtime_readers = realtime_readers
         #: Read each chain's state at most this often (the newest; see :func:`walkman.hal.protocol.state_interval`).
         self.state_interval = state_interval
         #: The robot's time, for a module's trajectories (:mod:`walkman.hal.clock`).
@@ -385,8 +389,15 @@ class Robot(WholeBody):
 
     # -- incoming state --------------------------------------------------------------------
 
+    def _reader_priority(self) -> None:
+        if self.realtime_readers:
+            from walkman.gym.runner import PATH_PRIORITY, make_realtime_once
+
+            make_realtime_once(PATH_PRIORITY)
+
     def _on_state_si(self, chain: str, indices: List[int], bottle: Bottle,
                      envelope: str = "") -> None:
+        self._reader_priority()
         try:
             state = protocol.decode_state_si(bottle, len(indices))
         except HalProtocolError as exc:
@@ -396,6 +407,7 @@ class Robot(WholeBody):
         self._store(chain, state.seq, state.q, state.qdot, state.tau, state.temperature)
 
     def _on_whole_state_si(self, bottle: Bottle) -> None:
+        self._reader_priority()
         try:
             state = protocol.decode_whole_state(bottle, self._whole_joints)
         except HalProtocolError as exc:  # refused, so the robot looks away: the module holds

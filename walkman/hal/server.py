@@ -70,8 +70,9 @@ PUBLISHED_HISTORY = 2048  # state publications remembered for latency (2 s at 1 
 class Publisher(threading.Thread):
     """Writes snapshots to ports; the physics thread never blocks on a socket."""
 
-    def __init__(self) -> None:
+    def __init__(self, realtime: bool = False) -> None:
         super().__init__(daemon=True, name="hal publisher")
+        self.realtime = realtime
         self.cond = threading.Condition()
         self.pending: Dict[int, Tuple[Port, Bottle, str]] = {}
         self.running = True
@@ -88,6 +89,10 @@ class Publisher(threading.Thread):
                 self.cond.notify()
 
     def run(self) -> None:
+        if self.realtime:
+            from walkman.gym.runner import PATH_PRIORITY, make_realtime
+
+            make_realtime(PATH_PRIORITY)
         while True:
             with self.cond:
                 while not self.pending and self.running:
@@ -130,7 +135,7 @@ class HalServer:
         self.ports: List[Port] = []
         self.warning_port: Optional[Port] = None
         self._warning_seq = 1
-        self.publisher = Publisher()
+        self.publisher = Publisher(realtime)
         self.running = False
         # When each state seq went out, as a ring indexed by seq (written by the loop,
         # read by command readers without a lock: one float store, no iteration).
@@ -212,6 +217,10 @@ class HalServer:
 
     def _on_command(self, chain: ChainBoard, bottle: Bottle, source: str = "") -> None:
         """A streaming command (``command:i``): refused with a log line when malformed."""
+        if self.realtime:
+            from walkman.gym.runner import PATH_PRIORITY, make_realtime_once
+
+            make_realtime_once(PATH_PRIORITY)
         try:
             command = controlboard.decode_stream(bottle, chain.axes())
             chain.command(command.what, command.joints, command.values,
