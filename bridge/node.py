@@ -231,13 +231,14 @@ class Bridge:
         # restarts must not tell the peer, for a moment, that every module has gone.
         connecting = time.monotonic()
         self.keeper.check_now()
+        connected = time.monotonic()
         self._stop.wait(PRESENCE_PERIOD)
         self.keeper.start()
         self._deliver_wake.set()
         log.info("bridge %s side ready: %d flows out, %d in (ports opened in %.2f s, "
                  "connected to the modules here in %.2f s)", self.side,
                  len(self.config.sending(self.side)), len(self.config.receiving(self.side)),
-                 connecting - opening, time.monotonic() - connecting - PRESENCE_PERIOD)
+                 connecting - opening, connected - connecting)
         self._keep_presence()
 
     def _open_yarp_endpoint(self, channel: Channel) -> Any:

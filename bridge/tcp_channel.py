@@ -25,11 +25,13 @@ a pilot's command, or with a new state: what the pilot waits to see) leaves at o
 too, alone or with other events, at most once per :data:`EVENT_MIN_GAP` per
 flow (later ones are coalesced in the slot), so a pilot's command shows its
 effect within a round trip instead of the next period, and a robot standing
-still sends exactly what the periodic frames send.  A frame the pilot waits for (events,
-reliable messages, presence) that the peer has not acknowledged :data:`NUDGE_AFTER` later
-is followed by an empty frame, up to :data:`NUDGES` times, the wait doubling: a lone lost
-segment waits for TCP's retransmission timer (200 ms at least, doubling), while the
-peer's selective acknowledgement of a later one makes the kernel resend it at once.
+still sends exactly what the periodic frames send.  When a frame the pilot waits for
+(events, reliable messages, presence) has left but the peer has not acknowledged
+everything :data:`NUDGE_AFTER` (or a round trip plus :data:`DELAYED_ACK`) later, an
+empty frame follows, up to :data:`NUDGES` times, the wait doubling: a lone lost segment
+waits for TCP's retransmission timer (200 ms at least, doubling), while the peer's
+selective acknowledgement of a later one makes the kernel resend it at once.  Bytes still
+queued (a slow link) are not a loss: nothing follows them.
 Reliable messages come from the :class:`~bridge.journal.Journal`:
 after a reconnect the peer's RESUME says what it already has and the rest is
 sent again, in order.  When the kernel still holds unsent bytes (the link is
@@ -82,9 +84,11 @@ MAX_RELIABLE_PER_FRAME = 256
 #: Shortest time between two event sends of one flow; more frequent events wait (coalesced).
 EVENT_MIN_GAP = 0.05
 KEEPALIVE = 1.0
-#: Seconds before an unacknowledged frame the pilot waits for is followed by an empty one:
-#: longer than a receiver may delay its acknowledgement (40 ms on Linux), far shorter than
-#: TCP's retransmission timer.
+#: How long a receiver may delay its acknowledgement (Linux: 40 ms).
+DELAYED_ACK = 0.04
+#: Least seconds before an unacknowledged frame the pilot waits for is followed by an empty
+#: one (a round trip plus :data:`DELAYED_ACK` on a slower link): far shorter than TCP's
+#: retransmission timer.
 NUDGE_AFTER = 0.05
 #: Empty frames at most after one the pilot waits for (the wait doubling each time).
 NUDGES = 3
@@ -132,6 +136,23 @@ def fingerprint(text: str) -> bytes:
     return hashlib.sha256(text.encode()).digest()[:8]
 
 
+#: ``SIOCOUTQNSD`` (linux/sockios.h): bytes of a TCP socket not yet sent at all.
+SIOCOUTQNSD = 0x894B
+
+
+def _only_unacknowledged(sock: socket.socket) -> bool:
+    """Has everything left, with some of it not yet acknowledged?  (Bytes still queued for
+    a slow link are not a sign of loss, and an empty frame behind them would not help.)"""
+    fd = sock.fileno()
+    if fd < 0:
+        return False
+    try:
+        raw = fcntl.ioctl(fd, SIOCOUTQNSD, b"\0\0\0\0")
+    except OSError:
+        return False
+    return struct.unpack("i", raw)[0] == 0 and _unsent_bytes(sock) > 0
+
+
 def _unsent_bytes(sock: socket.socket) -> int:
     """Bytes the kernel still holds for the peer; 0 once the socket is closed (the receive
     thread closes it when the peer dies: ``fileno()`` is then -1, which ``ioctl`` refuses
@@ -154,8 +175,10 @@ class _Nudges:
     gap: float = NUDGE_AFTER
     left: int = 0
 
-    def awaited_frame_sent(self, now: float) -> None:
-        self.at, self.gap, self.left = now + NUDGE_AFTER, NUDGE_AFTER, NUDGES
+    def awaited_frame_sent(self, now: float, round_trip: float = 0.0) -> None:
+        """A frame the pilot waits for left at ``now`` on a link of ``round_trip`` s."""
+        self.gap = max(NUDGE_AFTER, round_trip + DELAYED_ACK)
+        self.at, self.left = now + self.gap, NUDGES
 
     def take(self, now: float, unacknowledged: bool) -> bool:
         """Is an empty frame to go now?  Called once ``now >= at``; plans the next one."""
@@ -649,10 +672,11 @@ class TcpChannel:
                 nudges.at = math.inf
                 continue
             try:
-                nudge = nudges.take(now, _unsent_bytes(connection.sock) > 0) \
+                nudge = nudges.take(now, _only_unacknowledged(connection.sock)) \
                     if now >= nudges.at else False
                 if self._send_frame(connection, streams=None if tick else due, force=nudge):
-                    nudges.awaited_frame_sent(time.monotonic())
+                    nudges.awaited_frame_sent(time.monotonic(),
+                                              (self.round_trip_ms() or 0.0) / 1000.0)
                 if nudge:
                     self.stats.nudges += 1
             except OSError as exc:

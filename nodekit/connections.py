@@ -44,7 +44,8 @@ class _Wanted:
 
     @property
     def other_end(self) -> str:
-        """The other process's port, the one that must be registered to connect."""
+        """The other process's port, the one that must be registered to connect (unless
+        it is a raw address, ``tcp://host:port``)."""
         return self.target if self.ours_is_source else self.source
 
 
@@ -92,7 +93,8 @@ class ConnectionKeeper:
         missing = [item for item in wanted if item.port.is_open and not self.connected(item)]
         registered = self._registered(missing) if len(missing) > LIST_ABOVE else None
         for item in missing:
-            if registered is not None and item.other_end not in registered[id(item.port.nameclient)]:
+            if registered is not None and item.other_end.startswith("/") and \
+                    item.other_end not in registered[id(item.port.nameclient)]:
                 ok = False
             else:
                 ok = self._connect(item)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import os
 import socket
+import threading
 import time
 from typing import Iterable, Optional, Tuple, Union
 
@@ -32,9 +33,16 @@ _RECV_CHUNK = 262144
 #: and wake-up costs more than the whole Python round trip.  Streams that
 #: wait longer (periodic data) never spin, so idle connections cost nothing.
 SPIN_SECONDS = float(os.environ.get("YARP_LITE_SPIN_US", "150")) / 1e6
+_this_thread = threading.local()
 _perf = time.perf_counter
 #: Longest text line accepted from a peer (a text-mode Bottle or command).
 MAX_LINE = 1 << 20
+
+
+def no_spin_in_this_thread() -> None:
+    """Reads in the calling thread never busy-poll: a real-time thread polling its socket
+    would keep the threads it feeds off the CPU (``walkman.realtime``)."""
+    _this_thread.no_spin = True
 
 
 class Stream:
@@ -138,7 +146,8 @@ class SocketStream(Stream):
         data = None
         started = _perf()
         try:
-            if SPIN_SECONDS and self._last_wait < SPIN_SECONDS:
+            if SPIN_SECONDS and self._last_wait < SPIN_SECONDS and \
+                    not getattr(_this_thread, "no_spin", False):
                 deadline = started + SPIN_SECONDS
                 recv = self.sock.recv
                 while True:

@@ -129,6 +129,7 @@ def test_a_status_event_leaves_at_once_and_a_flood_of_them_is_coalesced(pair):
 
 
 def test_nudges_follow_an_awaited_frame_while_it_is_unacknowledged():
+    from bridge import tcp_channel
     from bridge.tcp_channel import NUDGE_AFTER, NUDGES, _Nudges
 
     nudges = _Nudges()
@@ -146,6 +147,32 @@ def test_nudges_follow_an_awaited_frame_while_it_is_unacknowledged():
     nudges.awaited_frame_sent(20.0)                    # acknowledged by the first look:
     assert not nudges.take(nudges.at, unacknowledged=False)
     assert nudges.at == math.inf                       # no more
+    nudges.awaited_frame_sent(30.0, round_trip=0.2)    # a slow link: a round trip and the
+    assert nudges.at == pytest.approx(30.0 + 0.2 + tcp_channel.DELAYED_ACK)  # delayed ACK
+
+
+def test_bytes_queued_for_a_slow_reader_are_not_taken_for_a_loss():
+    from bridge.tcp_channel import _only_unacknowledged, _unsent_bytes
+
+    listener = socket.create_server(("127.0.0.1", 0))
+    sender = socket.create_connection(listener.getsockname())
+    receiver, _ = listener.accept()
+    try:
+        sender.sendall(b"x" * 1000)
+        wait_until(lambda: _unsent_bytes(sender) == 0, 5, message="acknowledged")
+        assert not _only_unacknowledged(sender)        # all acknowledged: nothing lost
+        sender.setblocking(False)
+        try:                                            # the reader reads nothing: fill the
+            while True:                                 # window and our queue behind it
+                sender.send(b"x" * 65536)
+        except BlockingIOError:
+            pass
+        assert _unsent_bytes(sender) > 0
+        assert not _only_unacknowledged(sender)        # queued, not lost: no nudge
+    finally:
+        for sock in (sender, receiver, listener):
+            sock.close()
+    assert not _only_unacknowledged(sender)            # closed: nothing
 
 
 def test_an_unacknowledged_event_is_followed_by_empty_frames_and_a_periodic_one_is_not(
@@ -155,7 +182,7 @@ def test_an_unacknowledged_event_is_followed_by_empty_frames_and_a_periodic_one_
     robot, pilot = pair(period=0.1)
     wait_until(lambda: pilot.heard and robot.heard, 3, message="the first words")
     time.sleep(2 * tcp_channel.NUDGE_AFTER)           # ... acknowledged
-    monkeypatch.setattr(tcp_channel, "_unsent_bytes", lambda sock: 1)  # never acknowledged
+    monkeypatch.setattr(tcp_channel, "_only_unacknowledged", lambda sock: True)  # never acked
     for seq in range(2, 12):                          # periodic frames only
         robot.channel.post(STATUS, Bottle([seq, "a"]))
         time.sleep(0.05)
@@ -169,7 +196,7 @@ def test_an_unacknowledged_event_is_followed_by_empty_frames_and_a_periodic_one_
     pilot.channel.send_reliable(SWITCH, Bottle(["start", 1]))   # a command is awaited too
     wait_until(lambda: pilot.channel.stats.nudges == tcp_channel.NUDGES, 3,
                message="the command's nudges")
-    monkeypatch.setattr(tcp_channel, "_unsent_bytes", lambda sock: 0)  # acknowledged at once
+    monkeypatch.setattr(tcp_channel, "_only_unacknowledged", lambda sock: False)  # acked
     robot.channel.post(STATUS, Bottle([21, "c"]), event=True)
     wait_until(lambda: pilot.streams[-1][1][0] == 21, 3, message="the event")
     time.sleep(0.5)

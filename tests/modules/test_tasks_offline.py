@@ -185,3 +185,24 @@ def test_the_temperature_module_runs_offline_and_warns_when_a_motor_is_hot():
     data = module.interfaces.data
     assert len(data) == 14 and all(200 < t < 1000 for t in data[1::2])  # 0.1 C units
     assert module.switch("stop") and module.state == "stopped"
+
+
+def test_the_valve_hand_backs_off_to_the_reach_depth_only_as_far_as_needed():
+    """From ``approached`` the hand backs straight off the rim, then goes to the reach
+    point; from ``reached`` it is there already and goes nowhere (no back-off to refuse)."""
+    world, module = started("valve", drc_valve.Module, "drc_valve")
+    module.do(VALVE, "ready", 1)
+    reach = module.thread.target["reach"]
+    module.do("reach", "reached")
+    module.command("move_away")
+    world.step(0.05)
+    assert module.state == "moving_away" and not module.thread.phases   # one motion
+    world.run_until(lambda: module.state == "moved_away", 30, "moved away from reached")
+    module.do("reach", "reached")
+    module.do("approach", "approached")
+    module.command("move_away")
+    world.step(0.05)
+    assert len(module.thread.phases) == 1      # the back-off first, then the reach point
+    world.run_until(lambda: module.state == "moved_away", 30, "moved away")
+    grip, _ = module.thread.pose(module.thread.hand)
+    assert np.linalg.norm(grip - reach) < 0.02

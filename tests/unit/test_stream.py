@@ -150,3 +150,44 @@ def test_a_peer_gone_before_the_challenge_is_an_authentication_failure(streams):
     connector.close()
     with pytest.raises(AuthenticationError, match="authentication failed"):
         authenticate(acceptor, Role.ACCEPTOR, KEY)
+
+
+class _CountingSocket:
+    """A socket whose non-blocking reads are counted (the busy-poll's)."""
+
+    def __init__(self, sock: socket.socket) -> None:
+        self.sock, self.polls = sock, 0
+
+    def recv(self, size: int, flags: int = 0) -> bytes:
+        if flags & socket.MSG_DONTWAIT:
+            self.polls += 1
+        return self.sock.recv(size, flags)
+
+
+
+@pytest.mark.skipif(not stream.SPIN_SECONDS, reason="YARP_LITE_SPIN_US=0: no busy-poll at all")
+def test_a_thread_told_not_to_spin_sleeps_in_recv_at_once():
+    left, right = socket.socketpair()
+    polls = {}
+
+    def read_twice(name: str, spin: bool) -> None:
+        reader = SocketStream(left)
+        counting = _CountingSocket(left)
+        reader.sock = counting  # type: ignore[assignment]
+        if not spin:
+            stream.no_spin_in_this_thread()
+        right.sendall(b"a")
+        reader._fill()          # answered at once: the next read would poll first...
+        threading.Timer(0.05, right.sendall, (b"b",)).start()
+        reader._fill()          # ...for up to SPIN_SECONDS before sleeping in recv
+        polls[name] = counting.polls
+
+    try:
+        for name, spin in (("spinning", True), ("real-time", False)):
+            thread = threading.Thread(target=read_twice, args=(name, spin))
+            thread.start()
+            thread.join(5)
+        assert polls["spinning"] > 1 and polls["real-time"] == 0, polls
+    finally:
+        left.close()
+        right.close()

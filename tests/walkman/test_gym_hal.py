@@ -339,7 +339,7 @@ def test_the_threads_between_sense_and_move_run_with_real_time_priority(lite_wor
     """The loops, and the threads that hand a state to the module and its command back to
     the HAL: a port thread at normal priority made the sense -> move p99 2.6-3.2 ms."""
     from system.processes import descendants
-    from walkman.gym.runner import CONTROL_PRIORITY, HAL_PRIORITY, PATH_PRIORITY
+    from walkman.realtime import CONTROL_PRIORITY, HAL_PRIORITY, PATH_PRIORITY
 
     hal = start_hal(lite_world, "sim")
     module = start_module(lite_world, "gaze_control")

@@ -52,6 +52,7 @@ from walkman.gym.lifecycle import (HOOKS, PAUSE_GRACE, IllegalTransition, State,
                                    next_state, parse_switch, releases, run_hook)
 from walkman.gym.thread import ControlThread, GenericThread
 from walkman.hal.protocol import HalProtocolError, HalUsageError
+from walkman.realtime import CONTROL_PRIORITY, SWITCH_INTERVAL, make_realtime
 from yarp_lite.errors import NetworkError
 from yarp_lite.nameclient import NameClient
 
@@ -311,7 +312,7 @@ class ModuleRunner:
                 self.warn(f"{self.name}: lost the robot (HAL silent for "
                           f"{robot.state_age:.1f} s); control paused until it is back")
                 self.interfaces.set_status("waiting_hal")
-            self.wake.set()
+            self._on_status_change()
         return alive
 
     def hold(self, after: str) -> None:
@@ -560,43 +561,6 @@ def load_config(options: argparse.Namespace) -> Dict[str, Any]:
     if not 1 <= period <= 1000:
         raise inifile.IniError(f"thread_period must be 1..1000 ms, got {period}")
     return config
-
-
-#: GIL hand-over interval in module and HAL processes.  Python's default (5 ms)
-#: lets a port thread hold the interpreter for 2.5 control periods at 500 Hz.
-SWITCH_INTERVAL = 0.0002
-#: Real-time priorities (SCHED_FIFO) of the periodic threads, when allowed.
-HAL_PRIORITY = 60
-CONTROL_PRIORITY = 50
-#: ... and of the threads that carry a state to the loop and a command back (the HAL's
-#: publisher and command readers, a module's state readers): above the module's loop, so
-#: a state it waits for is handed over at once, below the physics.
-PATH_PRIORITY = 55
-_this_thread = threading.local()
-
-
-def make_realtime(priority: int) -> bool:
-    """Give the calling thread SCHED_FIFO priority (Linux, root or CAP_SYS_NICE).
-
-    The real Walk-Man ran its loops under Xenomai; here the kernel's FIFO
-    class keeps a 2 ms loop on time while port threads are busy.  Silently
-    stays normal where that is not permitted (``WALKMAN_NO_RT=1`` opts out).
-    """
-    if os.environ.get("WALKMAN_NO_RT") or not hasattr(os, "sched_setscheduler"):
-        return False
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-        return True
-    except (PermissionError, OSError):
-        return False
-
-
-def make_realtime_once(priority: int) -> None:
-    """:func:`make_realtime` for a thread this code does not start (a port's reader),
-    called on each message: only the thread's first call asks the kernel."""
-    if not getattr(_this_thread, "realtime_asked", False):
-        _this_thread.realtime_asked = True
-        make_realtime(priority)
 
 
 def run_module(argv: Optional[List[str]] = None) -> int:

@@ -52,6 +52,7 @@ from walkman.hal.controlboard import ControlBoardError
 from walkman.hal.protocol import HalProtocolError, HalUsageError
 from walkman.model.description import CHAINS, walkman
 from walkman.model.description import Robot as RobotModel
+from walkman.realtime import PATH_PRIORITY, make_realtime_once
 from yarp_lite import network
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.buffered_port import BufferedPort
@@ -182,7 +183,7 @@ class Robot(WholeBody):
                  realtime_readers: bool = False) -> None:
         self.owner = owner.rstrip("/")
         #: The threads reading the robot's state take a real-time priority (a GYM module's
-        #: runner asks for it: :func:`walkman.gym.runner.make_realtime_once`).
+        #: runner asks for it: :mod:`walkman.realtime`).
         self.realtime_readers = realtime_readers
         #: Read each chain's state at most this often (the newest; see :func:`walkman.hal.protocol.state_interval`).
         self.state_interval = state_interval
@@ -391,8 +392,6 @@ class Robot(WholeBody):
 
     def _reader_priority(self) -> None:
         if self.realtime_readers:
-            from walkman.gym.runner import PATH_PRIORITY, make_realtime_once
-
             make_realtime_once(PATH_PRIORITY)
 
     def _on_state_si(self, chain: str, indices: List[int], bottle: Bottle,
@@ -422,6 +421,7 @@ class Robot(WholeBody):
 
     def _on_state_ext(self, chain: str, indices: List[int], bottle: Bottle,
                       envelope: str = "") -> None:
+        self._reader_priority()
         try:
             data = controlboard.decode_joint_data(bottle)
             if data.position is None or len(data.position) != len(indices):

@@ -48,6 +48,8 @@ from walkman.hal.config import HalConfig, load_config
 from walkman.hal.controlboard import ControlBoardError, JointData, Stamp
 from walkman.hal.protocol import ChainState
 from walkman.model.mjcf import STATIONS
+from walkman.realtime import (HAL_PRIORITY, PATH_PRIORITY, SWITCH_INTERVAL, make_realtime,
+                               make_realtime_once)
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.bursts import Burst
 from yarp_lite.nameclient import NameClient
@@ -90,8 +92,6 @@ class Publisher(threading.Thread):
 
     def run(self) -> None:
         if self.realtime:
-            from walkman.gym.runner import PATH_PRIORITY, make_realtime
-
             make_realtime(PATH_PRIORITY)
         while True:
             with self.cond:
@@ -218,8 +218,6 @@ class HalServer:
     def _on_command(self, chain: ChainBoard, bottle: Bottle, source: str = "") -> None:
         """A streaming command (``command:i``): refused with a log line when malformed."""
         if self.realtime:
-            from walkman.gym.runner import PATH_PRIORITY, make_realtime_once
-
             make_realtime_once(PATH_PRIORITY)
         try:
             command = controlboard.decode_stream(bottle, chain.axes())
@@ -370,8 +368,6 @@ class HalServer:
                                    protocol.encode_world(self.backend.time, plant.d.qpos))
 
     def run(self, duration: Optional[float] = None) -> None:
-        from walkman.gym.runner import HAL_PRIORITY, make_realtime
-
         backend = self.backend
         if self.realtime and make_realtime(HAL_PRIORITY):
             log.info("physics loop runs with real-time priority (SCHED_FIFO %d)", HAL_PRIORITY)
@@ -471,7 +467,6 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--duration", type=float, help="stop after this much simulated time")
     parser.add_argument("--verbose", action="store_true")
     options = parser.parse_args(argv)
-    from walkman.gym.runner import SWITCH_INTERVAL
 
     sys.setswitchinterval(SWITCH_INTERVAL)  # keep the physics thread on time
     logging.basicConfig(level=logging.DEBUG if options.verbose else logging.INFO,

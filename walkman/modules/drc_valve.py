@@ -37,6 +37,7 @@ from walkman.modules.task import GraspTask, grasp_table, task_statuses
 APPROACH_GAP = 0.045                  # m in front of the rim when approached (the hand grasps within 8 cm)
 REACH_GAP = 0.165                     # m in front of the rim when reached
 TURN_SPEED = 0.6                      # rad/s, peak wheel speed
+BACK_OFF_MIN = 0.01                   # m: a shorter back-off along the axis is skipped
 
 TABLE = grasp_table("valvedatasent", {
     "grasped": {"turn": "turning", "ungrasp": "ungrasping"},
@@ -70,15 +71,19 @@ class Module(GraspTask):
                  "valve")
 
     def _start_move_away(self) -> None:
-        # Straight back off the rim along the wheel's axis first, as far as the reach point is
-        # in front of the grip: on the diagonal from a turned grip to the reach point, a hand
-        # just opened dragged the wheel back by 0.1 rad.  Then to the reach point (checked
-        # reachable at valvedatasent).
+        # Straight back along the wheel's axis first, to the reach point's depth: on the
+        # diagonal from a turned grip to the reach point, a hand just opened dragged the
+        # wheel back by 0.1 rad.  Then to the reach point (checked reachable at valvedatasent).
+        axis, reach = self.target["axis"], self.target["reach"]
         position, _ = self.pose(self.hand)
-        clear = position - (REACH_GAP - APPROACH_GAP) * self.target["axis"]
-        self.reachable(self.hand, clear, what="point back off the wheel")
-        self.line_to(self.hand, clear, self.speed)
-        self.then(lambda: self.line_to(self.hand, self.target["reach"], self.speed))
+        back = float(np.dot(reach - position, axis))
+        if back < -BACK_OFF_MIN:  # in front of the reach point's depth (reached: already there)
+            clear = position + back * axis
+            self.reachable(self.hand, clear, what="point back off the wheel")
+            self.line_to(self.hand, clear, self.speed)
+            self.then(lambda: self.line_to(self.hand, reach, self.speed))
+        else:
+            self.line_to(self.hand, reach, self.speed)
 
     def _start_turn(self, angle: float = math.pi / 2) -> None:
         if abs(angle) > 2 * math.pi:
