@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import List, Optional
+from typing import List, Optional, Tuple
 
 import numpy as np
 import pytest
@@ -227,16 +227,27 @@ def test_bad_input_is_refused_and_the_robot_holds(lite_world, probe, lite):
         pilot.close()
 
 
-def test_a_hal_that_disappears_and_comes_back(lite_world, lite, probe):
-    hal = start_hal(lite_world, "sim")
-    module = start_module(lite_world, "gaze_control")
+def gaze_tracking(world: YarpWorld, tool, target: str) -> Tuple[Proc, Proc, Pilot]:
+    """The sim HAL and gaze_control as processes, started and tracking ``target``; the
+    caller closes the pilot."""
+    hal = start_hal(world, "sim")
+    module = start_module(world, "gaze_control")
     module.wait_for("ready for the pilot", timeout=60)
-    pilot = Pilot(lite_world, "gaze_control", GAZE_STATUSES)
+    pilot = Pilot(world, "gaze_control", GAZE_STATUSES)
     try:
-        pilot.send(lite, "switch", "start")
+        pilot.send(tool, "switch", "start")
         pilot.wait_state("ready")
-        pilot.send(lite, "command", "look_at 1.0 -0.4 0.1")  # its joints go position direct
+        pilot.send(tool, "command", f"look_at {target}")
         pilot.wait_state("tracking", timeout=30)
+    except BaseException:
+        pilot.close()
+        raise
+    return hal, module, pilot
+
+
+def test_a_hal_that_disappears_and_comes_back(lite_world, lite, probe):
+    hal, module, pilot = gaze_tracking(lite_world, lite, "1.0 -0.4 0.1")  # position direct
+    try:
         hal.kill()
         pilot.wait_warning("lost the robot (HAL silent")
         pilot.wait_state("waiting_hal")
@@ -341,18 +352,11 @@ def test_the_threads_between_sense_and_move_run_with_real_time_priority(lite_wor
     from system.processes import descendants
     from walkman.realtime import CONTROL_PRIORITY, HAL_PRIORITY, PATH_PRIORITY
 
-    hal = start_hal(lite_world, "sim")
-    module = start_module(lite_world, "gaze_control")
-    module.wait_for("ready for the pilot", timeout=60)
-    pilot = Pilot(lite_world, "gaze_control", GAZE_STATUSES)
+    hal, module, pilot = gaze_tracking(lite_world, lite, "1.0 0.4 0.1")  # streaming commands
     try:
-        pilot.send(lite, "switch", "start")
-        pilot.wait_state("ready")
         runner = [pid for pid in descendants(module.popen.pid)
                   if CONTROL_PRIORITY in fifo_priorities(pid)]
         assert len(runner) == 1, "no module process with a real-time control loop"
-        pilot.send(lite, "command", "look_at 1.0 0.4 0.1")   # the module streams commands
-        pilot.wait_state("tracking")
         # the HAL: physics, publisher and the command reader of the chain the module moves
         wait_until(lambda: fifo_priorities(hal.popen.pid).count(PATH_PRIORITY) >= 2, 10,
                    message=f"the HAL's threads: {fifo_priorities(hal.popen.pid)}")
