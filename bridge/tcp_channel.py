@@ -143,26 +143,23 @@ SIOCOUTQNSD = 0x894B
 def _only_unacknowledged(sock: socket.socket) -> bool:
     """Has everything left, with some of it not yet acknowledged?  (Bytes still queued for
     a slow link are not a sign of loss, and an empty frame behind them would not help.)"""
-    fd = sock.fileno()
-    if fd < 0:
-        return False
-    try:
-        raw = fcntl.ioctl(fd, SIOCOUTQNSD, b"\0\0\0\0")
-    except OSError:
-        return False
-    return struct.unpack("i", raw)[0] == 0 and _unsent_bytes(sock) > 0
+    return _socket_queue(sock, SIOCOUTQNSD) == 0 and _unsent_bytes(sock) > 0
 
 
 def _unsent_bytes(sock: socket.socket) -> int:
-    """Bytes the kernel still holds for the peer; 0 once the socket is closed (the receive
-    thread closes it when the peer dies: ``fileno()`` is then -1, which ``ioctl`` refuses
-    with a ValueError -- it was logged as a bug on every bridge restart)."""
+    """Bytes the kernel still holds for the peer, sent or not (unacknowledged)."""
+    return _socket_queue(sock, termios.TIOCOUTQ)
+
+
+def _socket_queue(sock: socket.socket, request: int) -> int:
+    """A send-queue size the kernel reports for ``sock``; 0 once the socket is closed (the
+    receive thread closes it when the peer dies: ``fileno()`` is then -1, which ``ioctl``
+    refuses with a ValueError -- it was logged as a bug on every bridge restart)."""
     fd = sock.fileno()
     if fd < 0:
         return 0
     try:
-        raw = fcntl.ioctl(fd, termios.TIOCOUTQ, b"\0\0\0\0")
-        return struct.unpack("i", raw)[0]
+        return struct.unpack("i", fcntl.ioctl(fd, request, b"\0\0\0\0"))[0]
     except OSError:
         return 0
 

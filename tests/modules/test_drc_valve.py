@@ -28,8 +28,9 @@ def test_the_valve_turns_by_the_commanded_angle(task_at):
     for command, state in (("ungrasp", "ungrasped"), ("move_away", "moved_away"),
                            ("home", "idle")):
         valve.command(command, state)
-    # Released: the valve stays where it was turned.
-    assert valve.scene.prop("valve") - before == pytest.approx(turned, abs=0.1)
+    # Released: the valve stays where it was turned (a hand backing off free to turn
+    # dragged it back by 0.07-0.13 rad).
+    assert valve.scene.prop("valve") - before == pytest.approx(turned, abs=0.03)
 
 
 def test_illegal_commands_and_bad_poses_are_refused_and_nothing_moves(task_at):

@@ -71,16 +71,17 @@ class Module(GraspTask):
                  "valve")
 
     def _start_move_away(self) -> None:
-        # Straight back along the wheel's axis first, to the reach point's depth: on the
-        # diagonal from a turned grip to the reach point, a hand just opened dragged the
-        # wheel back by 0.1 rad.  Then to the reach point (checked reachable at valvedatasent).
+        # Straight back along the wheel's axis first, to the reach point's depth, the hand
+        # keeping its turned orientation: the open fingers are still around the rim, and a
+        # hand free to turn (or to go diagonally to the reach point) dragged the wheel back
+        # by 0.1 rad.  Then to the reach point (checked reachable at valvedatasent).
         axis, reach = self.target["axis"], self.target["reach"]
-        position, _ = self.pose(self.hand)
+        position, rotation = self.pose(self.hand)
         back = float(np.dot(reach - position, axis))
         if back < -BACK_OFF_MIN:  # in front of the reach point's depth (reached: already there)
             clear = position + back * axis
-            self.reachable(self.hand, clear, what="point back off the wheel")
-            self.line_to(self.hand, clear, self.speed)
+            self.reachable(self.hand, clear, rotation, what="point back off the wheel")
+            self.line_to(self.hand, clear, self.speed, rotation)
             self.then(lambda: self.line_to(self.hand, reach, self.speed))
         else:
             self.line_to(self.hand, reach, self.speed)

@@ -49,10 +49,7 @@ from walkman.control.trajectory import CartesianTrajectory, JointTrajectory, dur
 from walkman.gym.thread import ControlThread
 
 ACTION_TOLERANCE = 0.01   # m, FACTS.md: action_done under 1 cm
-HAND_TOLERANCE = 0.3      # rad: a closing hand within this of its goal is done
-#: rad: an opening hand is done only when open: one said done at 0.3 rad from open still held
-#: the part for a moment on a loaded machine, and the next motion dragged the valve 0.12 rad.
-HAND_OPEN_TOLERANCE = 0.05
+HAND_TOLERANCE = 0.3      # rad: a hand within this of its goal is done
 TICK_IK_ITERATIONS = 20  # per control tick: the target moved a little since the last one
 OVERDUE_S = 2.0           # s after a trajectory's end before saying it is stuck
 SETTLE_GAIN = 0.02        # share of the remaining error added to the IK target per tick
@@ -339,8 +336,7 @@ class TaskModule(ControlThread):
                 self._finished()
         for hand, goal in list(self.hand_goals.items()):
             self.reference[hand] = goal
-            tolerance = HAND_OPEN_TOLERANCE if goal <= HAND_OPEN else HAND_TOLERANCE
-            if abs(self.robot.sense_position()[hand] - goal) < tolerance:
+            if abs(self.robot.sense_position()[hand] - goal) < HAND_TOLERANCE:
                 del self.hand_goals[hand]
                 self.event("hand_done")
 
