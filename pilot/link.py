@@ -292,7 +292,8 @@ class PilotLink:
             rospy.Subscriber(f"/{module}/status", Status, self._on_status)
             rospy.Subscriber(f"/{module}/warning", Warning, self._on_warning)
             rospy.Subscriber(f"/{module}/countdown", Countdown, self._on_countdown)
-        rospy.Subscriber("/pilot/sent_commands", SentCommand, self._on_sent)
+        every_pilots_commands = rospy.Subscriber("/pilot/sent_commands", SentCommand,
+                                                 self._on_sent)
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=1)
         rospy.Subscriber("/joint_temperatures", JointTemperatures, self._on_temperatures,
                          queue_size=1)
@@ -302,9 +303,12 @@ class PilotLink:
             rospy.Subscriber(CLOUD_TOPIC, PointCloud2, self._on_cloud, queue_size=1,
                              buff_size=1 << 22)
         # Subscribers connect to the publishers a moment after registering: until then a
-        # message published here would go nowhere.
+        # message published here would go nowhere, and another pilot's command would be
+        # missing from this PI's log (the gateway publishes each once).
         deadline = time.monotonic() + 3.0
-        while time.monotonic() < deadline and any(map(self.cannot_send, self.modules)):
+        while time.monotonic() < deadline and (
+                any(map(self.cannot_send, self.modules))
+                or every_pilots_commands.get_num_connections() == 0):
             time.sleep(0.05)
         self.post(RosEvent(True))
         log.info("pilot: %s on the pilot roscore, %d modules", self.name, len(self.modules))
