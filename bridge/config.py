@@ -47,6 +47,8 @@ from typing import Callable, Dict, List, Optional, Tuple, TypeVar, Union
 
 from lxml import etree
 
+from bridge.flows import STATE_KIND, FlowKey
+
 SCHEMA_PATH = Path(__file__).with_name("bridge.xsd")
 ROBOT, PILOT = "robot", "pilot"
 DIRECTIONS = {"robot_to_pilot": (ROBOT, PILOT), "pilot_to_robot": (PILOT, ROBOT)}
@@ -96,10 +98,12 @@ class Channel:
     line: int = 0
     #: a GYM status: a change of its ``seq state`` head is an event that leaves at once
     status_events: bool = False
+    #: a GYM switch or command: its messages carry a validity (:mod:`walkman.gym.validity`)
+    expiring: bool = False
 
     @property
-    def key(self) -> Tuple[int, int]:
-        return self.id, self.kind
+    def key(self) -> FlowKey:
+        return FlowKey(self.id, self.kind)
 
     @property
     def module(self) -> str:
@@ -111,6 +115,19 @@ class Channel:
         return self.listen_port if side == self.source else self.emit_port
 
 
+@dataclass(frozen=True)
+class RobotStateFlow:
+    """``<robot_state>``: the HAL's joint state, under its own id."""
+
+    id: int
+    robot: str                   # the robot's port prefix (``walkman``)
+    transport: str               # "tcp" or "udp"
+
+    @property
+    def key(self) -> FlowKey:
+        return FlowKey(self.id, STATE_KIND)
+
+
 @dataclass
 class BridgeConfig:
     path: str
@@ -119,9 +136,10 @@ class BridgeConfig:
     channels: List[Channel] = field(default_factory=list)
     modules: Dict[str, int] = field(default_factory=dict)
     gym_modules: Dict[str, Tuple[str, ...]] = field(default_factory=dict)  # name -> states
-    robot_state: Optional[Tuple[int, str, str]] = None  # (id, robot name, transport)
+    robot_state: Optional[RobotStateFlow] = None
     state_rate: float = DEFAULT_STATE_RATE                 # Hz the robot state is sampled
     key_file: Optional[Path] = None      # the shared key, if the file names one
+    _index: Dict[FlowKey, Channel] = field(default_factory=dict, repr=False, compare=False)
 
     def sending(self, side: str) -> List[Channel]:
         return [c for c in self.channels if c.source == side]
@@ -129,11 +147,14 @@ class BridgeConfig:
     def receiving(self, side: str) -> List[Channel]:
         return [c for c in self.channels if c.destination == side]
 
-    def channel(self, key: Tuple[int, int]) -> Optional[Channel]:
-        for channel in self.channels:
-            if channel.key == key:
-                return channel
-        return None
+    def channel(self, key: FlowKey) -> Optional[Channel]:
+        return self._by_key().get(key)
+
+    def _by_key(self) -> Dict[FlowKey, Channel]:
+        # Built when first needed; parse() appends channels, nothing removes them.
+        if len(self._index) != len(self.channels):
+            self._index = {channel.key: channel for channel in self.channels}
+        return self._index
 
 
 @lru_cache(maxsize=1)
@@ -234,11 +255,12 @@ def parse(text: Union[str, bytes], where: str = "<bridge config>") -> BridgeConf
                 listen, feed, emit, deliver = bridge_port, original, original, None
             claim(source, listen, element.sourceline)
             claim(destination, emit, element.sourceline)
-            config.channels.append(Channel(module_id, kind, f"{name}/{flow}", source,
-                                           destination, "yarp", "tcp", reliable, listen, feed,
-                                           emit, deliver, statuses=statuses,
-                                           line=element.sourceline,
-                                           status_events=flow == "status"))
+            config.channels.append(Channel(
+                id=module_id, kind=kind, label=f"{name}/{flow}", source=source,
+                destination=destination, middleware="yarp", transport="tcp", reliable=reliable,
+                listen_port=listen, feed_port=feed, emit_port=emit, deliver_port=deliver,
+                statuses=statuses, line=element.sourceline,
+                status_events=flow == "status", expiring=direction == "pilot_to_robot"))
     for element in root.iterfind("custom_modules/module"):
         name, module_id = element.get("name"), take_id(element)
         _check_name(name, element, where)
@@ -270,15 +292,17 @@ def parse(text: Union[str, bytes], where: str = "<bridge config>") -> BridgeConf
             claim(source, names["port_to_open"], line)
             claim(destination, names["source_port"], line)
             config.channels.append(Channel(
-                module_id, kind, f"{name}{connection.get('port_to_open')}", source, destination,
-                "yarp", transport, not streaming, names["port_to_open"], names["source_port"],
-                names["source_port"], names["target_port"], line=line))
+                id=module_id, kind=kind, label=f"{name}{connection.get('port_to_open')}",
+                source=source, destination=destination, middleware="yarp", transport=transport,
+                reliable=not streaming, listen_port=names["port_to_open"],
+                feed_port=names["source_port"], emit_port=names["source_port"],
+                deliver_port=names["target_port"], line=line))
     for element in root.iterfind("robot_state"):
         state_id = take_id(element)
         transport = element.get("channel", "tcp")
         if transport not in CHANNELS:
             raise ConfigError(f"{where}:{element.sourceline}: unknown channel {transport!r}")
-        config.robot_state = (state_id, element.get("robot"), transport)
+        config.robot_state = RobotStateFlow(state_id, element.get("robot"), transport)
         config.state_rate = _positive(element, "rate", DEFAULT_STATE_RATE, where)
     for element in root.iterfind("ros_topics/topic"):
         line = element.sourceline
@@ -309,7 +333,8 @@ def parse(text: Union[str, bytes], where: str = "<bridge config>") -> BridgeConf
         if not 0 <= quality <= 100:
             raise ConfigError(f"{where}:{line}: quality is a JPEG quality 0..100, got {quality}")
         config.channels.append(Channel(
-            topic_id, 0, topic, source, destination, "ros", "udp", False, ros_type=ros_type,
+            id=topic_id, kind=0, label=topic, source=source, destination=destination,
+            middleware="ros", transport="udp", reliable=False, ros_type=ros_type,
             latch=element.get("latch", "false") in ("true", "1"),
             quality=quality, fec=fec, fec_auto=fec_auto, line=line))
     return config

@@ -44,6 +44,7 @@ from enum import IntFlag
 from typing import FrozenSet, Iterable, List, Optional, Tuple, Union
 
 from bridge.errors import BridgeProtocolError, BridgeUsageError, NeedMoreData
+from bridge.flows import FlowKey
 from bridge.wire import Buffer, get_varint, put_varint, take
 
 PROTOCOL_VERSION = 3
@@ -69,7 +70,7 @@ _KNOWN_FLAGS = int(Flags.ACK | Flags.SEQ | Flags.HELLO | Flags.RESUME | Flags.AU
                    Flags.PRESENCE)
 
 #: Which flows are present: ``(id, kind)`` pairs.
-Presence = FrozenSet[Tuple[int, int]]
+Presence = FrozenSet[FlowKey]
 
 
 @dataclass(frozen=True)
@@ -180,7 +181,7 @@ def _parse_presence(body: bytes, pos: int) -> Tuple[Presence, int]:
         if not kinds:
             raise BridgeProtocolError(f"presence lists id {ident} with no kind")
         previous = ident
-        pairs += [(ident, kind) for kind in range(MAX_KIND + 1) if kinds >> kind & 1]
+        pairs += [FlowKey(ident, kind) for kind in range(MAX_KIND + 1) if kinds >> kind & 1]
     return frozenset(pairs), pos
 
 

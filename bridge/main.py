@@ -117,9 +117,10 @@ def describe(config: bridge_config.BridgeConfig) -> str:
         lines.append(f"{c.id:>3} {c.kind:>4}  {c.label:<34} {c.source:<6} {c.transport:<4} "
                      f"{mode:<9} {ports}")
     if config.robot_state:
-        state_id, robot, transport = config.robot_state
-        lines.append(f"{state_id:>3} {0:>4}  {robot + '/state':<34} {'robot':<6} "
-                     f"{transport:<4} {'latest':<9} /{robot}/<chain>/stateSI:o, "
+        state = config.robot_state
+        lines.append(f"{state.id:>3} {state.key.kind:>4}  {state.robot + '/state':<34} "
+                     f"{'robot':<6} {state.transport:<4} {'latest':<9} "
+                     f"/{state.robot}/<chain>/stateSI:o, "
                      f"{config.state_rate:g} Hz")
     return "\n".join(lines)
 

@@ -43,7 +43,8 @@ from bridge.errors import BridgeProtocolError
 from bridge.journal import Journal, QueueFull
 from bridge.link import LinkKey
 from bridge.presence import READER_GRACE, Presence, PresenceMemory
-from bridge.tcp_channel import BOTTLE, STATE, Route, TcpChannel
+from bridge.flows import Carriage, FlowKey, Form, Route, routes
+from bridge.tcp_channel import TcpChannel
 from bridge.udp_channel import UdpChannel, UdpRoute
 from yarp_lite.bottle import Bottle
 from yarp_lite.errors import YarpError
@@ -53,7 +54,6 @@ from yarp_lite.rpc import RpcServer
 
 log = logging.getLogger("bridge")
 
-Key = Tuple[int, int]
 
 
 #: Seconds after a pilot's command reaches a module during which its status changes are events.
@@ -110,7 +110,7 @@ class Bridge:
         self.delivered = 0
         self.internal_errors = 0
         self.drops = DropLedger("bridge", log)
-        self._sources: Dict[Key, Any] = {}
+        self._sources: Dict[FlowKey, Any] = {}
         self._sinks: List[Any] = []
         self.status_events = StatusEvents()
         self._ros_sinks: List[Any] = []
@@ -120,19 +120,20 @@ class Bridge:
         self._status_ports: List[Port] = []
         self.keeper = None
         self.ros_node = None
-        self.state_key: Optional[Key] = None
+        self.routes: Dict[FlowKey, Route] = routes(config)
         self._stand_in_keys = presence_rules.stand_ins(config, side)
         self._watched = presence_rules.watched(config, side)
-        self._module_ends: Dict[Key, Any] = {}   # endpoints whose program's port is watched
-        self._stand_ins: Dict[Key, Any] = {}     # stand-in endpoints open now
+        self._module_ends: Dict[FlowKey, Any] = {}   # endpoints whose program's port is watched
+        self._stand_ins: Dict[FlowKey, Any] = {}     # stand-in endpoints open now
         self._presence_memory = PresenceMemory(state_dir, config)
         self._presence_memory_loaded = self._presence_memory.load()
         self._peer_presence: Presence = self._presence_memory_loaded
         self._endpoint_lock = threading.Lock()    # stand-ins: open/close vs delivery, stop
-        self._leaving: Dict[Key, float] = {}      # stand-ins said gone, still writing
+        self._leaving: Dict[FlowKey, float] = {}      # stand-ins said gone, still writing
         self._presence_wake = threading.Event()
         self._here: Optional[Presence] = None    # watched flows connected, once known
-        tcp_routes, udp_routes = self._routes()
+        tcp_routes = [route for route in self.routes.values() if route.on_tcp]
+        udp_routes = self._udp_routes()
         self.tcp = TcpChannel(side=side, peer=peer, port=tcp_port,
                               listen=(side == ROBOT) if listen is None else listen,
                               config_text=config_text, journal=self.journal,
@@ -151,30 +152,24 @@ class Bridge:
 
     # -- wiring ------------------------------------------------------------------------
 
-    def _routes(self) -> Tuple[List[Route], List[UdpRoute]]:
+    def _udp_routes(self) -> List[UdpRoute]:
+        """The UDP channel's routes, each with the codec of its values."""
         from bridge.endpoints.yarp import BottleUdpCodec, StateUdpCodec
 
-        tcp, udp = [], []
-        for channel in self.config.channels:
-            if channel.middleware == "yarp" and channel.transport == "tcp":
-                tcp.append(Route(channel.key, channel.label, BOTTLE, channel.reliable))
-            elif channel.middleware == "yarp":
-                udp.append(UdpRoute(channel.key, channel.label, BottleUdpCodec(), channel.fec))
-            else:
+        udp = []
+        for route in self.routes.values():
+            if route.on_tcp:
+                continue
+            if route.form is Form.STATE:
+                codec = StateUdpCodec(1.0 / self.config.state_rate)
+            elif route.form is Form.ROS:
                 from bridge.endpoints.ros import codec_for
 
-                udp.append(UdpRoute(channel.key, channel.label, codec_for(channel), channel.fec,
-                                    channel.fec_auto))
-        if self.config.robot_state is not None:
-            state_id, robot, transport = self.config.robot_state
-            self.state_key = (state_id, 0)
-            label = f"{robot}/state"
-            if transport == "tcp":
-                tcp.append(Route(self.state_key, label, STATE, False))
+                codec = codec_for(self.config.channel(route.key))
             else:
-                udp.append(UdpRoute(self.state_key, label,
-                                    StateUdpCodec(1.0 / self.config.state_rate)))
-        return tcp, udp
+                codec = BottleUdpCodec()
+            udp.append(UdpRoute(route, codec))
+        return udp
 
     def start(self) -> None:
         self.tcp.start()
@@ -213,14 +208,15 @@ class Bridge:
                     self._sinks.append(endpoint)
                 else:
                     self._sources[channel.key] = endpoint
-            if self.config.robot_state is not None:
-                _, robot, _ = self.config.robot_state
+            state = self.config.robot_state
+            if state is not None:
                 if self.side == ROBOT:
-                    self._sinks.append(RobotStateSink(robot, self.nameclient, self.keeper,
-                                                      self._post_state,
-                                                      self.config.state_rate))
+                    self._sinks.append(RobotStateSink(
+                        state.robot, self.nameclient, self.keeper,
+                        lambda snapshot: self._post(self.routes[state.key], snapshot),
+                        self.config.state_rate))
                 else:
-                    self._sources[self.state_key] = RobotStateSource(robot, self.nameclient)
+                    self._sources[state.key] = RobotStateSource(state.robot, self.nameclient)
         except YarpError as exc:
             log.error("cannot open the YARP side: %s", exc)
             return
@@ -319,7 +315,8 @@ class Bridge:
             elif key not in wanted and key in self._stand_ins:
                 leaving = self._leaving.setdefault(key, now)
                 if pending is None:
-                    pending = {(ident, kind) for _, ident, kind, _ in self.journal.undelivered()}
+                    pending = {FlowKey(ident, kind)
+                               for _, ident, kind, _ in self.journal.undelivered()}
                 if key in pending and now - leaving < READER_GRACE:
                     continue   # what the journal holds for it first, for a while
                 self._leaving.pop(key, None)
@@ -367,32 +364,26 @@ class Bridge:
 
     def _submit(self, channel: Channel, value: Any) -> None:
         """A local message for the link (called by sinks, in their threads)."""
-        if channel.middleware == "yarp" and channel.transport == "tcp":
-            if channel.reliable:
-                try:
-                    self.tcp.send_reliable(channel.key, value)
-                except QueueFull as exc:
-                    self.refused += 1
-                    log.error("refused a message on %s: %s", channel.label, exc)
-            elif channel.status_events:
-                self.tcp.post(channel.key, value,
-                              event=self.status_events.is_event(channel.id, value))
-            else:
-                self.tcp.post(channel.key, value)
-        elif self.udp is not None:
-            self.udp.post(channel.key, value)
+        self._post(self.routes[channel.key], value)
 
-    def _post_state(self, snapshot) -> None:
-        if self.config.robot_state and self.config.robot_state[2] == "tcp":
-            self.tcp.post(self.state_key, snapshot)
+    def _post(self, route: Route, value: Any) -> None:
+        """``value`` onto the link the way its route says."""
+        if route.carriage is Carriage.RELIABLE:
+            try:
+                self.tcp.send_reliable(route.key, value)
+            except QueueFull as exc:
+                self.refused += 1
+                log.error("refused a message on %s: %s", route.label, exc)
+        elif route.carriage is Carriage.LATEST:
+            event = route.status_events and self.status_events.is_event(route.key.id, value)
+            self.tcp.post(route.key, value, event=event)
         elif self.udp is not None:
-            self.udp.post(self.state_key, snapshot)
+            self.udp.post(route.key, value)
 
-    def _on_message(self, key: Key, value: Any) -> None:
+    def _on_message(self, key: FlowKey, value: Any) -> None:
         source = self._sources.get(key)
         if source is None:
-            self.drops.drop(Reason.NOT_READY, f"id {key[0]} kind {key[1]}: local endpoint not "
-                                              f"open yet")
+            self.drops.drop(Reason.NOT_READY, f"{key}: local endpoint not open yet")
             return
         try:
             source.deliver(value)
@@ -412,7 +403,7 @@ class Bridge:
             self._deliver_wake.clear()
             blocked = set()
             for row, ident, kind, payload in self.journal.undelivered():
-                key = (ident, kind)
+                key = FlowKey(ident, kind)
                 if key in blocked:
                     continue
                 if self.config.channel(key) is None:

@@ -35,14 +35,12 @@ import json
 import logging
 import os
 from pathlib import Path
-from typing import FrozenSet, Optional, Tuple
+from typing import Optional
 
 from bridge.config import BridgeConfig, Channel
+from bridge.frames import Presence
 
 log = logging.getLogger("bridge.presence")
-
-Key = Tuple[int, int]
-Presence = FrozenSet[Key]
 
 #: Seconds a reliable message waits for a reader of a stand-in local programs read (the
 #: pilot's ``/M/warning:o``, just opened) before it is written with nobody reading, as

@@ -63,6 +63,7 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 from bridge import compact, drops, frames
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeError, BridgeProtocolError
+from bridge.flows import FlowKey, Form, Route
 from bridge.frames import DataFrame, Entry, Presence
 from bridge.journal import Journal
 from bridge.link import (FrameReceived, LinkConnection, LinkKey, LinkUp, PeerAuthenticated,
@@ -71,8 +72,7 @@ from bridge.state_codec import StateDecoder, StateEncoder
 
 log = logging.getLogger("bridge.tcp")
 
-Key = Tuple[int, int]
-BOTTLE, STATE = "bottle", "state"
+
 
 #: Connection phases and the events that move between them.
 PHASES: Dict[str, Dict[str, str]] = {
@@ -100,16 +100,6 @@ HANDSHAKE_TIMEOUT = 5.0
 MAX_HANDSHAKES = 4
 #: Called with ("offered" | "installed", our UDP sending key, our UDP receiving key).
 KeysHook = Callable[[str, bytes, bytes], None]
-
-
-@dataclass(frozen=True)
-class Route:
-    """How one flow travels on the TCP channel."""
-
-    key: Key
-    label: str
-    form: str          # BOTTLE or STATE
-    reliable: bool
 
 
 @dataclass
@@ -198,10 +188,10 @@ class _Connection:
     ack_sent: int = -1
     last_rx: float = field(default_factory=time.monotonic)
     last_tx: float = 0.0
-    sent_bottles: Dict[Key, Any] = field(default_factory=dict)
-    received_bottles: Dict[Key, Any] = field(default_factory=dict)
-    state_encoders: Dict[Key, StateEncoder] = field(default_factory=dict)
-    state_decoders: Dict[Key, StateDecoder] = field(default_factory=dict)
+    sent_bottles: Dict[FlowKey, Any] = field(default_factory=dict)
+    received_bottles: Dict[FlowKey, Any] = field(default_factory=dict)
+    state_encoders: Dict[FlowKey, StateEncoder] = field(default_factory=dict)
+    state_decoders: Dict[FlowKey, StateDecoder] = field(default_factory=dict)
     closed: bool = False
     #: data frames that came in the same read as the peer's last handshake message
     early_frames: List[DataFrame] = field(default_factory=list)
@@ -223,7 +213,7 @@ class TcpChannel:
 
     def __init__(self, *, side: str, peer: str, port: int, listen: bool, config_text: str,
                  journal: Journal, routes: List[Route], period: float,
-                 on_message: Callable[[Key, Any], None], on_reliable: Callable[[], None],
+                 on_message: Callable[[FlowKey, Any], None], on_reliable: Callable[[], None],
                  on_connected: Callable[[], None] = lambda: None,
                  link_timeout: float = 5.0, bind_host: str = "",
                  key: Optional[LinkKey] = None, on_keys: Optional[KeysHook] = None,
@@ -250,13 +240,13 @@ class TcpChannel:
         self.drops = DropLedger("TCP channel", log)
         self.phase = "down"
         self.phase_since = time.monotonic()
-        self._slots: Dict[Key, Any] = {}
-        self._dirty: Dict[Key, bool] = {}
+        self._slots: Dict[FlowKey, Any] = {}
+        self._dirty: Dict[FlowKey, bool] = {}
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
         self._urgent = False
-        self._events: Dict[Key, float] = {}       # flows with an event waiting -> due time
-        self._event_sent: Dict[Key, float] = {}   # flow -> when its last event left
+        self._events: Dict[FlowKey, float] = {}       # flows with an event waiting -> due time
+        self._event_sent: Dict[FlowKey, float] = {}   # flow -> when its last event left
         self._connection: Optional[_Connection] = None
         self._stopping = threading.Event()
         self._threads: List[threading.Thread] = []
@@ -287,7 +277,7 @@ class TcpChannel:
         for thread in self._threads:
             thread.join(timeout=3)
 
-    def post(self, key: Key, value: Any, event: bool = False) -> None:
+    def post(self, key: FlowKey, value: Any, event: bool = False) -> None:
         """The newest value of a streaming flow; it leaves with the next period's frame.
 
         An ``event`` leaves at once (see the module docstring), or when the
@@ -300,7 +290,7 @@ class TcpChannel:
                 self._events[key] = self._event_sent.get(key, -math.inf) + EVENT_MIN_GAP
                 self._wake.notify_all()
 
-    def send_reliable(self, key: Key, bottle: Any) -> int:
+    def send_reliable(self, key: FlowKey, bottle: Any) -> int:
         """Journal a reliable Bottle (raises :class:`~bridge.journal.QueueFull`); send at once."""
         seq = self.journal.append(key[0], key[1], compact.encode(bottle))
         self.kick()
@@ -588,7 +578,7 @@ class TcpChannel:
         new_reliable = False
         for entry in frame.entries:
             self.stats.payload_in += len(entry.payload)
-            route = self.routes.get((entry.id, entry.kind))
+            route = self.routes.get(FlowKey(entry.id, entry.kind))
             if route is None:
                 self.drops.drop(Reason.UNKNOWN_ID, f"entry id {entry.id} kind {entry.kind}")
                 continue
@@ -628,7 +618,7 @@ class TcpChannel:
                 log.exception("TCP channel: taking the peer's presence failed (a bug)")
 
     def _decode_streaming(self, connection: _Connection, route: Route, entry: Entry) -> Any:
-        if route.form == STATE:
+        if route.form is Form.STATE:
             decoder = connection.state_decoders.setdefault(route.key, StateDecoder())
             return decoder.decode(entry.payload)
         if entry.delta:
@@ -697,7 +687,7 @@ class TcpChannel:
             route = self.routes[key]
             if callable(value):  # a lazy snapshot: read the newest value only now
                 value = value()
-            if route.form == STATE:
+            if route.form is Form.STATE:
                 encoder = connection.state_encoders.setdefault(key, StateEncoder(self.period))
                 entry = Entry(key[0], key[1], encoder.encode(value))
             else:

@@ -45,11 +45,11 @@ from bridge.adaptive_fec import REPORT_INTERVAL, FecAdapter, LossMeter
 from bridge.datagrams import BODY_BUDGET, Datagram
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeError, BridgeProtocolError
+from bridge.flows import FlowKey, Route
 from bridge.link import DatagramOpener, DatagramSealer
 
 log = logging.getLogger("bridge.udp")
 
-Key = Tuple[int, int]
 IP_UDP_OVERHEAD = 28
 MAX_PARTS = 20000
 MAX_GROUP = 32
@@ -70,12 +70,27 @@ class UdpCodec(Protocol):
 
 @dataclass(frozen=True)
 class UdpRoute:
-    key: Key
-    label: str
+    """A flow's :class:`~bridge.flows.Route` with the codec of its values."""
+
+    route: Route
     codec: UdpCodec
-    fec: float = 0.0
-    #: repairs sized from the receiver's loss reports (``fec`` is then unused)
-    adaptive: bool = False
+
+    @property
+    def key(self) -> FlowKey:
+        return self.route.key
+
+    @property
+    def label(self) -> str:
+        return self.route.label
+
+    @property
+    def fec(self) -> float:
+        return self.route.fec
+
+    @property
+    def adaptive(self) -> bool:
+        """Repairs sized from the receiver's loss reports (``fec`` is then unused)."""
+        return self.route.fec_auto
 
 
 @dataclass
@@ -161,7 +176,7 @@ def slice_message(data: bytes) -> List[bytes]:
 class Reassembler:
     """Receiving half, sans-IO: feed datagrams and the clock, get finished messages."""
 
-    def __init__(self, routes: Dict[Key, UdpRoute], gather: float, stats: UdpStats,
+    def __init__(self, routes: Dict[FlowKey, UdpRoute], gather: float, stats: UdpStats,
                  ledger: Optional[DropLedger] = None,
                  loss: Optional[LossMeter] = None) -> None:
         self.routes = routes
@@ -169,17 +184,17 @@ class Reassembler:
         self.stats = stats
         self.drops = ledger if ledger is not None else DropLedger("UDP channel", log)
         self.loss = loss if loss is not None else LossMeter()
-        self._partials: Dict[Key, Dict[int, _Partial]] = {}
-        self._last: Dict[Key, int] = {}
-        self._counted: Dict[Key, int] = {}   # the message of each flow counted last
+        self._partials: Dict[FlowKey, Dict[int, _Partial]] = {}
+        self._last: Dict[FlowKey, int] = {}
+        self._counted: Dict[FlowKey, int] = {}   # the message of each flow counted last
 
-    def feed(self, raw: bytes, now: float) -> List[Tuple[Key, Any]]:
+    def feed(self, raw: bytes, now: float) -> List[Tuple[FlowKey, Any]]:
         try:
             datagram = datagrams.decode(raw)
         except BridgeProtocolError as exc:
             self.drops.peer_error(exc, "datagram")
             return []
-        key = (datagram.id, datagram.kind)
+        key = FlowKey(datagram.id, datagram.kind)
         route = self.routes.get(key)
         if route is None:
             self.drops.drop(Reason.UNKNOWN_ID, f"datagram id {datagram.id} kind {datagram.kind}")
@@ -237,7 +252,7 @@ class Reassembler:
             partial.data[start + index] = body
         partial.repaired += len(recovered)
 
-    def expire(self, now: float) -> List[Tuple[Key, Any]]:
+    def expire(self, now: float) -> List[Tuple[FlowKey, Any]]:
         """Publish or drop messages whose gathering time is over."""
         out = []
         for key, pending in self._partials.items():
@@ -245,7 +260,7 @@ class Reassembler:
                 out.extend(self._finish(key, message, pending.pop(message)))
         return out
 
-    def _finish(self, key: Key, message: int, partial: _Partial) -> List[Tuple[Key, Any]]:
+    def _finish(self, key: FlowKey, message: int, partial: _Partial) -> List[Tuple[FlowKey, Any]]:
         route = self.routes[key]
         flow = self.stats.flows.setdefault(route.label, FlowStats())
         flow.repaired += partial.repaired
@@ -307,7 +322,7 @@ class UdpChannel:
     """Socket, pacing and threads around :func:`message_datagrams` and :class:`Reassembler`."""
 
     def __init__(self, *, peer: str, port: int, peer_port: int, routes: List[UdpRoute],
-                 gather: float, on_message: Callable[[Key, Any], None],
+                 gather: float, on_message: Callable[[FlowKey, Any], None],
                  rate: Optional[float] = None, bind_host: str = "") -> None:
         self.peer = peer
         self.port = port
@@ -328,9 +343,9 @@ class UdpChannel:
         self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 << 20)
         self._sock.bind((bind_host, port))
         self._sock.settimeout(0.05)
-        self._slots: Dict[Key, Any] = {}
-        self._queues: Dict[Key, Deque[bytes]] = {}
-        self._last_message: Dict[Key, int] = {}
+        self._slots: Dict[FlowKey, Any] = {}
+        self._queues: Dict[FlowKey, Deque[bytes]] = {}
+        self._last_message: Dict[FlowKey, int] = {}
         self._cond = threading.Condition()
         self._stopping = threading.Event()
         self._threads: List[threading.Thread] = []
@@ -375,7 +390,7 @@ class UdpChannel:
                 self._sealer = DatagramSealer(send_key)
             self._cond.notify_all()
 
-    def post(self, key: Key, value: Any) -> None:
+    def post(self, key: FlowKey, value: Any) -> None:
         """The newest message of a flow; an older one not yet started is replaced."""
         with self._cond:
             self._slots[key] = value
@@ -383,7 +398,7 @@ class UdpChannel:
 
     # -- sending -----------------------------------------------------------------------
 
-    def _next_message_number(self, key: Key) -> int:
+    def _next_message_number(self, key: FlowKey) -> int:
         now_ms = int(time.time() * 1000) & 0xFFFFFFFF
         last = self._last_message.get(key)
         number = now_ms if last is None or _is_newer(now_ms, last) else (last + 1) & 0xFFFFFFFF
@@ -429,7 +444,7 @@ class UdpChannel:
                 return
             time.sleep((size - self._tokens) / bytes_per_second)
 
-    def _send(self, key: Optional[Key], inner: bytes) -> None:
+    def _send(self, key: Optional[FlowKey], inner: bytes) -> None:
         datagram = self._sealer.seal(inner)
         self._pace(len(datagram) + IP_UDP_OVERHEAD)
         try:
@@ -473,8 +488,8 @@ class UdpChannel:
 
     # -- receiving ---------------------------------------------------------------------
 
-    def _guarded(self, step: Callable[..., List[Tuple[Key, Any]]], *args: Any
-                 ) -> List[Tuple[Key, Any]]:
+    def _guarded(self, step: Callable[..., List[Tuple[FlowKey, Any]]], *args: Any
+                 ) -> List[Tuple[FlowKey, Any]]:
         """Run a reassembly step; a bug in it is logged and counted, the thread lives on."""
         try:
             return step(*args)
@@ -497,7 +512,7 @@ class UdpChannel:
     def _receive_loop(self) -> None:
         next_sweep = time.monotonic()
         while not self._stopping.is_set():
-            finished: List[Tuple[Key, Any]] = []
+            finished: List[Tuple[FlowKey, Any]] = []
             try:
                 raw, (host, _) = self._sock.recvfrom(65536)
             except socket.timeout:

@@ -209,7 +209,7 @@ def id_names(config: Path = BRIDGE_CONFIG) -> Dict[int, str]:
     names: Dict[int, List[str]] = {}
     loaded = load(config)
     if loaded.robot_state is not None:
-        names[loaded.robot_state[0]] = [f"robot state ({loaded.robot_state[1]})"]
+        names[loaded.robot_state.id] = [f"robot state ({loaded.robot_state.robot})"]
     for channel in loaded.channels:
         labels = names.setdefault(channel.id, [])
         if channel.label not in labels:

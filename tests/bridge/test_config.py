@@ -50,7 +50,8 @@ def test_custom_modules_rename_ports():
 
 def test_the_project_config_has_state_and_topics():
     loaded = config.load(MODELS / "bridge_drc.xml")
-    assert loaded.robot_state == (20, "walkman", "tcp")
+    assert loaded.robot_state == config.RobotStateFlow(20, "walkman", "tcp")
+    assert loaded.robot_state.key == (20, 0)
     topics = {c.label: c for c in loaded.channels if c.middleware == "ros"}
     assert topics["/multisense/points"].transport == "udp"
     assert topics["/multisense/left/camera_info"].fec == 0.5

@@ -19,14 +19,16 @@ from bridge import frames
 from bridge.drops import Reason
 from bridge.journal import Journal
 from bridge.link import LinkKey
-from bridge.tcp_channel import BOTTLE, Route, TcpChannel
+from bridge.flows import Carriage, FlowKey, Form, Route
+from bridge.tcp_channel import TcpChannel
 from harness import free_port, wait_until
 from yarp_lite.bottle import Bottle
 
-SWITCH, STATUS = (7, 0), (7, 2)
+SWITCH, STATUS = FlowKey(7, 0), FlowKey(7, 2)
 KEY = LinkKey(bytes(range(32)), source="test key")
-ROUTES = [Route(SWITCH, "gaze_control/switch", BOTTLE, True),
-          Route(STATUS, "gaze_control/status", BOTTLE, False)]
+ROUTES = [Route(SWITCH, "gaze_control/switch", Carriage.RELIABLE, Form.BOTTLE, expiring=True),
+          Route(STATUS, "gaze_control/status", Carriage.LATEST, Form.BOTTLE,
+                status_events=True)]
 
 
 class End:

@@ -12,6 +12,7 @@ import pytest
 from bridge import datagrams, tiles
 from bridge.drops import Reason
 from bridge.endpoints.yarp import BottleUdpCodec
+from bridge.flows import Carriage, FlowKey, Form, Route
 from bridge.link import DatagramSealer
 from bridge.udp_channel import (Reassembler, UdpChannel, UdpRoute, UdpStats,
                                 message_datagrams, slice_message)
@@ -31,10 +32,15 @@ class RasterCodec:
         return canvas
 
 
+def udp_route(key, label, codec, fec=0.0, adaptive=False) -> UdpRoute:
+    return UdpRoute(Route(FlowKey(*key), label, Carriage.DATAGRAMS, Form.BOTTLE, fec=fec,
+                          fec_auto=adaptive), codec)
+
+
 IMAGE = np.random.default_rng(0).integers(0, 256, (120, 160, 3), dtype=np.uint8)
-CAMERA = UdpRoute((30, 0), "camera", RasterCodec())
-CAMERA_FEC = UdpRoute((31, 0), "camera_fec", RasterCodec(), fec=0.5)
-BLOB = UdpRoute((9, 0), "blob", BottleUdpCodec())
+CAMERA = udp_route((30, 0), "camera", RasterCodec())
+CAMERA_FEC = udp_route((31, 0), "camera_fec", RasterCodec(), fec=0.5)
+BLOB = udp_route((9, 0), "blob", BottleUdpCodec())
 ROUTES = {r.key: r for r in (CAMERA, CAMERA_FEC, BLOB)}
 A_TO_B, B_TO_A = b"a" * 32, b"b" * 32
 
@@ -195,7 +201,7 @@ def test_a_tile_whose_metadata_has_the_wrong_shape_is_dropped_not_raised():
     raised ValueError out of the receive loop (a peer holding the key could stop it)."""
     from bridge.endpoints.ros import ImageCodec
 
-    image = UdpRoute((30, 0), "image", ImageCodec(80))
+    image = udp_route((30, 0), "image", ImageCodec(80))
     body = bytes.fromhex(
         "02020100500003010002000002020389504e470d0a1a0a0000000d49484452000000020000000208"
         "0000000057dd52f80000000b494441540899636000010000060001e687fe7f0000000049454e44ae"
@@ -210,7 +216,7 @@ def test_a_tile_whose_metadata_has_the_wrong_shape_is_dropped_not_raised():
 
 # -- adaptive FEC ---------------------------------------------------------------------------
 
-CAMERA_AUTO = UdpRoute((32, 0), "camera_auto", RasterCodec(), adaptive=True)
+CAMERA_AUTO = udp_route((32, 0), "camera_auto", RasterCodec(), adaptive=True)
 
 
 def test_the_loss_meter_counts_data_off_the_wire_and_stragglers():

@@ -1,0 +1,104 @@
+"""What a bridged flow is called and how it crosses: one :class:`FlowKey`, one :class:`Route`.
+
+Theory of operation
+-------------------
+Every flow of the configuration is named on the wire by its 8-bit module id
+and the flow's *kind* within that module: a :class:`FlowKey`.  How the flow
+crosses the link -- which channel carries it, whether it is journalled, whether
+a change leaves at once, in which form its values travel, whether its messages
+carry a validity -- is decided once, by :func:`routes`, from the configuration;
+the TCP channel, the UDP channel and the bridge node only look it up.  Before,
+three functions of the node and both channels each decided part of it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+from typing import TYPE_CHECKING, Dict, NamedTuple
+
+if TYPE_CHECKING:  # config imports this module for FlowKey
+    from bridge.config import BridgeConfig, Channel
+
+
+class FlowKey(NamedTuple):
+    """A flow's name on the wire: module id (0..255) and the flow's kind within it."""
+
+    id: int
+    kind: int
+
+    def __str__(self) -> str:
+        return f"id {self.id} kind {self.kind}"
+
+
+#: The kind of the robot state flow under its own id.
+STATE_KIND = 0
+
+
+class Carriage(str, Enum):
+    """How a flow's messages cross the link."""
+
+    #: journalled on both sides: never lost, never run twice, in order, sent at once (TCP)
+    RELIABLE = "reliable"
+    #: the newest value with the next period (TCP); a GYM status's change that a pilot
+    #: waits for leaves at once (:class:`bridge.node.StatusEvents`)
+    LATEST = "latest"
+    #: tiles or slices of one datagram each (UDP): what arrived is published after ``gather``
+    DATAGRAMS = "datagrams"
+
+
+class Form(str, Enum):
+    """What the values of a flow are, for the codec that carries them."""
+
+    BOTTLE = "bottle"      # a YARP Bottle (compact codec, deltas on TCP)
+    STATE = "state"        # the robot's joint state (Table 1 codec)
+    ROS = "ros"            # a ROS message (its topic's codec)
+
+
+@dataclass(frozen=True)
+class Route:
+    """How one flow travels, decided once from the configuration."""
+
+    key: FlowKey
+    label: str
+    carriage: Carriage
+    form: Form
+    #: a GYM status: a change of its ``seq state`` head is an event that leaves at once
+    status_events: bool = False
+    #: a GYM switch or command: each message carries how long it may still start
+    #: (:mod:`walkman.gym.validity`), and every hop adds the time it held it
+    expiring: bool = False
+    fec: float = 0.0
+    fec_auto: bool = False
+
+    @property
+    def on_tcp(self) -> bool:
+        return self.carriage is not Carriage.DATAGRAMS
+
+    @property
+    def reliable(self) -> bool:
+        return self.carriage is Carriage.RELIABLE
+
+
+def route_of(channel: "Channel") -> Route:
+    """The route of one configured channel."""
+    if channel.middleware == "ros":
+        return Route(channel.key, channel.label, Carriage.DATAGRAMS, Form.ROS,
+                     fec=channel.fec, fec_auto=channel.fec_auto)
+    if channel.transport == "udp":
+        return Route(channel.key, channel.label, Carriage.DATAGRAMS, Form.BOTTLE,
+                     fec=channel.fec, fec_auto=channel.fec_auto)
+    return Route(channel.key, channel.label,
+                 Carriage.RELIABLE if channel.reliable else Carriage.LATEST, Form.BOTTLE,
+                 status_events=channel.status_events, expiring=channel.expiring)
+
+
+def routes(config: "BridgeConfig") -> Dict[FlowKey, Route]:
+    """Every flow of ``config`` with its route, the robot state's included."""
+    table = {channel.key: route_of(channel) for channel in config.channels}
+    state = config.robot_state
+    if state is not None:
+        table[state.key] = Route(state.key, f"{state.robot}/state",
+                                 Carriage.LATEST if state.transport == "tcp"
+                                 else Carriage.DATAGRAMS, Form.STATE)
+    return table
