@@ -11,11 +11,12 @@ state or raises :class:`IllegalTransition` naming the module, the state and
 the command, which the watchdog reports to the pilot on the warning port.
 Each switch runs one hook of the module (:data:`HOOKS`, :func:`run_hook`);
 ``stop`` and ``quit`` release only what ``custom_init`` set up
-(:func:`releases`).  The process runner (:mod:`walkman.gym.runner`), the
-offline runner (:mod:`walkman.gym.offline`) and the pilot gateway, which
-waits for the state a switch leads to (:data:`TARGET`) and reads the
-lifecycle from a status word (:func:`lifecycle_of_status`), all use this
-file, so the three cannot disagree.
+(:func:`releases`).  :mod:`walkman.gym.transitions` carries a switch out
+(hooks, status words, hold) for both the process runner and the offline
+runner; it and the pilot gateway, which waits for the state a switch leads
+to (:data:`TARGET`) and reads the lifecycle from a status word
+(:func:`lifecycle_of_status`, :func:`status_word`), all use this file, so
+they cannot disagree.
 """
 
 from __future__ import annotations
@@ -70,6 +71,11 @@ STATUS_WORDS: Dict[str, State] = {"initializing": State.CONSTRUCTOR,
 def lifecycle_of_status(word: str) -> State:
     """The lifecycle behind a status word: a module's own words mean ``running``."""
     return STATUS_WORDS.get(word, State.RUNNING)
+
+
+def status_word(state: State) -> str:
+    """The status word said for ``state`` outside ``running`` (the pilot's first word too)."""
+    return "initializing" if state == State.CONSTRUCTOR else state.value
 
 
 def releases(before: State) -> bool:

@@ -9,8 +9,11 @@ and steps it 1 ms at a time; every module's ``run()`` is called each
 ``now()``), and its ``move()`` goes through the same joint arbitration as the
 HAL's.  Runs are deterministic and faster than real time, which makes this
 the place to develop a task, and the benchmark's way to measure task times
-in simulated seconds.  It is not a substitute for the process tests: those
-run the HAL and the modules as programs over YARP.
+in simulated seconds.  A switch does here what it does under the runner:
+both drive the same :class:`~walkman.gym.transitions.Lifecycle` (hooks, status
+words, the hold on stop), this file only runs the hooks in place and steps the
+world while a module goes on to its safe pause.  It is not a substitute for
+the process tests: those run the HAL and the modules as programs over YARP.
 """
 
 from __future__ import annotations
@@ -21,9 +24,9 @@ import numpy as np
 
 from walkman.control.kinematics import Kinematics
 from walkman.gym.interfaces import RecordingInterfaces
-from walkman.gym.lifecycle import (HOOKS, PAUSE_GRACE, IllegalTransition, State, Switch,
-                                   next_state, parse_switch, releases, run_hook)
+from walkman.gym.lifecycle import State
 from walkman.gym.thread import ControlThread
+from walkman.gym.transitions import Lifecycle, Outcome
 from walkman.hal.arbitration import JointArbiter
 from walkman.hal.backend import Backend
 from walkman.hal.robot import WholeBody, check_reference
@@ -91,7 +94,8 @@ class OfflineModule:
                                    self.interfaces, robot=self.robot,
                                    kinematics=world.kinematics)
         self.thread.clock = lambda: world.time
-        self.lifecycle = State.CONSTRUCTOR
+        self.lifecycle = Lifecycle(name, self.thread, self.interfaces,
+                                   wait_until=world.wait_until, robot=lambda: self.robot)
         self.next_tick = 0.0
 
     @property
@@ -103,29 +107,9 @@ class OfflineModule:
         return self.interfaces.warnings
 
     def switch(self, command: str) -> bool:
-        """start/pause/resume/stop as the runner applies them; False (and a warning) if illegal."""
-        try:
-            target = next_state(self.name, self.lifecycle, command)
-        except IllegalTransition as exc:
-            self.interfaces.warn(str(exc))
+        """start/pause/resume/stop/quit as the runner applies them; False (told) if refused."""
+        if self.lifecycle.switch(command) is not Outcome.DONE:
             return False
-        switch = parse_switch(command)
-        if switch == Switch.PAUSE or (switch == Switch.STOP and
-                                      self.lifecycle == State.RUNNING):
-            # as the runner: run() goes on until a safe pause
-            self.thread.pause_requested = True
-            self.world.run_until(self.thread.ready_to_pause, PAUSE_GRACE,
-                                 f"{self.name}: a safe pause")
-        if switch != Switch.PAUSE:
-            self.thread.pause_requested = False
-        hook = HOOKS[switch]
-        skip = hook == "release" and not releases(self.lifecycle)
-        if not skip and not run_hook(self.thread, hook):
-            self.interfaces.warn(f"{self.name}: custom_{hook}() failed")
-            return False
-        self.lifecycle = target
-        if target != State.RUNNING:
-            self.interfaces.set_status(target.value)
         self.next_tick = self.world.time
         return True
 
@@ -146,15 +130,15 @@ class OfflineModule:
         return self.world.time - start
 
     def tick(self) -> None:
-        paused = self.lifecycle == State.PAUSED and self.thread.runs_while_paused()
-        if (self.lifecycle != State.RUNNING and not paused) or \
-                self.world.time + 1e-9 < self.next_tick:
-            return
-        self.next_tick += self.thread.thread_period
-        if paused:
-            self.thread.run_paused()
-        else:
-            self.thread.run()
+        state = self.lifecycle.state
+        paused = state == State.PAUSED and self.thread.runs_while_paused()
+        if (state == State.RUNNING or paused) and self.world.time + 1e-9 >= self.next_tick:
+            self.next_tick += self.thread.thread_period
+            if paused:
+                self.thread.run_paused()
+            else:
+                self.thread.run()
+        # In any state, as the runner's watchdog: a hold on stop may be refused too.
         for text in self.robot.take_hal_warnings():
             self.interfaces.warn(f"{self.name}: {text}")
 
@@ -191,11 +175,18 @@ class OfflineWorld:
     def run_until(self, done: Callable[[], bool], timeout: float, what: str = "") -> float:
         """Step until ``done()``; returns the simulated seconds it took (TimeoutError if not)."""
         start = self.time
+        if not self.wait_until(done, timeout):
+            raise TimeoutError(f"{what or 'condition'} not reached in {timeout:g} simulated s")
+        return self.time - start
+
+    def wait_until(self, done: Callable[[], bool], timeout: float) -> bool:
+        """Step until ``done()`` or ``timeout`` simulated s: whether ``done()`` came true."""
+        start = self.time
         while not done():
             if self.time - start > timeout:
-                raise TimeoutError(f"{what or 'condition'} not reached in {timeout:g} simulated s")
+                return False
             self.step(0.01)
-        return self.time - start
+        return True
 
     def prop(self, joint: str) -> float:
         """A scene joint's position (the valve, the steering wheel, the door...)."""

@@ -18,12 +18,14 @@ Three threads:
   a HAL that answers wrongly, or any other exception (a bug, logged with its
   traceback), makes every ``start`` fail with the reason on the warning port.
 
-Both the watchdog and the control thread change the lifecycle state (the
-control thread stops a module whose ``run()`` raised), so every change goes
-through :meth:`ModuleRunner._transition`: the lifecycle table applied to the
-state as it is *now*, under one lock.  A change that lost a race (a ``pause``
-whose module failed meanwhile) is refused by the table, never written over
-the winner's.
+What a switch does -- hooks, status words, the status told again on resume,
+the hold on stop -- is :class:`~walkman.gym.transitions.Lifecycle`'s, the same
+object the offline runner drives; this file decides only when and in which
+thread.  Both the watchdog and the control thread change the lifecycle state
+(the control thread stops a module whose ``run()`` raised); the lifecycle
+applies each change to the state as it is *now*, under one lock, so a change
+that lost a race (a ``pause`` whose module failed meanwhile) is refused by the
+table, never written over the winner's.
 
 ``stop`` and ``quit`` always win: the watchdog asks the control thread and
 waits 2 s; if ``run()`` hangs, the process exits with :data:`EXIT_ESCALATED`
@@ -42,15 +44,15 @@ import os
 import sys
 import threading
 import time
-from typing import Any, Dict, List, Optional, Tuple, Type
+from typing import Any, Callable, Dict, List, Optional, Type
 
 from nodekit.logs import time_prefix
 from walkman.gym import inifile
 from walkman.gym.interfaces import PilotInterfaces, decoder_for
 from walkman.gym.pacing import TickSchedule
-from walkman.gym.lifecycle import (HOOKS, PAUSE_GRACE, IllegalTransition, State, Switch,
-                                   next_state, parse_switch, releases, run_hook)
+from walkman.gym.lifecycle import State, Switch
 from walkman.gym.thread import ControlThread, GenericThread
+from walkman.gym.transitions import Lifecycle, Outcome
 from walkman.hal.protocol import HalProtocolError, HalUsageError
 from walkman.realtime import CONTROL_PRIORITY, SWITCH_INTERVAL, make_realtime
 from yarp_lite.errors import NetworkError
@@ -113,7 +115,7 @@ class ControlLoop(threading.Thread):
             hook, self.request = self.request, None
         if hook is None:
             return
-        result = self.runner.perform(hook)
+        result = self.runner.lifecycle.perform(hook)
         with self.cond:
             self.done = result
             self.cond.notify_all()
@@ -143,12 +145,12 @@ class ControlLoop(threading.Thread):
                     runner.thread.run_paused()
             except HalUsageError as exc:
                 runner.warn(f"{runner.name}: refused by the robot: {exc}")
-                runner.hold("a refused command")
+                runner.lifecycle.hold("a refused command")
             except Exception as exc:  # the module's bug: told with its traceback, hold, stop
                 hook = "run()" if state == State.RUNNING else "run_paused()"
                 runner.warn(f"{runner.name}: {hook} raised {type(exc).__name__}: {exc}",
                             exc_info=True)
-                runner.hold(f"{hook} raised")
+                runner.lifecycle.hold(f"{hook} raised")
                 runner.fail_stop()
             self.period_errors.append(self.schedule.wait())
             if len(self.period_errors) > 20000:
@@ -175,8 +177,6 @@ class ModuleRunner:
         self.interfaces = interfaces or PilotInterfaces(
             self.prefix, self.nameclient, statuses=module_class.statuses or None,
             command_decoder=decoder_for(module_class))
-        self._state_lock = threading.Lock()
-        self._state = initial
         self.heartbeat_fd = heartbeat_fd
         self.wake = threading.Event()
         self.interfaces.switch.on_arrival = self.wake.set
@@ -187,13 +187,16 @@ class ModuleRunner:
         #: Why the module cannot start (the connector gave up), or None.
         self.robot_failure: Optional[str] = None
         self.thread = self._make_thread()
+        self.lifecycle = Lifecycle(name, self.thread, self.interfaces, initial=initial,
+                                   call_hook=self._ask_control_thread,
+                                   wait_until=self._wait_until, robot=lambda: self.robot,
+                                   prepare_init=self._robot_ready_for_init)
         self.loop = ControlLoop(self)
         self.quit_requested = False
         self.exit_code = EXIT_QUIT
         self._robot_alive = True
         self._status_before_loss = ""
         self.start_pending = False
-        self._status_at_pause: Optional[Tuple[str, list]] = None
         self.status_changed = False
 
     def _make_thread(self) -> GenericThread:
@@ -209,25 +212,27 @@ class ModuleRunner:
 
     @property
     def state(self) -> State:
-        """The lifecycle state; only :meth:`_transition` changes it."""
-        return self._state
+        """The lifecycle state; only :attr:`lifecycle` changes it."""
+        return self.lifecycle.state
 
-    def _transition(self, switch: Switch) -> Tuple[State, State]:
-        """Apply ``switch`` to the state as it is now, atomically: ``(before, after)``.
+    def _ask_control_thread(self, hook: str) -> Optional[bool]:
+        """How the lifecycle runs a hook: on the control thread (None: it did not return)."""
+        return self.loop.ask(hook, timeout=30 if hook == "init" else None)
 
-        Raises :class:`IllegalTransition` when the table refuses it, which after
-        a first check means the other thread changed the state meanwhile.
-        """
-        with self._state_lock:
-            before = self._state
-            self._state = next_state(self.name, before, switch.value)
-            return before, self._state
+    @staticmethod
+    def _wait_until(done: Callable[[], bool], timeout: float) -> bool:
+        """How the lifecycle waits for a safe pause: here, while the control thread runs."""
+        deadline = time.monotonic() + timeout
+        while not done():
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.01)
+        return True
 
     # -- set-up --------------------------------------------------------------------------
 
     def start(self) -> None:
         self.interfaces.open(wait=math.inf)
-        self._set_lifecycle_status()
         if getattr(self.module_class, "needs_robot", False):
             threading.Thread(target=self._connect_robot, daemon=True,
                              name=f"{self.name} connector").start()
@@ -279,22 +284,13 @@ class ModuleRunner:
 
     # -- hooks, run by the control thread ---------------------------------------------------
 
-    def perform(self, hook: str) -> bool:
-        """Run ``custom_<hook>``; False if it failed, or if it no longer applies."""
-        thread = self.thread
-        if hook in ("pause", "resume") and self.state != State.PAUSED:
-            return False  # run() failed and the module stopped since the pilot asked
-        try:
-            if hook == "init":
-                if not self.robot_ready.wait(timeout=0):
-                    return False
-                if isinstance(thread, ControlThread) and self.robot is not None:
-                    self.robot.wait_until_ready(5.0)
-            return run_hook(thread, hook)
-        except Exception as exc:  # the module's hook failed: its bug, told with the traceback
-            self.warn(f"{self.name}: custom_{hook}() raised {type(exc).__name__}: {exc}",
-                      exc_info=True)
+    def _robot_ready_for_init(self) -> bool:
+        """Before ``custom_init``: the HAL is there, and a ControlThread's first state too."""
+        if not self.robot_ready.wait(timeout=0):
             return False
+        if isinstance(self.thread, ControlThread) and self.robot is not None:
+            self.robot.wait_until_ready(5.0)
+        return True
 
     def robot_alive(self) -> bool:
         """False (and said once) while a ControlThread's HAL is silent."""
@@ -315,86 +311,40 @@ class ModuleRunner:
             self._on_status_change()
         return alive
 
-    def hold(self, after: str) -> None:
-        """Keep the robot where it is after ``after``; if even that fails, the pilot hears it."""
-        if self.robot is None:
-            return
-        try:
-            posture = self._module_posture()
-            held = self.robot.hold() if posture is None else \
-                self.robot.move(posture, joints=getattr(self.thread, "joints", None))
-        except HalUsageError as exc:
-            self.warn(f"{self.name}: could not hold the robot after {after}: {exc}")
-            return
-        except Exception as exc:  # a bug while holding: told with its traceback; stopping goes on
-            self.warn(f"{self.name}: holding the robot after {after} failed with "
-                      f"{type(exc).__name__}: {exc}", exc_info=True)
-            return
-        if not held:
-            self.warn(f"{self.name}: could not hold the robot after {after}: the HAL does not "
-                      f"take commands")
-
-    def _module_posture(self):
-        """The module's :meth:`held_posture`, or None if it has none or it fails."""
-        if not isinstance(self.thread, ControlThread):
-            return None
-        try:
-            return self.thread.held_posture()
-        except Exception:  # the module's bug: hold what the joints read instead
-            log.exception("%s: held_posture() failed; holding the sensed posture", self.name)
-            return None
-
     def fail_stop(self) -> None:
         """After run() raised (control thread): stop, unless the pilot stopped it meanwhile."""
-        try:
-            self._transition(Switch.STOP)
-        except IllegalTransition:
-            return  # stopped or quit by the watchdog, whose release request comes next
-        self.perform("release")
-        self._set_lifecycle_status()
-        self.wake.set()
+        if self.lifecycle.fail_stop():
+            self.wake.set()
 
     def warn(self, text: str, exc_info: bool = False) -> None:
-        log.warning("%s", text, exc_info=exc_info)
-        self.interfaces.warn(text)
+        self.lifecycle.warn(text, exc_info=exc_info)
 
     # -- switch commands (watchdog) ----------------------------------------------------------------
 
-    def _set_lifecycle_status(self) -> None:
-        state = self.state
-        if state != State.RUNNING:
-            self.interfaces.set_status("initializing" if state == State.CONSTRUCTOR
-                                       else state.value)
-
     def switch(self, command: str) -> None:
         """Apply a pilot's switch command (watchdog thread)."""
-        try:
-            next_state(self.name, self.state, command)  # refused now: no hook runs
-        except IllegalTransition as exc:
-            self.warn(str(exc))
+        switch = self.lifecycle.accept(command)  # refused now: told, no hook runs
+        if switch is None:
             return
-        switch = parse_switch(command)
-        try:
-            if switch == Switch.START:
-                changed = self._start()
-            elif switch == Switch.PAUSE:
-                changed = self._pause()
-            elif switch == Switch.RESUME:
-                changed = self._resume()
-            else:
-                changed = self._stop(switch)
-        except IllegalTransition as exc:  # run() failed while the hooks ran: the module stopped
-            self.warn(f"{exc}; the state changed meanwhile")
-            changed = False
-        if changed:
-            log.info("%s: %s -> %s", self.name, switch.value, self.state.value)
+        if switch == Switch.START and not self._robot_allows_start():
+            self.interfaces.send_status()
+            return
+        outcome = self.lifecycle.apply(switch)
+        if outcome is Outcome.HUNG:
+            self.warn(f"{self.name}: run() does not give control back; restarting the "
+                      f"module process ({switch.value})")
+            self.exit_code = EXIT_QUIT if switch == Switch.QUIT else EXIT_ESCALATED
+            self.quit_requested = True
+        elif self.state == State.DESTRUCTOR:
+            self.quit_requested = True
         self.interfaces.send_status()
 
-    def _start(self) -> bool:
+    def _robot_allows_start(self) -> bool:
+        """Whether ``start`` may go on now: not before the HAL, never if it cannot come."""
         if self.robot_failure is not None:
             self.start_pending = False
             self.warn(f"{self.name}: cannot start: {self.robot_failure}")
-            self._set_lifecycle_status()
+            self.lifecycle.say_state()
             return False
         if not self.robot_ready.is_set():
             # Started before the HAL: say so, and start as soon as it is there.
@@ -403,70 +353,7 @@ class ModuleRunner:
             log.info("%s: start requested; waiting for the robot (HAL) first", self.name)
             return False
         self.start_pending = False
-        if not self.loop.ask(HOOKS[Switch.START], timeout=30):
-            self.warn(f"{self.name}: custom_init() failed, the module stays {self.state.value}")
-            self._set_lifecycle_status()
-            return False
-        self._transition(Switch.START)
         return True
-
-    def _pause(self) -> bool:
-        self._reach_safe_pause()
-        try:
-            self._transition(Switch.PAUSE)  # the loop stops calling run() right away
-        except IllegalTransition:
-            self.thread.pause_requested = False
-            raise
-        # What the module was saying, told again on resume (run() may not repeat it).
-        self._status_at_pause = (self.interfaces.state, list(self.interfaces.data))
-        if self.loop.ask(HOOKS[Switch.PAUSE]) is None:
-            self.warn(f"{self.name}: custom_pause() did not return")
-        self._set_lifecycle_status()
-        return True
-
-    def _resume(self) -> bool:
-        self.thread.pause_requested = False
-        if not self.loop.ask(HOOKS[Switch.RESUME]):
-            self.warn(f"{self.name}: custom_resume() failed, staying paused")
-            return False
-        self._transition(Switch.RESUME)
-        if self.interfaces.state == State.PAUSED.value and self._status_at_pause:
-            self.interfaces.set_status(*self._status_at_pause)
-        return True
-
-    def _stop(self, switch: Switch) -> bool:
-        """``stop`` or ``quit``.  ``stop`` of a running module first lets it reach a safe
-        pause, as ``pause`` does (walking lands its foot and comes to rest); then the state
-        changes, so run() is not called again."""
-        if switch == Switch.STOP and self.state == State.RUNNING:
-            self._reach_safe_pause()
-        self.thread.pause_requested = False
-        before, _ = self._transition(switch)
-        # custom_init in force (running or paused): undo it once, and hold what it drove.
-        active = releases(before)
-        if active and self.loop.ask(HOOKS[switch]) is None:
-            self.warn(f"{self.name}: run() does not give control back; restarting the "
-                      f"module process ({switch.value})")
-            self.exit_code = EXIT_QUIT if switch == Switch.QUIT else EXIT_ESCALATED
-            self.quit_requested = True
-            return True
-        if active:
-            self.hold(f"'{switch.value}'")
-        if switch == Switch.QUIT:
-            self.quit_requested = True
-        self._set_lifecycle_status()
-        return True
-
-    def _reach_safe_pause(self) -> None:
-        """Let run() go on until the module says it can pause (paper: finish the step)."""
-        thread = self.thread
-        thread.pause_requested = True
-        deadline = time.monotonic() + PAUSE_GRACE
-        while self.state == State.RUNNING and not thread.ready_to_pause():
-            if time.monotonic() > deadline:
-                self.warn(f"{self.name}: no safe pause within {PAUSE_GRACE:g} s; pausing now")
-                return
-            time.sleep(0.01)
 
     def watchdog(self) -> int:
         """Serve the pilot until ``quit``; returns the process exit code."""
