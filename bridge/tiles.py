@@ -20,8 +20,12 @@ receiver instead of sent), PNG for 16-bit images, zlib for float images and
 clouds.
 
 :class:`Canvas` pastes whatever tiles arrived into a frame filled with blanks
-(zeros) or NaN (float images, the float fields of a cloud) and reports the
-fraction of cells it received.
+(zeros) or NaN (float images, the float fields of a cloud) and gives its
+:class:`Arrival`: the fraction of cells it received and :func:`regions`
+covering exactly the cells no tile brought.  Blanks are only a filling: a black
+sky or a point without depth looks the same, so whoever must tell loss from
+content asks the canvas (the pilot bridge publishes its arrival beside the frame),
+never the pixels.
 
 Hostile input
 -------------
@@ -47,7 +51,7 @@ import math
 import zlib
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import List, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -378,6 +382,61 @@ def decode_tile(body: Buffer, max_bytes: int = MAX_RASTER_BYTES) -> Tuple[Tile, 
     return Tile(header, meta, x, y, tile_width, tile_height, bytes(body[pos:])), codec
 
 
+@dataclass(frozen=True)
+class Region:
+    """A rectangle of cells: columns ``x .. x + width - 1``, rows ``y .. y + height - 1``."""
+
+    x: int
+    y: int
+    width: int
+    height: int
+
+
+@dataclass(frozen=True)
+class Arrival:
+    """What of one frame the receiver got: its own account, not a guess from the cells."""
+
+    height: int
+    width: int
+    fraction: float              # cells that arrived / height x width
+    tiles: int                   # tiles the frame was sent as
+    tiles_arrived: int           # of them, how many arrived (or were repaired) and pasted
+    missing: Tuple[Region, ...]  # exactly the cells that did not arrive, disjoint
+
+
+def regions(mask: np.ndarray) -> List[Region]:
+    """Disjoint rectangles covering exactly the True cells of a 2-D ``mask``, top to bottom.
+
+    Cut the raster at every column and every row where the mask changes: each
+    cell of that grid is then all True or all False (no change inside it, along
+    either axis).  True grid cells are joined into runs along each grid row, and
+    a run continues downward while the next grid row has the same run.  For a
+    frame's missing cells (a union of lost tiles) that is about one rectangle
+    per lost tile, or fewer where lost neighbours join.
+    """
+    if mask.ndim != 2:
+        raise BridgeUsageError(f"a mask is 2-dimensional, not {mask.shape}")
+    if not mask.any():
+        return []
+    height, width = mask.shape
+    xs = [0, *(np.flatnonzero((mask[:, 1:] != mask[:, :-1]).any(axis=0)) + 1), width]
+    ys = [0, *(np.flatnonzero((mask[1:] != mask[:-1]).any(axis=1)) + 1), height]
+    grid = mask[np.ix_(ys[:-1], xs[:-1])]
+    out: List[Region] = []
+    open_runs: Dict[Tuple[int, int], int] = {}    # (x, x_end) -> the row it began on
+    for row, y in enumerate(ys[:-1]):
+        edges = np.flatnonzero(np.diff(np.concatenate(([False], grid[row], [False]))))
+        runs = {(int(xs[a]), int(xs[b])) for a, b in zip(edges[::2], edges[1::2])}
+        for run in [r for r in open_runs if r not in runs]:
+            top = open_runs.pop(run)
+            out.append(Region(run[0], top, run[1] - run[0], int(y) - top))
+        for run in runs:
+            open_runs.setdefault(run, int(y))
+    out.extend(Region(run[0], top, run[1] - run[0], height - top)
+               for run, top in open_runs.items())
+    return sorted(out, key=lambda r: (r.y, r.x))
+
+
 def split(pixels: np.ndarray, header: RasterHeader, meta: bytes,
           budget: int = BODY_BUDGET) -> List[bytes]:
     """Tile bodies covering ``pixels``, each at most ``budget`` bytes."""
@@ -432,9 +491,9 @@ def _cover(pixels: np.ndarray, header: RasterHeader, meta: bytes, x: int, y: int
 
 
 class Canvas:
-    """One frame being rebuilt from the tiles that arrive."""
+    """One frame being rebuilt from the tiles that arrive (``tiles``: how many were sent)."""
 
-    def __init__(self, header: RasterHeader, meta: bytes) -> None:
+    def __init__(self, header: RasterHeader, meta: bytes, tiles: int = 0) -> None:
         problem = header_problem(header)
         if problem is not None:  # decode_tile refuses these from a peer
             raise BridgeUsageError(f"cannot paint a raster with {problem}")
@@ -449,6 +508,8 @@ class Canvas:
                 cells[:, offset:offset + 4] = np.frombuffer(np.float32(np.nan).tobytes(),
                                                             np.uint8)
         self.covered = np.zeros((header.height, header.width), bool)
+        self.tiles = tiles
+        self.pasted = 0
 
     def paste(self, tile: Tile, codec: int) -> None:
         if tile.header != self.header or tile.meta != self.meta:
@@ -456,7 +517,13 @@ class Canvas:
         region = _decode_region(self.header, codec, tile.data, tile.width, tile.height)
         self.pixels[tile.y:tile.y + tile.height, tile.x:tile.x + tile.width] = region
         self.covered[tile.y:tile.y + tile.height, tile.x:tile.x + tile.width] = True
+        self.pasted += 1
 
     @property
     def completeness(self) -> float:
         return float(self.covered.mean())
+
+    def arrival(self) -> Arrival:
+        return Arrival(self.header.height, self.header.width, self.completeness,
+                       max(self.tiles, self.pasted), self.pasted,
+                       tuple(regions(~self.covered)))

@@ -311,7 +311,7 @@ class Reassembler:
             try:
                 tile, codec = tiles.decode_tile(partial.data[index])
                 if canvas is None:
-                    canvas = tiles.Canvas(tile.header, tile.meta)
+                    canvas = tiles.Canvas(tile.header, tile.meta, partial.parts)
                 canvas.paste(tile, codec)
             except BridgeProtocolError as exc:
                 self.drops.peer_error(exc, "tile")

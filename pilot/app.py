@@ -125,6 +125,7 @@ ROUTES = {events.StatusEvent: "on_status", events.WarningEvent: "on_warning",
           events.CountdownEvent: "on_countdown", events.SentEvent: "on_sent",
           events.JointsEvent: "on_joints", events.TemperaturesEvent: "on_temperatures",
           events.ImageEvent: "on_image", events.CloudEvent: "on_cloud",
+          events.ArrivalEvent: "on_arrival",
           events.BridgeEvent: "on_bridge"}
 
 

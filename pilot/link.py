@@ -6,8 +6,11 @@ The PI is a ROS node on the pilot's roscore.  It speaks to the robot only
 through the pilot gateway's topics (``/M/switch``, ``/M/command`` in;
 ``/M/status`` latched, ``/M/warning``, ``/M/countdown``, ``/pilot/sent_commands``
 out) and reads what the bridge brings to the pilot PC (``/joint_states``,
-``/joint_temperatures``, the camera and the cloud); the only YARP port it
+``/joint_temperatures``, the camera and the cloud, and the bridge's account
+of what of each frame arrived on ``<topic>/arrived``); the only YARP port it
 reads is the local bridge's own ``/bridge/pilot/status:o`` (the link's state).
+Loss is never guessed from the pixels: a black sky or a point without depth is
+content, and a frame no bridge reported on (the lab) arrived whole.
 
 :class:`PilotLink` turns every message into an event -- a small dataclass
 handed to ``post`` from whichever thread received it -- so the Qt side
@@ -35,9 +38,6 @@ log = logging.getLogger("pilot.link")
 
 IMAGE_TOPIC = "/multisense/left/image_color"
 CLOUD_TOPIC = "/multisense/points"
-#: Side of the square blocks the camera view checks for missing tiles (the bridge fills
-#: what did not arrive with zeros; a whole block of exact zeros is a missing region).
-BLOCK = 8
 
 
 # -- events ------------------------------------------------------------------------------
@@ -98,16 +98,28 @@ class TemperaturesEvent:
 @dataclass(frozen=True)
 class ImageEvent:
     rgb: np.ndarray       # H x W x 3 uint8
-    missing: np.ndarray   # (H // BLOCK) x (W // BLOCK) bool: regions that did not arrive
-    completeness: float
-    stamp: float
+    stamp_ns: int         # the header's stamp: what the bridge's arrival report names
 
 
 @dataclass(frozen=True)
 class CloudEvent:
     points: int
-    completeness: float   # share of the points that are not NaN
-    stamp: float
+    stamp_ns: int
+
+
+Rectangle = Tuple[int, int, int, int]   # x, y, width, height (cells)
+
+
+@dataclass(frozen=True)
+class ArrivalEvent:
+    """The pilot bridge's account of what of one frame arrived (``walkman_msgs/Arrival``)."""
+
+    topic: str            # the frame's topic (IMAGE_TOPIC, CLOUD_TOPIC)
+    stamp_ns: int
+    height: int
+    width: int
+    fraction: float       # of the cells (pixels, points)
+    missing: Tuple[Rectangle, ...]   # exactly the cells that did not arrive
 
 
 @dataclass(frozen=True)
@@ -142,25 +154,11 @@ def image_pixels(encoding: str, height: int, width: int, data: bytes) -> Optiona
     return np.ascontiguousarray(pixels[:, :, :3])
 
 
-def missing_blocks(rgb: np.ndarray, block: int = BLOCK) -> np.ndarray:
-    """Blocks of exact zeros: where the bridge's tiles did not arrive."""
-    h, w = (rgb.shape[0] // block) * block, (rgb.shape[1] // block) * block
-    if h == 0 or w == 0:
-        return np.zeros((0, 0), bool)
-    blocks = rgb[:h, :w].reshape(h // block, block, w // block, block, -1)
-    return ~blocks.any(axis=(1, 3, 4))
-
-
-def cloud_completeness(msg: Any) -> Tuple[int, float]:
-    """Points in a ``PointCloud2`` and the share whose x is a number (NaN: not arrived)."""
-    count = msg.width * msg.height
-    offset = next((f.offset for f in msg.fields if f.name == "x"), None)
-    if count == 0 or offset is None or msg.point_step == 0:
-        return count, 0.0
-    raw = np.frombuffer(msg.data, np.uint8, count * msg.point_step).reshape(count,
-                                                                           msg.point_step)
-    x = raw[:, offset:offset + 4].copy().view(np.float32).ravel()
-    return count, float(np.isfinite(x).mean())
+def arrival_event(topic: str, msg: Any) -> ArrivalEvent:
+    """A ``walkman_msgs/Arrival`` about a frame on ``topic`` as an event."""
+    return ArrivalEvent(topic, msg.header.stamp.to_nsec(), msg.height, msg.width,
+                        float(msg.fraction),
+                        tuple((r.x, r.y, r.width, r.height) for r in msg.missing))
 
 
 # -- the node ------------------------------------------------------------------------------
@@ -282,8 +280,9 @@ class PilotLink:
     def _open_topics(self) -> None:
         import rospy
         from sensor_msgs.msg import Image, JointState, PointCloud2
-        from walkman_msgs.msg import (Command, Countdown, JointTemperatures, SentCommand, Status,
-                                      Switch, Warning)
+        from bridge.endpoints.ros import arrival_topic
+        from walkman_msgs.msg import (Arrival, Command, Countdown, JointTemperatures,
+                                      SentCommand, Status, Switch, Warning)
 
         for module in self.modules:
             self._senders[module] = _Sender(
@@ -302,6 +301,10 @@ class PilotLink:
                              buff_size=1 << 22)
             rospy.Subscriber(CLOUD_TOPIC, PointCloud2, self._on_cloud, queue_size=1,
                              buff_size=1 << 22)
+            for topic in (IMAGE_TOPIC, CLOUD_TOPIC):   # a few frames' worth: they are small
+                rospy.Subscriber(arrival_topic(topic), Arrival,
+                                 lambda msg, topic=topic: self.post(arrival_event(topic, msg)),
+                                 queue_size=8)
         # Subscribers connect to the publishers a moment after registering: until then a
         # message published here would go nowhere, and another pilot's command would be
         # missing from this PI's log (the gateway publishes each once).
@@ -342,13 +345,10 @@ class PilotLink:
             log.warning("pilot: camera image in encoding %s (%dx%d) is not shown",
                         msg.encoding, msg.width, msg.height)
             return
-        missing = missing_blocks(rgb)
-        completeness = 1.0 - float(missing.mean()) if missing.size else 1.0
-        self.post(ImageEvent(rgb, missing, completeness, msg.header.stamp.to_sec()))
+        self.post(ImageEvent(rgb, msg.header.stamp.to_nsec()))
 
     def _on_cloud(self, msg: Any) -> None:
-        count, completeness = cloud_completeness(msg)
-        self.post(CloudEvent(count, completeness, msg.header.stamp.to_sec()))
+        self.post(CloudEvent(msg.width * msg.height, msg.header.stamp.to_nsec()))
 
     # -- the bridge's status (YARP, local) --------------------------------------------------
 

@@ -15,8 +15,12 @@ publishes it latched -- once, unless it changed.
 
 Images and point clouds are tiled (:mod:`bridge.tiles`): a partial frame is
 published with its missing regions black (images), NaN (float images) or NaN
-points (clouds, marked ``is_dense = False``).  Every other type travels as its
-serialized bytes, whole or not at all.
+points (clouds, marked ``is_dense = False``).  Black and NaN are also content
+(a night sky, a point without depth), so the receiving side says what was lost:
+just before each tiled frame it publishes a ``walkman_msgs/Arrival`` on
+``<topic>/arrived`` (:func:`arrival_topic`) with the frame's header, the
+fraction of cells that arrived and rectangles covering exactly the missing
+ones.  Every other type travels as its serialized bytes, whole or not at all.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ from __future__ import annotations
 import hashlib
 import logging
 import time
+from dataclasses import dataclass
 from io import BytesIO
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
@@ -47,6 +52,13 @@ IMAGE_ENCODINGS: Dict[str, Tuple[Any, int]] = {
     "32FC3": (np.float32, 3), "64FC1": (np.float64, 1),
 }
 FLOAT32 = 7  # sensor_msgs/PointField.FLOAT32
+TILED_TYPES = ("sensor_msgs/Image", "sensor_msgs/PointCloud2")
+ARRIVAL_TYPE = "walkman_msgs/Arrival"
+
+
+def arrival_topic(topic: str) -> str:
+    """Where the bridge says what of each frame on ``topic`` arrived."""
+    return topic.rstrip("/") + "/arrived"
 
 
 def message_class(type_name: str) -> type:
@@ -59,6 +71,24 @@ def message_class(type_name: str) -> type:
 
 
 # -- codecs: messages <-> datagram bodies ---------------------------------------------
+
+
+@dataclass(frozen=True)
+class Rebuilt:
+    """A tiled message as the receiver rebuilt it, with its account of what arrived."""
+
+    msg: Any
+    arrival: tiles.Arrival
+
+
+def arrival_message(arrival: tiles.Arrival, header: Any) -> Any:
+    """``walkman_msgs/Arrival`` for the frame whose ``header`` is given."""
+    from walkman_msgs.msg import Arrival, Region
+
+    return Arrival(header=header, height=arrival.height, width=arrival.width,
+                   fraction=arrival.fraction, tiles=arrival.tiles,
+                   tiles_arrived=arrival.tiles_arrived,
+                   missing=[Region(r.x, r.y, r.width, r.height) for r in arrival.missing])
 
 
 class ImageCodec:
@@ -98,7 +128,7 @@ class ImageCodec:
         header = tiles.header_for(pixels, self._choose(pixels.dtype, channels), self.quality)
         return tiles.split(pixels, header, meta)
 
-    def decode(self, canvas: tiles.Canvas, completeness: float) -> Any:
+    def decode(self, canvas: tiles.Canvas, completeness: float) -> Rebuilt:
         from sensor_msgs.msg import Image
 
         secs, nsecs, frame_id, encoding, seq = header_fields(canvas.meta, "image", (
@@ -111,7 +141,7 @@ class ImageCodec:
         pixels = canvas.pixels.astype(canvas.pixels.dtype.newbyteorder("<"))
         msg.step = msg.width * canvas.header.channels * pixels.dtype.itemsize
         msg.data = pixels.tobytes()
-        return msg
+        return Rebuilt(msg, canvas.arrival())
 
 
 _UINT32 = "uint32"
@@ -160,7 +190,7 @@ class CloudCodec:
         header = tiles.header_for(cells, tiles.ZLIB, nan_offsets=nan_at[:64])
         return tiles.split(cells, header, meta)
 
-    def decode(self, canvas: tiles.Canvas, completeness: float) -> Any:
+    def decode(self, canvas: tiles.Canvas, completeness: float) -> Rebuilt:
         from sensor_msgs.msg import PointCloud2, PointField
 
         secs, nsecs, frame_id, bigendian, dense, seq, fields = header_fields(
@@ -179,7 +209,7 @@ class CloudCodec:
         msg.row_step = msg.point_step * msg.width
         msg.is_dense = bool(dense) and completeness >= 1.0
         msg.data = canvas.pixels.tobytes()
-        return msg
+        return Rebuilt(msg, canvas.arrival())
 
 
 class SerializedCodec:
@@ -252,7 +282,8 @@ class RosSink:
 
 
 class RosSource:
-    """Publishes on this side what arrived from the other."""
+    """Publishes on this side what arrived from the other (and, for a tiled frame, first
+    what of it arrived, on :func:`arrival_topic`)."""
 
     def __init__(self, channel: Channel) -> None:
         import rospy
@@ -260,10 +291,19 @@ class RosSource:
         self.channel = channel
         self._publisher = rospy.Publisher(channel.label, message_class(channel.ros_type),
                                           queue_size=2, latch=channel.latch)
+        self._arrivals = None
+        if channel.ros_type in TILED_TYPES:
+            from rosnodes.msgs import ensure_importable
+
+            ensure_importable()
+            self._arrivals = rospy.Publisher(arrival_topic(channel.label),
+                                             message_class(ARRIVAL_TYPE), queue_size=2,
+                                             latch=channel.latch)
         self._last_digest = b""
         self.published = 0
 
-    def deliver(self, msg: Any) -> bool:
+    def deliver(self, value: Any) -> bool:
+        msg = value.msg if isinstance(value, Rebuilt) else value
         if self.channel.latch:
             buffer = BytesIO()
             msg.serialize(buffer)
@@ -271,9 +311,13 @@ class RosSource:
             if digest == self._last_digest:
                 return True
             self._last_digest = digest
+        if isinstance(value, Rebuilt) and self._arrivals is not None:
+            self._arrivals.publish(arrival_message(value.arrival, msg.header))
         self._publisher.publish(msg)
         self.published += 1
         return True
 
     def close(self) -> None:
         self._publisher.unregister()
+        if self._arrivals is not None:
+            self._arrivals.unregister()

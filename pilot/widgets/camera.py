@@ -1,34 +1,38 @@
 """The camera view: the robot's head camera, with the tiles that did not arrive marked.
 
 The bridge sends images as tiles of one datagram each and fills what was lost
-with black; :func:`pilot.link.missing_blocks` finds those regions and the view
-hatches them in red, with the frame's completeness and age beside it, so the
-pilot never mistakes a lost tile for a dark object.
+with black; the pilot bridge then says which cells of the frame did not arrive
+(:mod:`pilot.arrival`).  The view hatches exactly those in red and shows the
+image's and the cloud's share that arrived, so the pilot never mistakes a lost
+tile for a dark object -- nor a dark sky for a lost tile.  With no report for a
+frame (the lab: no bridge) the frame is whole: 100 %, nothing hatched.
 """
 
 from __future__ import annotations
 
+import math
 import time
+from typing import Optional
 
 import numpy as np
 from python_qt_binding.QtCore import Qt
 from python_qt_binding.QtGui import QImage, QPixmap
 from python_qt_binding.QtWidgets import QLabel, QVBoxLayout, QWidget
 
-from pilot.link import BLOCK, CloudEvent, ImageEvent
+from pilot.arrival import ArrivalBook, fraction, missing_mask
+from pilot.link import CLOUD_TOPIC, IMAGE_TOPIC, ArrivalEvent, CloudEvent, ImageEvent
 
 MISSING_COLOUR = np.array([200, 30, 30], np.uint8)
 
 
-def marked(rgb: np.ndarray, missing: np.ndarray, block: int = BLOCK) -> np.ndarray:
-    """The image with missing blocks hatched (every other row of them red)."""
+def marked(rgb: np.ndarray, missing: np.ndarray) -> np.ndarray:
+    """The image with its ``missing`` pixels (H x W bool) hatched: diagonal red stripes,
+    so what shows through between them is the black the bridge filled in."""
     out = rgb.copy()
     if not missing.any():
         return out
-    mask = np.kron(missing, np.ones((block, block), bool))
-    hatch = (np.add.outer(np.arange(mask.shape[0]), np.arange(mask.shape[1])) % 6) < 2
-    region = out[:mask.shape[0], :mask.shape[1]]
-    region[mask & hatch] = MISSING_COLOUR
+    hatch = (np.add.outer(np.arange(missing.shape[0]), np.arange(missing.shape[1])) % 6) < 2
+    out[missing & hatch] = MISSING_COLOUR
     return out
 
 
@@ -44,32 +48,69 @@ class CameraView(QWidget):
         self.caption.setObjectName("camera_caption")
         layout.addWidget(self.picture, 1)
         layout.addWidget(self.caption)
-        self.image_completeness = None
-        self.cloud_completeness = None
+        self.reports = {IMAGE_TOPIC: ArrivalBook(), CLOUD_TOPIC: ArrivalBook()}
+        self.image: Optional[ImageEvent] = None
+        self.cloud: Optional[CloudEvent] = None
         self.frames = 0
         self.last_frame = 0.0
 
+    @property
+    def image_completeness(self) -> Optional[float]:
+        return None if self.image is None else fraction(self._report(IMAGE_TOPIC))
+
+    @property
+    def cloud_completeness(self) -> Optional[float]:
+        return None if self.cloud is None else fraction(self._report(CLOUD_TOPIC))
+
+    def _report(self, topic: str) -> Optional[ArrivalEvent]:
+        frame = self.image if topic == IMAGE_TOPIC else self.cloud
+        return None if frame is None else self.reports[topic].find(frame.stamp_ns)
+
     def on_image(self, event: ImageEvent) -> None:
-        rgb = np.ascontiguousarray(marked(event.rgb, event.missing))
-        height, width = rgb.shape[:2]
+        self.image = event
+        self.frames += 1
+        self.last_frame = time.monotonic()
+        self._draw()
+
+    def on_cloud(self, event: CloudEvent) -> None:
+        self.cloud = event
+        self._caption()
+
+    def on_arrival(self, event: ArrivalEvent) -> None:
+        """A report, before its frame (kept) or after it (the frame shown again)."""
+        book = self.reports.get(event.topic)
+        if book is None:
+            return
+        book.add(event)
+        if event.topic == IMAGE_TOPIC and self.image is not None and \
+                self.image.stamp_ns == event.stamp_ns:
+            self._draw()
+        elif event.topic == CLOUD_TOPIC and self.cloud is not None and \
+                self.cloud.stamp_ns == event.stamp_ns:
+            self._caption()
+
+    def _draw(self) -> None:
+        height, width = self.image.rgb.shape[:2]
+        missing = missing_mask(self._report(IMAGE_TOPIC), height, width)
+        rgb = np.ascontiguousarray(marked(self.image.rgb, missing))
         image = QImage(rgb.data, width, height, 3 * width, QImage.Format_RGB888).copy()
         self.picture.setPixmap(QPixmap.fromImage(image).scaled(
             self.picture.size(), Qt.KeepAspectRatio, Qt.SmoothTransformation))
-        self.image_completeness = event.completeness
-        self.frames += 1
-        self.last_frame = time.monotonic()
-        self._caption()
-
-    def on_cloud(self, event: CloudEvent) -> None:
-        self.cloud_completeness = event.completeness
         self._caption()
 
     def _caption(self) -> None:
         parts = [f"frame {self.frames}"]
-        if self.image_completeness is not None:
-            parts.append(f"image {self.image_completeness:.0%} arrived")
-        if self.cloud_completeness is not None:
-            parts.append(f"cloud {self.cloud_completeness:.0%} of points")
-        self.caption.setText(" | ".join(parts) + ("  (red: tiles that did not arrive)"
-                                                  if self.image_completeness not in (None, 1.0)
-                                                  else ""))
+        image, cloud = self.image_completeness, self.cloud_completeness
+        if image is not None:
+            parts.append(f"image {percent(image)} arrived")
+        if cloud is not None:
+            parts.append(f"cloud {percent(cloud)} of points")
+        report = self._report(IMAGE_TOPIC)
+        lost = report is not None and bool(report.missing)
+        self.caption.setText(" | ".join(parts) +
+                             ("  (red: tiles that did not arrive)" if lost else ""))
+
+
+def percent(share: float) -> str:
+    """Rounded down: "100%" only when everything arrived (a float32 0.7 is still 70%)."""
+    return f"{math.floor(share * 100 + 1e-4):d}%"

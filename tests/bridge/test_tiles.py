@@ -1,4 +1,5 @@
-"""Tiles: every tile fits a datagram and decodes alone; lost tiles are blank or NaN."""
+"""Tiles: every tile fits a datagram and decodes alone; lost tiles are blank or NaN, and
+the canvas says exactly which cells they were."""
 
 from __future__ import annotations
 
@@ -99,6 +100,87 @@ def test_unorganized_clouds_are_split_along_their_row():
     bodies = tiles.split(cells, tiles.header_for(cells, tiles.ZLIB), b"")
     assert len(bodies) > 40
     assert assemble(bodies).completeness == 1.0
+
+
+# -- what arrived: the canvas's account, never the pixels' look ------------------------------
+
+
+def painted(regions, shape) -> np.ndarray:
+    """How many of ``regions`` cover each cell."""
+    count = np.zeros(shape, int)
+    for r in regions:
+        assert r.width > 0 and r.height > 0
+        assert 0 <= r.x and r.x + r.width <= shape[1] and 0 <= r.y and r.y + r.height <= shape[0]
+        count[r.y:r.y + r.height, r.x:r.x + r.width] += 1
+    return count
+
+
+@FUZZ
+@given(st.integers(1, 24), st.integers(1, 24), st.lists(st.tuples(
+    st.integers(0, 23), st.integers(0, 23), st.integers(1, 24), st.integers(1, 24)),
+    max_size=8), st.booleans())
+def test_regions_cover_exactly_the_marked_cells_once(height, width, rectangles, invert):
+    """Unions of tiles, their complements (what is missing), and whatever else."""
+    mask = np.zeros((height, width), bool)
+    for x, y, w, h in rectangles:
+        mask[y:y + h, x:x + w] = True
+    mask = ~mask if invert else mask
+    assert np.array_equal(painted(tiles.regions(mask), mask.shape), mask.astype(int))
+
+
+@FUZZ
+@given(st.lists(st.booleans(), min_size=1, max_size=120), st.integers(1, 12))
+def test_regions_of_any_mask_are_exact(cells, width):
+    mask = np.array(cells + [False] * (-len(cells) % width)).reshape(-1, width)
+    assert np.array_equal(painted(tiles.regions(mask), mask.shape), mask.astype(int))
+
+
+def test_lost_tiles_are_their_own_regions():
+    mask = np.zeros((120, 160), bool)
+    mask[0:60, 40:80] = True        # two lost tiles, one under the other: one region
+    mask[60:120, 40:80] = True
+    mask[0:60, 120:160] = True      # and one alone
+    assert tiles.regions(mask) == [tiles.Region(40, 0, 40, 120), tiles.Region(120, 0, 40, 60)]
+    assert tiles.regions(np.zeros((3, 3), bool)) == []
+    with pytest.raises(BridgeUsageError, match="2-dimensional"):
+        tiles.regions(np.zeros(3, bool))
+
+
+@pytest.mark.parametrize("codec", [tiles.JPEG, tiles.PNG])
+def test_the_arrival_names_the_tiles_not_pasted_yet_fed_one_at_a_time(codec):
+    image = camera_image()
+    bodies = tiles.split(image, tiles.header_for(image, codec, 85), b"meta")
+    rectangles = [tiles.decode_tile(body)[0] for body in bodies]
+    order = np.random.default_rng(4).permutation(len(bodies))
+    tile, _ = tiles.decode_tile(bodies[order[0]])
+    canvas = tiles.Canvas(tile.header, tile.meta, len(bodies))
+    assert canvas.arrival().missing == (tiles.Region(0, 0, 320, 240),)
+    for fed, index in enumerate(order, 1):
+        canvas.paste(*tiles.decode_tile(bodies[index]))
+        lost = np.zeros((240, 320), bool)
+        for other in order[fed:]:
+            t = rectangles[other]
+            lost[t.y:t.y + t.height, t.x:t.x + t.width] = True
+        arrival = canvas.arrival()
+        assert np.array_equal(painted(arrival.missing, lost.shape), lost.astype(int))
+        assert (arrival.tiles, arrival.tiles_arrived) == (len(bodies), fed)
+        assert arrival.fraction == pytest.approx(1 - lost.mean())
+        assert (arrival.height, arrival.width) == (240, 320)
+    assert canvas.arrival().missing == () and canvas.arrival().fraction == 1.0
+
+
+def test_a_black_sky_and_points_without_depth_are_content_not_loss():
+    sky = camera_image()
+    sky[:150] = 0                                     # most of the frame exactly black
+    bodies = tiles.split(sky, tiles.header_for(sky, tiles.PNG), b"")
+    arrival = assemble(bodies).arrival()
+    assert arrival.fraction == 1.0 and arrival.missing == ()
+    xyz = np.full((48, 64, 4), np.nan, np.float32)     # no depth anywhere
+    cells = xyz.view(np.uint8).reshape(48, 64, 16)
+    bodies = tiles.split(cells, tiles.header_for(cells, tiles.ZLIB, nan_offsets=(0, 4, 8)), b"")
+    arrival = assemble(bodies).arrival()
+    assert arrival.fraction == 1.0 and arrival.missing == ()
+    assert arrival.tiles == arrival.tiles_arrived == len(bodies)
 
 
 def test_a_tile_that_cannot_fit_is_a_usage_error():

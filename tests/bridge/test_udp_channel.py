@@ -80,6 +80,27 @@ def test_a_partial_image_is_published_after_the_gathering_time():
     assert reassembler.feed(wire[0], now=0.5) == [] and reassembler.drops.get(Reason.STALE) == 2
 
 
+def test_the_canvas_knows_the_tiles_sent_and_which_of_them_were_lost():
+    reassembler = Reassembler(ROUTES, 0.4, UdpStats())
+    bodies = RasterCodec().encode(IMAGE)
+    wire = message_datagrams(CAMERA, 1000, bodies)
+    dropped = {1, len(wire) - 1}
+    for index, raw in enumerate(wire):
+        if index not in dropped:
+            reassembler.feed(raw, now=0.0)
+    (_, canvas), = reassembler.expire(now=1.0)
+    arrival = canvas.arrival()
+    assert (arrival.tiles, arrival.tiles_arrived) == (len(bodies), len(bodies) - 2)
+    lost = np.zeros(IMAGE.shape[:2], bool)
+    for index in dropped:
+        tile = tiles.decode_tile(bodies[index])[0]
+        lost[tile.y:tile.y + tile.height, tile.x:tile.x + tile.width] = True
+    shown = np.zeros_like(lost)
+    for region in arrival.missing:
+        shown[region.y:region.y + region.height, region.x:region.x + region.width] = True
+    assert np.array_equal(shown, lost) and arrival.fraction == pytest.approx(1 - lost.mean())
+
+
 def test_repair_datagrams_rebuild_lost_tiles():
     stats = UdpStats()
     reassembler = Reassembler(ROUTES, 0.4, stats)

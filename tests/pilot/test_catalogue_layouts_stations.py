@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from pilot.catalogue import catalogue_of, legal_switches
 from pilot.layouts import DEFAULT_LAYOUTS, LayoutError, load_layout, parse_layouts
-from pilot.link import image_pixels, missing_blocks
+from pilot.link import image_pixels
 from rosnodes.stations import STATION_SPAN, SequenceNumbers, parse_sent, station_of
 from yarp_lite.bottle import Bottle
 
@@ -78,12 +77,8 @@ def test_a_sent_record_is_parsed_or_refused():
     assert parse_sent(Bottle(["x", 1])) is None
 
 
-def test_missing_tiles_are_the_blocks_of_exact_black():
-    rgb = np.full((32, 48, 3), 90, np.uint8)
-    rgb[8:16, 16:32] = 0
-    rgb[0, 0] = 0                                # one black pixel is not a missing block
-    missing = missing_blocks(rgb)
-    assert missing.shape == (4, 6) and missing.sum() == 2 and missing[1, 2] and missing[1, 3]
+def test_frames_decode_to_rgb():
     bgr = image_pixels("bgr8", 1, 1, bytes([1, 2, 3]))
     assert bgr.tolist() == [[[3, 2, 1]]]
+    assert image_pixels("mono8", 1, 2, bytes([0, 9])).tolist() == [[[0, 0, 0], [9, 9, 9]]]
     assert image_pixels("32FC1", 1, 1, bytes(4)) is None

@@ -65,3 +65,45 @@ def test_cannot_send_names_the_first_topic_no_gateway_listens_to():
     link = link_with(Publisher(0), Publisher(1))
     assert "/gaze_control/switch" in link.cannot_send("gaze_control")
     assert link_with(Publisher(1), Publisher(1)).cannot_send("gaze_control") == ""
+
+
+# -- frames and what of them arrived -----------------------------------------------------------
+
+
+def stamped(msg, secs: int = 1700000000, nsecs: int = 250):
+    msg.header.stamp.secs, msg.header.stamp.nsecs = secs, nsecs
+    return msg
+
+
+def test_frames_are_posted_with_their_stamp_and_no_guess_about_loss():
+    """A black sky or a cloud without depth is content: the link posts the frame as it is."""
+    import numpy as np
+    from sensor_msgs.msg import Image, PointCloud2
+
+    from pilot.link import CloudEvent, ImageEvent
+
+    events = []
+    link = PilotLink("pi_test", [], post=events.append)
+    link._on_image(stamped(Image(height=4, width=6, encoding="rgb8", step=18,
+                                 data=bytes(4 * 6 * 3))))
+    cloud = PointCloud2(height=2, width=3, point_step=16, row_step=48,
+                        data=np.full(24, np.nan, np.float32).tobytes())
+    link._on_cloud(stamped(cloud, nsecs=500))
+    image, points = events
+    assert isinstance(image, ImageEvent) and image.stamp_ns == 1700000000 * 10**9 + 250
+    assert image.rgb.shape == (4, 6, 3) and not image.rgb.any()
+    assert isinstance(points, CloudEvent) and (points.points, points.stamp_ns) == \
+        (6, 1700000000 * 10**9 + 500)
+
+
+def test_the_bridges_report_becomes_an_event_naming_its_frame():
+    from walkman_msgs.msg import Arrival, Region
+
+    from pilot.link import CLOUD_TOPIC, arrival_event
+
+    msg = stamped(Arrival(height=60, width=80, fraction=0.75, tiles=12, tiles_arrived=9,
+                          missing=[Region(0, 0, 40, 30)]), nsecs=7)
+    event = arrival_event(CLOUD_TOPIC, msg)
+    assert (event.topic, event.stamp_ns, event.height, event.width, event.fraction,
+            event.missing) == (CLOUD_TOPIC, 1700000000 * 10**9 + 7, 60, 80, 0.75,
+                               ((0, 0, 40, 30),))

@@ -117,26 +117,81 @@ def test_the_timed_button_shows_the_gateways_countdown_and_stays_clickable_to_ca
     assert not turn.waiting and turn.text() == "turn (cancelled)" and not turn.isEnabled()
 
 
-def test_the_camera_hatches_the_tiles_that_did_not_arrive(qt):
-    from pilot.link import BLOCK, CloudEvent, ImageEvent, missing_blocks
+def red_pixels(view) -> int:
+    """Hatching drawn in the camera view: reddish pixels of the picture as shown (scaled
+    smoothly, so near the hatch colour rather than exactly it)."""
+    image = view.picture.pixmap().toImage()
+    colours = [image.pixelColor(x, y) for x in range(0, image.width(), 2)
+               for y in range(0, image.height(), 2)]
+    return sum(1 for c in colours if c.red() > 140 and c.green() < 90 and c.blue() < 90)
+
+
+def test_the_camera_hatches_exactly_the_tiles_the_bridge_reports_lost(qt, tmp_path):
+    from pilot.link import CLOUD_TOPIC, IMAGE_TOPIC, ArrivalEvent, CloudEvent, ImageEvent
     from pilot.widgets.camera import MISSING_COLOUR, CameraView, marked
 
     rgb = np.full((48, 64, 3), 90, np.uint8)
-    rgb[8:24, 16:40] = 0                                # two rows of three lost blocks
-    missing = missing_blocks(rgb)
-    assert missing.sum() == 6 and missing[1:3, 2:5].all()
-    shown = marked(rgb, missing)
-    lost = shown[8:24, 16:40].reshape(-1, 3)
-    assert (lost == MISSING_COLOUR).all(axis=1).mean() > 0.25       # hatched, not black
-    assert (shown[:8] == 90).all() and (shown[24:] == 90).all()     # the rest untouched
+    rgb[0:16] = 0                                       # a black sky: content, not loss
+    rgb[8:24, 16:40] = 0                                # and the lost tile, filled black
     view = CameraView()
-    view.on_image(ImageEvent(rgb, missing, 1 - missing.mean(), time.time()))
-    view.on_cloud(CloudEvent(4800, 0.75, time.time()))
+    view.resize(400, 320)
+    lost = ArrivalEvent(IMAGE_TOPIC, 5, 48, 64, 1 - 16 * 24 / (48 * 64), ((16, 8, 24, 16),))
+    view.on_arrival(lost)                               # the report before its frame
+    view.on_image(ImageEvent(rgb, 5))
     assert view.frames == 1 and not view.picture.pixmap().isNull()
     caption = view.caption.text()
-    assert "image 88% arrived" in caption and "cloud 75% of points" in caption
+    assert caption.startswith("frame 1 | image 87% arrived") and "cloud" not in caption
     assert "red: tiles that did not arrive" in caption
-    assert BLOCK == 8
+    view.grab().save(str(tmp_path / "camera-lost-tile.png"))
+    assert red_pixels(view) > 50
+    shown = marked(rgb, np.pad(np.ones((16, 24), bool), ((8, 24), (16, 24))))
+    hatched = (shown == MISSING_COLOUR).all(axis=2)
+    assert hatched[8:24, 16:40].mean() > 0.25 and hatched.sum() == hatched[8:24, 16:40].sum()
+    # The cloud's report after its cloud: the caption follows.
+    view.on_cloud(CloudEvent(4800, 9))
+    assert "cloud 100% of points" in view.caption.text()
+    view.on_arrival(ArrivalEvent(CLOUD_TOPIC, 9, 60, 80, 0.75, ((0, 0, 40, 60),)))
+    assert "cloud 75% of points" in view.caption.text()
+    # The next frame came whole (its report says so) and the one after without any report.
+    view.on_image(ImageEvent(rgb, 6))
+    view.on_arrival(ArrivalEvent(IMAGE_TOPIC, 6, 48, 64, 1.0, ()))
+    assert "image 100% arrived" in view.caption.text() and red_pixels(view) == 0
+    view.on_image(ImageEvent(rgb, 7))
+    assert "image 100% arrived" in view.caption.text() and "red" not in view.caption.text()
+    # A report that comes after its frame hatches it then; one for another frame does not.
+    view.on_arrival(ArrivalEvent(IMAGE_TOPIC, 5, 48, 64, 0.5, ((0, 0, 32, 48),)))
+    assert "image 100% arrived" in view.caption.text() and red_pixels(view) == 0
+    view.on_arrival(ArrivalEvent(IMAGE_TOPIC, 7, 48, 64, 0.5, ((0, 0, 32, 48),)))
+    assert "image 50% arrived" in view.caption.text() and red_pixels(view) > 50
+
+
+def test_in_the_lab_a_black_image_and_a_cloud_without_depth_are_whole(qt, tmp_path):
+    """No bridge, no report: what the pilot PC's roscore carries is all there was."""
+    from sensor_msgs.msg import Image, PointCloud2
+
+    from pilot.link import PilotLink
+    from pilot.widgets.camera import CameraView
+
+    view = CameraView()
+    view.resize(400, 320)
+    link = PilotLink("pi_test", [], post=lambda event: getattr(
+        view, {"ImageEvent": "on_image", "CloudEvent": "on_cloud"}[type(event).__name__])(event))
+    image = Image(height=240, width=320, encoding="rgb8", step=960, data=bytes(240 * 960))
+    cloud = PointCloud2(height=60, width=80, point_step=16, row_step=1280,
+                        data=np.full(60 * 80 * 4, np.nan, np.float32).tobytes())
+    for msg in (image, cloud):
+        msg.header.stamp.secs = 1700000000
+        link._on_image(msg) if msg is image else link._on_cloud(msg)
+    assert view.caption.text() == "frame 1 | image 100% arrived | cloud 100% of points"
+    view.grab().save(str(tmp_path / "camera-lab-black.png"))
+    assert red_pixels(view) == 0
+
+
+def test_a_share_is_rounded_down_so_100_percent_means_all():
+    from pilot.widgets.camera import percent
+
+    assert [percent(x) for x in (1.0, 0.9999, np.float32(0.7), 0.0)] == \
+        ["100%", "99%", "70%", "0%"]
 
 
 def test_the_link_widget_shows_the_bridge_status_and_bit_rates_per_id(qt):
