@@ -40,6 +40,7 @@ from bridge import status as status_codec
 from bridge.config import PILOT, ROBOT, BridgeConfig, Channel
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeProtocolError
+from bridge.expiry import aged_payload
 from bridge.journal import Journal, QueueFull
 from bridge.link import LinkKey
 from bridge.presence import READER_GRACE, Presence, PresenceMemory
@@ -58,6 +59,9 @@ log = logging.getLogger("bridge")
 
 #: Seconds after a pilot's command reaches a module during which its status changes are events.
 COMMAND_WINDOW = 1.0
+#: How often the bridge writes its status on ``/bridge/<side>/status:o`` (the pilot gateway
+#: tells the pilots from it that the link is down, within about two of these).
+STATUS_PERIOD = 0.5
 #: How often a bridge looks whether its modules' ports are connected, and its stand-ins in step.
 PRESENCE_PERIOD = 0.2
 
@@ -315,8 +319,8 @@ class Bridge:
             elif key not in wanted and key in self._stand_ins:
                 leaving = self._leaving.setdefault(key, now)
                 if pending is None:
-                    pending = {FlowKey(ident, kind)
-                               for _, ident, kind, _ in self.journal.undelivered()}
+                    pending = {FlowKey(message.id, message.kind)
+                               for message in self.journal.undelivered()}
                 if key in pending and now - leaving < READER_GRACE:
                     continue   # what the journal holds for it first, for a while
                 self._leaving.pop(key, None)
@@ -402,15 +406,19 @@ class Bridge:
             self._deliver_wake.wait(0.25)
             self._deliver_wake.clear()
             blocked = set()
-            for row, ident, kind, payload in self.journal.undelivered():
-                key = FlowKey(ident, kind)
+            for message in self.journal.undelivered():
+                row, key = message.row, FlowKey(message.id, message.kind)
                 if key in blocked:
                     continue
-                if self.config.channel(key) is None:
-                    self.drops.drop(Reason.UNCONFIGURED, f"queued message for id {ident} kind "
-                                                         f"{kind}")
+                route = self.routes.get(key)
+                if route is None:
+                    self.drops.drop(Reason.UNCONFIGURED, f"queued message for {key}")
                     self.journal.delivered(row)
                     continue
+                payload = message.payload
+                if route.expiring:   # the link's way over, and the wait in our inbox
+                    payload = aged_payload(payload, self._one_way() +
+                                           time.time() - message.received)
                 with self._endpoint_lock:   # not closed by _follow() between get and use
                     source = self._sources.get(key)
                 try:
@@ -435,9 +443,13 @@ class Bridge:
                 if ok:
                     self.journal.delivered(row)
                     self.delivered += 1
-                    self.status_events.commanded(ident)
+                    self.status_events.commanded(key.id)
                 else:
                     blocked.add(key)
+
+    def _one_way(self) -> float:
+        """Seconds a message takes over the link, as half the measured round trip."""
+        return (self.tcp.round_trip_ms() or 0.0) / 2000.0
 
     def _on_link_up(self) -> None:
         for sink in self._ros_sinks:
@@ -452,11 +464,13 @@ class Bridge:
 
     def status(self) -> Dict[str, Any]:
         stats = self.tcp.stats
+        silent = self.tcp.silent_s()
         out: Dict[str, Any] = {
             "side": self.side,
             "time": round(time.time(), 3),  # wall clock, so samples read later keep their time
             "link": self.tcp.phase,
             "link_since_s": int(time.monotonic() - self.tcp.phase_since),
+            "silent_s": round(silent, 1) if silent is not None else -1.0,
             "round_trip_ms": round(self.tcp.round_trip_ms() or 0.0, 1),
             "queued_commands": self.journal.waiting(),
             "oldest_queued_s": int(self.journal.oldest_age()),
@@ -505,7 +519,7 @@ class Bridge:
         return Bottle(["error", f"unknown command {word!r}: try status or help"])
 
     def _publish_status(self, port: Port) -> None:
-        while not self._stop.wait(1.0):
+        while not self._stop.wait(STATUS_PERIOD):
             try:
                 port.write(self._status_bottle())
             except YarpError:

@@ -63,6 +63,7 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 from bridge import compact, drops, frames
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeError, BridgeProtocolError
+from bridge.expiry import aged_payload
 from bridge.flows import FlowKey, Form, Route
 from bridge.frames import DataFrame, Entry, Presence
 from bridge.journal import Journal
@@ -304,6 +305,16 @@ class TcpChannel:
     @property
     def connected(self) -> bool:
         return self.phase == "up"
+
+    def silent_s(self) -> Optional[float]:
+        """Seconds since the peer was last heard on the current connection (None: none).
+
+        The peer sends at least every :data:`KEEPALIVE`, so a silence past that says the
+        link is gone long before ``link_timeout`` drops the connection."""
+        connection = self._connection
+        if connection is None or connection.closed:
+            return None
+        return max(0.0, time.monotonic() - connection.last_rx)
 
     # -- phases --------------------------------------------------------------------
 
@@ -716,8 +727,12 @@ class TcpChannel:
                                                limit=MAX_RELIABLE_PER_FRAME)
         seq = reliable[0].seq if reliable else None
         for item in reliable:
-            encoded.append(frames.entry_bytes(Entry(item.id, item.kind, item.payload)))
-            self.stats.payload_out += len(item.payload)
+            payload = item.payload
+            route = self.routes.get(FlowKey(item.id, item.kind))
+            if route is not None and route.expiring:   # it waited here: the module must know
+                payload = aged_payload(payload, time.time() - item.queued)
+            encoded.append(frames.entry_bytes(Entry(item.id, item.kind, payload)))
+            self.stats.payload_out += len(payload)
             self._count(item.id, len(encoded[-1]))
         events = False
         if streams is None or streams:

@@ -18,7 +18,14 @@ pilot roscore it offers:
 ``/M/send_command``          ``walkman_msgs/SendCommand``        service: the sequence number
 ``/M/get_status``            ``walkman_msgs/GetStatus``          service
 ``/pilot/sent_commands``     ``walkman_msgs/SentCommand``        out: everything any station sent
+``/bridge/link``             ``walkman_msgs/Link``               out, latched: up, down, direct
 ===========================  ==================================  ===========================
+
+Every command and switch leaves with its lifetime (:mod:`walkman.gym.validity`):
+the validity the pilot set, else the module's own default; a dangerous one may
+start only within a short grace after its countdown.  ``/bridge/link`` follows the
+pilot bridge's status port (:mod:`rosnodes.link_watch`; ``--link direct`` in the
+lab, where there is no bridge), so a pilot tells "link down" from "module dead".
 
 Several gateways (the DRC had three pilot PCs: one roscore and one gateway
 each, all on the pilot YARP name server) each claim a station number
@@ -46,15 +53,20 @@ from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 from bridge import config as bridge_config
+from bridge import status as bridge_status
+from bridge.errors import BridgeProtocolError
 from nodekit.connections import ConnectionKeeper
 from nodekit.logs import configure_logging
+from rosnodes.link_watch import LinkState, LinkWatch
 from rosnodes.stations import (SequenceNumbers, StationError, claim_station, parse_sent,
                                sent_bottle_fields)
 from rosnodes.timed import CANCELLED, SENT, Countdowns
 from walkman.gym.lifecycle import TARGET, lifecycle_of_status
 from walkman.modules import module_class
 from walkman.gym.interfaces import (InterfaceError, PilotCommand, decode_command, decoder_for,
-                                    decode_status, encode_command)
+                                    decode_status, encode_command, readable, validity_of)
+from walkman.gym.validity import (DANGEROUS_GRACE, Lifetime, ValidityError, check_validity,
+                                  stamp)
 from yarp_lite.bottle import Bottle
 from yarp_lite.errors import YarpError
 from yarp_lite.nameclient import NameClient
@@ -65,22 +77,13 @@ log = logging.getLogger("walkman.gateway")
 DEFAULT_CONFIG = Path(__file__).resolve().parents[1] / "models" / "bridge_drc.xml"
 #: How long a command waits for the connection to its module before it is refused (s).
 CONNECT_GRACE = 10.0
+#: Where the pilot bridge says how the link is (:mod:`bridge.node`).
+BRIDGE_STATUS = "/bridge/pilot/status:o"
 #: The lifecycle state each switch word leads to (walkman.gym.lifecycle owns the table).
 EXPECTED = {switch.value: state.value for switch, state in TARGET.items()}
 
 
 
-def readable(bottle: Bottle) -> str:
-    """A Bottle as a pilot reads it in the logs: YARP's text, but each float with ten
-    significant digits (YARP prints 1.45 as 1.44999999999999995559)."""
-    def one(value: Any) -> str:
-        if isinstance(value, Bottle):
-            return f"({readable(value)})"
-        if isinstance(value, float) and math.isfinite(value):
-            text = f"{value:.10g}"
-            return text if any(c in text for c in ".e") else f"{text}.0"
-        return Bottle([value]).to_text()
-    return " ".join(one(value) for value in bottle)
 
 class GatewayError(Exception):
     """The gateway was started or asked wrongly; the text says how."""
@@ -97,6 +100,21 @@ def command_decoder(name: str) -> Callable[[Bottle], PilotCommand]:
     """How the module reads ``cmd N`` (an argument for commands that need numbers)."""
     found = module_class(name)
     return decoder_for(found) if found is not None else decode_command
+
+
+def default_validity(name: str) -> float:
+    """Seconds a module's commands may wait unless the pilot says (its class's declaration)."""
+    return validity_of(module_class(name))
+
+
+def lifetime(module: str, asked: float) -> Lifetime:
+    """A fresh command's lifetime: the validity the pilot asked for (0: the module's)."""
+    if not asked:
+        return Lifetime(0.0, default_validity(module))
+    try:
+        return Lifetime(0.0, check_validity(float(asked)))
+    except ValidityError as exc:
+        raise GatewayError(f"validity: {exc}") from None
 
 
 def lifecycle_of(state: str) -> str:
@@ -174,8 +192,13 @@ class ModuleLink:
 class Gateway:
     """All modules' links and their ROS faces."""
 
-    def __init__(self, modules: Dict[str, List[str]], countdown: float, node_name: str) -> None:
+    def __init__(self, modules: Dict[str, List[str]], countdown: float, node_name: str,
+                 direct: bool = False) -> None:
         self.modules = modules
+        self.link_watch = LinkWatch(direct, time.monotonic())
+        self._link_lock = threading.Lock()
+        self._link_pub = None
+        self.bridge_in: Optional[Port] = None
         self.prefix = ""
         self.station = 0
         self.node_name = node_name
@@ -212,6 +235,12 @@ class Gateway:
         for module, statuses in self.modules.items():
             self.links[module] = ModuleLink(module, statuses, self.prefix, self.nameclient,
                                             self.keeper, self._on_status, self._on_warning)
+        if self.link_watch.state.state != "direct":
+            self.bridge_in = Port(nameclient=self.nameclient, reader=self._on_bridge_status)
+            self.bridge_in.open(f"{self.prefix}/bridge:i", wait=math.inf)
+            self.keeper.want(BRIDGE_STATUS, self.bridge_in.name, self.bridge_in,
+                             ours_is_source=False)
+            threading.Thread(target=self._watch_link, name="gateway link", daemon=True).start()
         self.keeper.start()
         threading.Thread(target=self._find_peers, name="gateway peers", daemon=True).start()
         self.yarp_open.set()
@@ -234,6 +263,49 @@ class Gateway:
                     self.keeper.want(name, self.sent_in.name, self.sent_in, ours_is_source=False)
             if self._stop.wait(2.0):
                 return
+
+    # -- the link ----------------------------------------------------------------------
+
+    def _on_bridge_status(self, bottle: Bottle) -> None:
+        try:
+            status = bridge_status.from_bottle(bottle)
+        except BridgeProtocolError as exc:
+            log.warning("gateway: not a bridge status on %s: %s", BRIDGE_STATUS, exc)
+            return
+        with self._link_lock:
+            changed = self.link_watch.on_status(status, time.monotonic())
+        if changed is not None:
+            self._link_changed(changed)
+
+    def _watch_link(self) -> None:
+        while not self._stop.wait(0.25):
+            with self._link_lock:
+                changed = self.link_watch.tick(time.monotonic())
+            if changed is not None:
+                self._link_changed(changed)
+
+    def _link_changed(self, state: LinkState) -> None:
+        if state.state == "down":
+            log.warning("gateway: the link to the robot is down (%s); %d command(s) held",
+                        state.reason, state.queued)
+        else:
+            log.info("gateway: the link to the robot is %s", state.state)
+        self._publish_link()
+
+    def _publish_link(self) -> None:
+        if self._link_pub is None:
+            return
+        import rospy
+        from walkman_msgs.msg import Link
+
+        with self._link_lock:
+            state = self.link_watch.state
+        msg = Link()
+        msg.header.stamp = rospy.Time.now()
+        msg.state, msg.reason, msg.queued = state.state, state.reason, state.queued
+        msg.since = float(time.monotonic() - state.since)
+        msg.round_trip_ms = float(state.round_trip_ms)
+        self._link_pub.publish(msg)
 
     def _on_peer_sent(self, bottle: Bottle) -> None:
         fields = parse_sent(bottle)
@@ -300,7 +372,8 @@ class Gateway:
 
     def _open_ros(self) -> None:
         import rospy
-        from walkman_msgs.msg import Command, Countdown, SentCommand, Status, Switch, Warning
+        from walkman_msgs.msg import (Command, Countdown, Link, SentCommand, Status, Switch,
+                                      Warning)
         from walkman_msgs.srv import GetStatus, SendCommand, SwitchModule
 
         while not self.yarp_open.wait(1.0):    # the station numbers what ROS brings
@@ -317,6 +390,8 @@ class Gateway:
                 return
 
         self._sent = rospy.Publisher("/pilot/sent_commands", SentCommand, queue_size=50)
+        self._link_pub = rospy.Publisher("/bridge/link", Link, queue_size=5, latch=True)
+        self._publish_link()
         for module in self.modules:
             self._ros[module] = {
                 "status": rospy.Publisher(f"/{module}/status", Status, queue_size=10,
@@ -370,14 +445,18 @@ class Gateway:
 
     # -- sending -----------------------------------------------------------------------
 
-    def send_switch(self, module: str, word: str, seq: int = 0,
-                    sender: str = "") -> Tuple[bool, str, int]:
+    def send_switch(self, module: str, word: str, seq: int = 0, sender: str = "",
+                    validity: float = 0.0) -> Tuple[bool, str, int]:
         link = self.links[module]
         word = word.strip().lower()
         if word not in EXPECTED:
             return False, f"'{word}' is not a switch command (start, pause, resume, stop, quit)", 0
         seq = seq or self.sequence.next()
-        ok, message = link.send(link.switch, Bottle([word, seq]))
+        try:
+            life = lifetime(module, validity)
+        except GatewayError as exc:
+            return False, str(exc), 0
+        ok, message = link.send(link.switch, stamp(Bottle([word, seq]), life))
         if ok:
             if word in ("stop", "quit"):
                 for event in self.countdowns.cancel_all(module):
@@ -388,10 +467,13 @@ class Gateway:
     def send_command(self, module: str, command: PilotCommand,
                      sender: str = "") -> Tuple[bool, str]:
         link = self.links[module]
-        bottle = encode_command(command)
-        ok, message = link.send(link.command, bottle)
+        if command.lifetime is None:
+            command = PilotCommand(command.name, command.args, command.seq,
+                                   lifetime(module, 0.0))
+        ok, message = link.send(link.command, encode_command(command))
         if ok:
-            self._log_sent(module, "command", readable(bottle), command.seq or 0, sender)
+            shown = encode_command(PilotCommand(command.name, command.args, command.seq))
+            self._log_sent(module, "command", readable(shown), command.seq or 0, sender)
         return ok, message
 
     def _log_sent(self, module: str, port: str, text: str, seq: int, sender: str) -> None:
@@ -419,22 +501,29 @@ class Gateway:
         self._publish_warning(module, 0, f"gateway: {text}")
 
     def _on_switch_topic(self, module: str, msg: Any) -> None:
-        ok, message, _ = self.send_switch(module, msg.command, msg.seq, msg.sender)
+        ok, message, _ = self.send_switch(module, msg.command, msg.seq, msg.sender,
+                                          getattr(msg, "validity", 0.0))
         if not ok:
             self._refuse(module, message)
 
     def _on_command_topic(self, module: str, msg: Any) -> None:
         try:
             command = build_command(msg, msg.seq or 0, command_decoder(module))
+            life = lifetime(module, getattr(msg, "validity", 0.0))
         except GatewayError as exc:
             self._refuse(module, str(exc))
             return
         if msg.dangerous:
             text = encode_command(PilotCommand(command.name, command.args)).to_text()
             sender = msg.sender or "rostopic"
+            now = time.monotonic()
+            countdown = float(msg.countdown) or self.countdowns.default
+            # It may start within a short grace after its countdown, never later: one
+            # queued through a blackout that ended the countdown does not run.
+            life = Lifetime(0.0, countdown + DANGEROUS_GRACE)
             try:
-                event = self.countdowns.request(module, text, time.monotonic(),
-                                                (command, sender), float(msg.countdown))
+                event = self.countdowns.request(module, text, now, (command, sender, life, now),
+                                                countdown)
             except ValueError as exc:
                 self._refuse(module, str(exc))
                 return
@@ -444,18 +533,19 @@ class Gateway:
             self._publish_countdown(event, sender)
             return
         ok, message = self.send_command(module, PilotCommand(
-            command.name, command.args, command.seq or self.sequence.next()), msg.sender)
+            command.name, command.args, command.seq or self.sequence.next(), life), msg.sender)
         if not ok:
             self._refuse(module, message)
 
     def _countdown_loop(self) -> None:
         while not self._stop.wait(0.1):
-            for event in self.countdowns.tick(time.monotonic()):
-                command, sender = event.pending.payload
+            now = time.monotonic()
+            for event in self.countdowns.tick(now):
+                command, sender, life, asked = event.pending.payload
                 if event.state == SENT:
                     ok, message = self.send_command(event.pending.module, PilotCommand(
-                        command.name, command.args, command.seq or self.sequence.next()),
-                        sender)
+                        command.name, command.args, command.seq or self.sequence.next(),
+                        life.older(now - asked)), sender)
                     if not ok:
                         self._refuse(event.pending.module, message)
                 self._publish_countdown(event, sender)
@@ -507,6 +597,8 @@ class Gateway:
 
         try:
             command = build_command(request, self.sequence.next(), command_decoder(module))
+            command = PilotCommand(command.name, command.args, command.seq,
+                                   lifetime(module, getattr(request, "validity", 0.0)))
         except GatewayError as exc:
             return SendCommandResponse(False, 0, str(exc))
         ok, message = self.send_command(module, command, "service")
@@ -528,7 +620,7 @@ class Gateway:
         self.keeper.stop()
         for link in self.links.values():
             link.close()
-        for port in (self.sent_in, self.sent_out):
+        for port in (self.sent_in, self.sent_out, self.bridge_in):
             if port is not None:
                 port.close()
         if self.ros_node is not None:
@@ -558,6 +650,10 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--countdown", type=float, default=3.0,
                         help="seconds a dangerous command waits (default 3)")
     parser.add_argument("--name", default="", help="ROS node name (default: unique per PC)")
+    parser.add_argument("--link", choices=["bridge", "direct"], default="bridge",
+                        help="bridge: the robot is behind the pilot bridge, whose status says "
+                             "whether the link is up (/bridge/link); direct: one network, no "
+                             "bridge (the lab)")
     options = parser.parse_args(argv)
     configure_logging("gateway")
     try:
@@ -572,7 +668,7 @@ def main(argv: Optional[List[str]] = None) -> int:
 
     ensure_importable()
     unique = options.name or f"pilot_gateway_{os.uname().nodename.replace('-', '_')}_{os.getpid()}"
-    gateway = Gateway(modules, options.countdown, unique)
+    gateway = Gateway(modules, options.countdown, unique, direct=options.link == "direct")
     gateway.start_ros()        # its topics open once the YARP side is (either may come first)
     try:
         gateway.open_yarp()

@@ -166,6 +166,7 @@ class RobotStateSink:
         self._offsets: Dict[str, Tuple[int, int]] = {}
         self._lock = threading.Lock()
         self._q = self._tau = self._temperature = np.zeros(0)
+        self._unheard: set = set()   # chains of the layout with no state yet
         self._time = 0.0
         self._updated = 0.0
         self._posted = 0.0
@@ -200,6 +201,7 @@ class RobotStateSink:
             self._offsets = offsets
             self._q, self._tau = np.zeros(start), np.zeros(start)
             self._temperature = np.zeros(start)
+            self._unheard = {chain for chain, _ in layout.counts}
         for chain, _ in layout.chains:
             port = BufferedPort(nameclient=self.nameclient,
                                 on_read=lambda b, chain=chain: self._on_state(chain, b),
@@ -222,7 +224,9 @@ class RobotStateSink:
             self._tau[start:start + count] = state.tau
             self._temperature[start:start + count] = state.temperature
             self._time = state.time
-            self._updated = time.monotonic()
+            self._unheard.discard(chain)
+            if not self._unheard:    # a chain never heard would read as zeros on the pilot
+                self._updated = time.monotonic()
 
     def snapshot(self) -> RobotState:
         with self._lock:

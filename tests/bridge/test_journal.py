@@ -44,9 +44,9 @@ def test_the_inbox_refuses_repeats_and_gaps(tmp_path):
         inbox.accept(42, 5, 7, 1, b"late")
     assert inbox.accepted(42) == 2
     rows = inbox.undelivered()
-    assert [payload for _, _, _, payload in rows] == [b"start", b"go"]
-    inbox.delivered(rows[0][0])
-    assert [payload for *_, payload in inbox.undelivered()] == [b"go"]
+    assert [message.payload for message in rows] == [b"start", b"go"]
+    inbox.delivered(rows[0].row)
+    assert [message.payload for message in inbox.undelivered()] == [b"go"]
 
 
 def test_a_new_peer_session_starts_from_any_number(tmp_path):

@@ -85,7 +85,7 @@ def test_stand_ins_follow_the_word_and_a_closing_one_writes_its_last_warning(pil
     pilot_bridge.journal.accept(1, 1, 7, 3, compact.encode(Bottle([1, "overheating"])))
     pilot_bridge._follow(frozenset())
     assert shown_here() == {"/gaze_control/warning:o"}
-    pilot_bridge.journal.delivered(pilot_bridge.journal.undelivered()[0][0])
+    pilot_bridge.journal.delivered(pilot_bridge.journal.undelivered()[0].row)
     pilot_bridge._follow(frozenset())
     assert shown_here() == set()
     assert pilot_bridge.status()["modules_shown"] == []

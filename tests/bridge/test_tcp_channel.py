@@ -24,9 +24,10 @@ from bridge.tcp_channel import TcpChannel
 from harness import free_port, wait_until
 from yarp_lite.bottle import Bottle
 
-SWITCH, STATUS = FlowKey(7, 0), FlowKey(7, 2)
+SWITCH, COMMAND, STATUS = FlowKey(7, 0), FlowKey(7, 1), FlowKey(7, 2)
 KEY = LinkKey(bytes(range(32)), source="test key")
-ROUTES = [Route(SWITCH, "gaze_control/switch", Carriage.RELIABLE, Form.BOTTLE, expiring=True),
+ROUTES = [Route(SWITCH, "gaze_control/switch", Carriage.RELIABLE, Form.BOTTLE),
+          Route(COMMAND, "gaze_control/command", Carriage.RELIABLE, Form.BOTTLE, expiring=True),
           Route(STATUS, "gaze_control/status", Carriage.LATEST, Form.BOTTLE,
                 status_events=True)]
 
@@ -57,7 +58,8 @@ class End:
         from bridge import compact
 
         with self.lock:
-            for row, _, _, payload in self.journal.undelivered():
+            for message in self.journal.undelivered():
+                row, payload = message.row, message.payload
                 self.reliable.append(compact.decode(payload))
                 self.journal.delivered(row)
 
@@ -474,3 +476,26 @@ def test_the_backlog_of_a_socket_closed_by_the_receive_thread_is_nothing():
     left.close()
     right.close()
     assert _unsent_bytes(left) == 0
+
+
+def test_a_command_held_while_the_link_is_down_leaves_older_by_that_time(tmp_path):
+    """The pilot side adds the time a command sat in its journal to the command's lifetime:
+    the module measures a blackout it never saw (walkman.gym.validity)."""
+    from walkman.gym.validity import Lifetime, split, stamp
+
+    port = free_port()
+    pilot = End("pilot", port, tmp_path / "pilot", listen=False).start()
+    robot = None
+    try:
+        pilot.channel.send_reliable(COMMAND, stamp(Bottle(["go", 2]), Lifetime(0.5, 60.0)))
+        held = time.monotonic()
+        wait_until(lambda: time.monotonic() - held >= 1.0, 5, message="a second of outage")
+        robot = End("robot", port, tmp_path / "robot", listen=True).start()
+        wait_until(lambda: robot.reliable, 10, message="the command delivered")
+        message, lifetime = split(robot.reliable[0])
+        assert message == Bottle(["go", 2])
+        assert lifetime.validity == 60.0 and lifetime.age >= 1.5
+    finally:
+        pilot.stop()
+        if robot is not None:
+            robot.stop()

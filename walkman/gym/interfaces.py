@@ -17,6 +17,10 @@ seen is dropped, so a command resent after a network hiccup runs once.
 Sequence numbers of statuses and warnings start at 2, because YARP's
 ``yarp read`` treats a two-item ``1 "text"`` message as end-of-stream.
 
+A switch or command may end with its lifetime, ``(age A valid V)``
+(:mod:`walkman.gym.validity`): one that has waited longer than its validity
+when it would start is refused on the warning port as expired, never run.
+
 Statuses are dictionary-compressed like the DRC modules did: a module that
 declares its list of states sends each as one character (``'a'`` for the
 first...), 16 bits on the wire instead of a word; :func:`decode_status`
@@ -27,12 +31,16 @@ replaced by custom serializers.
 from __future__ import annotations
 
 import itertools
+import math
 import queue
 import threading
+import time
 from collections import deque
 from dataclasses import dataclass
 from typing import Callable, Collection, Deque, List, Optional, Sequence, Tuple
 
+from walkman.gym.validity import (DEFAULT_VALIDITY, Lifetime, ValidityError, describe_expiry,
+                                  split, stamp)
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
@@ -43,6 +51,8 @@ class PilotCommand:
     name: str
     args: Tuple = ()
     seq: Optional[int] = None
+    #: how long it has waited and may wait (None: it says nothing, age 0, default validity)
+    lifetime: Optional[Lifetime] = None
 
 
 class InterfaceError(ValueError):
@@ -91,7 +101,30 @@ def encode_command(command: PilotCommand) -> Bottle:
         bottle = Bottle([command.name])
     if command.seq is not None:
         bottle.append(command.seq)
-    return bottle
+    return bottle if command.lifetime is None else stamp(bottle, command.lifetime)
+
+
+def readable(bottle: Sequence) -> str:
+    """A Bottle as a pilot reads it in the logs: YARP's text, but each float with ten
+    significant digits (YARP prints 1.45 as 1.44999999999999995559)."""
+    def one(value: object) -> str:
+        if isinstance(value, list):
+            return f"({readable(value)})"
+        if isinstance(value, float) and math.isfinite(value):
+            text = f"{value:.10g}"
+            return text if any(c in text for c in ".e") else f"{text}.0"
+        return Bottle([value]).to_text()
+    return " ".join(one(value) for value in bottle)
+
+
+def command_text(command: PilotCommand) -> str:
+    """The command as a pilot typed it: name and arguments, no sequence number."""
+    return readable([command.name, *command.args])
+
+
+def validity_of(module_class: object) -> float:
+    """The seconds a module's commands may wait by default (its ``command_validity``)."""
+    return float(getattr(module_class, "command_validity", DEFAULT_VALIDITY))
 
 
 def encode_status(seq: int, state: str, data: Sequence = (),
@@ -113,41 +146,64 @@ def decode_status(bottle: Bottle, dictionary: Optional[Sequence[str]] = None) ->
 
 
 class _Inbox:
-    """Commands from a port, in order, each sequence number once."""
+    """Commands from a port, in order, each sequence number once, none past its validity."""
 
-    def __init__(self, decode: Callable[[Bottle], PilotCommand]) -> None:
+    def __init__(self, decode: Callable[[Bottle], PilotCommand],
+                 validity: float = DEFAULT_VALIDITY,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.decode = decode
-        self.queue: "queue.Queue[PilotCommand]" = queue.Queue(maxsize=1000)
+        self.validity = validity
+        self.clock = clock
+        self.queue: "queue.Queue[Tuple[PilotCommand, float]]" = queue.Queue(maxsize=1000)
         self.recent: Deque[int] = deque(maxlen=256)
         self.rejected: List[str] = []
+        self.expired = 0
         self.lock = threading.Lock()
         self.on_arrival: Optional[Callable[[], None]] = None
 
     def feed(self, bottle: Bottle) -> None:
+        arrived = self.clock()
         try:
-            command = self.decode(bottle)
-        except InterfaceError as exc:
+            message, lifetime = split(bottle)
+            command = self.decode(message)
+        except (InterfaceError, ValidityError) as exc:
             self.rejected.append(str(exc))
             if self.on_arrival:
                 self.on_arrival()
             return
+        if lifetime is not None:
+            command = PilotCommand(command.name, command.args, command.seq, lifetime)
         with self.lock:
             if command.seq is not None:
                 if command.seq in self.recent:
                     return  # already executed: a resend
                 self.recent.append(command.seq)
         try:
-            self.queue.put_nowait(command)
+            self.queue.put_nowait((command, arrived))
         except queue.Full:
             self.rejected.append(f"command queue full, dropped {command.name}")
         if self.on_arrival:
             self.on_arrival()
 
     def get(self, timeout: Optional[float] = None) -> Optional[PilotCommand]:
-        try:
-            return self.queue.get(timeout=timeout) if timeout else self.queue.get_nowait()
-        except queue.Empty:
-            return None
+        """The next command that may still start; older ones are refused on the way
+        (:meth:`take_rejections` says which), never returned."""
+        deadline = None if not timeout else self.clock() + timeout
+        while True:
+            try:
+                wait = None if deadline is None else max(0.0, deadline - self.clock())
+                command, arrived = self.queue.get(timeout=wait) if wait else \
+                    self.queue.get_nowait()
+            except queue.Empty:
+                return None
+            lifetime = (command.lifetime or Lifetime()).older(self.clock() - arrived)
+            if not lifetime.expired(self.validity):
+                return command
+            self.expired += 1
+            self.rejected.append(describe_expiry(command_text(command), lifetime,
+                                                 self.validity))
+            if self.on_arrival:
+                self.on_arrival()   # the refusal is said now, not with the next command
 
     def take_rejections(self) -> List[str]:
         rejected, self.rejected = self.rejected, []
@@ -160,12 +216,13 @@ class PilotInterfaces:
     def __init__(self, prefix: str, nameclient: Optional[NameClient] = None,
                  statuses: Optional[Sequence[str]] = None,
                  command_decoder: Callable[[Bottle], PilotCommand] = decode_command,
-                 status_encoder: Optional[Callable[[int, str, Sequence], Bottle]] = None) -> None:
+                 status_encoder: Optional[Callable[[int, str, Sequence], Bottle]] = None,
+                 validity: float = DEFAULT_VALIDITY) -> None:
         self.prefix = prefix.rstrip("/")
         self.nameclient = nameclient or NameClient()
         self.statuses = list(statuses) if statuses else None
-        self.switch = _Inbox(decode_command)
-        self.commands = _Inbox(command_decoder)
+        self.switch = _Inbox(decode_command, validity)
+        self.commands = _Inbox(command_decoder, validity)
         self.status_encoder = status_encoder or (
             lambda seq, state, data: encode_status(seq, state, data, self.statuses))
         # Sequences start at 2: ``yarp read`` takes ``(1 "text")`` for end-of-stream.
@@ -217,7 +274,8 @@ class RecordingInterfaces(PilotInterfaces):
 
     def __init__(self, prefix: str, module_class: type) -> None:
         super().__init__(prefix, statuses=getattr(module_class, "statuses", None) or None,
-                         command_decoder=decoder_for(module_class))
+                         command_decoder=decoder_for(module_class),
+                         validity=validity_of(module_class))
         self.warnings: List[str] = []
         self.history: List[str] = []
         self._changed = threading.Condition()

@@ -48,7 +48,7 @@ from typing import Any, Callable, Dict, List, Optional, Type
 
 from nodekit.logs import time_prefix
 from walkman.gym import inifile
-from walkman.gym.interfaces import PilotInterfaces, decoder_for
+from walkman.gym.interfaces import PilotInterfaces, decoder_for, validity_of
 from walkman.gym.pacing import TickSchedule
 from walkman.gym.lifecycle import State, Switch
 from walkman.gym.thread import ControlThread, GenericThread
@@ -176,7 +176,7 @@ class ModuleRunner:
         self.nameclient = nameclient or NameClient()
         self.interfaces = interfaces or PilotInterfaces(
             self.prefix, self.nameclient, statuses=module_class.statuses or None,
-            command_decoder=decoder_for(module_class))
+            command_decoder=decoder_for(module_class), validity=validity_of(module_class))
         self.heartbeat_fd = heartbeat_fd
         self.wake = threading.Event()
         self.interfaces.switch.on_arrival = self.wake.set

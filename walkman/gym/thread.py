@@ -32,6 +32,7 @@ import time
 from typing import Any, Callable, Dict, FrozenSet, List, Mapping, Optional, Tuple
 
 from walkman.gym.interfaces import PilotCommand, PilotInterfaces
+from walkman.gym.validity import DEFAULT_VALIDITY
 
 log = logging.getLogger("walkman.gym")
 
@@ -81,6 +82,9 @@ class GenericThread:
     arguments: Mapping[str, Tuple[int, int, str]] = {}
     #: Commands a pilot's tool sends with a countdown (the paper's QtTimedButton).
     dangerous: FrozenSet[str] = frozenset()
+    #: Seconds a pilot's switch or command may wait before it starts, unless the pilot sets
+    #: another; older, it is refused as expired (:mod:`walkman.gym.validity`).
+    command_validity: float = DEFAULT_VALIDITY
 
     def __init__(self, name: str, config: Dict[str, Any], interfaces: PilotInterfaces,
                  on_status_change=lambda: None) -> None:

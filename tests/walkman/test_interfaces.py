@@ -1,0 +1,70 @@
+"""walkman.gym.interfaces: the inbox refuses what waited past its validity, says so, runs none."""
+
+from __future__ import annotations
+
+import math
+
+from walkman.gym.interfaces import (PilotCommand, _Inbox, decode_command, encode_command,
+                                    readable)
+from walkman.gym.validity import Lifetime, stamp
+from yarp_lite.bottle import Bottle
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def inbox(validity: float = 10.0) -> "tuple[_Inbox, Clock]":
+    clock = Clock()
+    return _Inbox(decode_command, validity, clock), clock
+
+
+def test_a_command_within_its_validity_starts_with_its_lifetime():
+    box, clock = inbox()
+    box.feed(stamp(Bottle.from_text("(turn 1.57) 42"), Lifetime(3.0, 20.0)))
+    clock.now += 16.9                                  # 3 + 16.9 < 20
+    command = box.get()
+    assert command == PilotCommand("turn", (1.57,), 42, Lifetime(3.0, 20.0))
+    assert box.take_rejections() == [] and box.expired == 0
+
+
+def test_one_that_waited_too_long_is_refused_as_expired_and_the_next_one_starts():
+    box, clock = inbox()
+    box.feed(stamp(Bottle.from_text("(turn 1.57) 42"), Lifetime(23.0, None)))   # the queue
+    box.feed(Bottle.from_text("start 43"))              # bare: age 0 here, default validity
+    assert box.get() == PilotCommand("start", (), 43)
+    assert box.take_rejections() == [
+        "`turn 1.57` expired after 23 s in the queue (valid 10 s); not run"]
+    assert box.expired == 1
+
+
+def test_the_wait_in_the_module_counts_until_the_command_would_start():
+    box, clock = inbox(validity=5.0)
+    box.feed(Bottle.from_text("go 7"))                   # arrives fresh...
+    clock.now += 6.0                                    # ... but the module is busy
+    assert box.get() is None
+    assert box.take_rejections() == ["`go` expired after 6 s in the queue (valid 5 s); not run"]
+
+
+def test_a_malformed_lifetime_is_refused_with_its_reason():
+    box, _ = inbox()
+    box.feed(Bottle.from_text("(turn 1) 4 (age soon)"))
+    assert box.get() is None
+    assert box.take_rejections() == ["age must be a finite number of seconds >= 0, not 'soon'"]
+
+
+def test_encoding_a_command_with_a_lifetime_carries_it():
+    bottle = encode_command(PilotCommand("look_at", (1.0, 0.5), 9, Lifetime(0.0, 30.0)))
+    assert readable(bottle) == "(look_at 1.0 0.5) 9 (age 0.0 valid 30.0)"
+
+
+def test_floats_read_as_a_pilot_typed_them_and_the_rest_as_yarp_writes_it():
+    bottle = Bottle([Bottle(["look_at", 1.45, 0.2, 3.0, math.pi / 2, "two words", 7]), 655722274])
+    assert Bottle([1.45]).to_text() != "1.45"          # YARP's own text: every digit
+    assert readable(bottle) == '(look_at 1.45 0.2 3.0 1.570796327 "two words" 7) 655722274'
+    assert readable(Bottle(["start", 12])) == "start 12"
+    assert readable(Bottle([float("nan"), 1e-9])) == f"{Bottle([float('nan')]).to_text()} 1e-09"
