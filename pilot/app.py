@@ -126,7 +126,7 @@ ROUTES = {events.StatusEvent: "on_status", events.WarningEvent: "on_warning",
           events.JointsEvent: "on_joints", events.TemperaturesEvent: "on_temperatures",
           events.ImageEvent: "on_image", events.CloudEvent: "on_cloud",
           events.ArrivalEvent: "on_arrival",
-          events.BridgeEvent: "on_bridge"}
+          events.BridgeEvent: "on_bridge", events.LinkEvent: "on_link"}
 
 
 class _Events(QObject):
@@ -296,6 +296,8 @@ class PilotWindow(QMainWindow):
         if method is None:
             return
         sinks = list(self.module_widgets.get(module, [])) if module else []
+        if isinstance(event, events.LinkEvent):     # every module's widgets show the link
+            sinks = [w for widgets in self.module_widgets.values() for w in widgets]
         sinks += [self.status, self.log, self.camera, self.link_widget]
         for sink in sinks:
             if sink is not None and hasattr(sink, method):

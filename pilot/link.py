@@ -129,6 +129,16 @@ class BridgeEvent:
 
 
 @dataclass(frozen=True)
+class LinkEvent:
+    """The link to the robot (``/bridge/link``): up, down, direct (the lab) or unknown."""
+
+    state: str
+    reason: str
+    since: float          # seconds in this state, as of now
+    queued: int           # pilot commands the pilot bridge holds for the link
+
+
+@dataclass(frozen=True)
 class RosEvent:
     up: bool
     again: bool = False   # the master restarted and our topics are registered again
@@ -281,7 +291,7 @@ class PilotLink:
         import rospy
         from sensor_msgs.msg import Image, JointState, PointCloud2
         from bridge.endpoints.ros import arrival_topic
-        from walkman_msgs.msg import (Arrival, Command, Countdown, JointTemperatures,
+        from walkman_msgs.msg import (Arrival, Command, Countdown, JointTemperatures, Link,
                                       SentCommand, Status, Switch, Warning)
 
         for module in self.modules:
@@ -293,6 +303,7 @@ class PilotLink:
             rospy.Subscriber(f"/{module}/countdown", Countdown, self._on_countdown)
         every_pilots_commands = rospy.Subscriber("/pilot/sent_commands", SentCommand,
                                                  self._on_sent)
+        rospy.Subscriber("/bridge/link", Link, self._on_link)
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=1)
         rospy.Subscriber("/joint_temperatures", JointTemperatures, self._on_temperatures,
                          queue_size=1)
@@ -330,6 +341,11 @@ class PilotLink:
     def _on_sent(self, msg: Any) -> None:
         self.post(SentEvent(msg.module, msg.port, msg.text, msg.seq, msg.sender, msg.station,
                             msg.header.stamp.to_sec() or time.time()))
+
+    def _on_link(self, msg: Any) -> None:
+        stamp = msg.header.stamp.to_sec()
+        since = float(msg.since) + (max(0.0, time.time() - stamp) if stamp else 0.0)
+        self.post(LinkEvent(msg.state, msg.reason, since, int(msg.queued)))
 
     def _on_joints(self, msg: Any) -> None:
         self.post(JointsEvent(tuple(msg.name), np.array(msg.position, float),

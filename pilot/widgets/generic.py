@@ -11,6 +11,13 @@ red with their history, and a command entry built from the module's
 argument, a timed send for dangerous ones.  A refused command (by the module,
 its state machine or the gateway) shows the reason in the warnings.
 
+While the link to the robot is down (``/bridge/link``, :mod:`rosnodes.link_watch`)
+a module that said nothing lately is not "not running": the widget says "link
+down for 12 s; module last heard running" in blue, keeps the buttons the last
+known state allows (what is sent waits for the link, and expires if it waits past
+its validity), and goes back to its usual colours when the link returns.  Only a
+module silent while the link is up reads "not running".
+
 "Advanced mode" (the paper's: commands usually hidden are shown and all the
 buttons enabled, the pilot knowing the risk) is one switch for the window.
 The widget holds no ROS or threads: the window feeds it events and calls
@@ -29,7 +36,7 @@ from python_qt_binding.QtWidgets import (QComboBox, QDoubleSpinBox, QGridLayout,
 from python_qt_binding.QtGui import QColor
 
 from pilot.catalogue import Catalogue, legal_switches
-from pilot.link import CountdownEvent, StatusEvent, WarningEvent
+from pilot.link import CountdownEvent, LinkEvent, StatusEvent, WarningEvent
 from pilot.widgets.timed_button import TimedButton
 from walkman.gym.lifecycle import State, lifecycle_of_status
 
@@ -37,6 +44,8 @@ from walkman.gym.lifecycle import State, lifecycle_of_status
 STALE_S = 3.0
 #: Silent this long (or never heard): "not running".
 ABSENT_S = 10.0
+#: The colour of "link down": neither the module's health (green, yellow) nor its death (red).
+LINK_DOWN_COLOUR = "#2f6fd0"
 SWITCH_ORDER = ["start", "pause", "resume", "stop", "quit"]
 WARNING_HISTORY = 200
 
@@ -53,6 +62,7 @@ class GenericWidget(QGroupBox):
         self.state: Optional[str] = None        # the module's last status word
         self.heard_at: Optional[float] = None   # monotonic time of the last status
         self.status_stamp = 0.0                 # the gateway's stamp of it (wall clock)
+        self.link_down_at: Optional[float] = None   # monotonic time the link went down
         self.timed: Dict[str, TimedButton] = {}
         outer = QVBoxLayout(self)
 
@@ -204,6 +214,17 @@ class GenericWidget(QGroupBox):
                 else "send (3 s, click again to cancel)")
         self.refresh()            # a waiting timed button stays clickable (to cancel)
 
+    def on_link(self, event: LinkEvent) -> None:
+        if event.state == "down":
+            self.link_down_at = time.monotonic() - event.since
+        else:
+            if self.link_down_at is not None and self.heard_at is not None:
+                # Silence while the link was down says nothing about the module: its age
+                # counts again from the link's return (a status follows within a period).
+                self.heard_at = max(self.heard_at, time.monotonic() - STALE_S)
+            self.link_down_at = None
+        self.refresh()
+
     def show_problem(self, text: str) -> None:
         self.on_warning(WarningEvent(self.module, f"not sent: {text}", time.time()))
 
@@ -215,8 +236,10 @@ class GenericWidget(QGroupBox):
 
     @property
     def presence(self) -> str:
-        """running, stale or absent."""
+        """running, stale, absent, or link_down (silent, but the link is what failed)."""
         age = self.age
+        if self.link_down_at is not None and (age is None or age > STALE_S):
+            return "link_down"
         if age is None or age > ABSENT_S:
             return "absent"
         return "stale" if age > STALE_S else "running"
@@ -230,10 +253,16 @@ class GenericWidget(QGroupBox):
         running = presence != "absent" and self.state is not None and \
             lifecycle_of_status(self.state) == State.RUNNING
         colour = {"running": "#10a010" if running else "#d0a000", "stale": "#909090",
-                  "absent": "#d00000"}[presence]
+                  "absent": "#d00000", "link_down": LINK_DOWN_COLOUR}[presence]
         self.led.setStyleSheet(f"color: {colour}; font-size: 18px;")
-        self.status_label.setStyleSheet("color: #909090;" if presence != "running" else "")
-        if presence == "absent":
+        self.status_label.setStyleSheet(
+            f"color: {LINK_DOWN_COLOUR}; font-weight: bold;" if presence == "link_down" else
+            "color: #909090;" if presence != "running" else "")
+        if presence == "link_down":
+            down = time.monotonic() - self.link_down_at
+            last = "never heard" if self.state is None else f"last heard {self.state}"
+            self.status_label.setText(f"link down for {down:.0f} s; module {last}")
+        elif presence == "absent":
             self.status_label.setText("not running" if self.state is None
                                       else f"not running (last: {self.state})")
         self.age_label.setText("" if age is None else f"{age:.1f} s ago")

@@ -2,7 +2,8 @@
 
 Commands come from ``/pilot/sent_commands``, which each gateway fills with its
 own and the other stations' commands, so every PI shows every pilot's; a
-command from another PI is marked as such.  Warnings are red (paper, 2.3).
+command from another PI is marked as such.  Warnings are red (paper, 2.3).  The link
+going down and coming back (``/bridge/link``) is said too, with what it held.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from typing import Dict
 
 from python_qt_binding.QtWidgets import QTextEdit
 
-from pilot.link import SentEvent, StatusEvent, WarningEvent
+from pilot.link import LinkEvent, SentEvent, StatusEvent, WarningEvent
 
 MAX_LINES = 2000
 
@@ -25,6 +26,7 @@ class LogView(QTextEdit):
         self.setReadOnly(True)
         self.me = me
         self.states: Dict[str, str] = {}
+        self.link_state = ""
         self.lines = 0
 
     def _line(self, stamp: float, text: str, colour: str = "") -> None:
@@ -49,3 +51,20 @@ class LogView(QTextEdit):
 
     def on_warning(self, event: WarningEvent) -> None:
         self._line(event.stamp, f"/{event.module} WARNING: {event.text}", "#d00000")
+
+    def on_link(self, event: LinkEvent) -> None:
+        before, self.link_state = self.link_state, event.state
+        if event.state == before:
+            if event.state == "down" and event.queued:
+                self._line(time.time(), f"link down: {event.queued} command(s) wait for it",
+                           "#2f6fd0")
+            return
+        if event.state == "down":
+            held = f"; {event.queued} command(s) wait for it" if event.queued else ""
+            self._line(time.time() - event.since,
+                       f"LINK DOWN ({event.reason}): commands wait for it, and expire if "
+                       f"they wait past their validity{held}", "#2f6fd0")
+        elif event.state == "up" and before == "down":
+            self._line(time.time(), "link up again", "#2f6fd0")
+        elif event.state == "up":
+            self._line(time.time(), "link to the robot up", "#606060")

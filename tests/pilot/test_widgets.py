@@ -77,6 +77,43 @@ def test_the_generic_widget_enables_what_the_lifecycle_allows_and_greys_a_stale_
     assert enabled(widget.switch_buttons) == ["start"]
 
 
+def test_a_silent_module_behind_a_broken_link_reads_link_down_not_dead(qt):
+    from pilot.catalogue import catalogue_of
+    from pilot.link import LinkEvent
+    from pilot.widgets.generic import ABSENT_S, LINK_DOWN_COLOUR, GenericWidget
+
+    widget = GenericWidget(catalogue_of("gaze_control"), Recorder())
+    widget.on_status(status("gaze_control", "tracking", age=ABSENT_S + 2))
+    widget.on_link(LinkEvent("down", "the robot's bridge silent for 1.6 s", 12.2, 0))
+    assert widget.presence == "link_down"
+    assert widget.status_label.text() == "link down for 12 s; module last heard tracking"
+    assert LINK_DOWN_COLOUR in widget.led.styleSheet()
+    # The buttons the last known state allows: a start would queue behind a running module.
+    assert enabled(widget.switch_buttons) == ["pause", "stop", "quit"]
+    widget.on_link(LinkEvent("up", "", 0.0, 0))
+    assert widget.presence == "stale"        # its age counts again from the link's return
+    widget.on_status(status("gaze_control", "tracking"))
+    assert widget.presence == "running"
+    # A module silent while the link is up is not running: that is not the link's fault.
+    widget.on_status(status("gaze_control", "tracking", age=ABSENT_S + 1))
+    widget.tick()
+    assert widget.status_label.text() == "not running (last: tracking)"
+
+
+def test_the_log_says_when_the_link_goes_and_comes_back(qt):
+    from pilot.link import LinkEvent
+    from pilot.widgets.log import LogView
+
+    log = LogView("me")
+    log.on_link(LinkEvent("up", "", 5.0, 0))
+    log.on_link(LinkEvent("down", "the robot's bridge silent for 1.6 s", 0.5, 0))
+    log.on_link(LinkEvent("down", "the robot's bridge silent for 1.6 s", 3.0, 1))
+    log.on_link(LinkEvent("up", "", 0.0, 0))
+    text = log.toPlainText()
+    assert "LINK DOWN (the robot's bridge silent for 1.6 s)" in text
+    assert "1 command(s) wait for it" in text and text.rstrip().endswith("link up again")
+
+
 def test_a_command_the_state_refuses_is_not_sent_and_the_reason_is_shown_in_red(qt):
     from pilot.catalogue import catalogue_of
     from pilot.widgets.tasks import TaskWidget
