@@ -17,6 +17,7 @@ from typing import Dict, List, Optional, Sequence
 from bridge.emulation import EmulatedLink
 from bridge.link import generate_key_file
 from system.processes import ROSCORE_READY
+from system.topology import GENERATED
 from harness import REPO, Implementation, Proc, YarpWorld, free_port, wait_until
 
 PYTHON = sys.executable
@@ -39,8 +40,12 @@ class Side:
         env = self.world.env
         env.update({"ROS_MASTER_URI": f"http://127.0.0.1:{self.ros_port}",
                     "ROS_IP": "127.0.0.1", "ROS_HOME": str(self.world.root / "ros"),
-                    "PYTHONPATH": os.pathsep.join([str(HERE), str(REPO),
-                                                   os.environ.get("PYTHONPATH", "")])})
+                    "PYTHONPATH": os.pathsep.join([str(HERE), str(REPO), str(GENERATED),
+                                                   os.environ.get("PYTHONPATH", "")]),
+                    # rostopic and rosservice find our messages (walkman_msgs/Link...)
+                    "ROS_PACKAGE_PATH": os.pathsep.join([str(REPO / "rosnodes"),
+                                                         str(REPO / "build" / "ros" / "share"),
+                                                         "/usr/share"])})
         env.pop("ROS_HOSTNAME", None)
         return env
 

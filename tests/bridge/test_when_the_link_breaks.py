@@ -1,0 +1,73 @@
+"""What the robot does and the pilot sees when the link breaks.  Emulated hosts; needs root.
+
+Issue 33's tests: through a 20 s blackout of the emulated link (``walkman-netem
+blackouts``), a command whose validity ends inside it never runs and the pilot reads
+why; one whose validity outlasts it runs once after the link returns; and the pilot
+gateway's ``/bridge/link`` says "down" within about two seconds of the cut, and "up"
+when the link is back.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+
+import pytest
+
+from bridge_harness import PYTHON, TwoPCs
+from harness import wait_until
+from pilot_side import bridge_status, executed, exists, switch, wait_nothing_in_flight
+from test_emulated_network import link, pcs  # noqa: F401 -- the emulated hosts, as fixtures
+
+pytestmark = pytest.mark.requires("root")
+
+#: The issue's blackout and validities: shorter than it, and longer.
+BLACKOUT_S, SHORT_VALIDITY, LONG_VALIDITY = 20.0, 5.0, 60.0
+
+
+def test_a_blackout_expires_short_lived_commands_and_runs_the_others_once(pcs, lite, link):
+    link.apply("drc", loss=0)
+    pcs.start_name_servers()
+    pcs.start_roscore(pcs.pilot)
+    module = pcs.robot.python("-m", "walkman.gym.supervisor", "counting_module:Module",
+                              "--name", "/counter", name="counter module")
+    pcs.start_bridge(pcs.robot)
+    pcs.start_bridge(pcs.pilot)
+    module.wait_for("ready for the pilot", 60)
+    pcs.wait_linked()
+    gateway = pcs.pilot.python("-m", "rosnodes.gateway", "--config", str(pcs.config),
+                               "--link", "bridge", name="gateway")
+    gateway.wait_for("ROS topics and services up", 60)
+    links = pcs.pilot.start(["rostopic", "echo", "-p", "/bridge/link/state"], "link echo")
+    links.wait_for(r",up$", 30)
+    switch(pcs, lite, "start", 2)
+    warnings = pcs.pilot.world.tool(lite, "read", "/test/warnings", "/counter/warning:o")
+    wait_until(lambda: exists(pcs.pilot, lite, "/counter/warning:o", "/test/warnings"), 30,
+               message="the pilot reading the module's warnings")
+
+    link.blackout(True)
+    cut = time.monotonic()
+    links.wait_for(r",down$", 10)
+    noticed = time.monotonic() - cut
+    assert noticed < 4.0, f"/bridge/link said down {noticed:.1f} s after the cut"
+    commands = pcs.pilot.world.run_tool(
+        lite, "write", "/test/commands", "/counter/command:i",
+        input_text=f"(count 3) 3 (age 0 valid {SHORT_VALIDITY})\n"
+                   f"(count 4) 4 (age 0 valid {LONG_VALIDITY})\n")
+    assert commands.returncode == 0, commands.stdout + commands.stderr
+    wait_until(lambda: "(queued_commands 2)" in bridge_status(pcs.pilot, lite), 15,
+               message="the pilot's bridge holding both commands for the link")
+    # The blackout's length is the thing under test: the short validity ends inside it.
+    wait_until(lambda: time.monotonic() - cut >= BLACKOUT_S, BLACKOUT_S + 5,
+               message="the blackout's end")
+    assert executed(pcs.log) == []
+    link.blackout(False)
+
+    wait_until(lambda: executed(pcs.log) == [4], 60,
+               message=f"the long-lived command run after the link returned "
+                       f"(got {executed(pcs.log)})")
+    refusal = warnings.wait_for(r"`count 3` expired after (\d+) s in the queue .*not run", 30)
+    assert int(refusal.group(1)) >= BLACKOUT_S - 5
+    links.wait_for(r",up$", 30, count=2)
+    wait_nothing_in_flight(pcs, lite)
+    assert executed(pcs.log) == [4]                      # once, and never the expired one
