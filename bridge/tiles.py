@@ -51,7 +51,7 @@ import math
 import zlib
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, Iterable, List, Optional, Sequence, Set, Tuple
 
 import numpy as np
 
@@ -70,6 +70,9 @@ MAX_CELLS = 1 << 26
 MAX_RASTER_BYTES = 1 << 27
 MAX_CHANNELS = 4096
 MAX_NAN_OFFSETS = 64
+#: Most rectangles an :class:`Arrival` lists; a frame split the way :func:`split` does
+#: never needs more than its lost tiles (see :func:`regions`).
+MAX_REGIONS = 4096
 #: Pixel codec of each tile codec (a JPEG raster may carry full JPEG tiles).
 _FAMILY = {JPEG: JPEG, JPEG_FULL: JPEG, PNG: PNG, ZLIB: ZLIB}
 
@@ -404,7 +407,7 @@ class Arrival:
     missing: Tuple[Region, ...]  # exactly the cells that did not arrive, disjoint
 
 
-def regions(mask: np.ndarray) -> List[Region]:
+def regions(mask: np.ndarray, limit: Optional[int] = None) -> List[Region]:
     """Disjoint rectangles covering exactly the True cells of a 2-D ``mask``, top to bottom.
 
     Cut the raster at every column and every row where the mask changes: each
@@ -413,26 +416,56 @@ def regions(mask: np.ndarray) -> List[Region]:
     a run continues downward while the next grid row has the same run.  For a
     frame's missing cells (a union of lost tiles) that is about one rectangle
     per lost tile, or fewer where lost neighbours join.
+
+    With ``limit``, a mask that needs more rectangles is covered by one span per
+    grid row instead: every True cell still covered, some False ones too.  Only
+    a peer pasting overlapping slivers makes such a frame (a lattice of them
+    leaves a hole per crossing), and then the report stays small.
     """
     if mask.ndim != 2:
         raise BridgeUsageError(f"a mask is 2-dimensional, not {mask.shape}")
     if not mask.any():
         return []
     height, width = mask.shape
-    xs = [0, *(np.flatnonzero((mask[:, 1:] != mask[:, :-1]).any(axis=0)) + 1), width]
-    ys = [0, *(np.flatnonzero((mask[1:] != mask[:-1]).any(axis=1)) + 1), height]
+    xs = [0, *(np.flatnonzero((mask[:, 1:] != mask[:, :-1]).any(axis=0)) + 1).tolist(), width]
+    ys = [0, *(np.flatnonzero((mask[1:] != mask[:-1]).any(axis=1)) + 1).tolist(), height]
     grid = mask[np.ix_(ys[:-1], xs[:-1])]
+    exact = _sweep((_runs(row, xs) for row in grid), ys, limit)
+    if exact is not None:
+        return exact
+    return _sweep((_span(row, xs) for row in grid), ys, None) or []
+
+
+Run = Tuple[int, int]   # columns x .. x_end - 1
+
+
+def _runs(row: np.ndarray, xs: List[int]) -> Set[Run]:
+    """The runs of True grid cells in one grid row, in raster columns."""
+    edges = np.flatnonzero(np.diff(np.concatenate(([False], row, [False])))).tolist()
+    return {(xs[a], xs[b]) for a, b in zip(edges[::2], edges[1::2])}
+
+
+def _span(row: np.ndarray, xs: List[int]) -> Set[Run]:
+    """One run from the grid row's first True cell to its last."""
+    columns = np.flatnonzero(row)
+    return {(xs[columns[0]], xs[columns[-1] + 1])} if columns.size else set()
+
+
+def _sweep(bands: Iterable[Set[Run]], ys: List[int], limit: Optional[int]
+           ) -> Optional[List[Region]]:
+    """Rectangles from the runs of each band of rows ``ys[i] .. ys[i + 1] - 1``: a run goes
+    on downward while the next band has it too.  None once more than ``limit``."""
     out: List[Region] = []
-    open_runs: Dict[Tuple[int, int], int] = {}    # (x, x_end) -> the row it began on
-    for row, y in enumerate(ys[:-1]):
-        edges = np.flatnonzero(np.diff(np.concatenate(([False], grid[row], [False]))))
-        runs = {(int(xs[a]), int(xs[b])) for a, b in zip(edges[::2], edges[1::2])}
+    open_runs: Dict[Run, int] = {}    # run -> the row it began on
+    for y, runs in zip(ys, bands):
         for run in [r for r in open_runs if r not in runs]:
             top = open_runs.pop(run)
-            out.append(Region(run[0], top, run[1] - run[0], int(y) - top))
+            out.append(Region(run[0], top, run[1] - run[0], y - top))
         for run in runs:
-            open_runs.setdefault(run, int(y))
-    out.extend(Region(run[0], top, run[1] - run[0], height - top)
+            open_runs.setdefault(run, y)
+        if limit is not None and len(out) + len(open_runs) > limit:
+            return None
+    out.extend(Region(run[0], top, run[1] - run[0], ys[-1] - top)
                for run, top in open_runs.items())
     return sorted(out, key=lambda r: (r.y, r.x))
 
@@ -526,4 +559,4 @@ class Canvas:
     def arrival(self) -> Arrival:
         return Arrival(self.header.height, self.header.width, self.completeness,
                        max(self.tiles, self.pasted), self.pasted,
-                       tuple(regions(~self.covered)))
+                       tuple(regions(~self.covered, MAX_REGIONS)))

@@ -56,13 +56,14 @@ class CameraView(QWidget):
 
     @property
     def image_completeness(self) -> Optional[float]:
-        return None if self.image is None else fraction(self._report(IMAGE_TOPIC))
+        return None if self.image is None else fraction(self.report_for(IMAGE_TOPIC))
 
     @property
     def cloud_completeness(self) -> Optional[float]:
-        return None if self.cloud is None else fraction(self._report(CLOUD_TOPIC))
+        return None if self.cloud is None else fraction(self.report_for(CLOUD_TOPIC))
 
-    def _report(self, topic: str) -> Optional[ArrivalEvent]:
+    def report_for(self, topic: str) -> Optional[ArrivalEvent]:
+        """The bridge's report on the frame of ``topic`` shown now, if one came."""
         frame = self.image if topic == IMAGE_TOPIC else self.cloud
         return None if frame is None else self.reports[topic].find(frame.stamp_ns)
 
@@ -91,7 +92,7 @@ class CameraView(QWidget):
 
     def _draw(self) -> None:
         height, width = self.image.rgb.shape[:2]
-        missing = missing_mask(self._report(IMAGE_TOPIC), height, width)
+        missing = missing_mask(self.report_for(IMAGE_TOPIC), height, width)
         rgb = np.ascontiguousarray(marked(self.image.rgb, missing))
         image = QImage(rgb.data, width, height, 3 * width, QImage.Format_RGB888).copy()
         self.picture.setPixmap(QPixmap.fromImage(image).scaled(
@@ -105,7 +106,7 @@ class CameraView(QWidget):
             parts.append(f"image {percent(image)} arrived")
         if cloud is not None:
             parts.append(f"cloud {percent(cloud)} of points")
-        report = self._report(IMAGE_TOPIC)
+        report = self.report_for(IMAGE_TOPIC)
         lost = report is not None and bool(report.missing)
         self.caption.setText(" | ".join(parts) +
                              ("  (red: tiles that did not arrive)" if lost else ""))

@@ -3,6 +3,8 @@ the canvas says exactly which cells they were."""
 
 from __future__ import annotations
 
+import zlib
+
 import numpy as np
 import pytest
 from hypothesis import example, given
@@ -133,6 +135,33 @@ def test_regions_cover_exactly_the_marked_cells_once(height, width, rectangles, 
 def test_regions_of_any_mask_are_exact(cells, width):
     mask = np.array(cells + [False] * (-len(cells) % width)).reshape(-1, width)
     assert np.array_equal(painted(tiles.regions(mask), mask.shape), mask.astype(int))
+
+
+@FUZZ
+@given(st.lists(st.booleans(), min_size=1, max_size=120), st.integers(1, 12),
+       st.integers(1, 6))
+def test_past_the_limit_regions_still_cover_every_marked_cell_once(cells, width, limit):
+    mask = np.array(cells + [False] * (-len(cells) % width)).reshape(-1, width)
+    exact = tiles.regions(mask)
+    bounded = tiles.regions(mask, limit)
+    count = painted(bounded, mask.shape)
+    assert count.max(initial=0) <= 1 and (count[mask] == 1).all()
+    assert bounded == exact if len(exact) <= limit else len(bounded) <= mask.shape[0]
+
+
+def test_a_lattice_of_slivers_from_a_peer_makes_a_short_report():
+    """Overlapping one-cell-wide tiles, every 2nd row and column: a hole per crossing,
+    40 000 of them, reported as at most one rectangle per row band."""
+    header = tiles.RasterHeader(400, 400, 1, np.dtype(np.uint8), tiles.ZLIB)
+    canvas = tiles.Canvas(header, b"", 400)
+    for line in range(0, 400, 2):
+        for x, y, w, h in ((0, line, 400, 1), (line, 0, 1, 400)):
+            data = zlib.compress(bytes(w * h))
+            canvas.paste(tiles.Tile(header, b"", x, y, w, h, data), tiles.ZLIB)
+    arrival = canvas.arrival()
+    assert len(arrival.missing) <= 200 and arrival.fraction == pytest.approx(0.75)
+    count = painted(arrival.missing, (400, 400))
+    assert (count[~canvas.covered] == 1).all()
 
 
 def test_lost_tiles_are_their_own_regions():

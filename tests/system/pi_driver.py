@@ -14,7 +14,9 @@ with a new target, printing ``CLICKED i wall-time look_at x y``), ``peer OTHER X
 other PI's command in its log; with a 3-D view, a dragged marker moves the valve's
 pose fields, and after the test says ``restarted`` (roscore and bridge restarted
 under it) the PI shows the module again, librviz takes the new bridge's cloud,
-the PI sends ``look_at X+0.1`` and draws the robot).  ``PI_NAME`` and ``PI_LAYOUT``
+the PI sends ``look_at X+0.1`` and draws the robot), ``camera`` (the camera tab in
+the lab, no bridge: frames with a black sky and a cloud without depth there read
+100 %, nothing hatched).  ``PI_NAME`` and ``PI_LAYOUT``
 choose the PI's name and layout.  Each step prints ``STEP name``; failures print
 ``FAIL why`` and exit 1.  Screenshots go to OUTDIR.
 """
@@ -34,6 +36,8 @@ from python_qt_binding.QtWidgets import QApplication, QPushButton
 
 from pilot.app import PilotWindow, configured_modules
 from pilot.layouts import load_layout
+from pilot.link import CLOUD_TOPIC, IMAGE_TOPIC
+from pilot.widgets.camera import percent
 
 OUT = Path(sys.argv[2])
 
@@ -221,6 +225,42 @@ def second() -> None:
     if window.camera.frames == 0:
         fail("no camera frame shown")
     say("STEP camera shown")
+    view = window.camera
+    wait(lambda: view.report_for(IMAGE_TOPIC) is not None and
+         view.report_for(CLOUD_TOPIC) is not None, 30,
+         "the pilot bridge's reports on the image and cloud shown")
+    image, cloud = view.report_for(IMAGE_TOPIC), view.report_for(CLOUD_TOPIC)
+    caption = view.caption.text()     # (the scene has red of its own: no pixel count here)
+    say(f"CAMERA {caption} | bridge image {image.fraction:.4f} {len(image.missing)} regions, "
+        f"cloud {cloud.fraction:.4f}")
+    if f"image {percent(image.fraction)} arrived | cloud {percent(cloud.fraction)} of points" \
+            not in caption or ("red: tiles" in caption) != bool(image.missing):
+        fail(f"the camera says {caption!r}, the bridge {image}, {cloud}")
+    say("STEP camera shows the bridge's reports")
+    say("DONE")
+
+
+def red_pixels() -> int:
+    """Pixels of the camera picture hatched red (scaled smoothly: near the hatch colour)."""
+    image = window.camera.picture.pixmap().toImage()
+    colours = [image.pixelColor(x, y) for x in range(0, image.width(), 2)
+               for y in range(0, image.height(), 2)]
+    return sum(1 for c in colours if c.red() > 140 and c.green() < 90 and c.blue() < 90)
+
+
+def camera() -> None:
+    view = window.camera
+    window.tabs.setCurrentIndex(1)
+    wait(lambda: view.frames >= 3 and view.cloud is not None, 60, "camera frames and a cloud")
+    pump(1.0)
+    window.screenshot(OUT / "camera-lab.png")
+    caption, red = view.caption.text(), red_pixels()
+    black = float((view.image.rgb.max(axis=2) == 0).mean())
+    say(f"CAMERA {caption} | red {red} | black {black:.2f}")
+    if black < 0.3:
+        fail(f"the frame shown is {black:.0%} black: not the black sky the test publishes")
+    if "image 100% arrived | cloud 100% of points" not in caption or red:
+        fail(f"in the lab the camera says {caption!r} with {red} red pixels")
     say("DONE")
 
 
@@ -369,5 +409,6 @@ if __name__ == "__main__":
     window.start()
     wait(lambda: window.ros_up, 60, "the PI's ROS node")
     say(f"UP after {window.ready_after:.2f} s")
-    {"first": first, "second": second, "latency": latency, "peer": peer}[sys.argv[1]]()
+    {"first": first, "second": second, "latency": latency, "peer": peer,
+     "camera": camera}[sys.argv[1]]()
     window.close_link()

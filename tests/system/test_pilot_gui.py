@@ -5,8 +5,10 @@ perception and joint state; the pilot PC its bridge, gateway and joint state.  A
 PI process (tests/system/pi_driver.py) starts gaze_control and steps the valve
 task by clicks; it is SIGKILLed mid-task and a new PI finishes the task, cancels a
 timed turn with a second click, and checks that the 3-D view draws the robot and
-the cloud.  The valve is read in the MuJoCo scene.  Screenshots are kept in the
-test's folder (and copied to ``out/pilot-gui`` for a look).
+the cloud, and that the camera says what the pilot bridge reports arrived.  In
+the lab (no bridge) a frame with a black sky and a cloud without depth read 100 %.
+The valve is read in the MuJoCo scene.  Screenshots are kept in the test's folder
+(and copied to ``out/pilot-gui`` for a look).
 """
 
 from __future__ import annotations
@@ -99,6 +101,28 @@ def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
     pixels = re.search(r"PIXELS all (\d+) without_robot (\d+) without_cloud (\d+)",
                        second.output())
     assert pixels, second.output()
+    assert "STEP camera shows the bridge's reports" in second.output(), second.output()
+
+
+def test_in_the_lab_a_black_sky_and_points_without_depth_are_not_loss(display, tmp_path,
+                                                                     request):
+    """The lab has no bridge, so no report on what arrived: all of it did.  Before issue 33
+    the PI guessed loss from black blocks and NaN points, and said 60 % here."""
+    pc = Pc("lab", tmp_path / "lab")
+    out = tmp_path / "screens"
+    out.mkdir()
+    try:
+        pc.start_name_servers()
+        pc.start("camera", [PYTHON, str(REPO / "tests" / "system" / "dark_camera.py"), "2"])
+        pi = start_pi(pc, display, "camera", out)
+        pi.wait_for(r"DONE|FAIL", 120)
+        assert "FAIL" not in pi.output(), pi.output()
+        assert "CAMERA frame" in pi.output() and \
+            "image 100% arrived | cloud 100% of points | red 0" in pi.output(), pi.output()
+    finally:
+        dump_outputs_if_failed(request, pc.processes.values())
+        pc.close()
+        shutil.copytree(out, REPO / "out" / "pilot-gui", dirs_exist_ok=True)
 
 
 @pytest.fixture
