@@ -49,14 +49,22 @@ def test_a_blackout_expires_short_lived_commands_and_runs_the_others_once(pcs, l
     cut = time.monotonic()
     links.wait_for(r",down$", 10)
     noticed = time.monotonic() - cut
+    print(f"/bridge/link said down {noticed:.2f} s after the cut")
     assert noticed < 4.0, f"/bridge/link said down {noticed:.1f} s after the cut"
     commands = pcs.pilot.world.run_tool(
         lite, "write", "/test/commands", "/counter/command:i",
         input_text=f"(count 3) 3 (age 0 valid {SHORT_VALIDITY})\n"
                    f"(count 4) 4 (age 0 valid {LONG_VALIDITY})\n")
     assert commands.returncode == 0, commands.stdout + commands.stderr
-    wait_until(lambda: "(queued_commands 2)" in bridge_status(pcs.pilot, lite), 15,
-               message="the pilot's bridge holding both commands for the link")
+    # A dangerous command whose 1 s countdown ends inside the blackout: it may start only
+    # within 2 s after its countdown, so it must never run.
+    dangerous = pcs.pilot.start(["rostopic", "pub", "-1", "/counter/command",
+                                 "walkman_msgs/Command",
+                                 "{command: count, dangerous: true, countdown: 1}"], "dangerous")
+    assert dangerous.wait(60) == 0, dangerous.output()
+    gateway.wait_for(r"sent to /counter/command:i: count \d+", 15)
+    wait_until(lambda: "(queued_commands 3)" in bridge_status(pcs.pilot, lite), 15,
+               message="the pilot's bridge holding the three commands for the link")
     # The blackout's length is the thing under test: the short validity ends inside it.
     wait_until(lambda: time.monotonic() - cut >= BLACKOUT_S, BLACKOUT_S + 5,
                message="the blackout's end")
@@ -68,6 +76,7 @@ def test_a_blackout_expires_short_lived_commands_and_runs_the_others_once(pcs, l
                        f"(got {executed(pcs.log)})")
     refusal = warnings.wait_for(r"`count 3` expired after (\d+) s in the queue .*not run", 30)
     assert int(refusal.group(1)) >= BLACKOUT_S - 5
+    warnings.wait_for(r"`count` expired after \d+ s in the queue \(valid 3 s\); not run", 30)
     links.wait_for(r",up$", 30, count=2)
     wait_nothing_in_flight(pcs, lite)
     assert executed(pcs.log) == [4]                      # once, and never the expired one
