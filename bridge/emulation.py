@@ -333,8 +333,10 @@ class EmulatedLink:
                 sock.sendall(json.dumps(request).encode() + b"\n")
                 line = sock.makefile("r").readline()
         except OSError as exc:
+            log = (f"; its log:\n{self._stage_log_tail()}" if self.stage_log.exists()
+                   else ": is the link up?")
             raise EmulationError(f"the link stage of {self.prefix!r} does not answer at "
-                                 f"{self.control_path} ({exc}): is the link up?") from None
+                                 f"{self.control_path} ({exc}){log}") from None
         reply = json.loads(line) if line else {"error": "it closed without a reply"}
         if "error" in reply:
             raise EmulationError(f"the link stage of {self.prefix!r}: {reply['error']}")

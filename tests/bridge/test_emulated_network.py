@@ -21,7 +21,7 @@ import time
 
 import pytest
 
-from bridge.emulation import EmulatedLink
+from bridge.emulation import EmulatedLink, EmulationError
 from bridge.radio_model import MAX_FRAME, QUEUE_MIN_FRAMES
 from bridge_harness import HERE, PYTHON, TwoPCs
 from harness import Proc, wait_until
@@ -196,6 +196,19 @@ def test_tcp_goes_no_faster_than_the_rate(link):
     start = float(source.wait_for(r"^start ([\d.]+)").group(1))
     # SYN, SYN-ACK, then the data: three one-way delays, the payload's airtime at least.
     assert last - start >= total * 8 / DEGRADED_RATE + 3 * DEGRADED_DELAY
+
+
+def test_the_radio_refuses_impossible_settings(link):
+    link.apply("degraded")
+    for wrong, named in (({"loss": 2}, "loss"), ({"rate": -1}, "rate"),
+                         ({"queue_bytes": 10}, "queue_bytes"), ({"speed": 1}, "speed")):
+        with pytest.raises(EmulationError, match=named):
+            link.configure(**wrong)
+    with pytest.raises(EmulationError, match="not a percentage"):
+        link.set_loss(150)
+    with pytest.raises(EmulationError, match="9600bit"):
+        link.set_rate("fast")
+    assert link.settings()["rate"] == 9600.0 and link.settings()["loss"] == 0.0  # unchanged
 
 
 def test_down_ends_the_radio_stage(link):
