@@ -36,10 +36,10 @@ Where the figures come from: the DRC Finals (2015; DARPA, "Communications
 between Operator and Robot for the DRC Finals", DISTAR 23912) gave the operators
 a 9600 bit/s link both ways, always on, beside a 300 Mbit/s robot-to-operator
 link that came in 1 s bursts between blackouts of 1 to 30 s (``degraded`` is
-the slow link; ``blackouts`` cuts the whole radio for as long).  The DRC Trials (2013) alternated every
-minute between 1 Mbit/s with 100 ms latency and 100 kbit/s with 1000 ms
-(``drc`` is the good minute); we read the latency as the round trip, hence
-50 ms one way.  The Finals' documents give rates, not a delay: ``degraded``
+the slow link; ``blackouts`` cuts the whole radio for as long).  The DRC Trials
+(2013) alternated every minute between 1 Mbit/s with 100 ms latency and
+100 kbit/s with 1000 ms (``drc`` is the good minute); we read the latency as
+the round trip, hence 50 ms one way.  The Finals' documents give rates, not a delay: ``degraded``
 keeps the Trials' 50 ms of the network between operators and robot.  At 9600
 bit/s serialisation dominates anyway: 83 ms for a 100-byte frame, 1.26 s for a
 full one.

@@ -75,9 +75,11 @@ class Stage:
         for name in self.interfaces.values():
             _ip("link", "set", name, "nomaster")
         for side, name in self.interfaces.items():
-            sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ETH_P_ALL))
+            # Protocol 0 until bound: a socket opened for ETH_P_ALL hears every interface
+            # until bind() narrows it to one, and would send a frame back where it came from.
+            sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, 0)
             sock.setsockopt(socket.SOL_SOCKET, SO_RCVBUFFORCE, 4 << 20)  # a burst waits
-            sock.bind((name, 0))
+            sock.bind((name, ETH_P_ALL))
             sock.setblocking(False)
             self.sockets[side] = sock
         self.bridged = False
