@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import shutil
 import statistics
 import sys
@@ -87,6 +88,8 @@ def contract(observed: dict) -> Dict[str, str]:
 #: Names the pilot's bridge has whatever runs: its status and rpc ports, its ROS node's
 #: services, and the session's reader of its status.
 BRIDGE_OWN_PREFIXES = ("/bridge/pilot/", "/walkman_bridge_pilot/", "/session/bridge/")
+#: The port a gateway reads the pilot bridge's status on (``--link bridge``), for /bridge/link.
+GATEWAY_LINK_PORT = re.compile(r"^/pilot_gateway/\d+/bridge:i$")
 DRC_ONLY = "drc only, the bridge's own"
 
 
@@ -102,12 +105,26 @@ def bridge_own_ports(config: Path = BRIDGE_CONFIG) -> List[str]:
                   if c.middleware == "yarp" and c.key not in shown)
 
 
+def bridge_own_names(config: Path = BRIDGE_CONFIG) -> List[str]:
+    """Every name only a bridged topology has by design: :func:`bridge_own_ports` and the
+    pilot bridge's arrival report beside each image and cloud (``<topic>/arrived``)."""
+    from bridge.config import PILOT, load
+    from bridge.endpoints.ros import arrival_topic
+
+    loaded = load(config)
+    arrivals = [arrival_topic(c.label) for c in loaded.channels
+                if c.middleware == "ros" and c.destination == PILOT and
+                c.ros_type in ("sensor_msgs/Image", "sensor_msgs/PointCloud2")]
+    return bridge_own_ports(config) + sorted(arrivals)
+
+
 def extras(lab: dict, drc: dict, own_ports: Sequence[str] = ()) -> Dict[str, List[str]]:
     """Names one topology shows and the other does not, outside the contract."""
     names = lambda o: set(o["ports"]) | set(o["topics"]) | set(o["services"])  # noqa: E731
     contract_names = set(CONTRACT_TOPICS) | set(CONTRACT_PORTS) | set(CONTRACT_SERVICES)
     drc_only = names(drc) - names(lab) - contract_names
-    own = {n for n in drc_only if n.startswith(BRIDGE_OWN_PREFIXES) or n in own_ports}
+    own = {n for n in drc_only if n.startswith(BRIDGE_OWN_PREFIXES) or n in own_ports or
+           GATEWAY_LINK_PORT.match(n)}
     return {"lab only": sorted(names(lab) - names(drc) - contract_names),
             DRC_ONLY: sorted(own), "drc only": sorted(drc_only - own)}
 
@@ -221,7 +238,7 @@ def verdict(lab: dict, drc: dict, lab_record: SessionRecord,
             drc_record: SessionRecord) -> List[str]:
     """Every difference a process could observe; empty when the topologies agree."""
     problems = [f"{name}: only in the drc topology (not the bridge's own)"
-                for name in extras(lab, drc, bridge_own_ports())["drc only"]]
+                for name in extras(lab, drc, bridge_own_names())["drc only"]]
     lab_contract, drc_contract = contract(lab), contract(drc)
     for name in lab_contract:
         if lab_contract[name] != drc_contract[name]:
@@ -342,7 +359,7 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
     lab_contract, drc_contract = contract(lab), contract(drc)
     lines += [f"| `{name}` | {lab_contract[name]} | {drc_contract[name]} |"
               for name in lab_contract]
-    for title, names in extras(lab, drc, bridge_own_ports()).items():
+    for title, names in extras(lab, drc, bridge_own_names()).items():
         lines += ["", f"Expected differences, {title} ({len(names)}): " +
                   (", ".join(f"`{n}`" for n in names[:60]) or "none") +
                   (" ..." if len(names) > 60 else "")]

@@ -83,6 +83,21 @@ def test_expected_extras_are_listed_not_judged():
     assert compare.verdict(lab, drc, session("lab"), session("drc")) == []
 
 
+def test_the_arrival_reports_and_the_gateways_link_port_are_the_bridges_own():
+    lab, drc = observed_everything(), observed_everything()
+    drc["topics"]["/multisense/points/arrived"] = {"type": "walkman_msgs/Arrival", "pub": [],
+                                                   "sub": []}
+    drc["ports"]["/pilot_gateway/1/bridge:i"] = []
+    drc["topics"]["/multisense/points/elsewhere"] = {"type": "std_msgs/String", "pub": [],
+                                                     "sub": []}
+    names = compare.bridge_own_names()
+    assert "/multisense/points/arrived" in names and \
+        "/multisense/left/image_color/arrived" in names
+    assert compare.extras(lab, drc, names)["drc only"] == ["/multisense/points/elsewhere"]
+    assert compare.verdict(lab, drc, session("lab"), session("drc")) == [
+        "/multisense/points/elsewhere: only in the drc topology (not the bridge's own)"]
+
+
 def test_a_module_shown_only_through_the_bridge_is_a_difference():
     lab, drc = observed_everything(), observed_everything()
     drc["ports"]["/drc_door/switch:i"] = []          # a module the robot does not run
