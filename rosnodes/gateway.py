@@ -64,7 +64,7 @@ from rosnodes.timed import CANCELLED, SENT, Countdowns
 from walkman.gym.lifecycle import TARGET, lifecycle_of_status
 from walkman.modules import module_class
 from walkman.gym.interfaces import (InterfaceError, PilotCommand, decode_command, decoder_for,
-                                    decode_status, encode_command, readable, validity_of)
+                                    decode_status, encode_command, readable)
 from walkman.gym.validity import (DANGEROUS_GRACE, Lifetime, ValidityError, check_validity,
                                   stamp)
 from yarp_lite.bottle import Bottle
@@ -102,15 +102,12 @@ def command_decoder(name: str) -> Callable[[Bottle], PilotCommand]:
     return decoder_for(found) if found is not None else decode_command
 
 
-def default_validity(name: str) -> float:
-    """Seconds a module's commands may wait unless the pilot says (its class's declaration)."""
-    return validity_of(module_class(name))
-
-
 def lifetime(module: str, asked: float) -> Lifetime:
-    """A fresh command's lifetime: the validity the pilot asked for (0: the module's)."""
+    """A fresh command's lifetime: the validity the pilot asked for, else none said, so the
+    module applies its own default (its class is the one truth for it, and a module the
+    pilot PC does not know declares it too)."""
     if not asked:
-        return Lifetime(0.0, default_validity(module))
+        return Lifetime(0.0, None)
     try:
         return Lifetime(0.0, check_validity(float(asked)))
     except ValidityError as exc:
