@@ -24,7 +24,7 @@ pilot roscore it offers:
 Every command and switch leaves with its lifetime (:mod:`walkman.gym.validity`):
 the validity the pilot set, else the module's own default; a dangerous one may
 start only within a short grace after its countdown.  ``/bridge/link`` follows the
-pilot bridge's status port (:mod:`rosnodes.link_watch`; ``--link direct`` in the
+pilot bridge's status port (:mod:`nodekit.link_watch`; ``--link direct`` in the
 lab, where there is no bridge), so a pilot tells "link down" from "module dead".
 
 Several gateways (the DRC had three pilot PCs: one roscore and one gateway
@@ -57,7 +57,7 @@ from bridge import status as bridge_status
 from bridge.errors import BridgeProtocolError
 from nodekit.connections import ConnectionKeeper
 from nodekit.logs import configure_logging
-from rosnodes.link_watch import LinkState, LinkWatch
+from nodekit.link_watch import LinkState, LinkWatch
 from rosnodes.stations import (SequenceNumbers, StationError, claim_station, parse_sent,
                                sent_bottle_fields)
 from rosnodes.timed import CANCELLED, SENT, Countdowns

@@ -11,7 +11,7 @@ red with their history, and a command entry built from the module's
 argument, a timed send for dangerous ones.  A refused command (by the module,
 its state machine or the gateway) shows the reason in the warnings.
 
-While the link to the robot is down (``/bridge/link``, :mod:`rosnodes.link_watch`)
+While the link to the robot is down (``/bridge/link``, :mod:`nodekit.link_watch`)
 a module that said nothing lately is not "not running": the widget says "link
 down for 12 s; module last heard running" in blue, keeps the buttons the last
 known state allows (what is sent waits for the link, and expires if it waits past

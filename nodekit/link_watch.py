@@ -1,4 +1,4 @@
-"""The link as the pilots see it: the pilot bridge's status reduced to up, down or direct.
+"""The link as a side sees it: its bridge's status reduced to up, down or direct.
 
 Theory of operation
 -------------------

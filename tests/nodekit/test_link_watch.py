@@ -1,8 +1,8 @@
-"""rosnodes.link_watch: the pilot bridge's status reduced to what a pilot must read."""
+"""nodekit.link_watch: the pilot bridge's status reduced to what a pilot must read."""
 
 from __future__ import annotations
 
-from rosnodes.link_watch import BRIDGE_QUIET, DIRECT, DOWN, SILENT_DOWN, UNKNOWN, UP, LinkWatch
+from nodekit.link_watch import BRIDGE_QUIET, DIRECT, DOWN, SILENT_DOWN, UNKNOWN, UP, LinkWatch
 
 
 def status(link: str = "up", silent: float = 0.2, queued: int = 0, rtt: float = 40.0) -> dict:
