@@ -37,6 +37,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from walkman.gym.interfaces import GYM_PORTS  # noqa: E402
 from walkman.hal import protocol  # noqa: E402
 from walkman.hal.config import load_config  # noqa: E402
 from walkman.hal.protocol import ChainState  # noqa: E402
@@ -141,8 +142,8 @@ def blob_receiver(name: str) -> None:
 
 def module_cycle(name: str, rounds: int, up: float, down: float) -> None:
     for _ in range(rounds):
-        ports = [Port(f"/{name}/{port}", reader=(lambda b: None) if port.endswith(":i") else None)
-                 for port in ("switch:i", "command:i", "status:o", "warning:o")]
+        ports = [Port(port.of(name), reader=(lambda b: None) if port.to_robot else None)
+                 for port in GYM_PORTS]
         print(f"opened {time.time():.6f}", flush=True)
         time.sleep(up)
         for port in ports:

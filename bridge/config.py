@@ -8,9 +8,9 @@ The file lists modules by 8-bit id (0..255, unique across every section):
   on the robot: its ``switch`` and ``command`` go pilot->robot (reliable:
   never dropped, never duplicated, in order, sent at once), its ``status``
   (latest only, batched every period, but at once when it answers a pilot's
-  command or its state changes: :class:`bridge.node.StatusEvents`) and
-  ``warning`` (reliable) go
-  robot->pilot;
+  command or its state changes: :class:`bridge.node.StatusEvents`),
+  ``warning`` and ``receipt`` (reliable) go robot->pilot
+  (:data:`walkman.gym.interfaces.GYM_PORTS`, whose order gives each flow's kind);
 * ``<custom_modules>`` -- explicit ``<connection port_to_open source_port
   target_port location direction>``, names relative to ``/<module>``: the
   source side opens ``port_to_open`` and ``source_port`` feeds it; the
@@ -48,6 +48,7 @@ from typing import Callable, Dict, List, Optional, Tuple, TypeVar, Union
 from lxml import etree
 
 from bridge.flows import STATE_KIND, FlowKey
+from walkman.gym.interfaces import GYM_PORTS
 
 SCHEMA_PATH = Path(__file__).with_name("bridge.xsd")
 ROBOT, PILOT = "robot", "pilot"
@@ -59,11 +60,6 @@ DEFAULT_STATE_RATE = 10.0
 #: Largest configuration file read (the DRC's is 5 kB).
 MAX_CONFIG_BYTES = 1 << 20
 
-# Sub-channels of a standard GYM module (the "kind" byte on the wire).
-GYM_FLOWS = (("switch", "pilot_to_robot", "switch:i", True),
-             ("command", "pilot_to_robot", "command:i", True),
-             ("status", "robot_to_pilot", "status:o", False),
-             ("warning", "robot_to_pilot", "warning:o", True))
 
 
 class ConfigError(Exception):
@@ -245,9 +241,11 @@ def parse(text: Union[str, bytes], where: str = "<bridge config>") -> BridgeConf
         config.modules[name] = module_id
         statuses = tuple((element.get("statuses") or "").split())
         config.gym_modules[name] = statuses
-        for kind, (flow, direction, port, reliable) in enumerate(GYM_FLOWS):
+        for kind, gym_port in enumerate(GYM_PORTS):   # the kind byte on the wire
+            flow, reliable = gym_port.flow, gym_port.reliable
+            direction = "pilot_to_robot" if gym_port.to_robot else "robot_to_pilot"
             source, destination = DIRECTIONS[direction]
-            original = f"/{name}/{port}"
+            original = gym_port.of(name)
             bridge_port = f"/bridge/{source}/{name}/{flow}"
             if direction == "pilot_to_robot":
                 listen, feed, emit, deliver = original, "", bridge_port, original

@@ -21,6 +21,14 @@ when the local program wrote it, the inbox when it came off the link.  That
 is how a command's lifetime (:mod:`walkman.gym.validity`) grows by the time
 each bridge held it, without the two PCs' clocks agreeing.
 
+A message may be cancelled while it has never been handed to a socket
+(:meth:`Journal.cancel`): the sender *claims* what it puts in a frame
+(:meth:`Journal.unacknowledged`, which remembers the highest number claimed, on disk),
+and a cancel replaces only unclaimed messages, under the same lock, by a
+tombstone the peer drops.  The number stays, so the peer's count of what it
+accepted stays whole; and a message claimed once is never cancelled, even if
+the frame that carried it was lost -- a cancel that says yes is never wrong.
+
 A reconnect exchanges ``(session, accepted)``; the sender resends everything
 after ``accepted``; the receiver drops any number it already has.  The local
 writer's ``write`` returns only after the outbox commit, so a command the
@@ -39,11 +47,21 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import List, Optional
+from typing import Callable, Collection, List, Optional, Sequence, Tuple
 
+from bridge import compact
 from bridge.errors import BridgeProtocolError, BridgeUsageError
 
 DEFAULT_LIMIT = 1000
+#: What a cancelled message becomes in the outbox: its number crosses, the receiving bridge
+#: delivers nothing (:func:`is_tombstone`; a hop may have given it a lifetime trailer).
+CANCELLED_WORD = "cancelled_by_the_pilot"
+TOMBSTONE = compact.encode([CANCELLED_WORD])
+
+
+def is_tombstone(bottle: Sequence) -> bool:
+    return len(bottle) >= 1 and bottle[0] == CANCELLED_WORD and \
+        all(isinstance(item, list) for item in list(bottle)[1:])
 
 
 class QueueFull(BridgeUsageError):
@@ -103,6 +121,7 @@ class Journal:
         with self._lock:
             self.session = self._meta("session") or self._new_session()
             self._last_seq = self._meta("last_seq") or 0
+            self._claimed = self._meta("claimed") or 0
 
     def _meta(self, key: str) -> Optional[int]:
         row = self._db.execute("SELECT value FROM meta WHERE key = ?", (key,)).fetchone()
@@ -139,12 +158,39 @@ class Journal:
             self._last_seq = seq
             return seq
 
-    def unacknowledged(self, after: int = 0, limit: int = 1 << 30) -> List[Queued]:
+    def unacknowledged(self, after: int = 0, limit: int = 1 << 30,
+                       claim: bool = True) -> List[Queued]:
+        """The outbox after ``after``, in order: what the next frame carries.  Claimed
+        unless ``claim`` is False: from now on none of these can be cancelled (the claim
+        is on disk before a frame can leave).  Safe by default: a caller that only looks
+        says so."""
         with self._lock:
             rows = self._db.execute("SELECT seq, id, kind, payload, queued FROM outbox "
                                     "WHERE seq > ? ORDER BY seq LIMIT ?",
                                     (after, limit)).fetchall()
+            if claim and rows and rows[-1][0] > self._claimed:
+                self._db.execute("INSERT OR REPLACE INTO meta VALUES ('claimed', ?)",
+                                 (rows[-1][0],))
+                self._claimed = rows[-1][0]
         return [Queued(*row) for row in rows]
+
+    def cancel(self, flows: Collection[Tuple[int, int]],
+               chosen: Callable[[bytes], bool]) -> Tuple[List[bytes], List[bytes]]:
+        """Replace by :data:`TOMBSTONE` the outbox messages of ``flows`` that ``chosen``
+        picks and no frame has claimed; ``(cancelled, too late)``, their payloads."""
+        cancelled, too_late = [], []
+        with self._lock:
+            rows = self._db.execute("SELECT seq, id, kind, payload FROM outbox ORDER BY seq"
+                                    ).fetchall()
+            for seq, ident, kind, payload in rows:
+                if (ident, kind) not in flows or payload == TOMBSTONE or not chosen(payload):
+                    continue
+                if seq <= self._claimed:
+                    too_late.append(payload)
+                    continue
+                self._db.execute("UPDATE outbox SET payload = ? WHERE seq = ?", (TOMBSTONE, seq))
+                cancelled.append(payload)
+        return cancelled, too_late
 
     def acknowledge(self, upto: int) -> int:
         """Forget messages the peer has accepted; how many were forgotten."""

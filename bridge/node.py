@@ -39,9 +39,12 @@ from bridge import presence as presence_rules
 from bridge import status as status_codec
 from bridge.config import PILOT, ROBOT, BridgeConfig, Channel
 from bridge.drops import DropLedger, Reason
-from bridge.errors import BridgeProtocolError
+from bridge.errors import BridgeProtocolError, BridgeUsageError
 from bridge.expiry import aged_payload
-from bridge.journal import Journal, QueueFull
+from walkman.gym.command_life import CommandState, Receipt, encode_receipt
+from walkman.gym.interfaces import GYM_PORTS, RECEIPT, command_seq
+from walkman.gym.validity import ValidityError, split
+from bridge.journal import Journal, QueueFull, is_tombstone
 from bridge.link import LinkKey
 from bridge.presence import READER_GRACE, Presence, PresenceMemory
 from bridge.flows import Carriage, FlowKey, Form, Route, routes
@@ -57,6 +60,8 @@ log = logging.getLogger("bridge")
 
 
 
+#: The kind of a GYM module's receipt flow.
+RECEIPT_KIND = GYM_PORTS.index(RECEIPT)
 #: Seconds after a pilot's command reaches a module during which its status changes are events.
 COMMAND_WINDOW = 1.0
 #: How often the bridge writes its status on ``/bridge/<side>/status:o`` (the pilot gateway
@@ -112,6 +117,7 @@ class Bridge:
         self.journal = Journal(state_dir, limit=queue_limit, fsync=fsync)
         self.refused = 0
         self.delivered = 0
+        self.cancelled_dropped = 0       # tombstones of cancelled commands, not delivered
         self.internal_errors = 0
         self.drops = DropLedger("bridge", log)
         self._sources: Dict[FlowKey, Any] = {}
@@ -416,6 +422,10 @@ class Bridge:
                     self.journal.delivered(row)
                     continue
                 payload = message.payload
+                if route.expiring and _cancelled(payload):   # the pilot took it back
+                    self.journal.delivered(row)
+                    self.cancelled_dropped += 1
+                    continue
                 if route.expiring:   # the link's way over, and the wait in our inbox
                     payload = aged_payload(payload, self._one_way() +
                                            time.time() - message.received)
@@ -444,8 +454,18 @@ class Bridge:
                     self.journal.delivered(row)
                     self.delivered += 1
                     self.status_events.commanded(key.id)
+                    if route.expiring:
+                        self._say_delivered(key, payload)
                 else:
                     blocked.add(key)
+
+    def _say_delivered(self, key: FlowKey, payload: bytes) -> None:
+        """Tell the pilots a numbered switch or command reached its module's port (its
+        receipt flow: :mod:`walkman.gym.command_life`)."""
+        receipts = self.routes.get(FlowKey(key.id, RECEIPT_KIND))
+        seq = command_seq(compact.decode(payload))
+        if receipts is not None and seq is not None:
+            self._post(receipts, encode_receipt(Receipt(seq, CommandState.DELIVERED)))
 
     def _one_way(self) -> float:
         """Seconds a message takes over the link, as half the measured round trip."""
@@ -477,6 +497,7 @@ class Bridge:
             "undelivered": len(self.journal.undelivered()),
             "refused": self.refused,
             "delivered": self.delivered,
+            "cancelled_dropped": self.cancelled_dropped,
             "internal_errors": self.internal_errors,
             "authenticated": self.tcp.key.keyed,
             "modules_here": self._modules(self.local_presence() or frozenset()),
@@ -514,9 +535,52 @@ class Bridge:
         word = str(request[0]) if request else ""
         if word == "status":
             return self._status_bottle()
+        if word == "cancel":
+            return self._cancel_request(request)
         if word == "help":
-            return Bottle(["status: link, queues and counters of this bridge"])
-        return Bottle(["error", f"unknown command {word!r}: try status or help"])
+            return Bottle(["status: link, queues and counters of this bridge; "
+                           "cancel MODULE SEQ|all: take back commands not yet sent"])
+        return Bottle(["error", f"unknown command {word!r}: try status, cancel or help"])
+
+    # -- cancelling ---------------------------------------------------------------------
+
+    def _cancel_request(self, request: Bottle) -> Bottle:
+        """``cancel MODULE SEQ`` or ``cancel MODULE all`` -> ``ok (cancelled S...)
+        (too_late S...)`` or ``error why``."""
+        if len(request) != 3 or not isinstance(request[1], str) or \
+                not (request[2] == "all" or (isinstance(request[2], int) and
+                                             not isinstance(request[2], bool))):
+            return Bottle(["error", "usage: cancel MODULE SEQ|all"])
+        try:
+            cancelled, too_late = self.cancel(str(request[1]),
+                                              None if request[2] == "all" else int(request[2]))
+        except BridgeUsageError as exc:
+            return Bottle(["error", str(exc)])
+        return Bottle(["ok", Bottle(["cancelled", *cancelled]),
+                       Bottle(["too_late", *too_late])])
+
+    def cancel(self, module: str, seq: Optional[int]) -> Tuple[List[int], List[int]]:
+        """Take back the module's switch or command numbered ``seq`` (every one, for None)
+        if no frame has carried it yet; ``(cancelled, too late)`` sequence numbers.  The
+        pilots hear of each cancelled one on the module's receipt port."""
+        if self.side != PILOT:
+            raise BridgeUsageError("commands are cancelled on the pilot side, where they wait")
+        ident = self.config.modules.get(module)
+        if ident is None or module not in self.config.gym_modules:
+            raise BridgeUsageError(f"{module!r} is not a GYM module of {self.config.path}")
+        flows = {key for key, route in self.routes.items()
+                 if key.id == ident and route.expiring}
+        wanted = lambda payload: seq is None or _seq_of(payload) == seq  # noqa: E731
+        cancelled, too_late = self.journal.cancel(flows, wanted)
+        numbers = [n for n in map(_seq_of, cancelled) if n is not None]
+        late = [n for n in map(_seq_of, too_late) if n is not None]
+        receipts = self._sources.get(FlowKey(ident, RECEIPT_KIND))
+        for number in numbers:
+            log.info("cancelled %s's command %d before it left", module, number)
+            if receipts is not None:
+                receipts.deliver(encode_receipt(Receipt(number, CommandState.CANCELLED,
+                                                        "cancelled by a pilot")))
+        return numbers, late
 
     def _publish_status(self, port: Port) -> None:
         while not self._stop.wait(STATUS_PERIOD):
@@ -547,3 +611,20 @@ class Bridge:
         if self.ros_node is not None:
             self.ros_node.stop()
         self.journal.close()
+
+
+def _seq_of(payload: bytes) -> Optional[int]:
+    """The sequence number of a journalled switch or command, if it has one."""
+    try:
+        return command_seq(compact.decode(payload))
+    except BridgeProtocolError:
+        return None
+
+
+def _cancelled(payload: bytes) -> bool:
+    """Is this journalled switch or command the tombstone of a cancelled one?"""
+    try:
+        message, _ = split(compact.decode(payload))
+    except (BridgeProtocolError, ValidityError):
+        return False
+    return is_tombstone(message)

@@ -19,6 +19,7 @@ pilot roscore it offers:
 ``/M/get_status``            ``walkman_msgs/GetStatus``          service
 ``/pilot/sent_commands``     ``walkman_msgs/SentCommand``        out: everything any station sent
 ``/bridge/link``             ``walkman_msgs/Link``               out, latched: up, down, direct
+``/pilot/command_states``    ``walkman_msgs/CommandState``       out: each command's life
 ===========================  ==================================  ===========================
 
 Every command and switch leaves with its lifetime (:mod:`walkman.gym.validity`):
@@ -63,7 +64,10 @@ from rosnodes.stations import (SequenceNumbers, StationError, claim_station, par
 from rosnodes.timed import CANCELLED, SENT, Countdowns
 from walkman.gym.lifecycle import TARGET, lifecycle_of_status
 from walkman.modules import module_class
-from walkman.gym.interfaces import (InterfaceError, PilotCommand, decode_command, decoder_for,
+from walkman.gym.command_life import (CommandLife, CommandState, Ledger, Receipt,
+                                      ReceiptError, decode_receipt, describe)
+from walkman.gym.interfaces import (COMMAND, RECEIPT, STATUS, SWITCH, WARNING, InterfaceError,
+                                    PilotCommand, command_text, decode_command, decoder_for,
                                     decode_status, encode_command, readable)
 from walkman.gym.validity import (DANGEROUS_GRACE, Lifetime, ValidityError, check_validity,
                                   stamp)
@@ -71,14 +75,16 @@ from yarp_lite.bottle import Bottle
 from yarp_lite.errors import YarpError
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
+from yarp_lite.rpc import RpcClient
 
 log = logging.getLogger("walkman.gateway")
 
 DEFAULT_CONFIG = Path(__file__).resolve().parents[1] / "models" / "bridge_drc.xml"
 #: How long a command waits for the connection to its module before it is refused (s).
 CONNECT_GRACE = 10.0
-#: Where the pilot bridge says how the link is (:mod:`bridge.node`).
+#: Where the pilot bridge says how the link is (:mod:`bridge.node`), and takes cancels.
 BRIDGE_STATUS = "/bridge/pilot/status:o"
+BRIDGE_RPC = "/bridge/pilot/rpc:i"
 #: The lifecycle state each switch word leads to (walkman.gym.lifecycle owns the table).
 EXPECTED = {switch.value: state.value for switch, state in TARGET.items()}
 
@@ -114,6 +120,14 @@ def lifetime(module: str, asked: float) -> Lifetime:
         raise GatewayError(f"validity: {exc}") from None
 
 
+def life_text(sent: str) -> str:
+    """A sent command's text as the pilot typed it: ``(turn 1.57) 42`` -> ``turn 1.57``."""
+    try:
+        return command_text(decode_command(Bottle.from_text(sent)))
+    except (InterfaceError, ValueError):
+        return sent
+
+
 def lifecycle_of(state: str) -> str:
     return lifecycle_of_status(state).value
 
@@ -136,10 +150,10 @@ def build_command(msg: Any, seq: int,
 
 
 class ModuleLink:
-    """One module's four YARP ports, as the pilot sees them."""
+    """One module's YARP ports (:data:`GYM_PORTS`), as the pilot sees them."""
 
     def __init__(self, module: str, statuses: List[str], prefix: str, nameclient: NameClient,
-                 keeper: ConnectionKeeper, on_status, on_warning) -> None:
+                 keeper: ConnectionKeeper, on_status, on_warning, on_receipt) -> None:
         self.module = module
         self.statuses = statuses
         # Everything the readers touch exists before a port opens: a message may arrive at once.
@@ -153,12 +167,13 @@ class ModuleLink:
         self.status.open(f"{base}/status:i", wait=math.inf)
         self.warning = Port(nameclient=nameclient, reader=lambda b: on_warning(self, b))
         self.warning.open(f"{base}/warning:i", wait=math.inf)
-        keeper.want(self.switch.name, f"/{module}/switch:i", self.switch, ours_is_source=True)
-        keeper.want(self.command.name, f"/{module}/command:i", self.command,
-                    ours_is_source=True)
-        keeper.want(f"/{module}/status:o", self.status.name, self.status, ours_is_source=False)
-        keeper.want(f"/{module}/warning:o", self.warning.name, self.warning,
-                    ours_is_source=False)
+        self.receipt = Port(nameclient=nameclient, reader=lambda b: on_receipt(self, b))
+        self.receipt.open(f"{base}/receipt:i", wait=math.inf)
+        keeper.want(self.switch.name, SWITCH.of(module), self.switch, ours_is_source=True)
+        keeper.want(self.command.name, COMMAND.of(module), self.command, ours_is_source=True)
+        for theirs, ours in ((STATUS, self.status), (WARNING, self.warning),
+                             (RECEIPT, self.receipt)):
+            keeper.want(theirs.of(module), ours.name, ours, ours_is_source=False)
 
     def send(self, port: Port, bottle: Bottle) -> Tuple[bool, str]:
         # A pilot's first command may come before the connection keeper made the
@@ -182,7 +197,7 @@ class ModuleLink:
         return lifecycle_of(self.last_status[1]) if self.last_status else "unknown"
 
     def close(self) -> None:
-        for port in (self.switch, self.command, self.status, self.warning):
+        for port in (self.switch, self.command, self.status, self.warning, self.receipt):
             port.close()
 
 
@@ -193,6 +208,9 @@ class Gateway:
                  direct: bool = False) -> None:
         self.modules = modules
         self.link_watch = LinkWatch(direct, time.monotonic())
+        self.ledger = Ledger()
+        self._ledger_lock = threading.Lock()
+        self._states_pub = None
         self._link_lock = threading.Lock()
         self._link_pub = None
         self.bridge_in: Optional[Port] = None
@@ -231,7 +249,8 @@ class Gateway:
         self.sent_in.open(f"{self.prefix}/sent:i", wait=math.inf)
         for module, statuses in self.modules.items():
             self.links[module] = ModuleLink(module, statuses, self.prefix, self.nameclient,
-                                            self.keeper, self._on_status, self._on_warning)
+                                            self.keeper, self._on_status, self._on_warning,
+                                            self._on_receipt)
         if self.link_watch.state.state != "direct":
             self.bridge_in = Port(nameclient=self.nameclient, reader=self._on_bridge_status)
             self.bridge_in.open(f"{self.prefix}/bridge:i", wait=math.inf)
@@ -285,6 +304,9 @@ class Gateway:
         if state.state == "down":
             log.warning("gateway: the link to the robot is down (%s); %d command(s) held",
                         state.reason, state.queued)
+            with self._ledger_lock:
+                changed = self.ledger.link_down()
+            self._publish_states(changed)
         else:
             log.info("gateway: the link to the robot is %s", state.state)
         self._publish_link()
@@ -369,9 +391,10 @@ class Gateway:
 
     def _open_ros(self) -> None:
         import rospy
+        from walkman_msgs.msg import CommandState as CommandStateMsg
         from walkman_msgs.msg import (Command, Countdown, Link, SentCommand, Status, Switch,
                                       Warning)
-        from walkman_msgs.srv import GetStatus, SendCommand, SwitchModule
+        from walkman_msgs.srv import Cancel, GetStatus, SendCommand, SwitchModule
 
         while not self.yarp_open.wait(1.0):    # the station numbers what ROS brings
             if self.finished.is_set():
@@ -388,6 +411,8 @@ class Gateway:
 
         self._sent = rospy.Publisher("/pilot/sent_commands", SentCommand, queue_size=50)
         self._link_pub = rospy.Publisher("/bridge/link", Link, queue_size=5, latch=True)
+        self._states_pub = rospy.Publisher("/pilot/command_states", CommandStateMsg,
+                                           queue_size=200)
         self._publish_link()
         for module in self.modules:
             self._ros[module] = {
@@ -405,7 +430,9 @@ class Gateway:
                     rospy.Service(f"/{module}/send_command", SendCommand,
                                   lambda r, mod=module: self._send_command_srv(mod, r)),
                     rospy.Service(f"/{module}/get_status", GetStatus,
-                                  lambda r, mod=module: self._get_status(mod))],
+                                  lambda r, mod=module: self._get_status(mod)),
+                    rospy.Service(f"/{module}/cancel", Cancel,
+                                  lambda r, mod=module: self._cancel_srv(mod, r))],
             }
             link = self.links.get(module)
             if link is not None and link.last_status is not None:
@@ -483,6 +510,12 @@ class Gateway:
 
     def _publish_sent(self, module: str, port: str, text: str, seq: int, sender: str,
                       station: int) -> None:
+        if seq:
+            life = CommandLife(module, port, seq, life_text(text), sender or "rostopic",
+                               station)
+            with self._ledger_lock:
+                changed = self.ledger.sent(life, link_down=self.link_watch.state.state == "down")
+            self._publish_states(changed)
         if self._sent is not None:
             import rospy
             from walkman_msgs.msg import SentCommand
@@ -492,6 +525,35 @@ class Gateway:
             msg.module, msg.port, msg.text, msg.seq = module, port, text, seq
             msg.sender, msg.station = sender, station
             self._sent.publish(msg)
+
+    # -- the commands' lives -------------------------------------------------------------
+
+    def _on_receipt(self, link: ModuleLink, bottle: Bottle) -> None:
+        try:
+            receipt = decode_receipt(bottle)
+        except ReceiptError as exc:
+            log.warning("gateway: %s sent a malformed receipt: %s", link.module, exc)
+            return
+        with self._ledger_lock:
+            changed = self.ledger.receipt(link.module, receipt)
+        self._publish_states(changed)
+
+    def _publish_states(self, lives: List[CommandLife]) -> None:
+        for life in lives:
+            if life.state in (CommandState.REFUSED, CommandState.EXPIRED,
+                              CommandState.CANCELLED, CommandState.QUEUED):
+                log.info("gateway: %s", describe(life))
+            if self._states_pub is None:
+                continue
+            import rospy
+            from walkman_msgs.msg import CommandState as CommandStateMsg
+
+            msg = CommandStateMsg()
+            msg.header.stamp = rospy.Time.now()
+            msg.module, msg.port, msg.seq, msg.text = life.module, life.port, life.seq, life.text
+            msg.sender, msg.station = life.sender, life.station
+            msg.state, msg.reason = life.state.value, life.reason
+            self._states_pub.publish(msg)
 
     def _refuse(self, module: str, text: str) -> None:
         log.warning("gateway: %s", text)
@@ -600,6 +662,48 @@ class Gateway:
             return SendCommandResponse(False, 0, str(exc))
         ok, message = self.send_command(module, command, "service")
         return SendCommandResponse(ok, command.seq if ok else 0, message)
+
+    def cancel(self, module: str, seq: int) -> Tuple[bool, List[int], str]:
+        """Take back the module's queued command ``seq`` (0: all of them) from the pilot
+        bridge: ``(ok, cancelled, what happened)``.  Only what no frame has carried can be
+        taken back; a command already on its way is said so, never claimed cancelled."""
+        if self.link_watch.state.state == "direct":
+            return False, [], ("no bridge here (the lab): a command goes straight to its "
+                               "module and never waits, so there is nothing to cancel")
+        try:
+            client = RpcClient(nameclient=self.nameclient)
+            try:
+                client.connect(BRIDGE_RPC)
+                reply = client.call(Bottle(["cancel", module, seq or "all"]), timeout=5.0)
+            finally:
+                client.close()
+        except YarpError as exc:
+            return False, [], f"cannot reach the pilot bridge ({BRIDGE_RPC}): {exc}"
+        if len(reply) != 3 or reply[0] != "ok":
+            return False, [], f"the pilot bridge refused: {readable(reply)}"
+        cancelled = [int(n) for n in list(reply[1])[1:]]
+        too_late = [int(n) for n in list(reply[2])[1:]]
+        with self._ledger_lock:
+            changed = [life for n in cancelled for life in self.ledger.receipt(
+                module, Receipt(n, CommandState.CANCELLED, "cancelled by a pilot"))]
+        self._publish_states(changed)
+        parts = []
+        if cancelled:
+            parts.append("cancelled " + " ".join(map(str, cancelled)))
+        if too_late:
+            parts.append(f"{' '.join(map(str, too_late))} already on the way to the robot: "
+                         f"not cancelled")
+        if not parts:
+            parts.append(f"no queued command {seq}" if seq else "nothing queued")
+        message = "; ".join(parts)
+        log.info("gateway: cancel %s %s: %s", module, seq or "all", message)
+        return bool(cancelled) or not too_late and not seq, cancelled, message
+
+    def _cancel_srv(self, module: str, request: Any) -> Any:
+        from walkman_msgs.srv import CancelResponse
+
+        ok, cancelled, message = self.cancel(module, int(request.seq))
+        return CancelResponse(ok, cancelled, message)
 
     def _get_status(self, module: str) -> Any:
         from walkman_msgs.msg import Status

@@ -39,6 +39,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 from system.session import CANCELLED_COMMAND, MODULES, SessionRecord
 from system.session import run as run_session
 from system.topology import BRIDGE_CONFIG, REPO, Topology, add_link_arguments
+from walkman.gym.interfaces import GYM_PORTS
 
 CONTRACT_TOPICS = {
     "/gaze_control/status": "walkman_msgs/Status", "/gaze_control/switch": "walkman_msgs/Switch",
@@ -52,8 +53,7 @@ CONTRACT_TOPICS = {
     "/multisense/points": "sensor_msgs/PointCloud2",
     "/multisense/left/camera_info": "sensor_msgs/CameraInfo",
 }
-CONTRACT_PORTS = [f"/{m}/{p}" for m in MODULES
-                  for p in ("switch:i", "command:i", "status:o", "warning:o")] + \
+CONTRACT_PORTS = [port.of(m) for m in MODULES for port in GYM_PORTS] + \
     ["/walkman/rpc:i"] + [f"/walkman/{chain}/stateSI:o" for chain in
                           ("torso", "head", "left_arm", "right_arm", "left_leg", "right_leg",
                            "left_hand", "right_hand")]

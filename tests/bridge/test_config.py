@@ -21,11 +21,13 @@ def test_the_papers_example_loads_as_printed():
     assert loaded.period == 0.5 and loaded.gather == 0.4
 
 
-def test_a_gym_module_expands_to_its_four_flows():
+def test_a_gym_module_expands_to_its_five_flows():
     loaded = config.load(MODELS / "bridge_paper.xml")
     flows = {c.label: c for c in loaded.channels if c.id == 7}
-    assert set(flows) == {"gaze_control/switch", "gaze_control/command", "gaze_control/status",
-                          "gaze_control/warning"}
+    assert [c.label for c in loaded.channels if c.id == 7] == [
+        "gaze_control/switch", "gaze_control/command", "gaze_control/status",
+        "gaze_control/warning", "gaze_control/receipt"]          # kinds 0..4, never reordered
+    assert [c.kind for c in flows.values()] == [0, 1, 2, 3, 4]
     switch = flows["gaze_control/switch"]
     assert (switch.source, switch.destination, switch.reliable) == ("pilot", "robot", True)
     assert switch.listen_port == "/gaze_control/switch:i"        # opened on the pilot side
@@ -34,6 +36,10 @@ def test_a_gym_module_expands_to_its_four_flows():
     assert (status.source, status.reliable) == ("robot", False)
     assert status.feed_port == "/gaze_control/status:o" and status.emit_port == status.feed_port
     assert flows["gaze_control/warning"].reliable
+    receipt = flows["gaze_control/receipt"]
+    assert (receipt.source, receipt.reliable, receipt.expiring) == ("robot", True, False)
+    assert receipt.feed_port == "/gaze_control/receipt:o"
+    assert switch.expiring and flows["gaze_control/command"].expiring
 
 
 def test_custom_modules_rename_ports():

@@ -39,6 +39,8 @@ def test_a_blackout_expires_short_lived_commands_and_runs_the_others_once(pcs, l
                                "--link", "bridge", name="gateway")
     gateway.wait_for("ROS topics and services up", 60)
     links = pcs.pilot.start(["rostopic", "echo", "-p", "/bridge/link/state"], "link echo")
+    states = pcs.pilot.start(["rostopic", "echo", "-p", "/pilot/command_states/state"],
+                             "command states")
     links.wait_for(r",up$", 30)
     switch(pcs, lite, "start", 2)
     warnings = pcs.pilot.world.tool(lite, "read", "/test/warnings", "/counter/warning:o")
@@ -65,6 +67,17 @@ def test_a_blackout_expires_short_lived_commands_and_runs_the_others_once(pcs, l
     gateway.wait_for(r"sent to /counter/command:i: count \d+", 15)
     wait_until(lambda: "(queued_commands 3)" in bridge_status(pcs.pilot, lite), 15,
                message="the pilot's bridge holding the three commands for the link")
+    # A command queued behind the blackout and cancelled during it never runs.
+    queued = pcs.pilot.start(["rostopic", "pub", "-1", "/counter/command",
+                              "walkman_msgs/Command", "{command: count, validity: 120}"], "queued")
+    assert queued.wait(60) == 0, queued.output()
+    wait_until(lambda: "(queued_commands 4)" in bridge_status(pcs.pilot, lite), 15,
+               message="the fourth command held for the link")
+    seq = gateway.wait_for(r"sent to /counter/command:i: count (\d+)", 15, count=2).group(1)
+    cancel = pcs.pilot.start(["rosservice", "call", "/counter/cancel", f"{{seq: {seq}}}"],
+                             "cancel")
+    assert cancel.wait(60) == 0, cancel.output()
+    assert re.search(rf"ok: True\s+cancelled: \[{seq}\]", cancel.output()), cancel.output()
     # The blackout's length is the thing under test: the short validity ends inside it.
     wait_until(lambda: time.monotonic() - cut >= BLACKOUT_S, BLACKOUT_S + 5,
                message="the blackout's end")
@@ -77,6 +90,11 @@ def test_a_blackout_expires_short_lived_commands_and_runs_the_others_once(pcs, l
     refusal = warnings.wait_for(r"`count 3` expired after (\d+) s in the queue .*not run", 30)
     assert int(refusal.group(1)) >= BLACKOUT_S - 5
     warnings.wait_for(r"`count` expired after \d+ s in the queue \(valid 3 s\); not run", 30)
+    # Its life as every pilot station sees it: held for the link, written to the module's
+    # port when the link came back, refused there as too old.
+    states.wait_for(r",expired$", 30)
+    said = [line.split(",")[-1] for line in states.lines if "," in line][1:]
+    assert said == ["queued", "queued", "cancelled", "delivered", "expired"], said
     links.wait_for(r",up$", 30, count=2)
     wait_nothing_in_flight(pcs, lite)
     assert executed(pcs.log) == [4]                      # once, and never the expired one

@@ -68,3 +68,29 @@ def test_floats_read_as_a_pilot_typed_them_and_the_rest_as_yarp_writes_it():
     assert readable(bottle) == '(look_at 1.45 0.2 3.0 1.570796327 "two words" 7) 655722274'
     assert readable(Bottle(["start", 12])) == "start 12"
     assert readable(Bottle([float("nan"), 1e-9])) == f"{Bottle([float('nan')]).to_text()} 1e-09"
+
+
+def test_the_inbox_says_what_became_of_each_numbered_command():
+    from walkman.gym.command_life import CommandState, Receipt
+
+    box, clock = inbox(validity=5.0)
+    said = []
+    box.on_receipt = said.append
+    box.feed(Bottle.from_text("(turn 1.5) 42"))
+    box.feed(Bottle.from_text("go"))                        # no number: nothing to name
+    box.feed(stamp(Bottle.from_text("(turn 2.0) 43"), Lifetime(9.0, None)))
+    assert box.get() == PilotCommand("turn", (1.5,), 42)
+    assert box.get() == PilotCommand("go")
+    assert box.get() is None
+    assert said == [Receipt(42, CommandState.ACCEPTED),
+                    Receipt(43, CommandState.EXPIRED,
+                            "`turn 2.0` expired after 9 s in the queue (valid 5 s); not run")]
+
+
+def test_the_standard_ports_are_named_in_one_place_in_the_bridges_kind_order():
+    from walkman.gym.interfaces import GYM_PORTS, RECEIPT, SWITCH
+
+    assert [p.suffix for p in GYM_PORTS] == ["switch:i", "command:i", "status:o", "warning:o",
+                                             "receipt:o"]
+    assert SWITCH.of("gaze_control") == "/gaze_control/switch:i"
+    assert RECEIPT.of("/a/b") == "/a/b/receipt:o"

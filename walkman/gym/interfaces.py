@@ -1,4 +1,4 @@
-"""The four pilot interfaces of a GYM module, on their standard ports.
+"""The pilot interfaces of a GYM module, on their standard ports (:data:`GYM_PORTS`).
 
 ==================  ============================  =====================================
 interface           port                          Bottle
@@ -7,7 +7,13 @@ switch              ``/P/switch:i``               ``cmd seq`` (start pause resum
 command             ``/P/command:i``              ``cmd seq`` or ``(cmd args...) seq``
 status              ``/P/status:o``               ``seq state data...``
 warning             ``/P/warning:o``              ``seq text``
+receipt             ``/P/receipt:o``              ``seq state [reason]`` (this project's)
 ==================  ============================  =====================================
+
+The paper's GYM has the first four; ``receipt`` says what became of each
+numbered switch and command (``accepted``, ``refused`` with why, ``expired``:
+:mod:`walkman.gym.command_life`), so a pilot sees a command's life, not only
+its effect.  Programs that do not read it lose nothing.
 
 As in the original GYM a receiver ignores a missing sequence number, so
 ``yarp write /x /P/switch:i`` then typing ``start`` works; ``(turn 30)`` sends
@@ -39,11 +45,37 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Callable, Collection, Deque, List, Optional, Sequence, Tuple
 
+from walkman.gym.command_life import CommandState, Receipt, encode_receipt
 from walkman.gym.validity import (DEFAULT_VALIDITY, Lifetime, ValidityError, describe_expiry,
                                   split, stamp)
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
+
+
+@dataclass(frozen=True)
+class GymPort:
+    """One of a GYM module's standard ports: every program that names one reads it here."""
+
+    flow: str            # "switch", ... (the bridge's flow label: ``<module>/<flow>``)
+    suffix: str          # "switch:i"
+    to_robot: bool       # written by the pilot's side
+    reliable: bool       # never dropped, never duplicated (the bridge journals it)
+
+    def of(self, module: str) -> str:
+        """The port's name for ``module`` (``/gaze_control/switch:i``)."""
+        return f"/{module.strip('/')}/{self.suffix}"
+
+
+#: The standard ports, in the order of the bridge's flow kinds (0, 1, ...): never reorder.
+GYM_PORTS: Tuple[GymPort, ...] = (
+    GymPort("switch", "switch:i", True, True),
+    GymPort("command", "command:i", True, True),
+    GymPort("status", "status:o", False, False),
+    GymPort("warning", "warning:o", False, True),
+    GymPort("receipt", "receipt:o", False, True),
+)
+SWITCH, COMMAND, STATUS, WARNING, RECEIPT = GYM_PORTS
 
 
 @dataclass(frozen=True)
@@ -122,6 +154,16 @@ def command_text(command: PilotCommand) -> str:
     return readable([command.name, *command.args])
 
 
+def command_seq(bottle: Bottle) -> Optional[int]:
+    """The sequence number of a switch or command as written (lifetime and all), if it
+    has one: what its receipts name."""
+    try:
+        message, _ = split(bottle)
+        return decode_command(message).seq
+    except (InterfaceError, ValidityError):
+        return None
+
+
 def validity_of(module_class: object) -> float:
     """The seconds a module's commands may wait by default (its ``command_validity``)."""
     return float(getattr(module_class, "command_validity", DEFAULT_VALIDITY))
@@ -160,6 +202,8 @@ class _Inbox:
         self.expired = 0
         self.lock = threading.Lock()
         self.on_arrival: Optional[Callable[[], None]] = None
+        #: told what became of each numbered command (:mod:`walkman.gym.command_life`)
+        self.on_receipt: Callable[[Receipt], None] = lambda receipt: None
 
     def feed(self, bottle: Bottle) -> None:
         arrived = self.clock()
@@ -182,8 +226,13 @@ class _Inbox:
             self.queue.put_nowait((command, arrived))
         except queue.Full:
             self.rejected.append(f"command queue full, dropped {command.name}")
+            self._receipt(command, CommandState.REFUSED, "the module's command queue is full")
         if self.on_arrival:
             self.on_arrival()
+
+    def _receipt(self, command: PilotCommand, state: CommandState, reason: str = "") -> None:
+        if command.seq is not None:
+            self.on_receipt(Receipt(command.seq, state, reason))
 
     def get(self, timeout: Optional[float] = None) -> Optional[PilotCommand]:
         """The next command that may still start; older ones are refused on the way
@@ -198,10 +247,12 @@ class _Inbox:
                 return None
             lifetime = (command.lifetime or Lifetime()).older(self.clock() - arrived)
             if not lifetime.expired(self.validity):
+                self._receipt(command, CommandState.ACCEPTED)
                 return command
             self.expired += 1
-            self.rejected.append(describe_expiry(command_text(command), lifetime,
-                                                 self.validity))
+            refusal = describe_expiry(command_text(command), lifetime, self.validity)
+            self.rejected.append(refusal)
+            self._receipt(command, CommandState.EXPIRED, refusal)
             if self.on_arrival:
                 self.on_arrival()   # the refusal is said now, not with the next command
 
@@ -211,7 +262,7 @@ class _Inbox:
 
 
 class PilotInterfaces:
-    """Opens and serves ``/P/switch:i``, ``/P/command:i``, ``/P/status:o``, ``/P/warning:o``."""
+    """Opens and serves the module's :data:`GYM_PORTS` under ``/P``."""
 
     def __init__(self, prefix: str, nameclient: Optional[NameClient] = None,
                  statuses: Optional[Sequence[str]] = None,
@@ -233,17 +284,21 @@ class PilotInterfaces:
         self.ports: List[Port] = []
         self.status_port: Optional[Port] = None
         self.warning_port: Optional[Port] = None
+        self.receipt_port: Optional[Port] = None
+        self.switch.on_receipt = self.commands.on_receipt = self.receipt
 
     def open(self, wait: float) -> None:
         switch = Port(nameclient=self.nameclient, reader=self.switch.feed)
-        switch.open(f"{self.prefix}/switch:i", wait=wait)
+        switch.open(SWITCH.of(self.prefix), wait=wait)
         command = Port(nameclient=self.nameclient, reader=self.commands.feed)
-        command.open(f"{self.prefix}/command:i", wait=wait)
+        command.open(COMMAND.of(self.prefix), wait=wait)
         self.status_port = Port(nameclient=self.nameclient)
-        self.status_port.open(f"{self.prefix}/status:o", wait=wait)
+        self.status_port.open(STATUS.of(self.prefix), wait=wait)
         self.warning_port = Port(nameclient=self.nameclient)
-        self.warning_port.open(f"{self.prefix}/warning:o", wait=wait)
-        self.ports = [switch, command, self.status_port, self.warning_port]
+        self.warning_port.open(WARNING.of(self.prefix), wait=wait)
+        self.receipt_port = Port(nameclient=self.nameclient)
+        self.receipt_port.open(RECEIPT.of(self.prefix), wait=wait)
+        self.ports = [switch, command, self.status_port, self.warning_port, self.receipt_port]
 
     def set_status(self, state: str, data: Sequence = ()) -> bool:
         """Record the status; True when it changed (the watchdog then sends it at once)."""
@@ -259,6 +314,11 @@ class PilotInterfaces:
     def warn(self, text: str) -> None:
         if self.warning_port is not None:
             self.warning_port.write(Bottle([next(self._warning_seq), text]))
+
+    def receipt(self, receipt: Receipt) -> None:
+        """Say what became of a numbered switch or command (``/P/receipt:o``)."""
+        if self.receipt_port is not None:
+            self.receipt_port.write(encode_receipt(receipt))
 
     def close(self) -> None:
         for port in self.ports:
@@ -278,6 +338,7 @@ class RecordingInterfaces(PilotInterfaces):
                          validity=validity_of(module_class))
         self.warnings: List[str] = []
         self.history: List[str] = []
+        self.receipts: List[Receipt] = []
         self._changed = threading.Condition()
 
     def open(self, wait: float) -> None:
@@ -294,6 +355,11 @@ class RecordingInterfaces(PilotInterfaces):
     def warn(self, text: str) -> None:
         with self._changed:
             self.warnings.append(text)
+            self._changed.notify_all()
+
+    def receipt(self, receipt: Receipt) -> None:
+        with self._changed:
+            self.receipts.append(receipt)
             self._changed.notify_all()
 
     def wait_for(self, predicate: Callable[[], bool], timeout: float) -> bool:
