@@ -126,7 +126,8 @@ ROUTES = {events.StatusEvent: "on_status", events.WarningEvent: "on_warning",
           events.JointsEvent: "on_joints", events.TemperaturesEvent: "on_temperatures",
           events.ImageEvent: "on_image", events.CloudEvent: "on_cloud",
           events.ArrivalEvent: "on_arrival",
-          events.BridgeEvent: "on_bridge", events.LinkEvent: "on_link"}
+          events.BridgeEvent: "on_bridge", events.LinkEvent: "on_link",
+          events.CommandStateEvent: "on_command_state"}
 
 
 class _Events(QObject):
@@ -242,6 +243,9 @@ class PilotWindow(QMainWindow):
 
     def command(self, module: str, name: str, numbers=(), dangerous: bool = False) -> str:
         return self.link.command(module, name, numbers, dangerous)
+
+    def cancel(self, module: str, seq: int = 0) -> str:
+        return self.link.cancel(module, seq)
 
     # -- running ---------------------------------------------------------------------------
 

@@ -139,6 +139,21 @@ class LinkEvent:
 
 
 @dataclass(frozen=True)
+class CommandStateEvent:
+    """A command's life moved on (``/pilot/command_states``): any pilot's command."""
+
+    module: str
+    port: str
+    seq: int
+    text: str
+    sender: str
+    station: int
+    state: str            # sent queued delivered accepted refused expired cancelled
+    reason: str
+    stamp: float
+
+
+@dataclass(frozen=True)
 class RosEvent:
     up: bool
     again: bool = False   # the master restarted and our topics are registered again
@@ -266,6 +281,28 @@ class PilotLink:
                                        sender=self.name))
         return ""
 
+    def cancel(self, module: str, seq: int = 0) -> str:
+        """Ask the gateway to take back the module's queued command ``seq`` (0: all of
+        them); returns at once, the answer comes as command states (and, if the gateway
+        could not be asked, as this PI's warning)."""
+        if self._ros is None or not self._ros.ready.is_set():
+            return "the PI is not connected to the pilot roscore yet"
+
+        def ask() -> None:
+            import rospy
+            from walkman_msgs.srv import Cancel
+
+            try:
+                rospy.wait_for_service(f"/{module}/cancel", timeout=5.0)
+                answer = rospy.ServiceProxy(f"/{module}/cancel", Cancel)(seq)
+                text = answer.message
+            except (rospy.ROSException, rospy.ServiceException) as exc:
+                text = f"not cancelled: the gateway did not answer ({exc})"
+            self.post(WarningEvent(module, f"cancel: {text}", time.time()))
+
+        threading.Thread(target=ask, name=f"cancel {module}", daemon=True).start()
+        return ""
+
     def cannot_send(self, module: str) -> str:
         """Why a switch or command to ``module`` would go nowhere now, or "".
 
@@ -291,8 +328,9 @@ class PilotLink:
         import rospy
         from sensor_msgs.msg import Image, JointState, PointCloud2
         from bridge.endpoints.ros import arrival_topic
-        from walkman_msgs.msg import (Arrival, Command, Countdown, JointTemperatures, Link,
-                                      SentCommand, Status, Switch, Warning)
+        from walkman_msgs.msg import (Arrival, Command, CommandState, Countdown,
+                                      JointTemperatures, Link, SentCommand, Status, Switch,
+                                      Warning)
 
         for module in self.modules:
             self._senders[module] = _Sender(
@@ -304,6 +342,8 @@ class PilotLink:
         every_pilots_commands = rospy.Subscriber("/pilot/sent_commands", SentCommand,
                                                  self._on_sent)
         rospy.Subscriber("/bridge/link", Link, self._on_link)
+        rospy.Subscriber("/pilot/command_states", CommandState, self._on_command_state,
+                         queue_size=200)
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=1)
         rospy.Subscriber("/joint_temperatures", JointTemperatures, self._on_temperatures,
                          queue_size=1)
@@ -346,6 +386,11 @@ class PilotLink:
         stamp = msg.header.stamp.to_sec()
         since = float(msg.since) + (max(0.0, time.time() - stamp) if stamp else 0.0)
         self.post(LinkEvent(msg.state, msg.reason, since, int(msg.queued)))
+
+    def _on_command_state(self, msg: Any) -> None:
+        self.post(CommandStateEvent(msg.module, msg.port, int(msg.seq), msg.text, msg.sender,
+                                    int(msg.station), msg.state, msg.reason,
+                                    msg.header.stamp.to_sec() or time.time()))
 
     def _on_joints(self, msg: Any) -> None:
         self.post(JointsEvent(tuple(msg.name), np.array(msg.position, float),

@@ -16,7 +16,9 @@ a module that said nothing lately is not "not running": the widget says "link
 down for 12 s; module last heard running" in blue, keeps the buttons the last
 known state allows (what is sent waits for the link, and expires if it waits past
 its validity), and goes back to its usual colours when the link returns.  Only a
-module silent while the link is up reads "not running".
+module silent while the link is up reads "not running".  Commands held for the link
+(``/pilot/command_states``: queued) are listed with a "cancel queued" button; one refused
+or expired on the robot is shown among the warnings with why.
 
 "Advanced mode" (the paper's: commands usually hidden are shown and all the
 buttons enabled, the pilot knowing the risk) is one switch for the window.
@@ -36,7 +38,8 @@ from python_qt_binding.QtWidgets import (QComboBox, QDoubleSpinBox, QGridLayout,
 from python_qt_binding.QtGui import QColor
 
 from pilot.catalogue import Catalogue, legal_switches
-from pilot.link import CountdownEvent, LinkEvent, StatusEvent, WarningEvent
+from pilot.link import (CommandStateEvent, CountdownEvent, LinkEvent, StatusEvent,
+                        WarningEvent)
 from pilot.widgets.timed_button import TimedButton
 from walkman.gym.lifecycle import State, lifecycle_of_status
 
@@ -91,6 +94,20 @@ class GenericWidget(QGroupBox):
         outer.addLayout(self.task_area)
 
         outer.addWidget(self._command_entry())
+        held = QHBoxLayout()
+        self.queued_label = QLabel("")
+        self.queued_label.setObjectName("queued")
+        self.queued_label.setWordWrap(True)
+        self.queued_label.setStyleSheet(f"color: {LINK_DOWN_COLOUR};")
+        self.cancel_button = QPushButton("cancel queued")
+        self.cancel_button.setObjectName("cancel_queued")
+        self.cancel_button.setToolTip("take back every command still waiting for the link "
+                                      "(one already on its way to the robot cannot be)")
+        self.cancel_button.clicked.connect(self._cancel_queued)
+        held.addWidget(self.queued_label, 1)
+        held.addWidget(self.cancel_button)
+        outer.addLayout(held)
+        self.queued: Dict[int, str] = {}       # seq -> text: commands waiting for the link
         self.warnings = QListWidget()
         self.warnings.setObjectName("warnings")
         self.warnings.setMaximumHeight(90)
@@ -214,6 +231,23 @@ class GenericWidget(QGroupBox):
                 else "send (3 s, click again to cancel)")
         self.refresh()            # a waiting timed button stays clickable (to cancel)
 
+    def on_command_state(self, event: CommandStateEvent) -> None:
+        if event.module != self.module:
+            return
+        if event.state == "queued":
+            self.queued[event.seq] = event.text
+        else:
+            self.queued.pop(event.seq, None)
+        if event.state in ("refused", "expired"):
+            self.on_warning(WarningEvent(self.module, f"`{event.text}` {event.state}: "
+                                                     f"{event.reason}", event.stamp))
+        self.refresh()
+
+    def _cancel_queued(self) -> None:
+        problem = self.sender_.cancel(self.module, 0)
+        if problem:
+            self.show_problem(problem)
+
     def on_link(self, event: LinkEvent) -> None:
         if event.state == "down":
             self.link_down_at = time.monotonic() - event.since
@@ -266,6 +300,10 @@ class GenericWidget(QGroupBox):
             self.status_label.setText("not running" if self.state is None
                                       else f"not running (last: {self.state})")
         self.age_label.setText("" if age is None else f"{age:.1f} s ago")
+        waiting = list(self.queued.values())
+        self.queued_label.setText("queued for the link: " + ", ".join(f"`{t}`" for t in waiting)
+                                  if waiting else "")
+        self.cancel_button.setVisible(bool(waiting))
         known = None if presence == "absent" else self.state
         legal = set(legal_switches(known))
         for word, button in self.switch_buttons.items():

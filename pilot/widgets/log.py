@@ -14,7 +14,7 @@ from typing import Dict
 
 from python_qt_binding.QtWidgets import QTextEdit
 
-from pilot.link import LinkEvent, SentEvent, StatusEvent, WarningEvent
+from pilot.link import CommandStateEvent, LinkEvent, SentEvent, StatusEvent, WarningEvent
 
 MAX_LINES = 2000
 
@@ -37,6 +37,10 @@ class LogView(QTextEdit):
         if self.lines > MAX_LINES:
             self.clear()
             self.lines = 0
+
+    def note(self, text: str, colour: str = "#8a5a00") -> None:
+        """A line of the PI's own (its 3-D view restarting), now."""
+        self._line(time.time(), text, colour)
 
     def on_sent(self, event: SentEvent) -> None:
         mine = event.sender == self.me
@@ -68,3 +72,16 @@ class LogView(QTextEdit):
             self._line(time.time(), "link up again", "#2f6fd0")
         elif event.state == "up":
             self._line(time.time(), "link to the robot up", "#606060")
+
+    #: The states of a command worth a line: what the pilot must know happened to it.
+    TOLD = {"queued": "#2f6fd0", "refused": "#d00000", "expired": "#d00000",
+            "cancelled": "#606060"}
+
+    def on_command_state(self, event: CommandStateEvent) -> None:
+        colour = self.TOLD.get(event.state)
+        if colour is None:
+            return
+        why = f": {event.reason}" if event.reason else ""
+        who = "" if event.sender == self.me else f" (from {event.sender})"
+        self._line(event.stamp, f"/{event.module}/{event.port} `{event.text}` "
+                                f"{event.state}{why}{who}", colour)

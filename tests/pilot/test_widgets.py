@@ -100,11 +100,40 @@ def test_a_silent_module_behind_a_broken_link_reads_link_down_not_dead(qt):
     assert widget.status_label.text() == "not running (last: tracking)"
 
 
+def test_queued_commands_are_listed_with_a_cancel_and_their_end_is_told(qt):
+    from pilot.catalogue import catalogue_of
+    from pilot.link import CommandStateEvent
+    from pilot.widgets.generic import GenericWidget
+
+    recorder = Recorder()
+    recorder.cancel = lambda module, seq=0: recorder.sent.append((module, "cancel", seq)) or ""
+    widget = GenericWidget(catalogue_of("gaze_control"), recorder)
+    state = lambda seq, text, word, why="": CommandStateEvent(  # noqa: E731
+        "gaze_control", "command", seq, text, "me", 1, word, why, time.time())
+    assert widget.cancel_button.isHidden() and widget.queued_label.text() == ""
+    widget.on_command_state(state(42, "look_at 1.0 0.4 0.1", "queued"))
+    widget.on_command_state(state(43, "home", "queued"))
+    widget.on_command_state(CommandStateEvent("other", "command", 7, "x", "", 0, "queued",
+                                              "", 0.0))           # another module's: not here
+    assert widget.queued_label.text() == "queued for the link: `look_at 1.0 0.4 0.1`, `home`"
+    widget.cancel_button.click()
+    assert recorder.sent == [("gaze_control", "cancel", 0)]
+    widget.on_command_state(state(42, "look_at 1.0 0.4 0.1", "cancelled", "by a pilot"))
+    widget.on_command_state(state(43, "home", "delivered"))
+    widget.on_command_state(state(43, "home", "expired", "too old"))
+    assert widget.cancel_button.isHidden()
+    assert warnings(widget)[0].endswith("`home` expired: too old")
+
+
 def test_the_log_says_when_the_link_goes_and_comes_back(qt):
-    from pilot.link import LinkEvent
+    from pilot.link import CommandStateEvent, LinkEvent
     from pilot.widgets.log import LogView
 
     log = LogView("me")
+    for word in ("sent", "queued", "delivered", "expired"):
+        log.on_command_state(CommandStateEvent("drc_valve", "command", 42, "turn 1.57",
+                                               "pi_2", 2, word, "too old" * (word == "expired"),
+                                               time.time()))
     log.on_link(LinkEvent("up", "", 5.0, 0))
     log.on_link(LinkEvent("down", "the robot's bridge silent for 1.6 s", 0.5, 0))
     log.on_link(LinkEvent("down", "the robot's bridge silent for 1.6 s", 3.0, 1))
@@ -112,6 +141,9 @@ def test_the_log_says_when_the_link_goes_and_comes_back(qt):
     text = log.toPlainText()
     assert "LINK DOWN (the robot's bridge silent for 1.6 s)" in text
     assert "1 command(s) wait for it" in text and text.rstrip().endswith("link up again")
+    assert "/drc_valve/command `turn 1.57` queued (from pi_2)" in text
+    assert "/drc_valve/command `turn 1.57` expired: too old (from pi_2)" in text
+    assert "delivered" not in text and " sent" not in text   # what a pilot must know, only
 
 
 def test_a_command_the_state_refuses_is_not_sent_and_the_reason_is_shown_in_red(qt):

@@ -32,8 +32,9 @@ from yarp_lite.bottle import Bottle
 
 #: Seconds a command may wait before it starts, unless the module or the pilot says otherwise.
 DEFAULT_VALIDITY = 10.0
-#: Seconds a dangerous command may still start after its countdown ended.
-DANGEROUS_GRACE = 2.0
+#: Seconds a dangerous command may still start after its countdown ended: its way to the
+#: module (two bridges, a slow link, a loaded PC), never a blackout's worth.
+DANGEROUS_GRACE = 5.0
 #: Longest validity a pilot may ask for (a day): more is a typing mistake.
 MAX_VALIDITY = 86400.0
 _AGE, _VALID = "age", "valid"
