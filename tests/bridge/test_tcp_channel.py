@@ -6,7 +6,6 @@ channel's threads and sockets around it: who may connect, who may replace whom.
 
 from __future__ import annotations
 
-import math
 import select
 import socket
 import threading
@@ -15,7 +14,7 @@ from typing import Any, List, Tuple
 
 import pytest
 
-from bridge import frames
+from bridge import compact, frames
 from bridge.drops import Reason
 from bridge.journal import Journal
 from bridge.link import LinkKey
@@ -130,29 +129,6 @@ def test_a_status_event_leaves_at_once_and_a_flood_of_them_is_coalesced(pair):
     robot.channel.post(STATUS, Bottle([103, "c", 0.75]))  # not an event
     time.sleep(0.5)  # the thing under test: many gaps pass and it still waits for T
     assert pilot.streams[-1][1] == Bottle([103, "c", 0.5])
-
-
-def test_nudges_follow_an_awaited_frame_while_it_is_unacknowledged():
-    from bridge import tcp_channel
-    from bridge.tcp_channel import NUDGE_AFTER, NUDGES, _Nudges
-
-    nudges = _Nudges()
-    assert nudges.at == math.inf                       # nothing sent: nothing planned
-    nudges.awaited_frame_sent(10.0)
-    assert nudges.at == pytest.approx(10.0 + NUDGE_AFTER)
-    sent = []
-    while nudges.at < math.inf:
-        now = nudges.at
-        if nudges.take(now, unacknowledged=True):
-            sent.append(now)
-    assert len(sent) == NUDGES
-    gaps = [b - a for a, b in zip([10.0, *sent], sent)]
-    assert gaps == pytest.approx([NUDGE_AFTER * 2 ** i for i in range(NUDGES)])
-    nudges.awaited_frame_sent(20.0)                    # acknowledged by the first look:
-    assert not nudges.take(nudges.at, unacknowledged=False)
-    assert nudges.at == math.inf                       # no more
-    nudges.awaited_frame_sent(30.0, round_trip=0.2)    # a slow link: a round trip and the
-    assert nudges.at == pytest.approx(30.0 + 0.2 + tcp_channel.DELAYED_ACK)  # delayed ACK
 
 
 def test_bytes_queued_for_a_slow_reader_are_not_taken_for_a_loss():
@@ -499,3 +475,120 @@ def test_a_command_held_while_the_link_is_down_leaves_older_by_that_time(tmp_pat
         pilot.stop()
         if robot is not None:
             robot.stop()
+
+
+class _MeetingJournal:
+    """A journal whose first two peer RESUMEs wait for ``go``: two handshake threads then
+    finish at the same moment."""
+
+    def __init__(self, journal: Journal) -> None:
+        self._journal = journal
+        self._count = threading.Lock()
+        self.waiting = 0
+        self.go = threading.Event()
+
+    def acknowledge(self, upto: int) -> int:
+        with self._count:
+            self.waiting += 1
+            first_two = self.waiting <= 2
+        if first_two:
+            self.go.wait(5)
+        return self._journal.acknowledge(upto)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._journal, name)
+
+
+def _handshakes_look_slowly_at_the_link(monkeypatch) -> None:
+    """A handshake thread pauses whenever it reads the channel's current connection.
+
+    Between a handshake thread reading it and installing its own connection lie a few
+    bytecodes, too few for a test to hit by chance; the pause widens them.  Where the read
+    and the install are one step under the lock, the pause only makes the other wait."""
+    def read(channel: TcpChannel) -> Any:
+        connection = channel.__dict__.get("_test_connection")
+        if threading.current_thread().name == "bridge tcp handshake":
+            time.sleep(0.1)           # ... and acts on what it read, however stale
+        return connection
+
+    def write(channel: TcpChannel, value: Any) -> None:
+        channel.__dict__["_test_connection"] = value
+
+    monkeypatch.setattr(TcpChannel, "_connection", property(read, write), raising=False)
+
+
+def _dial_as_pilot(port: int, config_text: str = "config") -> Tuple[socket.socket, Any]:
+    """A pilot's end of the link protocol, by hand: up once both RESUMEs are through."""
+    from bridge.link import LinkConnection, PeerAuthenticated, PeerHello
+    from bridge.tcp_channel import fingerprint
+
+    sock = socket.create_connection(("127.0.0.1", port), timeout=10)
+    link = LinkConnection("pilot", KEY, fingerprint(config_text), 0x9170)
+    sock.sendall(link.start())
+    while not link.established:
+        data = sock.recv(4096)
+        assert data, "the robot closed during the handshake"
+        for event in link.receive_data(data):
+            if isinstance(event, PeerHello):
+                sock.sendall(link.send_auth())
+            elif isinstance(event, PeerAuthenticated):
+                sock.sendall(link.send_resume(0))
+    return sock, link
+
+
+def _closed_by_peer(sock: socket.socket, within: float) -> bool:
+    """Does the robot close ``sock`` within ``within`` s (its frames read meanwhile)?"""
+    deadline = time.monotonic() + within
+    try:
+        while time.monotonic() < deadline:
+            sock.settimeout(max(0.01, deadline - time.monotonic()))
+            try:
+                if not sock.recv(65536):
+                    return True
+            except socket.timeout:
+                pass
+    except OSError:
+        return True
+    return False
+
+
+def test_two_handshakes_ending_together_leave_one_link_and_no_leaked_socket(tmp_path,
+                                                                           monkeypatch):
+    """Two connections proven at the same moment: one becomes the link, the other is
+    closed.  The old channel read its link and moved its phase outside its lock: the
+    second thread found no link either, installed itself over the first without closing
+    it (a leaked socket, whose receive thread went on), then died on an illegal phase move
+    before starting its own receive thread -- a link "up" that received nothing."""
+    crashed: List[Any] = []
+    monkeypatch.setattr(threading, "excepthook", crashed.append)
+    _handshakes_look_slowly_at_the_link(monkeypatch)
+    port = free_port()
+    robot = End("robot", port, tmp_path / "robot", listen=True)
+    meeting = robot.channel.journal = _MeetingJournal(robot.journal)
+    robot.start()
+    clients: List[Tuple[socket.socket, Any]] = []
+    try:
+        dialers = [threading.Thread(target=lambda: clients.append(_dial_as_pilot(port)))
+                   for _ in range(2)]
+        for dialer in dialers:
+            dialer.start()
+        wait_until(lambda: meeting.waiting == 2, 10, message="both handshakes at their end")
+        meeting.go.set()
+        for dialer in dialers:
+            dialer.join(15)
+        assert len(clients) == 2, "both handshakes completed"
+        wait_until(lambda: robot.channel.stats.connects == 2 or crashed, 5,
+                   message="both installed")
+        closed = [_closed_by_peer(sock, 1.0) for sock, _ in clients]
+        assert crashed == [] and robot.channel.stats.internal_errors == 0
+        assert sorted(closed) == [False, True], closed
+        assert robot.channel.phase == "up"
+        sock, link = clients[closed.index(False)]
+        command = frames.Entry(SWITCH.id, SWITCH.kind, compact.encode(Bottle(["start", 2])))
+        sock.sendall(link.send_data(frames.data_body((command,), seq=1)))
+        wait_until(lambda: robot.reliable == [Bottle(["start", 2])], 5,
+                   message="the link's command")
+    finally:
+        for sock, _ in clients:
+            sock.close()
+        robot.stop()
