@@ -87,7 +87,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     from nodekit.logs import configure_logging
 
     configure_logging("pilot")
-    faulthandler.enable()   # a crash in Qt or librviz leaves every thread's stack on stderr
+    faulthandler.enable()   # a crash in Qt leaves every thread's stack on stderr (librviz's
+    #                         render process keeps its own: pilot.view3d_child)
     name = options.name or f"pi_{os.uname().nodename.replace('-', '_')}_{os.getpid()}"
     from python_qt_binding.QtWidgets import QApplication
 
@@ -222,6 +223,7 @@ class PilotWindow(QMainWindow):
             return out
         if spec.kind == "view3d":
             self.view3d = View3D(self.name)
+            self.view3d.said.connect(lambda text: self.log is not None and self.log.note(text))
             return [self.view3d]
         if spec.kind == "camera":
             self.camera = CameraView()
@@ -287,8 +289,7 @@ class PilotWindow(QMainWindow):
                                     f"({time.strftime('%H:%M:%S')})")
                 return
             if self.view3d is not None:
-                self.view3d.start()
-                self.link.adopt_local_nodes()       # librviz's roscpp node
+                self.view3d.start()                 # librviz's own process
                 for widget in self.task_widgets():
                     pose = widget.pose()
                     if pose is not None:

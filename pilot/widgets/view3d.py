@@ -1,190 +1,189 @@
-"""The 3-D view: librviz in the window -- the robot, the point cloud, interactive markers.
+"""The 3-D view: librviz's window, drawn by a process of its own, embedded in the PI's.
 
 Theory of operation
 -------------------
-As the paper's PI did, the view embeds RViz's own ``VisualizationFrame``
-(Debian's ``python3-rviz`` bindings) configured from :data:`RVIZ_CONFIG`: the
-robot model from ``/robot_description`` placed by ``/tf`` (both from
-``walkman-joint-state``), the camera's cloud (missing regions are NaN points:
-they leave holes you can see), and this PI's interactive markers.
+As the paper's PI did, the view is RViz's own ``VisualizationFrame``: the
+robot from ``/robot_description`` placed by ``/tf``, the camera's cloud with
+its holes, and this PI's interactive markers.  librviz crashes now and then
+under Mesa's software OpenGL (issue 31), so it runs in a render process
+(:mod:`pilot.view3d_child`) kept alive by a
+:class:`~pilot.view3d_process.RenderSupervisor`; this widget only embeds the
+X window that process shows (``QWindow.fromWinId`` +
+``QWidget.createWindowContainer``) and, while there is none, says why in the
+view's place: "waiting for the pilot roscore", "starting", or "restarting --
+it crashed: signal 11 (SIGSEGV)".  The rest of the PI never waits for it.
 
-Each task widget with a ``...datasent`` pose gets a 6-DOF interactive marker
-(an ``interactive_markers`` server of this PI, ``/pilot_markers/<pi>``); the
-pilot drags it onto the cloud where the valve (door, wheel) is, and the
-marker's feedback, arriving on a ROS thread, is handed to the GUI thread to
-move the widget's pose fields.  The frame is created once the PI's ROS node is
-up (librviz needs the master); until then the view says what it waits for.
+What must outlive a crash lives here: each task widget's pose marker (its
+callback and where the pilot last left it) and the displays switched off.
+Every new render process is told all of it again, so a restart is a blink,
+not a loss.  A drag in the child comes back as ``moved`` and moves the task
+widget's pose fields, as it did when librviz lived in the PI.
+
+The embedded window belongs to the child: when the child dies its window is
+gone, and we drop our container at once, before the next child can be
+given the dead window's X id (the X server reuses a dead client's ids).
 """
 
 from __future__ import annotations
 
-import math
-from typing import Callable, Dict, List, Sequence
+import logging
+import time
+from dataclasses import dataclass
+from typing import Callable, Dict, List, Optional, Sequence
 
-from python_qt_binding.QtCore import QObject, Qt, Signal
+from python_qt_binding.QtCore import Qt, Signal
 from python_qt_binding.QtWidgets import QLabel, QVBoxLayout, QWidget
 
-RVIZ_CONFIG = """
-Visualization Manager:
-  Global Options:
-    Fixed Frame: pelvis
-    Background Color: 40; 44; 52
-    Frame Rate: 15
-  Displays:
-    - Class: rviz/Grid
-      Name: Grid
-      Enabled: true
-      Cell Size: 0.5
-      Plane Cell Count: 12
-      Offset: {X: 0, Y: 0, Z: -1.0}
-    - Class: rviz/RobotModel
-      Name: Robot
-      Enabled: true
-      Robot Description: robot_description
-    - Class: rviz/PointCloud2
-      Name: Cloud
-      Enabled: true
-      Topic: /multisense/points
-      Style: Boxes
-      Size (m): 0.03
-      Color Transformer: RGB8
-      Queue Size: 2
-    - Class: rviz/InteractiveMarkers
-      Name: Markers
-      Enabled: true
-      Update Topic: {markers}/update
-      Show Descriptions: true
-  Views:
-    Current:
-      Class: rviz/Orbit
-      Distance: 3.2
-      Focal Point: {X: 0.45, Y: 0.05, Z: -0.1}
-      Pitch: 0.45
-      Yaw: 3.6
-"""
+from pilot.view3d_process import ChildExit, RenderSupervisor
+from pilot.view3d_protocol import (AddMarker, EnableDisplay, MarkerMoved, Message, RemoveMarker,
+                                   RosNodes, UpdateMarker)
+
+log = logging.getLogger("pilot.view3d")
 
 
-def rpy_to_quaternion(roll: float, pitch: float, yaw: float) -> List[float]:
-    """x y z w of R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
-    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return [sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
-            cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy]
+@dataclass
+class PoseMarker:
+    """A task's marker as the PI knows it: where it is, and whom a drag tells."""
 
-
-def quaternion_to_rpy(x: float, y: float, z: float, w: float) -> List[float]:
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return [roll, pitch, yaw]
-
-
-class _Feedback(QObject):
-    moved = Signal(str, object)     # marker name, [x y z roll pitch yaw]
+    pose: List[float]
+    on_move: Callable[[Sequence[float]], None]
 
 
 class View3D(QWidget):
-    """librviz's frame plus this PI's pose markers; starts empty until ROS is up."""
+    """librviz's window from its render process, or what the 3-D view is waiting for."""
+
+    #: A line for the pilot's log: the view died (and why), the view is back.
+    said = Signal(str)
 
     def __init__(self, pi_name: str, parent=None) -> None:
         super().__init__(parent)
         self.setObjectName("view3d")
+        self.pi_name = pi_name
         self.markers_topic = f"/pilot_markers/{pi_name}"
         self.layout_ = QVBoxLayout(self)
         self.layout_.setContentsMargins(0, 0, 0, 0)
-        self.placeholder = QLabel("3-D view: waiting for the pilot roscore")
-        self.layout_.addWidget(self.placeholder)
-        self.frame = None
-
-        self.server = None
-        self.feedback = _Feedback()
-        self._targets: Dict[str, Callable[[Sequence[float]], None]] = {}
-        self._starts: Dict[str, Sequence[float]] = {}
-        self.feedback.moved.connect(self._moved, Qt.QueuedConnection)
+        self.status = QLabel("3-D view: waiting for the pilot roscore")
+        self.status.setObjectName("view3d_status")
+        self.status.setAlignment(Qt.AlignCenter)
+        self.status.setWordWrap(True)
+        self.layout_.addWidget(self.status, 1)
+        self.container: Optional[QWidget] = None
+        self.supervisor: Optional[RenderSupervisor] = None
+        self.markers: Dict[str, PoseMarker] = {}
+        self.displays: Dict[str, bool] = {}
+        self.embedded_pid: Optional[int] = None     # the child whose window we show
+        self._down_at: Optional[float] = None
+        self.deaths: List[ChildExit] = []          # every render process that ended
+        #: librviz's roscpp node(s) in the current child (name -> URI), once it said.
+        self.ros_nodes: Dict[str, str] = {}
         self.setMinimumSize(360, 300)
 
     def start(self) -> None:
-        """Create the librviz frame (on the GUI thread, once the ROS node is registered)."""
-        if self.frame is not None:
+        """Start the render process (once this PI's ROS node is registered)."""
+        from python_qt_binding.QtGui import QGuiApplication
+
+        if self.supervisor is not None:
             return
-        from rviz import bindings as rviz
+        platform = QGuiApplication.platformName()
+        if platform != "xcb":
+            self._say(f"3-D view: librviz draws on an X display only (Qt platform {platform})")
+            return
+        self.supervisor = RenderSupervisor(self.pi_name, self.markers_topic)
+        self.supervisor.up.connect(self._up)
+        self.supervisor.down.connect(self._down)
+        self.supervisor.message.connect(self._message)
+        self.supervisor.start()
+        self._say("3-D view: starting librviz")
 
-        frame = rviz.VisualizationFrame()
-        frame.setSplashPath("")
-        frame.initialize()
-        config = rviz.Config()
-        rviz.YamlConfigReader().readString(config,
-                                           RVIZ_CONFIG.replace("{markers}", self.markers_topic))
-        frame.load(config)
-        # Hidden, not replaced: setStatusBar(None) deletes the bar that owns rviz's fps label,
-        # and rviz writes to that label whenever statusBar() is again the address it kept
-        # (rviz#895/#896) -- a new bar allocated where the old one was freed is: heap
-        # corruption ("malloc(): unaligned tcache chunk", once in many runs).  The menus
-        # live in the menu bar and rviz keeps pointers to them too.
-        frame.menuBar().hide()
-        frame.statusBar().hide()
-        frame.setHideButtonVisibility(False)
-        self.layout_.removeWidget(self.placeholder)
-        self.placeholder.deleteLater()
-        self.layout_.addWidget(frame)
-        self.frame = frame
+    @property
+    def child_pid(self) -> Optional[int]:
+        """The render process now running (embedded or not yet)."""
+        return self.supervisor.pid if self.supervisor is not None else None
 
-        from interactive_markers.interactive_marker_server import InteractiveMarkerServer
-
-        self.server = InteractiveMarkerServer(self.markers_topic.lstrip("/"))
-        for name in list(self._targets):
-            self._add_marker(name, self._starts[name])
+    # -- what the PI asks ------------------------------------------------------------------
 
     def add_pose_marker(self, name: str, start: Sequence[float],
                         on_move: Callable[[Sequence[float]], None]) -> None:
         """A draggable 6-DOF marker named ``name``; ``on_move`` gets x y z roll pitch yaw."""
-        self._targets[name] = on_move
-        self._starts[name] = list(start)
-        if self.server is not None:
-            self._add_marker(name, start)
+        self.markers[name] = PoseMarker(list(start), on_move)
+        self._send(AddMarker(name, tuple(start)))
 
-    def _add_marker(self, name: str, pose: Sequence[float]) -> None:
-        from visualization_msgs.msg import (InteractiveMarker, InteractiveMarkerControl,
-                                            Marker)
+    def move_pose_marker(self, name: str, pose: Sequence[float]) -> None:
+        """The marker follows a pose typed elsewhere."""
+        if name in self.markers:
+            self.markers[name].pose = list(pose)
+            self._send(UpdateMarker(name, tuple(pose)))
 
-        marker = InteractiveMarker()
-        marker.header.frame_id = "pelvis"
-        marker.name, marker.description, marker.scale = name, name, 0.3
-        marker.pose.position.x, marker.pose.position.y, marker.pose.position.z = pose[:3]
-        q = rpy_to_quaternion(*pose[3:6])
-        (marker.pose.orientation.x, marker.pose.orientation.y, marker.pose.orientation.z,
-         marker.pose.orientation.w) = q
-        body = InteractiveMarkerControl(always_visible=True)
-        disc = Marker(type=Marker.CYLINDER)
-        disc.scale.x = disc.scale.y = 0.25
-        disc.scale.z = 0.03
-        disc.color.r, disc.color.g, disc.color.b, disc.color.a = 1.0, 0.55, 0.0, 0.8
-        body.markers.append(disc)
-        marker.controls.append(body)
-        for axis, (x, y, z) in {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1)}.items():
-            for mode in (InteractiveMarkerControl.MOVE_AXIS, InteractiveMarkerControl.ROTATE_AXIS):
-                control = InteractiveMarkerControl()
-                control.name = f"{'move' if mode == InteractiveMarkerControl.MOVE_AXIS else 'rotate'}_{axis}"
-                half = math.sqrt(0.5)            # a unit quaternion per axis, as RViz wants
-                control.orientation.w = half
-                control.orientation.x, control.orientation.y, control.orientation.z = \
-                    x * half, z * half, y * half
-                control.interaction_mode = mode
-                marker.controls.append(control)
-        self.server.insert(marker, lambda feedback, n=name: self._on_feedback(n, feedback))
-        self.server.applyChanges()
+    def remove_pose_marker(self, name: str) -> None:
+        if self.markers.pop(name, None) is not None:
+            self._send(RemoveMarker(name))
 
-    def _on_feedback(self, name: str, feedback) -> None:    # a ROS thread
-        p, o = feedback.pose.position, feedback.pose.orientation
-        self.feedback.moved.emit(name, [p.x, p.y, p.z, *quaternion_to_rpy(o.x, o.y, o.z, o.w)])
-
-    def _moved(self, name: str, pose) -> None:              # the GUI thread
-        target = self._targets.get(name)
-        if target is not None:
-            target(pose)
+    def set_display_enabled(self, name: str, enabled: bool) -> None:
+        """Switch one of RViz's displays (``Grid``, ``Robot``, ``Cloud``, ``Markers``)."""
+        self.displays[name] = enabled
+        self._send(EnableDisplay(name, enabled))
 
     def close_view(self) -> None:
-        if self.server is not None:
-            self.server.clear()
-            self.server.applyChanges()
+        if self.supervisor is not None:
+            self.supervisor.close()
+        self._drop_container()
+
+    # -- what the render process says ------------------------------------------------------
+
+    def _up(self, window: int, pid: int) -> None:
+        from python_qt_binding.QtGui import QWindow
+
+        self._drop_container()
+        foreign = QWindow.fromWinId(window)
+        container = QWidget.createWindowContainer(foreign, self)
+        container.setObjectName("view3d_window")
+        container.setMinimumSize(200, 150)
+        self.layout_.addWidget(container, 1)
+        self.container = container
+        self.embedded_pid = pid
+        self.status.hide()
+        if self._down_at is not None:
+            self.said.emit(f"3-D view back (pid {pid}), {time.monotonic() - self._down_at:.1f} s "
+                           f"after it {self.deaths[-1].reason.split(':')[0]}")
+            self._down_at = None
+        for name, marker in self.markers.items():      # a new child knows nothing yet
+            self._send(AddMarker(name, tuple(marker.pose)))
+        for name, enabled in self.displays.items():
+            self._send(EnableDisplay(name, enabled))
+
+    def _down(self, exit: ChildExit, delay: float) -> None:
+        self._drop_container()
+        self.ros_nodes = {}
+        self.deaths.append(exit)
+        if self._down_at is None:
+            self._down_at = time.monotonic()
+        when = "" if delay == 0 else f", next try in {delay:g} s"
+        self._say(f"3-D view restarting \N{EM DASH} it {exit.reason}{when}")
+        self.said.emit(f"3-D view (pid {exit.pid}) {exit.reason}: restarting it{when}; the rest "
+                       f"of the PI is unaffected")
+
+    def _message(self, message: Message) -> None:
+        if isinstance(message, MarkerMoved):
+            marker = self.markers.get(message.name)
+            if marker is not None:
+                marker.pose = list(message.pose)
+                marker.on_move(list(message.pose))
+        elif isinstance(message, RosNodes):
+            self.ros_nodes = dict(message.librviz)
+
+    def _send(self, message: Message) -> None:
+        if self.supervisor is not None and self.embedded_pid is not None:
+            self.supervisor.send(message)
+
+    def _say(self, text: str) -> None:
+        self.status.setText(text)
+        self.status.show()
+
+    def _drop_container(self) -> None:
+        """Forget the embedded window now (its X id may soon be another client's)."""
+        self.embedded_pid = None
+        if self.container is not None:
+            container, self.container = self.container, None
+            self.layout_.removeWidget(container)
+            container.hide()
+            container.deleteLater()
