@@ -124,6 +124,24 @@ class RobotStateFlow:
         return FlowKey(self.id, STATE_KIND)
 
 
+@dataclass(frozen=True)
+class EmergencyStopFlow:
+    """``<emergency_stop>``: the pilot's stop-all and the robot's acknowledgement, under one
+    id; each goes at once on the TCP channel and as ``copies`` datagrams on the UDP one."""
+
+    id: int
+    robot: str = "walkman"       # whose HAL it holds
+    copies: int = 3
+
+    @property
+    def stop_key(self) -> FlowKey:
+        return FlowKey(self.id, 0)
+
+    @property
+    def ack_key(self) -> FlowKey:
+        return FlowKey(self.id, 1)
+
+
 @dataclass
 class BridgeConfig:
     path: str
@@ -133,6 +151,7 @@ class BridgeConfig:
     modules: Dict[str, int] = field(default_factory=dict)
     gym_modules: Dict[str, Tuple[str, ...]] = field(default_factory=dict)  # name -> states
     robot_state: Optional[RobotStateFlow] = None
+    emergency_stop: Optional[EmergencyStopFlow] = None
     state_rate: float = DEFAULT_STATE_RATE                 # Hz the robot state is sampled
     key_file: Optional[Path] = None      # the shared key, if the file names one
     _index: Dict[FlowKey, Channel] = field(default_factory=dict, repr=False, compare=False)
@@ -302,6 +321,13 @@ def parse(text: Union[str, bytes], where: str = "<bridge config>") -> BridgeConf
             raise ConfigError(f"{where}:{element.sourceline}: unknown channel {transport!r}")
         config.robot_state = RobotStateFlow(state_id, element.get("robot"), transport)
         config.state_rate = _positive(element, "rate", DEFAULT_STATE_RATE, where)
+    for element in root.iterfind("emergency_stop"):
+        copies = _number(element, "copies", 3, where, int)
+        if not 1 <= copies <= 10:
+            raise ConfigError(f"{where}:{element.sourceline}: copies is 1..10 datagrams, got "
+                              f"{copies}")
+        config.emergency_stop = EmergencyStopFlow(take_id(element),
+                                                  element.get("robot", "walkman"), copies)
     for element in root.iterfind("ros_topics/topic"):
         line = element.sourceline
         topic_id = take_id(element)

@@ -45,6 +45,9 @@ class Carriage(str, Enum):
     LATEST = "latest"
     #: tiles or slices of one datagram each (UDP): what arrived is published after ``gather``
     DATAGRAMS = "datagrams"
+    #: the stop-all: at once on the TCP channel, never held back behind a backlog, and as
+    #: repeated datagrams on the UDP one; the receiver acts on the first copy
+    URGENT = "urgent"
 
 
 class Form(str, Enum):
@@ -76,6 +79,10 @@ class Route:
         return self.carriage is not Carriage.DATAGRAMS
 
     @property
+    def on_udp(self) -> bool:
+        return self.carriage in (Carriage.DATAGRAMS, Carriage.URGENT)
+
+    @property
     def reliable(self) -> bool:
         return self.carriage is Carriage.RELIABLE
 
@@ -101,4 +108,8 @@ def routes(config: "BridgeConfig") -> Dict[FlowKey, Route]:
         table[state.key] = Route(state.key, f"{state.robot}/state",
                                  Carriage.LATEST if state.transport == "tcp"
                                  else Carriage.DATAGRAMS, Form.STATE)
+    stop = config.emergency_stop
+    if stop is not None:
+        table[stop.stop_key] = Route(stop.stop_key, "stop_all", Carriage.URGENT, Form.BOTTLE)
+        table[stop.ack_key] = Route(stop.ack_key, "stop_all/ack", Carriage.URGENT, Form.BOTTLE)
     return table

@@ -122,6 +122,12 @@ def describe(config: bridge_config.BridgeConfig) -> str:
                      f"{'robot':<6} {state.transport:<4} {'latest':<9} "
                      f"/{state.robot}/<chain>/stateSI:o, "
                      f"{config.state_rate:g} Hz")
+    if config.emergency_stop:
+        stop = config.emergency_stop
+        lines.append(f"{stop.id:>3} {0:>4}  {'stop_all':<34} {'pilot':<6} {'both':<4} "
+                     f"{'urgent':<9} rpc stop_all/release; TCP + {stop.copies} datagrams")
+        lines.append(f"{stop.id:>3} {1:>4}  {'stop_all/ack':<34} {'robot':<6} {'both':<4} "
+                     f"{'urgent':<9} holds /{stop.robot}/rpc:i and every module")
     return "\n".join(lines)
 
 

@@ -41,6 +41,7 @@ from bridge.config import PILOT, ROBOT, BridgeConfig, Channel
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeProtocolError, BridgeUsageError
 from bridge.expiry import aged_payload
+from bridge.stop_line import VERBS, Ack, PilotStops, RobotStops
 from walkman.gym.command_life import CommandState, Receipt, encode_receipt
 from walkman.gym.interfaces import GYM_PORTS, RECEIPT, command_seq
 from walkman.gym.validity import ValidityError, split
@@ -155,6 +156,13 @@ class Bridge:
         self.udp = UdpChannel(peer=peer, port=udp_port, peer_port=peer_udp_port or udp_port,
                               routes=udp_routes, gather=config.gather,
                               on_message=self._on_message, rate=udp_rate) if udp_routes else None
+        stop = config.emergency_stop
+        self.stop_all_here = None        # the robot's StopAll, once the name server answers
+        self.pilot_stops = PilotStops(lambda order: self._send_urgent(stop.stop_key, order)) \
+            if stop is not None and side == PILOT else None
+        self.robot_stops = RobotStops(self._carry_out_stop,
+                                      lambda ack: self._send_urgent(stop.ack_key, ack)) \
+            if stop is not None and side == ROBOT else None
 
     def _on_keys(self, event: str, send_key: bytes, receive_key: bytes) -> None:
         if self.udp is not None:
@@ -168,7 +176,7 @@ class Bridge:
 
         udp = []
         for route in self.routes.values():
-            if route.on_tcp:
+            if not route.on_udp:
                 continue
             if route.form is Form.STATE:
                 codec = StateUdpCodec(1.0 / self.config.state_rate)
@@ -241,6 +249,8 @@ class Bridge:
         self._stop.wait(PRESENCE_PERIOD)
         self.keeper.start()
         self._deliver_wake.set()
+        if self.robot_stops is not None:
+            self._open_stop_all()
         log.info("bridge %s side ready: %d flows out, %d in (ports opened in %.2f s, "
                  "connected to the modules here in %.2f s)", self.side,
                  len(self.config.sending(self.side)), len(self.config.receiving(self.side)),
@@ -391,6 +401,13 @@ class Bridge:
             self.udp.post(route.key, value)
 
     def _on_message(self, key: FlowKey, value: Any) -> None:
+        stop = self.config.emergency_stop
+        if stop is not None and key in (stop.stop_key, stop.ack_key):
+            if key == stop.stop_key and self.robot_stops is not None:
+                self.robot_stops.on_order(value)
+            elif key == stop.ack_key and self.pilot_stops is not None:
+                self.pilot_stops.on_ack(value)
+            return
         source = self._sources.get(key)
         if source is None:
             self.drops.drop(Reason.NOT_READY, f"{key}: local endpoint not open yet")
@@ -458,6 +475,53 @@ class Bridge:
                         self._say_delivered(key, payload)
                 else:
                     blocked.add(key)
+
+    # -- the stop-all -------------------------------------------------------------------
+
+    def _send_urgent(self, key: FlowKey, value: Bottle) -> None:
+        """Every way at once: the TCP channel's next frame, and repeated datagrams."""
+        self.tcp.post(key, value, event=True)
+        if self.udp is not None:
+            self.udp.send_now(key, value, self.config.emergency_stop.copies)
+
+    def stop_all(self, word: str = "stop_all", timeout: float = 5.0) -> Optional[Ack]:
+        """Pilot side: hold the robot (``stop_all``) or let its HAL go (``release``);
+        the robot's acknowledgement, or None if none came in ``timeout``."""
+        if self.pilot_stops is None:
+            raise BridgeUsageError("no <emergency_stop> in the configuration, or not the "
+                                   "pilot's bridge: nothing to send a stop-all on")
+        return self.pilot_stops.order(word, timeout)
+
+    def _open_stop_all(self) -> None:
+        from walkman.gym.stop_all import StopAll
+
+        stop = self.config.emergency_stop
+        try:
+            self.stop_all_here = StopAll(stop.robot, sorted(self.config.gym_modules),
+                                         "/bridge/robot/stop_all", self.nameclient)
+        except YarpError as exc:
+            log.error("stop-all: cannot open its ports (%s); a stop-all will be acknowledged "
+                      "as NOT carried out", exc)
+
+    def _carry_out_stop(self, word: str, stop_id: int) -> Ack:
+        """Robot side: the HAL holds and every module pauses (or the HAL is released)."""
+        executor = self.stop_all_here
+        if executor is None:
+            return Ack(stop_id, VERBS[word], False, 0.0)
+        report = executor.stop(stop_id) if word == "stop_all" else executor.release(stop_id)
+        return Ack(stop_id, VERBS[word], report.hal, report.took_ms, tuple(report.modules))
+
+    def _stop_request(self, word: str) -> Bottle:
+        try:
+            ack = self.stop_all(word)
+        except BridgeUsageError as exc:
+            return Bottle(["error", str(exc)])
+        if ack is None:
+            return Bottle(["error", f"{word}: the robot did not acknowledge within 5 s"])
+        return Bottle(["ok", ack.word, Bottle(["hal", "ok" if ack.hal else "failed"]),
+                       Bottle(["round_trip_ms", round(ack.round_trip_ms, 1)]),
+                       Bottle(["robot_ms", round(ack.took_ms, 1)]),
+                       Bottle(["paused", *ack.modules])])
 
     def _say_delivered(self, key: FlowKey, payload: bytes) -> None:
         """Tell the pilots a numbered switch or command reached its module's port (its
@@ -537,10 +601,15 @@ class Bridge:
             return self._status_bottle()
         if word == "cancel":
             return self._cancel_request(request)
+        if word in ("stop_all", "release") and len(request) == 1:
+            return self._stop_request(word)
         if word == "help":
             return Bottle(["status: link, queues and counters of this bridge; "
-                           "cancel MODULE SEQ|all: take back commands not yet sent"])
-        return Bottle(["error", f"unknown command {word!r}: try status, cancel or help"])
+                           "cancel MODULE SEQ|all: take back commands not yet sent; "
+                           "stop_all: hold the robot (HAL and every module); "
+                           "release: let the HAL move again"])
+        return Bottle(["error", f"unknown command {word!r}: try status, cancel, stop_all, "
+                                f"release or help"])
 
     # -- cancelling ---------------------------------------------------------------------
 
@@ -593,6 +662,8 @@ class Bridge:
         self._stop.set()
         self._deliver_wake.set()
         self._presence_wake.set()
+        if self.stop_all_here is not None:
+            self.stop_all_here.close()
         if self.keeper is not None:
             self.keeper.stop()
         self.tcp.stop()

@@ -339,6 +339,7 @@ class UdpChannel:
         self._next_report = 0.0
         self.opener = DatagramOpener()
         self._sealer: Optional[DatagramSealer] = None
+        self._seal_lock = threading.Lock()   # the send loop and send_now() seal in turn
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 << 20)
         self._sock.bind((bind_host, port))
@@ -396,6 +397,27 @@ class UdpChannel:
             self._slots[key] = value
             self._cond.notify_all()
 
+    def send_now(self, key: FlowKey, value: Any, copies: int) -> int:
+        """``value`` as ``copies`` copies of one message, sent from this thread ahead of the
+        paced queue (the stop-all: small, rare, and worth more than any image).  The
+        receiver takes the first copy and drops the others as repeats of the message it
+        has.  Returns the datagrams sent (0 before the handshake: nothing leaves unsealed)."""
+        route = self.routes[key]
+        with self._cond:
+            number = self._next_message_number(key)
+        encoded = slice_message(route.codec.encode(value))
+        inner = message_datagrams(route, number, encoded)
+        sent = 0
+        for _ in range(copies):
+            for body in inner:
+                with self._seal_lock:
+                    if self._sealer is None:
+                        return sent
+                    datagram = self._sealer.seal(body)
+                if self._sendto(key, datagram):
+                    sent += 1
+        return sent
+
     # -- sending -----------------------------------------------------------------------
 
     def _next_message_number(self, key: FlowKey) -> int:
@@ -445,19 +467,24 @@ class UdpChannel:
             time.sleep((size - self._tokens) / bytes_per_second)
 
     def _send(self, key: Optional[FlowKey], inner: bytes) -> None:
-        datagram = self._sealer.seal(inner)
+        with self._seal_lock:
+            datagram = self._sealer.seal(inner)
         self._pace(len(datagram) + IP_UDP_OVERHEAD)
+        self._sendto(key, datagram)
+
+    def _sendto(self, key: Optional[FlowKey], datagram: bytes) -> bool:
         try:
             self._sock.sendto(datagram, (self.peer, self.peer_port))
         except OSError as exc:  # no route while the link is down: that datagram is lost
             self.stats.send_errors += 1
             self.drops.last_error = f"send: {exc.strerror or exc}"
-            return
+            return False
         self.stats.datagrams_out += 1
         self.stats.bytes_out += len(datagram)
         if key is not None:
             self.stats.bytes_by_id[key[0]] = self.stats.bytes_by_id.get(key[0], 0) + \
                 len(datagram)
+        return True
 
     def _report(self) -> None:
         """Tell the sender what arrived (every :data:`REPORT_INTERVAL`, if anything did)."""

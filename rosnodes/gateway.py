@@ -20,6 +20,8 @@ pilot roscore it offers:
 ``/pilot/sent_commands``     ``walkman_msgs/SentCommand``        out: everything any station sent
 ``/bridge/link``             ``walkman_msgs/Link``               out, latched: up, down, direct
 ``/pilot/command_states``    ``walkman_msgs/CommandState``       out: each command's life
+``/pilot/stop_all``          ``walkman_msgs/StopAll``            service: hold the robot now
+``/pilot/release``           ``walkman_msgs/StopAll``            service: the HAL may move again
 ===========================  ==================================  ===========================
 
 Every command and switch leaves with its lifetime (:mod:`walkman.gym.validity`):
@@ -214,6 +216,7 @@ class Gateway:
         self._link_lock = threading.Lock()
         self._link_pub = None
         self.bridge_in: Optional[Port] = None
+        self._stopper = None    # the lab's stop-all executor (walkman.gym.stop_all)
         self.prefix = ""
         self.station = 0
         self.node_name = node_name
@@ -251,7 +254,12 @@ class Gateway:
             self.links[module] = ModuleLink(module, statuses, self.prefix, self.nameclient,
                                             self.keeper, self._on_status, self._on_warning,
                                             self._on_receipt)
-        if self.link_watch.state.state != "direct":
+        if self.link_watch.state.state == "direct":
+            from walkman.gym.stop_all import StopAll
+
+            self._stopper = StopAll("walkman", list(self.modules), f"{self.prefix}/stop_all",
+                                    self.nameclient)
+        else:
             self.bridge_in = Port(nameclient=self.nameclient, reader=self._on_bridge_status)
             self.bridge_in.open(f"{self.prefix}/bridge:i", wait=math.inf)
             self.keeper.want(BRIDGE_STATUS, self.bridge_in.name, self.bridge_in,
@@ -394,7 +402,7 @@ class Gateway:
         from walkman_msgs.msg import CommandState as CommandStateMsg
         from walkman_msgs.msg import (Command, Countdown, Link, SentCommand, Status, Switch,
                                       Warning)
-        from walkman_msgs.srv import Cancel, GetStatus, SendCommand, SwitchModule
+        from walkman_msgs.srv import Cancel, GetStatus, SendCommand, StopAll, SwitchModule
 
         while not self.yarp_open.wait(1.0):    # the station numbers what ROS brings
             if self.finished.is_set():
@@ -410,6 +418,10 @@ class Gateway:
                 return
 
         self._sent = rospy.Publisher("/pilot/sent_commands", SentCommand, queue_size=50)
+        if not self._ros:   # first registration: the services are kept across roscore restarts
+            self._stop_services = [
+                rospy.Service("/pilot/stop_all", StopAll, lambda r: self._stop_srv("stop_all")),
+                rospy.Service("/pilot/release", StopAll, lambda r: self._stop_srv("release"))]
         self._link_pub = rospy.Publisher("/bridge/link", Link, queue_size=5, latch=True)
         self._states_pub = rospy.Publisher("/pilot/command_states", CommandStateMsg,
                                            queue_size=200)
@@ -699,6 +711,54 @@ class Gateway:
         log.info("gateway: cancel %s %s: %s", module, seq or "all", message)
         return bool(cancelled) or not too_late and not seq, cancelled, message
 
+    def stop_all(self, word: str) -> Tuple[bool, str, float, float, List[str]]:
+        """``stop_all`` or ``release``: through the pilot bridge (its stop line), or in the
+        lab by this gateway itself; ``(ok, message, round trip ms, robot ms, paused)``."""
+        started = time.monotonic()
+        if self.link_watch.state.state == "direct":
+            try:
+                stopper = self._local_stop_all()
+            except GatewayError as exc:
+                return False, str(exc), 0.0, 0.0, []
+            report = stopper.stop(self.sequence.next()) if word == "stop_all" \
+                else stopper.release(self.sequence.next())
+            took = (time.monotonic() - started) * 1000.0
+            return report.hal, report.line() if report.hal or word == "stop_all" else \
+                f"release: {report.problem}", took, report.took_ms, list(report.modules)
+        try:
+            client = RpcClient(nameclient=self.nameclient)
+            try:
+                client.connect(BRIDGE_RPC)
+                reply = client.call(Bottle([word]), timeout=8.0)
+            finally:
+                client.close()
+        except YarpError as exc:
+            return False, f"cannot reach the pilot bridge ({BRIDGE_RPC}): {exc}", 0.0, 0.0, []
+        if len(reply) != 6 or reply[0] != "ok":
+            return False, f"{word}: {readable(reply)}", 0.0, 0.0, []
+        fields = {str(item[0]): list(item)[1:] for item in list(reply)[2:]}
+        hal = fields["hal"] == ["ok"]
+        paused = [str(m) for m in fields["paused"]]
+        message = (f"{word}: {'HAL held' if hal else 'HAL NOT held'}; paused "
+                   f"{', '.join(paused) or 'no module'}" if word == "stop_all" else
+                   f"release: HAL {'free' if hal else 'NOT released'}")
+        return hal, message, float(fields["round_trip_ms"][0]), \
+            float(fields["robot_ms"][0]), paused
+
+    def _local_stop_all(self) -> Any:
+        """The lab's stop-all executor (one network: this gateway reaches the HAL itself)."""
+        if self._stopper is None:
+            raise GatewayError("the gateway's YARP side is not open yet")
+        return self._stopper
+
+    def _stop_srv(self, word: str) -> Any:
+        from walkman_msgs.srv import StopAllResponse
+
+        ok, message, rtt, robot, paused = self.stop_all(word)
+        (log.warning if word == "stop_all" else log.info)("gateway: %s (%.0f ms)", message,
+                                                           rtt)
+        return StopAllResponse(ok, message, rtt, robot, paused)
+
     def _cancel_srv(self, module: str, request: Any) -> Any:
         from walkman_msgs.srv import CancelResponse
 
@@ -721,6 +781,8 @@ class Gateway:
         self.keeper.stop()
         for link in self.links.values():
             link.close()
+        if self._stopper is not None:
+            self._stopper.close()
         for port in (self.sent_in, self.sent_out, self.bridge_in):
             if port is not None:
                 port.close()

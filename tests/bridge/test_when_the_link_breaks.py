@@ -29,7 +29,7 @@ def test_a_blackout_expires_short_lived_commands_and_runs_the_others_once(pcs, l
     link.apply("drc", loss=0)
     pcs.start_name_servers()
     pcs.start_roscore(pcs.pilot)
-    module = pcs.robot.python("-m", "walkman.gym.supervisor", "counting_module:Module",
+    module = pcs.robot.python("-m", "walkman.gym.supervisor", "witness",
                               "--name", "/counter", name="counter module")
     pcs.start_bridge(pcs.robot)
     pcs.start_bridge(pcs.pilot)
@@ -98,3 +98,93 @@ def test_a_blackout_expires_short_lived_commands_and_runs_the_others_once(pcs, l
     links.wait_for(r",up$", 30, count=2)
     wait_nothing_in_flight(pcs, lite)
     assert executed(pcs.log) == [4]                      # once, and never the expired one
+
+
+STOP_CONFIG = """<bridge period="0.5" gather="0.4">
+  <modules>
+    <module name="counter" id="3"/>
+    <module name="gaze_control" id="7"/>
+  </modules>
+  <robot_state id="20" robot="walkman" channel="tcp" rate="10"/>
+  <emergency_stop id="250" robot="walkman" copies="3"/>
+</bridge>
+"""
+
+
+def head_position(pcs, lite) -> float:
+    """NeckYawj (degrees) as the HAL's control board says on the robot."""
+    reply = pcs.robot.world.run_tool(lite, "rpc", "/walkman/head/rpc:i",
+                                     input_text="[get] [encs]\n").stdout
+    found = re.search(r"\(([-\d.e]+) [-\d.e]+\)", reply)
+    assert found, reply
+    return float(found.group(1))
+
+
+def latest_state(pcs, module: str) -> str:
+    """The module's last status word, as the pilot's gateway says (latched)."""
+    echo = pcs.pilot.start(["rostopic", "echo", "-n", "1", f"/{module}/status/state"],
+                           f"{module} state")
+    echo.wait(30)
+    return echo.output()
+
+
+def test_a_stop_all_at_30_percent_loss_holds_every_module_and_the_hal(tmp_path, lite, link,
+                                                                       monkeypatch):
+    config = tmp_path / "bridge.xml"
+    config.write_text(STOP_CONFIG)
+    monkeypatch.setenv("COUNTER_LOG", str(tmp_path / "executed.log"))
+    pcs = TwoPCs(tmp_path, lite, config, link=link)
+    try:
+        link.apply("drc", loss=0)
+        pcs.start_name_servers()
+        pcs.start_roscore(pcs.pilot)
+        pcs.robot.python("-m", "walkman.hal.server", "--backend", "sim",
+                         name="hal").wait_for("HAL for walkman", 60)
+        modules = [pcs.robot.python("-m", "walkman.gym.supervisor", "witness",
+                                    "--name", "/counter", name="counter"),
+                   pcs.robot.python("-m", "walkman.gym.supervisor", "gaze_control",
+                                    name="gaze_control")]
+        for module in modules:
+            module.wait_for("ready for the pilot", 90)
+        pcs.start_bridge(pcs.robot)
+        pcs.start_bridge(pcs.pilot)
+        pcs.wait_linked()
+        gateway = pcs.pilot.python("-m", "rosnodes.gateway", "--config", str(config),
+                                   "--link", "bridge", name="gateway")
+        gateway.wait_for("ROS topics and services up", 60)
+        for module in ("counter", "gaze_control"):
+            started = pcs.pilot.start(["rosservice", "call", f"/{module}/switch_and_wait",
+                                       "{command: start, timeout: 30}"], f"start {module}")
+            assert started.wait(60) == 0 and "ok: True" in started.output(), started.output()
+        look = pcs.pilot.start(["rosservice", "call", "/gaze_control/send_command",
+                                "{command: look_at, numbers: [1.0, 0.4, 0.1]}"], "look")
+        assert look.wait(60) == 0, look.output()
+        wait_until(lambda: head_position(pcs, lite) > 10, 30,
+                   message=f"the head turning ({look.output()})")
+
+        link.set_loss(30)
+        stop = pcs.pilot.start(["rosservice", "call", "/pilot/stop_all"], "stop all")
+        assert stop.wait(60) == 0, stop.output()
+        answer = stop.output()
+        assert "ok: True" in answer and "counter" in answer and "gaze_control" in answer, \
+            answer
+        held = head_position(pcs, lite)
+        # Every module held: paused, as its status says on the pilot's side.
+        link.set_loss(0)
+        for module in ("counter", "gaze_control"):
+            wait_until(lambda m=module: "paused" in latest_state(pcs, m), 30,
+                       message=f"{module} paused")
+        # The HAL holds its posture: a new look is refused, the head stays where it was.
+        again = pcs.pilot.start(["rosservice", "call", "/gaze_control/send_command",
+                                 "{command: look_at, numbers: [1.0, -0.4, 0.1]}"], "look again")
+        assert again.wait(60) == 0
+        halt = pcs.robot.world.run_tool(lite, "rpc", "/walkman/rpc:i",
+                                        input_text="[get] halt\n").stdout
+        assert "on" in halt, halt
+        assert head_position(pcs, lite) == pytest.approx(held, abs=0.5)
+        release = pcs.pilot.start(["rosservice", "call", "/pilot/release"], "release")
+        assert release.wait(60) == 0 and "ok: True" in release.output(), release.output()
+        assert "off" in pcs.robot.world.run_tool(lite, "rpc", "/walkman/rpc:i",
+                                                 input_text="[get] halt\n").stdout
+    finally:
+        pcs.close()

@@ -2,7 +2,7 @@
 
 The replies' shapes are those the real controlboardwrapper2 gives (checked
 against it, Bottle for Bottle, in tests/interop/test_controlboard_oracle.py);
-here the parser is driven by an in-memory board, and ChainBoard by the real
+here the parser is driven by the package's in-memory board (walkman.hal.virtual_board), and ChainBoard by the real
 simulated backend.
 """
 
@@ -18,14 +18,13 @@ from hypothesis import strategies as st
 
 from walkman.hal import controlboard as cb
 from walkman.hal.controlboard import ControlBoardError, JointData, Stamp
+from walkman.hal.virtual_board import VirtualBoard
 from yarp_lite import bottle as codec
 from yarp_lite.bottle import Bottle, Vocab, vocab_encode
 from yarp_lite.bottle_text import parse
 
-from fuzz.targets import MemoryBoard
 
-
-def ask(board: MemoryBoard, text: str, errors: list = None) -> Bottle:
+def ask(board: VirtualBoard, text: str, errors: list = None) -> Bottle:
     """What the wrapper answers to a request typed as `yarp rpc` types it."""
     return cb.respond(board, parse(text), Stamp(), 1000.0, "/tester",
                       on_error=(errors if errors is not None else []).append)
@@ -59,21 +58,21 @@ def ask(board: MemoryBoard, text: str, errors: list = None) -> Bottle:
     ("help", "[nak]"),                        # a lone word, as the real port answers
 ])
 def test_replies_are_shaped_as_the_real_wrappers(request_text, reply_text):
-    assert ask(MemoryBoard(), request_text) == parse(reply_text)
+    assert ask(VirtualBoard(), request_text) == parse(reply_text)
 
 
 def test_what_is_refused_is_reported_with_the_reason():
     errors: list = []
-    ask(MemoryBoard(), "get enc 7", errors)
-    ask(MemoryBoard(), "set poss (1 2 3)", errors)
-    ask(MemoryBoard(), "get foo", errors)
+    ask(VirtualBoard(), "get enc 7", errors)
+    ask(VirtualBoard(), "set poss (1 2 3)", errors)
+    ask(VirtualBoard(), "get foo", errors)
     assert "axis 7 out of range 0..1" in errors[0]
     assert "has 3 values, expected 2" in errors[1]
     assert "[get] [foo] is not served" in errors[2]
 
 
 def test_a_move_reaches_the_board_with_its_owner():
-    board = MemoryBoard()
+    board = VirtualBoard()
     ask(board, "set posg 1 (1) (12.5)")
     ask(board, "set stos")
     assert board.commands == [("position_move", [1], [12.5], "/tester"),
@@ -81,7 +80,7 @@ def test_a_move_reaches_the_board_with_its_owner():
 
 
 def test_rpc_stamps_count_up():
-    board, stamp = MemoryBoard(), Stamp()
+    board, stamp = VirtualBoard(), Stamp()
     first = cb.respond(board, parse("get axes"), stamp, 5.0)
     second = cb.respond(board, parse("get axes"), stamp, 6.0)
     assert first[-3:-1] == [1, 5.0] and second[-3:-1] == [2, 6.0]
@@ -93,7 +92,7 @@ def test_rpc_stamps_count_up():
                                                               "posg", "cmog", "dons", "name")]),
                           st.lists(st.integers(-2, 3), max_size=3)), max_size=7))
 def test_any_request_gets_an_answer_and_never_an_exception(items):
-    reply = cb.respond(MemoryBoard(), Bottle(items), Stamp(), 1.0)
+    reply = cb.respond(VirtualBoard(), Bottle(items), Stamp(), 1.0)
     assert str(reply[-1]) in ("ok", "fail", "nak")
 
 
@@ -269,3 +268,29 @@ def test_stop_holds_the_servo_reference(backend):
     assert board.vector("target_positions")[0] == pytest.approx(reference)
     run(board, backend, 0.1)
     assert math.degrees(backend.reference[backend.index["NeckYawj"]]) == pytest.approx(reference)
+
+
+def test_the_pilots_stop_all_holds_every_joint_and_refuses_commands_until_released(backend):
+    from walkman.hal.chain import ChainBoard
+
+    told = []
+    board = ChainBoard("head", ["NeckYawj", "NeckPitchj"], backend, boot_mode="pos",
+                       on_halted=lambda owner, text: told.append((owner, text)))
+    board.command("set_ref_speeds", [0], [60.0])
+    board.command("position_move", [0], [30.0], "/gaze")
+    run(board, backend, 0.2)                       # on its way: about 12 degrees
+    board.halt(True)
+    held = math.degrees(backend.reference[backend.index["NeckYawj"]])
+    board.command("position_move", [0], [-30.0], "/gaze")
+    board.command("position_move", [0], [-30.0], "/gaze")
+    run(board, backend, 0.5)
+    assert math.degrees(backend.reference[backend.index["NeckYawj"]]) == pytest.approx(held)
+    assert board.motion_done([0])                  # held still: the move was stopped too
+    assert told == [("/gaze", "HAL: position_move from /gaze not applied: head is held by the "
+                              "pilot's stop-all (#1 of this burst)")]   # once per burst
+    with pytest.raises(ControlBoardError, match="cannot change while the pilot's stop-all"):
+        board.set_control_modes([0], ["idl"])     # idle would drop the torque
+    board.halt(False)
+    board.command("position_move", [0], [-30.0], "/gaze")
+    run(board, backend, 0.2)
+    assert math.degrees(backend.reference[backend.index["NeckYawj"]]) < held - 5

@@ -62,8 +62,13 @@ class ChainBoard(cb.ControlBoardDevice):
                  arbitrate: Arbiter = lambda owner, joints: set(joints),
                  on_seq: Callable[[int], None] = lambda seq: None,
                  on_refused: Callable[[str, str], None] = lambda owner, text: None,
-                 boot_mode: str = cb.MODE_DIRECT) -> None:
+                 boot_mode: str = cb.MODE_DIRECT,
+                 on_halted: Callable[[str, str], None] = lambda owner, text: None) -> None:
         self.name = name
+        #: The pilot's stop-all holds every joint where its servo is: nothing moves them.
+        self.halted = False
+        self.on_halted = on_halted
+        self._halt_refusals: Dict[str, Burst] = {}
         self.joints = joints
         self.backend = backend
         self.indices = np.array([backend.index[j] for j in joints])
@@ -146,6 +151,9 @@ class ChainBoard(cb.ControlBoardDevice):
             raise cb.ControlBoardError(f"{self.name}: control mode {unknown[0]!r} is not offered; "
                                        f"try {', '.join(sorted(SETTABLE_MODES))}")
         joints = list(joints)
+        if self.halted:   # idle would drop the torque that holds the robot
+            raise cb.ControlBoardError(f"{self.name}: control modes cannot change while the "
+                                       f"pilot's stop-all holds the joints")
         if owner:
             allowed = self.arbitrate(owner, [int(self.indices[j]) for j in joints])
             held = [self.joints[j] for j in joints if int(self.indices[j]) not in allowed]
@@ -175,6 +183,9 @@ class ChainBoard(cb.ControlBoardDevice):
         joints = list(joints)
         if seq is not None:
             self.on_seq(seq)
+        if self.halted and what not in ("set_ref_speeds", "set_ref_accelerations"):
+            self._refuse_halted(owner, what)
+            return
         if what in ("set_ref_speeds", "set_ref_accelerations") and not all(v > 0 for v in values):
             raise cb.ControlBoardError(f"{what} needs positive values: {list(values)}")
         need = MODE_OF.get(what)
@@ -193,6 +204,26 @@ class ChainBoard(cb.ControlBoardDevice):
             self.commands += 1
             for k in keep:
                 self._record(what, joints[k], values[k] if values else 0.0)
+
+    def halt(self, on: bool) -> None:
+        """The pilot's stop-all (``on``): every joint holds what its servo holds now, and
+        commands are refused until it is released (each owner told, once per burst)."""
+        with self.lock:
+            if on and not self.halted:
+                for joint in range(len(self.joints)):
+                    self._record("stop", joint, 0.0)
+            self.halted = on
+            self._halt_refusals = {}
+
+    def _refuse_halted(self, owner: str, what: str) -> None:
+        with self.lock:
+            self.refused += 1
+            burst = self._halt_refusals.setdefault(owner, Burst())
+        if burst.record():
+            text = (f"HAL: {what} from {owner or '?'} not applied: {self.name} is held by the "
+                    f"pilot's stop-all (#{burst.count} of this burst)")
+            log.warning("%s: %s", self.name, text)
+            self.on_halted(owner, text)
 
     def _record(self, what: str, joint: int, value: float) -> None:
         lower, upper = self.limits(joint)

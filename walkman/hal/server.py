@@ -124,7 +124,9 @@ class HalServer:
         self._arbiter_lock = threading.Lock()  # commands arrive on many port threads
         self.chains: Dict[str, ChainBoard] = {
             name: ChainBoard(name, joints, backend, self._arbitrate, self._on_command_seq,
-                             lambda owner, text: self._warn(text, owner, "", "wrong mode"))
+                             lambda owner, text: self._warn(text, owner, "", "wrong mode"),
+                             on_halted=lambda owner, text: self._warn(text, owner, "pilot",
+                                                                      "halted"))
             for name, joints in config.chains.items()}
         self._malformed: Dict[str, Burst] = {name: Burst() for name in self.chains}
         self._rpc_refusals: Dict[str, Burst] = {}
@@ -291,8 +293,20 @@ class HalServer:
             return Bottle([Vocab("ok")])
         if verb == "set" and what == "push":
             return self._push(request)
+        if verb == "set" and what == "halt" and len(request) == 3 and \
+                str(request[2]) in ("on", "off"):
+            on = str(request[2]) == "on"
+            for chain in self.chains.values():
+                chain.halt(on)
+            log.warning("HAL: %s by the pilot's stop-all", "every joint held" if on else
+                        "released: commands apply again")
+            return Bottle([Vocab("ok")])
+        if verb == "get" and what == "halt":
+            return Bottle([Vocab("ok"), "on" if any(c.halted for c in self.chains.values())
+                           else "off"])
         return Bottle([Vocab("fail"), "unknown request; try [get] chains, [get] stats, "
-                                      "[set] harness locked|trolley|off, [set] push IX IY IZ"])
+                                      "[set] harness locked|trolley|off, [set] push IX IY IZ, "
+                                      "[set] halt on|off, [get] halt"])
 
     def _push(self, request: Bottle) -> Bottle:
         """``[set] push IX IY IZ [SECONDS]``: a simulated push on the torso (N*s, world)."""
