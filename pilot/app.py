@@ -115,7 +115,8 @@ def main(argv: Optional[List[str]] = None) -> int:
 # -- the window ---------------------------------------------------------------------------
 
 from python_qt_binding.QtCore import QObject, Qt, QTimer, Signal  # noqa: E402
-from python_qt_binding.QtWidgets import (QCheckBox, QLabel, QMainWindow, QSplitter,  # noqa: E402
+from python_qt_binding.QtWidgets import (QCheckBox, QHBoxLayout, QLabel,  # noqa: E402
+                                         QMainWindow, QPushButton, QSplitter,
                                          QScrollArea, QTabWidget, QVBoxLayout, QWidget)
 
 from pilot import link as events  # noqa: E402
@@ -159,7 +160,24 @@ class PilotWindow(QMainWindow):
         outer = QVBoxLayout(central)
         self.banner = QLabel("connecting to the pilot roscore...")
         self.banner.setObjectName("banner")
-        outer.addWidget(self.banner)
+        top = QHBoxLayout()
+        top.addWidget(self.banner, 1)
+        # In every layout: one click holds the whole robot (HAL and every module).
+        self.stop_button = QPushButton("STOP ALL")
+        self.stop_button.setObjectName("stop_all")
+        self.stop_button.setStyleSheet("background-color: #c00000; color: white; "
+                                       "font-weight: bold; font-size: 16px; padding: 6px 18px;")
+        self.stop_button.setToolTip("hold the robot now: the HAL keeps every joint where it "
+                                    "is and every module pauses (over a bad link too)")
+        self.stop_button.clicked.connect(lambda: self._stop_all("stop_all"))
+        self.release_button = QPushButton("release")
+        self.release_button.setObjectName("release")
+        self.release_button.setToolTip("let the HAL move again; each module stays paused "
+                                       "until you resume it")
+        self.release_button.clicked.connect(lambda: self._stop_all("release"))
+        top.addWidget(self.stop_button)
+        top.addWidget(self.release_button)
+        outer.addLayout(top)
         splitter = QSplitter(Qt.Horizontal)
         self.tabs = QTabWidget()
         self.tabs.setObjectName("tabs")
@@ -249,6 +267,24 @@ class PilotWindow(QMainWindow):
     def cancel(self, module: str, seq: int = 0) -> str:
         return self.link.cancel(module, seq)
 
+    def _stop_all(self, word: str) -> None:
+        problem = self.link.stop_all(word)
+        text = problem or ("STOP ALL sent: waiting for the robot's answer" if word == "stop_all"
+                           else "release sent")
+        self.banner.setText(text)
+        if self.log is not None:
+            self.log.note(text)
+
+    def _on_stop(self, event: events.StopEvent) -> None:
+        what = "STOP ALL" if event.word == "stop_all" else "release"
+        text = (f"{what}: {event.message} ({event.round_trip_ms:.0f} ms)" if event.ok else
+                f"{what} NOT confirmed: {event.message}")
+        self.banner.setText(text)
+        self.banner.setStyleSheet("" if event.ok and event.word == "release" else
+                                  "color: #c00000; font-weight: bold;")
+        if self.log is not None:
+            self.log.note(text)
+
     # -- running ---------------------------------------------------------------------------
 
     def start(self) -> None:
@@ -276,6 +312,9 @@ class PilotWindow(QMainWindow):
             log.exception("pilot: showing %s failed", type(event).__name__)
 
     def _dispatch(self, event: Any) -> None:
+        if isinstance(event, events.StopEvent):
+            self._on_stop(event)
+            return
         if isinstance(event, events.RosEvent):
             self.ros_up = event.up
             self.banner.setText(f"{self.name}: on the pilot roscore "

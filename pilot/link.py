@@ -154,6 +154,17 @@ class CommandStateEvent:
 
 
 @dataclass(frozen=True)
+class StopEvent:
+    """The robot's answer to this PI's stop-all or release."""
+
+    word: str             # stop_all or release
+    ok: bool
+    message: str
+    round_trip_ms: float
+    stamp: float
+
+
+@dataclass(frozen=True)
 class RosEvent:
     up: bool
     again: bool = False   # the master restarted and our topics are registered again
@@ -301,6 +312,28 @@ class PilotLink:
             self.post(WarningEvent(module, f"cancel: {text}", time.time()))
 
         threading.Thread(target=ask, name=f"cancel {module}", daemon=True).start()
+        return ""
+
+    def stop_all(self, word: str = "stop_all") -> str:
+        """The pilot's stop-all (or ``release``) through the gateway's ``/pilot/<word>``;
+        returns at once, the robot's answer comes back as a :class:`StopEvent`."""
+        if self._ros is None or not self._ros.ready.is_set():
+            return "the PI is not connected to the pilot roscore yet"
+
+        def ask() -> None:
+            import rospy
+            from walkman_msgs.srv import StopAll
+
+            try:
+                rospy.wait_for_service(f"/pilot/{word}", timeout=5.0)
+                answer = rospy.ServiceProxy(f"/pilot/{word}", StopAll)()
+                self.post(StopEvent(word, bool(answer.ok), answer.message,
+                                    float(answer.round_trip_ms), time.time()))
+            except (rospy.ROSException, rospy.ServiceException) as exc:
+                self.post(StopEvent(word, False, f"the gateway did not answer ({exc})", 0.0,
+                                    time.time()))
+
+        threading.Thread(target=ask, name=word, daemon=True).start()
         return ""
 
     def cannot_send(self, module: str) -> str:

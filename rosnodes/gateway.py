@@ -739,7 +739,7 @@ class Gateway:
         fields = {str(item[0]): list(item)[1:] for item in list(reply)[2:]}
         hal = fields["hal"] == ["ok"]
         paused = [str(m) for m in fields["paused"]]
-        message = (f"{word}: {'HAL held' if hal else 'HAL NOT held'}; paused "
+        message = (f"{word}: {'HAL held' if hal else 'HAL NOT held'}; pause sent to "
                    f"{', '.join(paused) or 'no module'}" if word == "stop_all" else
                    f"release: HAL {'free' if hal else 'NOT released'}")
         return hal, message, float(fields["round_trip_ms"][0]), \

@@ -7,7 +7,7 @@ process, and the recovery test kills a PI for real):
 
 Phases: ``first`` (start gaze_control, the valve task up to ``reached``, then waits
 to be killed), ``second`` (a new PI: the current state shown at once, the rest of the
-task, a cancelled timed turn, the 3-D view checked), ``latency COUNT`` (for
+task, a cancelled timed turn, the 3-D view checked, STOP ALL and release clicked), ``latency COUNT`` (for
 bench/bench_pilot.py: COUNT clicks on gaze_control's look_at, 4 a second, each
 with a new target, printing ``CLICKED i wall-time look_at x y``), ``peer OTHER X``
 (one of two PIs: sends ``look_at X`` once the test says ``go`` on stdin, sees the
@@ -236,6 +236,14 @@ def second() -> None:
             not in caption or ("red: tiles" in caption) != bool(image.missing):
         fail(f"the camera says {caption!r}, the bridge {image}, {cloud}")
     say("STEP camera shows the bridge's reports")
+    click(window.stop_button, "STOP ALL")
+    wait(lambda: "HAL held" in window.banner.text(), 20, "the robot's answer to STOP ALL")
+    wait(lambda: valve.state == "paused", 20, "drc_valve paused by the stop-all")
+    window.screenshot(OUT / "stop-all.png")
+    say(f"STEP stop all: {window.banner.text()}")
+    click(window.release_button, "release")
+    wait(lambda: "HAL free" in window.banner.text(), 20, "the release")
+    say("STEP released")
     say("DONE")
 
 

@@ -102,6 +102,10 @@ def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
                        second.output())
     assert pixels, second.output()
     assert "STEP camera shows the bridge's reports" in second.output(), second.output()
+    # STOP ALL crossed the bridge: the robot's HAL held and the modules paused, then let go.
+    assert "STEP released" in second.output(), second.output()
+    assert re.search(r"gateway: stop_all: HAL held; pause sent to .*drc_valve", gateway), \
+        gateway[-3000:]
 
 
 def test_in_the_lab_a_black_sky_and_points_without_depth_are_not_loss(display, tmp_path,
