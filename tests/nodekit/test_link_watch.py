@@ -1,8 +1,17 @@
-"""nodekit.link_watch: the pilot bridge's status reduced to what a pilot must read."""
+"""nodekit.link_watch: a side's bridge status reduced to what its readers must know.
+
+The pilot gateway reads the pilot bridge's (``/bridge/link``), the robot's modules the
+robot bridge's (their link-loss policy).
+"""
 
 from __future__ import annotations
 
-from nodekit.link_watch import BRIDGE_QUIET, DIRECT, DOWN, SILENT_DOWN, UNKNOWN, UP, LinkWatch
+import pytest
+
+from bridge import status as bridge_status
+from nodekit.link_watch import (BRIDGE_QUIET, DIRECT, DOWN, SILENT_DOWN, UNKNOWN, UP, LinkWatch,
+                                status_fields)
+from yarp_lite.bottle import Bottle
 
 
 def status(link: str = "up", silent: float = 0.2, queued: int = 0, rtt: float = 40.0) -> dict:
@@ -50,3 +59,34 @@ def test_garbage_in_a_status_is_read_as_nothing_known():
     watch = LinkWatch(direct=False, now=0.0)
     changed = watch.on_status({"link": "up", "silent_s": "x", "queued_commands": None}, 1.0)
     assert changed.state == UP and changed.queued == 0
+
+
+def test_on_the_robot_the_bridges_are_named_the_other_way_round():
+    watch = LinkWatch(direct=False, now=0.0, side="robot")
+    assert watch.state.reason == "no word from the robot bridge yet"
+    assert watch.tick(60.0) is None          # the lab: no bridge, never down
+    watch.on_status(status(), 61.0)
+    down = watch.on_status(status(silent=SILENT_DOWN + 0.1), 62.0)
+    assert down.state == DOWN and down.reason == "the pilot's bridge silent for 1.6 s"
+    watch.on_status(status(), 63.0)
+    gone = watch.tick(63.0 + BRIDGE_QUIET + 1.0)
+    assert gone.state == DOWN and gone.reason == "no status from the robot bridge for 3 s"
+    with pytest.raises(ValueError, match="side must be one of pilot, robot"):
+        LinkWatch(direct=False, now=0.0, side="moon")
+
+
+def test_the_fields_of_a_bridge_status_bottle_are_what_the_bridge_wrote():
+    written = {"side": "robot", "link": "up", "silent_s": 0.3, "queued_commands": 2,
+               "tcp": {"frames": 4}, "modules_here": ["counter"]}
+    fields = status_fields(bridge_status.to_bottle(written))
+    assert {key: fields[key] for key in ("side", "link", "silent_s", "queued_commands")} == \
+        {"side": "robot", "link": "up", "silent_s": 0.3, "queued_commands": 2}
+    assert LinkWatch(direct=False, now=0.0, side="robot").on_status(fields, 1.0).state == UP
+    assert status_fields(Bottle()) == {}
+
+
+@pytest.mark.parametrize("garbage", [Bottle(["link", "up"]), Bottle([Bottle(["link"])]),
+                                     Bottle([Bottle([3, "up"])]), Bottle([1.5])])
+def test_anything_else_on_the_status_port_is_refused(garbage):
+    with pytest.raises(ValueError, match="not a bridge status"):
+        status_fields(garbage)

@@ -9,10 +9,12 @@ every time; the waits are on what the runner says (status, warnings, state).
 from __future__ import annotations
 
 import logging
+import os
+import select
 import threading
 import time
 import types
-from typing import Iterator, List
+from typing import Iterator, List, Tuple
 
 import pytest
 
@@ -20,6 +22,7 @@ from harness import wait_until
 from walkman.gym import runner as runner_module
 from walkman.gym.interfaces import RecordingInterfaces
 from walkman.gym.lifecycle import State
+from walkman.gym.link_loss import LinkLoss
 from walkman.gym.runner import ModuleRunner
 from walkman.gym.thread import ControlThread, GenericThread
 from walkman.hal.protocol import HalProtocolError, HalUsageError
@@ -79,9 +82,10 @@ def make_runner(monkeypatch) -> Iterator:
     monkeypatch.setattr(runner_module, "HOOK_TIMEOUT", TIMEOUT)  # a busy machine is not a hang
     runners: List[ModuleRunner] = []
 
-    def make(module_class: type) -> ModuleRunner:
+    def make(module_class: type, **options) -> ModuleRunner:
         runner = ModuleRunner("scripted", module_class, {"thread_period": 10},
-                              interfaces=RecordingInterfaces("/scripted", module_class))
+                              interfaces=RecordingInterfaces("/scripted", module_class),
+                              **options)
         runners.append(runner)
         runner.start()
         return runner
@@ -315,3 +319,165 @@ def test_a_status_set_in_run_leaves_at_once_and_a_flood_of_them_is_thinned(make_
         runner.quit_requested = True
         runner.wake.set()
         watchdog.join(TIMEOUT)
+
+
+# -- the link-loss policy (walkman.gym.link_loss): the test plays the watchdog and the bridge --
+
+LINK_UP = {"link": "up", "silent_s": 0.2}
+LINK_SILENT = {"link": "up", "silent_s": 1.6}   # the pilot's bridge unheard: down
+
+
+class Pausing(Scripted):
+    link_loss = LinkLoss.pause(after=5.0)
+
+
+class Stopping(Scripted):
+    link_loss = LinkLoss.stop(after=5.0)
+
+
+class Clock:
+    """The runner's clock, moved by the test: the policy's delays pass at once."""
+
+    def __init__(self) -> None:
+        self.now = 1000.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+@pytest.fixture
+def linked(make_runner):
+    """A started module whose robot bridge said the link is up; the test's clock."""
+    clock = Clock()
+
+    def make(module_class: type) -> Tuple[ModuleRunner, Clock]:
+        runner = make_runner(module_class, clock=clock)
+        runner.link.feed(LINK_UP, clock())
+        runner.switch("start")
+        return runner, clock
+    return make
+
+
+def cut(runner: ModuleRunner, clock: Clock, then_wait: float) -> None:
+    """The pilot's bridge goes silent: the robot bridge says so (every half second, as
+    it does) while ``then_wait`` seconds pass."""
+    for _ in range(int(then_wait / 0.5) + 1):
+        runner.link.feed(LINK_SILENT, clock())
+        clock.now += 0.5
+    clock.now -= 0.5
+
+
+def test_the_policy_pauses_as_a_pilot_would_and_leaves_the_resume_to_the_pilot(linked):
+    runner, clock = linked(Pausing)
+    module = runner.thread
+    clock.now += 10.0                                      # running a while, link up
+    cut(runner, clock, 4.5)
+    runner.follow_link()                                   # 4.5 s of 5: nothing yet
+    assert runner.state == State.RUNNING and not module.pause_requested
+    cut(runner, clock, 0.5)
+    following = in_background(runner.follow_link)
+    assert module.pause_checked.wait(TIMEOUT)              # the pilot's safe pause first...
+    assert runner.state == State.RUNNING and following.is_alive()
+    module.may_pause.set()
+    following.join(TIMEOUT)
+    assert runner.state == State.PAUSED and runner.interfaces.state == "paused"
+    assert runner.interfaces.warnings == \
+        ["scripted: paused: no link to the pilot for 5 s (link-loss policy)"]
+    cut(runner, clock, 30.0)
+    runner.follow_link()
+    assert len(runner.interfaces.warnings) == 1            # said once
+
+    runner.link.feed(LINK_UP, clock())                     # the link is back...
+    runner.follow_link()
+    assert runner.state == State.PAUSED                    # ...the pilot decides
+    assert runner.interfaces.warnings[-1] == \
+        "scripted: the link to the pilot is back; the link-loss policy paused the module " \
+        "30 s ago and it stays paused until the pilot resumes it"
+    runner.switch("resume")
+    assert runner.state == State.RUNNING and runner.interfaces.state == "ok"
+
+
+def test_the_policy_stops_as_a_pilot_would(linked):
+    runner, clock = linked(Stopping)
+    runner.thread.may_pause.set()
+    cut(runner, clock, 6.0)
+    runner.follow_link()
+    assert runner.state == State.STOPPED and runner.thread.releases == 1
+    assert runner.interfaces.state == "stopped"
+    assert runner.interfaces.warnings == \
+        ["scripted: stopped: no link to the pilot for 6 s (link-loss policy)"]
+
+
+def test_a_module_that_continues_is_never_switched(linked):
+    runner, clock = linked(Scripted)                       # LinkLoss.CONTINUE
+    cut(runner, clock, 600.0)
+    runner.follow_link()
+    assert runner.state == State.RUNNING and runner.interfaces.warnings == []
+
+
+def test_in_the_lab_no_bridge_ever_speaks_and_nothing_is_down(make_runner):
+    clock = Clock()
+    runner = make_runner(Pausing, clock=clock)
+    runner.switch("start")
+    clock.now += 3600.0
+    runner.follow_link()
+    assert runner.state == State.RUNNING and runner.interfaces.warnings == []
+    assert runner.link.state(clock()).state == "unknown"
+
+
+def test_a_robot_bridge_gone_quiet_is_a_link_down(linked):
+    runner, clock = linked(Pausing)
+    runner.thread.may_pause.set()
+    clock.now += 2.5                                       # no status since the first
+    runner.follow_link()
+    assert runner.link.state(clock()).state == "down" and runner.state == State.RUNNING
+    clock.now += 5.0
+    runner.follow_link()
+    assert runner.state == State.PAUSED
+    assert runner.interfaces.warnings == \
+        ["scripted: paused: no link to the pilot for 5 s (link-loss policy)"]
+
+
+def test_the_watchdog_follows_the_link(linked):
+    runner, clock = linked(Pausing)
+    runner.thread.may_pause.set()
+    cut(runner, clock, 6.0)
+    watchdog = in_background(runner.watchdog)
+    try:
+        says(runner, lambda: "(link-loss policy)" in "".join(runner.interfaces.warnings),
+             "the policy's warning")
+        assert runner.state == State.PAUSED
+    finally:
+        runner.quit_requested = True
+        runner.wake.set()
+        watchdog.join(TIMEOUT)
+
+
+class SlowToPause(Scripted):
+    """Not at a safe pause until the test says so; says so at once when asked (as walking)."""
+
+    def ready_to_pause(self) -> bool:
+        self.pause_checked.set()
+        return self.may_pause.is_set()
+
+
+def test_the_watchdog_beats_while_it_waits_for_a_safe_pause(make_runner):
+    """A walk landing its foot is not a hung watchdog: the supervisor must not kill it."""
+    runner = make_runner(SlowToPause)
+    runner.switch("start")
+    module = runner.thread
+    read_fd, runner.heartbeat_fd = os.pipe()
+    try:
+        pausing = in_background(runner.switch, "pause")
+        assert module.pause_checked.wait(TIMEOUT)      # the safe pause is under way...
+        for _ in range(2):                             # ...and the supervisor hears beats
+            ready, _, _ = select.select([read_fd], [], [], TIMEOUT)
+            assert ready and os.read(read_fd, 1) == b"."
+        assert pausing.is_alive() and runner.state == State.RUNNING
+        module.may_pause.set()
+        pausing.join(TIMEOUT)
+        assert runner.state == State.PAUSED
+    finally:
+        os.close(read_fd)
+        os.close(runner.heartbeat_fd)
+        runner.heartbeat_fd = None

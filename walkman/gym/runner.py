@@ -6,7 +6,10 @@ Three threads:
 
 * the **watchdog** (main thread) wakes every 0.5 s, or at once when a switch
   command arrives.  It applies switch commands through the lifecycle table
-  (:mod:`walkman.gym.lifecycle`), publishes the status every 0.5 s (and at
+  (:mod:`walkman.gym.lifecycle`), then the module's link-loss policy
+  (:mod:`walkman.gym.link_loss`: a ``pause`` or ``stop`` made as a pilot's, then
+  a warning saying why) from what the robot's bridge says of the link
+  (:mod:`walkman.gym.bridge_link`), publishes the status every 0.5 s (and at
   once when it changes) and writes a heartbeat for the supervisor;
 * the **control thread** calls ``run()`` every ``thread_period`` while
   running, and performs the hooks (``custom_init``, ``custom_pause``...) on
@@ -48,7 +51,9 @@ from typing import Any, Callable, Dict, List, Optional, Type
 
 from nodekit.logs import time_prefix
 from walkman.gym import inifile
+from walkman.gym.bridge_link import BridgeLink
 from walkman.gym.interfaces import PilotInterfaces, decoder_for, validity_of
+from walkman.gym.link_loss import LinkLossDecider, link_loss_of
 from walkman.gym.pacing import TickSchedule
 from walkman.gym.lifecycle import State, Switch
 from walkman.gym.thread import ControlThread, GenericThread
@@ -161,15 +166,20 @@ class ModuleRunner:
     """One module's lifecycle, hooks and pilot interfaces (see the module docstring).
 
     ``interfaces`` replaces the port-backed pilot interfaces (tests pass
-    :class:`~walkman.gym.interfaces.RecordingInterfaces` to run without YARP).
+    :class:`~walkman.gym.interfaces.RecordingInterfaces` to run without YARP);
+    then the bridge's statuses are not read from a port either: a test feeds
+    :attr:`link` itself.  ``clock`` dates the lifecycle's changes and the link's (the
+    link-loss policy compares them); a test may pass one it moves.
     """
 
     def __init__(self, name: str, module_class: Type[GenericThread], config: Dict[str, Any],
                  prefix: Optional[str] = None, initial: State = State.CONSTRUCTOR,
                  heartbeat_fd: Optional[int] = None,
                  nameclient: Optional[NameClient] = None,
-                 interfaces: Optional[PilotInterfaces] = None) -> None:
+                 interfaces: Optional[PilotInterfaces] = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.name = name
+        self.clock = clock
         self.prefix = prefix or f"/{name}"
         self.config = config
         self.module_class = module_class
@@ -190,7 +200,11 @@ class ModuleRunner:
         self.lifecycle = Lifecycle(name, self.thread, self.interfaces, initial=initial,
                                    call_hook=self._ask_control_thread,
                                    wait_until=self._wait_until, robot=lambda: self.robot,
-                                   prepare_init=self._robot_ready_for_init)
+                                   prepare_init=self._robot_ready_for_init, clock=clock)
+        #: What the robot's bridge says of the link, and the module's policy when it dies.
+        self.link = BridgeLink(name, clock)
+        self._link_from_port = interfaces is None
+        self.link_loss = LinkLossDecider(name, link_loss_of(module_class))
         self.loop = ControlLoop(self)
         self.quit_requested = False
         self.exit_code = EXIT_QUIT
@@ -219,28 +233,37 @@ class ModuleRunner:
         """How the lifecycle runs a hook: on the control thread (None: it did not return)."""
         return self.loop.ask(hook, timeout=30 if hook == "init" else None)
 
-    @staticmethod
-    def _wait_until(done: Callable[[], bool], timeout: float) -> bool:
-        """How the lifecycle waits for a safe pause: here, while the control thread runs."""
+    def _wait_until(self, done: Callable[[], bool], timeout: float) -> bool:
+        """How the lifecycle waits for a safe pause: here, while the control thread runs.
+        The watchdog is waiting, not hung: it goes on beating (the supervisor's timeout is
+        as long as the pause's grace, and killing a walk mid-step is what the pause avoids)."""
         deadline = time.monotonic() + timeout
-        while not done():
-            if time.monotonic() > deadline:
+        next_beat = 0.0
+        while True:
+            now = time.monotonic()
+            if now >= next_beat:
+                self._heartbeat()
+                next_beat = now + STATUS_PERIOD
+            if done():
+                return True
+            if now > deadline:
                 return False
             time.sleep(0.01)
-        return True
 
     # -- set-up --------------------------------------------------------------------------
 
     def start(self) -> None:
         self.interfaces.open(wait=math.inf)
+        if self._link_from_port:
+            self.link.open(self.nameclient, f"{self.prefix}/bridge:i")
         if getattr(self.module_class, "needs_robot", False):
             threading.Thread(target=self._connect_robot, daemon=True,
                              name=f"{self.name} connector").start()
         else:
             self.robot_ready.set()
         self.loop.start()
-        log.info("%s: ready for the pilot on %s/switch:i (state %s)", self.name, self.prefix,
-                 self.state.value)
+        log.info("%s: ready for the pilot on %s/switch:i (state %s; link-loss policy %s)",
+                 self.name, self.prefix, self.state.value, self.link_loss.policy)
 
     def _connect_robot(self) -> None:
         """The connector thread: retry while the HAL is not there; any other failure is final."""
@@ -321,14 +344,15 @@ class ModuleRunner:
 
     # -- switch commands (watchdog) ----------------------------------------------------------------
 
-    def switch(self, command: str) -> None:
-        """Apply a pilot's switch command (watchdog thread)."""
+    def switch(self, command: str) -> Optional[Outcome]:
+        """Apply a pilot's switch command (watchdog thread); None if refused before any
+        hook ran (told)."""
         switch = self.lifecycle.accept(command)  # refused now: told, no hook runs
         if switch is None:
-            return
+            return None
         if switch == Switch.START and not self._robot_allows_start():
             self.interfaces.send_status()
-            return
+            return None
         outcome = self.lifecycle.apply(switch)
         if outcome is Outcome.HUNG:
             self.warn(f"{self.name}: run() does not give control back; restarting the "
@@ -338,6 +362,25 @@ class ModuleRunner:
         elif self.state == State.DESTRUCTOR:
             self.quit_requested = True
         self.interfaces.send_status()
+        return outcome
+
+    def follow_link(self) -> None:
+        """The module's link-loss policy, now (watchdog thread): the switch it makes is a
+        pilot's, with its safe pause and hold; the warning says why once it took effect."""
+        now = self.clock()
+        verdict = self.link_loss.step(self.link.state(now), self.state, self.lifecycle.since,
+                                      now)
+        if verdict is None:
+            return
+        if verdict.switch is not None:
+            log.info("%s: link-loss policy (%s): %s", self.name, self.link_loss.policy,
+                     verdict.switch.value)
+            if verdict.switch == Switch.STOP:
+                self.start_pending = False
+            outcome = self.switch(verdict.switch.value)
+            if outcome is None or outcome is Outcome.REFUSED:
+                return  # the lifecycle said why
+        self.warn(verdict.warning)
 
     def _robot_allows_start(self) -> bool:
         """Whether ``start`` may go on now: not before the HAL, never if it cannot come."""
@@ -380,6 +423,8 @@ class ModuleRunner:
             if self.start_pending and not self.quit_requested and \
                     (self.robot_ready.is_set() or self.robot_failure is not None):
                 self.switch("start")
+            if not self.quit_requested:
+                self.follow_link()
             now = time.monotonic()
             if now >= next_status or \
                     (self.status_changed and now >= last_status + STATUS_MIN_GAP):
@@ -401,6 +446,7 @@ class ModuleRunner:
         self.loop.exit = True
         if self.robot is not None:
             self.robot.close()
+        self.link.close()
         self.interfaces.close()
 
     def period_stats(self) -> Dict[str, float]:

@@ -32,6 +32,7 @@ import time
 from typing import Any, Callable, Dict, FrozenSet, List, Mapping, Optional, Tuple
 
 from walkman.gym.interfaces import PilotCommand, PilotInterfaces
+from walkman.gym.link_loss import LinkLoss
 from walkman.gym.validity import DEFAULT_VALIDITY
 
 log = logging.getLogger("walkman.gym")
@@ -85,6 +86,10 @@ class GenericThread:
     #: Seconds a pilot's switch or command may wait before it starts, unless the pilot sets
     #: another; older, it is refused as expired (:mod:`walkman.gym.validity`).
     command_validity: float = DEFAULT_VALIDITY
+    #: What the module does when the link to the pilot dies (:mod:`walkman.gym.link_loss`):
+    #: ``LinkLoss.CONTINUE`` (as at the DRC), ``LinkLoss.pause(after=5.0)`` or
+    #: ``LinkLoss.stop(after=...)``.  Say in the class why the module's choice is right.
+    link_loss: LinkLoss = LinkLoss.CONTINUE
 
     def __init__(self, name: str, config: Dict[str, Any], interfaces: PilotInterfaces,
                  on_status_change=lambda: None) -> None:

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from enum import Enum
 from typing import TYPE_CHECKING, Callable, Dict, Optional, Tuple
 
@@ -79,14 +80,16 @@ class Lifecycle:
 
     ``robot`` gives the whole-body interface to hold on ``stop`` (None: nothing to
     hold); ``prepare_init`` is checked before ``custom_init`` (the runner: the HAL is
-    there); a False answer fails the start.
+    there); a False answer fails the start.  ``clock`` dates each change of state
+    (:attr:`since`: the link-loss policy counts from it).
     """
 
     def __init__(self, name: str, thread: GenericThread, interfaces: PilotInterfaces, *,
                  wait_until: Wait, call_hook: Optional[HookCall] = None,
                  robot: Callable[[], Optional["WholeBody"]] = lambda: None,
                  prepare_init: Callable[[], bool] = lambda: True,
-                 initial: State = State.CONSTRUCTOR) -> None:
+                 initial: State = State.CONSTRUCTOR,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.name, self.thread, self.interfaces = name, thread, interfaces
         self._wait_until = wait_until
         self._call_hook: HookCall = call_hook or self.perform
@@ -94,6 +97,8 @@ class Lifecycle:
         self._prepare_init = prepare_init
         self._lock = threading.Lock()
         self._state = initial
+        self._clock = clock
+        self._since = clock()
         #: What the module was saying when it paused, said again on resume.
         self._status_at_pause: Optional[Tuple[str, list]] = None
         self._apply: Dict[Switch, Callable[[Switch], Outcome]] = {
@@ -105,12 +110,18 @@ class Lifecycle:
     def state(self) -> State:
         return self._state
 
+    @property
+    def since(self) -> float:
+        """When (``clock``) the module entered :attr:`state`."""
+        return self._since
+
     def _transition(self, switch: Switch) -> Tuple[State, State]:
         """Apply ``switch`` to the state as it is now, atomically: ``(before, after)``;
         :class:`IllegalTransition` if the other thread changed it meanwhile."""
         with self._lock:
             before = self._state
             self._state = next_state(self.name, before, switch.value)
+            self._since = self._clock()
             return before, self._state
 
     def say_state(self) -> None:

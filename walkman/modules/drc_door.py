@@ -29,6 +29,7 @@ from typing import List
 import numpy as np
 import pinocchio as pin
 
+from walkman.gym.link_loss import LinkLoss
 from walkman.modules.drc_valve import rpy_matrix
 from walkman.modules.task import GraspTask, grasp_table, task_statuses
 
@@ -50,6 +51,9 @@ class Module(GraspTask):
     arguments = {"doordatasent": (8, 8, "X Y Z ROLL PITCH YAW HANDLE_LENGTH DOOR_WIDTH"),
                  "turn": (0, 1, "ANGLE rad"), "open": (0, 1, "ANGLE rad")}
     dangerous = frozenset({"open"})
+    # As drc_valve: each motion ends by itself, settled; paused halfway the hand would hold
+    # a half-turned lever or a door pushing back.  As at the DRC.
+    link_loss = LinkLoss.CONTINUE
 
     def status_data(self) -> List[float]:
         return [] if self.target is None else [float(self.target["opened"])]

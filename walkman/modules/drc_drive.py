@@ -33,6 +33,7 @@ from typing import List
 import numpy as np
 
 from walkman.control.fsm import DRIVE_TABLE
+from walkman.gym.link_loss import LinkLoss
 from walkman.modules.drc_valve import rpy_matrix
 from walkman.modules.task import LEFT_ARM, WAIST, Effector, GraspTask, task_statuses
 
@@ -54,6 +55,10 @@ class Module(GraspTask):
                  "accelerate": (0, 1, "SECONDS")}
     dangerous = frozenset({"accelerate"})
     joints = GraspTask.joints + RIGHT_LEG
+    # Never pause a car's driver: a pause holds the posture of the moment, so a pause during
+    # ``accelerate`` would hold the throttle down.  Every motion here ends by itself (the
+    # pedal comes up after T s, a turn of the wheel stops at its angle): the car coasts.
+    link_loss = LinkLoss.CONTINUE
 
     def setup(self) -> None:
         super().setup()

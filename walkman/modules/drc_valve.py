@@ -32,6 +32,7 @@ from typing import List
 import numpy as np
 import pinocchio as pin
 
+from walkman.gym.link_loss import LinkLoss
 from walkman.modules.task import GraspTask, grasp_table, task_statuses
 
 APPROACH_GAP = 0.045                  # m in front of the rim when approached (the hand grasps within 8 cm)
@@ -55,6 +56,10 @@ class Module(GraspTask):
     arguments = {"valvedatasent": (7, 7, "X Y Z ROLL PITCH YAW RADIUS"),
                  "turn": (0, 1, "ANGLE rad")}
     dangerous = frozenset({"turn"})
+    # The motion the pilot started ends by itself with the hand settled (a turn stops at its
+    # angle); paused halfway it would hold the hand on a loaded rim, and a turn resumed is
+    # not finished (task.py).  As at the DRC.
+    link_loss = LinkLoss.CONTINUE
 
     def status_data(self) -> List[float]:
         return [] if self.target is None else [float(v) for v in self.target["center"]]

@@ -15,6 +15,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from walkman.control.trajectory import JointTrajectory
+from walkman.gym.link_loss import LinkLoss
 from walkman.gym.thread import ControlThread
 
 NECK = ("NeckYawj", "NeckPitchj")
@@ -49,6 +50,9 @@ class Module(ControlThread):
     statuses = ["ready", "moving", "tracking", "unreachable"]
     arguments = {"look_at": (3, 3, "X Y Z m, pelvis frame"), "track": (3, 3, "X Y Z m"),
                  "home": (0, 0, ""), "set_time": (1, 1, "T s, 0.1..20")}
+    # The head moves nothing else and keeps looking where the pilot will want to see when
+    # the link returns.
+    link_loss = LinkLoss.CONTINUE
 
     def custom_init(self) -> bool:
         self.duration = float(self.config.get("trajectory_time", 1.5))

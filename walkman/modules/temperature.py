@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from walkman.gym.link_loss import LinkLoss
 from walkman.gym.thread import ControlThread
 
 PER_SECOND = 7
@@ -19,6 +20,8 @@ HYSTERESIS = 2.0
 
 class Module(ControlThread):
     statuses = ["monitoring", "hot"]
+    # It only watches: its warnings wait in the robot bridge's queue for the pilot.
+    link_loss = LinkLoss.CONTINUE
 
     def custom_init(self) -> bool:
         self.threshold = float(self.config.get("warning_threshold", 60.0))
