@@ -50,6 +50,9 @@ from typing import Dict, Iterator, List, Tuple
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
+# The tests' process harness (TwoPCs, YarpWorld, cloud_probe.py) drives the emulated PCs: a
+# source-tree bench may borrow it.  What runs on the robot comes from the package (the GYM
+# modules are ``walkman-module witness``), so an installed tree needs nothing from tests/.
 sys.path.append(str(ROOT / "tests"))
 sys.path.append(str(ROOT / "tests" / "bridge"))
 
@@ -140,7 +143,7 @@ def table_1(link: EmulatedLink, mode: str, duration: float) -> Dict[str, float]:
         pcs.robot.python(ROLES, "hal", mode, name="synthetic hal").wait_for("ready", 30)
         for i in range(1, 6):
             pcs.robot.start([PYTHON, "-m", "walkman.gym.supervisor",
-                             "counting_module:Module", "--name", f"/m{i}"], f"m{i}")
+                             "witness", "--name", f"/m{i}"], f"m{i}")
         pcs.start_bridge(pcs.robot)
         pcs.start_bridge(pcs.pilot)
         pcs.wait_linked(60)
@@ -389,7 +392,7 @@ def presence(link: EmulatedLink, rounds: int, bridge: bool) -> Tuple[List[float]
 LOOP_CONFIG = """<bridge period="0.5" gather="0.4">
   <modules><module name="counter" id="3"/></modules>
 </bridge>"""
-COUNTER = ["-m", "walkman.gym.supervisor", "counting_module:Module", "--name", "/counter"]
+COUNTER = ["-m", "walkman.gym.supervisor", "witness", "--name", "/counter"]
 
 
 def loop_times(probe) -> Tuple[List[float], int]:

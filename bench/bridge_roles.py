@@ -20,7 +20,7 @@
 * ``port-watch PORT`` -- asks its name server for PORT every 10 ms; prints
   ``shown <time>`` and ``gone <time>`` when the answer changes;
 * ``loop-probe MODULE COUNT RATE`` -- the pilot's loop: starts the counting GYM
-  module MODULE (``tests/bridge/counting_module.py``), then sends it COUNT numbered
+  module MODULE (``walkman-module witness``), then sends it COUNT numbered
   commands at RATE Hz and prints ``loop_ms <x>`` when the module's status shows each
   (``lost <n>`` after 5 s without it).
 """

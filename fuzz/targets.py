@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import struct
 import zlib
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -23,7 +23,8 @@ from bridge.config import ConfigError
 from bridge.errors import BridgeProtocolError
 from fuzz.harness import Target, attempt, join_records, split_records
 from walkman.hal import controlboard
-from walkman.hal.controlboard import ControlBoardDevice, ControlBoardError
+from walkman.hal.controlboard import ControlBoardError
+from walkman.hal.virtual_board import VirtualBoard
 from yarp_lite import admin as port_admin
 from yarp_lite import bottle, bottle_text, framing
 from yarp_lite.bottle import Bottle, Dict as DictValue, Float32, Int8, Int16, Int64, Vocab
@@ -484,52 +485,10 @@ def _admin_seeds() -> List[bytes]:
     return _command_seeds(["/x", "!/x", "~/in", "*", "?", "q", "[list] [out]"], bottles)
 
 
-class MemoryBoard(ControlBoardDevice):
-    """A two-axis control board in memory: what the control-board parser is fuzzed
-    (and unit-tested) against."""
-
-    def __init__(self) -> None:
-        self.modes = ["pos", "pos"]
-        self.commands: List[Tuple[str, List[int], List[float], str]] = []
-
-    def axes(self) -> int:
-        return 2
-
-    def vector(self, name: str) -> List[float]:
-        return {"encoders": [10.0, 20.0], "temperatures": [30.0, 31.0]}.get(name, [0.0, 0.0])
-
-    def axis_name(self, axis: int) -> str:
-        return f"j{axis}"
-
-    def limits(self, axis: int) -> Tuple[float, float]:
-        return (-90.0, 90.0)
-
-    def torques(self) -> List[float]:
-        return [1.0, -1.0]
-
-    def control_modes(self) -> List[str]:
-        return list(self.modes)
-
-    def set_control_modes(self, joints: Sequence[int], modes: Sequence[str],
-                          owner: str = "") -> None:
-        for joint, mode in zip(joints, modes):
-            self.modes[joint] = mode
-
-    def pid(self, pid_type: str, axis: int) -> List[float]:
-        return [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
-
-    def motion_done(self, joints: Sequence[int]) -> bool:
-        return True
-
-    def command(self, what: str, joints: Sequence[int], values: Sequence[float],
-                owner: str = "", seq: Optional[int] = None) -> None:
-        self.commands.append((what, list(joints), list(values), owner))
-
-
 def controlboard_target(data: bytes) -> None:
     """A HAL chain's rpc:i and command:i: any Bottle is answered or refused, never a crash."""
     request = bottle.decode(data)
-    reply = controlboard.respond(MemoryBoard(), request, controlboard.Stamp(), 1.0)
+    reply = controlboard.respond(VirtualBoard(), request, controlboard.Stamp(), 1.0)
     if not reply or str(reply[-1]) not in ("ok", "fail", "nak"):
         raise AssertionError(f"the wrapper's answer must end in ok/fail/nak: {reply}")
     attempt((ControlBoardError,), controlboard.decode_stream, request, 2)

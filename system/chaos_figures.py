@@ -4,21 +4,28 @@ Theory of operation
 -------------------
 Nothing here touches a process: :func:`schedule` turns a seed into the faults
 of every round, :func:`blackouts` into a soak's link cuts, and the rest turns
-three records into the figures of :mod:`system.chaos`:
+the records of :mod:`system.chaos_record` into the figures of
+:mod:`system.chaos_report`:
 
 * ``sent``: what the gateway logged as written to the module's command port,
   ``(N, seq)`` in the order it wrote them -- a write the bridge acknowledged
   once the command was in its journal, so from then on the bridge owes its
-  delivery;
+  delivery, or an ending the pilot can see (expired, cancelled);
 * ``executed``: the witness module's own log, one sequence number per command
-  run, in the order it ran them;
+  run, in the order it ran them, with when it started and the lifetime it
+  arrived with;
+* ``ended``: the commands that ended without running, and how (``expired``,
+  ``cancelled``), from the pilot's view of their lives and the programs' logs;
 * ``statuses``: every ``/M/status`` message the pilot received, with its time.
 
-A command is *lost* when it was sent and never executed, *duplicated* when it
-ran more than once, *out of order* when it ran after a command sent later had
-already run.  A command that ran without ever being logged as sent is counted
-apart (*unacknowledged*): the gateway was killed between the write and its log
-line, and neither the pilot nor the figures can say more.
+A command is *lost* when it was sent, never executed, and did not end as
+expired or cancelled; *duplicated* when it ran more than once, *out of order*
+when it ran after a command sent later had already run.  A command that ran
+without ever being logged as sent is counted apart (*unacknowledged*): the
+gateway was killed between the write and its log line, and neither the pilot
+nor the figures can say more.  A command that ran is *late* when it started
+after its deadline (:func:`deadlines`) and a *cancelled one that ran* when the
+pilot had been told it was taken back: both must never happen.
 """
 
 from __future__ import annotations
@@ -27,7 +34,7 @@ import math
 import random
 import statistics
 from dataclasses import dataclass, field
-from typing import Callable, Dict, Iterable, List, Optional, Sequence, Tuple
+from typing import Callable, Collection, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 
 LINK = "link"
 #: How a process dies: the whole program (its group and children) gets SIGKILL.
@@ -85,6 +92,14 @@ def blackouts(seed: int, duration: float, gap: Tuple[float, float] = (30.0, 120.
 # -- commands ---------------------------------------------------------------------------------
 
 
+EXPIRED, CANCELLED = "expired", "cancelled"
+#: Seconds a command's wall-clock age may exceed its validity when it starts: the hops its
+#: lifetime does not count (the gateway's write into the pilot bridge, the wire between the
+#: bridges, the robot bridge's write into the module: milliseconds, 0.13 s on a degraded
+#: radio).  The pilot's send time is read after the gateway answered, which errs the other way.
+DEADLINE_SLACK = 0.5
+
+
 @dataclass
 class Commands:
     """What happened to the numbered commands; every list holds gateway sequence numbers."""
@@ -99,11 +114,15 @@ class Commands:
     #: pilot numbers that ran under two sequence numbers: the pilot tried again after a call
     #: that failed without saying whether it went through (not the system's doing)
     retried_twice: List[int] = field(default_factory=list)
+    #: sent, not run, and accounted for: refused as too old, or taken back by the pilot
+    expired: List[int] = field(default_factory=list)
+    cancelled: List[int] = field(default_factory=list)
 
 
 def commands(sent: Sequence[Tuple[int, int]], accepted: Sequence[int],
-             executed: Sequence[int]) -> Commands:
-    """Lost, duplicated and out-of-order commands from ``(N, seq)`` sent and seqs executed."""
+             executed: Sequence[int], ended: Mapping[int, str] = {}) -> Commands:
+    """Lost, duplicated and out-of-order commands from ``(N, seq)`` sent, seqs executed and
+    how the others ended (``ended``: seq -> :data:`EXPIRED` or :data:`CANCELLED`)."""
     order = {seq: index for index, (_, seq) in enumerate(sent)}
     number = {seq: n for n, seq in sent}
     out = Commands(sent=len(order), accepted=len(accepted), executed=len(executed))
@@ -120,12 +139,65 @@ def commands(sent: Sequence[Tuple[int, int]], accepted: Sequence[int],
         if order[seq] < latest:
             out.out_of_order.append(seq)
         latest = max(latest, order[seq])
-    out.lost = [seq for _, seq in sent if seq not in ran]
+    for _, seq in sent:
+        if seq in ran:
+            continue
+        how = ended.get(seq)
+        (out.expired if how == EXPIRED else out.cancelled if how == CANCELLED
+         else out.lost).append(seq)
     runs_of: Dict[int, int] = {}
     for seq in ran:
         if seq in number:
             runs_of[number[seq]] = runs_of.get(number[seq], 0) + 1
     out.retried_twice = sorted(n for n, count in runs_of.items() if count > 1)
+    return out
+
+
+def endings(expired: Collection[int], cancelled: Collection[int]) -> Dict[int, str]:
+    """seq -> how it ended without running; a cancel the bridge confirmed wins (a command
+    it took back never reached the module that could have called it expired)."""
+    ended = {seq: EXPIRED for seq in expired}
+    ended.update({seq: CANCELLED for seq in cancelled})
+    return ended
+
+
+@dataclass
+class Deadlines:
+    """Whether the commands that ran were still allowed to."""
+
+    #: executed commands that had a validity of their own (short-lived ones)
+    checked: int = 0
+    #: started after their deadline: arrived already too old, started later than the pilot's
+    #: send time + validity (+ :data:`DEADLINE_SLACK`), or said expired yet ran
+    late: List[int] = field(default_factory=list)
+    #: ran although the pilot was told they had been taken back
+    cancelled_ran: List[int] = field(default_factory=list)
+    #: the least time any checked command had left when it started (negative: late)
+    closest_s: Optional[float] = None
+
+
+def deadlines(executions: Sequence, asked: Mapping[int, Tuple[float, float]],
+              ended: Mapping[int, str], slack: float = DEADLINE_SLACK) -> Deadlines:
+    """Check every execution (``seq``, ``at``, ``age``, ``validity``, ``arrived_expired``:
+    :class:`walkman.modules.witness.Execution`) against its deadline and its ending.
+
+    ``asked``: seq -> (the pilot's send time, the validity it asked for; 0: none), both
+    on the wall clock the witness also reads (one machine, or hosts sharing its kernel).
+    """
+    out = Deadlines()
+    for execution in executions:
+        seq = execution.seq
+        if ended.get(seq) == CANCELLED:
+            out.cancelled_ran.append(seq)
+        sent_at, validity = asked.get(seq, (None, 0.0))
+        late = execution.arrived_expired or ended.get(seq) == EXPIRED
+        if validity and sent_at is not None and execution.at is not None:
+            out.checked += 1
+            left = sent_at + validity - execution.at
+            out.closest_s = left if out.closest_s is None else min(out.closest_s, left)
+            late = late or left < -slack
+        if late:
+            out.late.append(seq)
     return out
 
 
@@ -200,3 +272,33 @@ def bounded(samples: Sequence[Tuple[float, float]]) -> bool:
     first = max(v for _, v in samples[:half])
     second = max(v for _, v in samples[half:])
     return second <= first * 1.1 + JOURNAL_SLACK
+
+
+def soak_figures(samples: Sequence[dict], every: float) -> dict:
+    """Growth of RSS and open files per process, journal sizes, from a soak's samples
+    (``{"t", "procs": {key: [rss KiB, files]}, "journal": {side: {"db", "wal"}}}``)."""
+    if not samples:
+        return {"processes": {}, "journal": {}}
+    span = samples[-1]["t"] - samples[0]["t"]
+    warm_up = min(120.0, 0.2 * span)
+    series: Dict[str, List[Tuple[float, List[int]]]] = {}
+    for sample in samples:
+        for key, values in sample["procs"].items():
+            series.setdefault(key, []).append((sample["t"], values))
+    processes = {}
+    for key, points in sorted(series.items()):
+        rss = growth([(t, v[0]) for t, v in points], warm_up)
+        # the floor: a name server's count goes 5, 6, 5 with each query; a leak raises it
+        fds = growth([(t, v[1]) for t, v in points], warm_up, statistic=min)
+        processes[key] = {"rss_kib": [rss.start, rss.end], "rss_percent": rss.percent,
+                          "files": [fds.start, fds.end], "files_percent": fds.percent,
+                          "samples": len(points)}
+    journal = {}
+    for side in ("robot", "pilot"):
+        parts = [s["journal"][side] for s in samples]
+        sizes = [(s["t"], sum(part.values())) for s, part in zip(samples, parts)]
+        journal[side] = {"first": sizes[0][1], "max": max(v for _, v in sizes),
+                         "last": sizes[-1][1], "max_db": max(p["db"] for p in parts),
+                         "max_wal": max(p["wal"] for p in parts),
+                         "bounded": bounded(sizes)}
+    return {"processes": processes, "journal": journal, "span_s": span, "every_s": every}

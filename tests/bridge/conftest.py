@@ -1,4 +1,4 @@
-"""The bridge tests' helpers (bridge_harness, counting_module, pilot_sender) import by name."""
+"""The bridge tests' helpers (bridge_harness, pilot_side, pilot_sender) import by name."""
 
 import sys
 from pathlib import Path

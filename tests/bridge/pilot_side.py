@@ -1,9 +1,9 @@
 """What the bridge tests' pilot does and checks: numbered commands, switches, bridge status.
 
 Shared by ``test_bridge_processes`` (loopback) and ``test_emulated_network``
-(emulated hosts): the counting module on the robot writes each command it
-executes to ``$COUNTER_LOG``; the pilot sends with ``pilot_sender.py`` and asks
-the bridges over their ``/bridge/<side>/rpc:i``.
+(emulated hosts): the witness module on the robot (:mod:`walkman.modules.witness`)
+writes each command it executes to ``$COUNTER_LOG``; the pilot sends with
+``pilot_sender.py`` and asks the bridges over their ``/bridge/<side>/rpc:i``.
 """
 
 from __future__ import annotations
@@ -11,14 +11,15 @@ from __future__ import annotations
 from pathlib import Path
 from typing import List
 
-from bridge_harness import HERE, Side, TwoPCs, count_lines
+from bridge_harness import HERE, Side, TwoPCs
 from harness import Implementation, Proc, wait_until
 from system.processes import WaitTimeout
+from walkman.modules.witness import read_log
 
 
 def executed(log: Path) -> List[int]:
-    """The sequence numbers the counting module executed, in order."""
-    return [int(line.split()[2]) for line in count_lines(log, r"^executed count ")]
+    """The sequence numbers of the ``count`` commands the witness executed, in order."""
+    return [e.seq for e in read_log(log) if e.name == "count"]
 
 
 def send(pcs: TwoPCs, first: int, last: int, interval: float = 0.05) -> Proc:

@@ -37,8 +37,8 @@ def pcs(tmp_path, lite):
 
 
 def start_counter(pcs: TwoPCs):
-    """The counting module on the robot (it logs to $COUNTER_LOG, set by ``counter_env``)."""
-    return pcs.robot.start([PYTHON, "-m", "walkman.gym.supervisor", "counting_module:Module",
+    """The witness module on the robot (it logs to $COUNTER_LOG, set by ``counter_env``)."""
+    return pcs.robot.start([PYTHON, "-m", "walkman.gym.supervisor", "witness",
                             "--name", "/counter"], "counter module")
 
 

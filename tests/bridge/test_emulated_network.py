@@ -266,7 +266,7 @@ def test_gym_module_and_perception_over_a_drc_link(pcs, lite, link):
     pcs.start_name_servers()
     for side in (pcs.robot, pcs.pilot):
         pcs.start_roscore(side)
-    module = pcs.robot.start([PYTHON, "-m", "walkman.gym.supervisor", "counting_module:Module",
+    module = pcs.robot.start([PYTHON, "-m", "walkman.gym.supervisor", "witness",
                               "--name", "/counter"], "counter module")
     module.wait_for("ready for the pilot", 60)
     pcs.robot.python(str(HERE / "camera_publisher.py"), "2", "0", "160", "120", name="camera")
@@ -316,7 +316,7 @@ def wait_executed(pcs, lite, count: int, what: str, timeout: float = 60.0) -> No
 def test_a_30_second_cut_and_kills_lose_no_command(pcs, lite, link):
     link.apply("drc", loss=5)
     pcs.start_name_servers()
-    pcs.robot.start([PYTHON, "-m", "walkman.gym.supervisor", "counting_module:Module",
+    pcs.robot.start([PYTHON, "-m", "walkman.gym.supervisor", "witness",
                      "--name", "/counter"], "counter module").wait_for("ready for the pilot", 60)
     pcs.start_bridge(pcs.robot)
     pcs.start_bridge(pcs.pilot)

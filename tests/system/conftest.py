@@ -1,13 +1,10 @@
 """Fixtures for the system tests: PCs (name-server pairs) in temporary folders."""
 
-from pathlib import Path
-
 import pytest
 
 from harness import dump_outputs_if_failed
 from system.topology import Pc
-
-TESTS = Path(__file__).resolve().parents[1]
+from walkman.modules.witness import LOG_VARIABLE
 
 
 @pytest.fixture
@@ -28,8 +25,7 @@ def make_pc(tmp_path, request):
 
 @pytest.fixture
 def counter(tmp_path, monkeypatch):
-    """The bridge tests' counting module, importable, logging what it executes."""
+    """The witness module's log (``walkman-module witness``): what it executes."""
     log = tmp_path / "executed.log"
-    monkeypatch.setenv("COUNTER_LOG", str(log))
-    monkeypatch.setenv("PYTHONPATH", str(TESTS / "bridge"))
+    monkeypatch.setenv(LOG_VARIABLE, str(log))
     return log

@@ -7,6 +7,7 @@ import pytest
 
 from system.processes import ROSCORE_READY, wait_until
 from system.topology import REPO
+from walkman.modules.witness import read_log
 
 PYTHON = sys.executable
 CONFIG = """<bridge>
@@ -16,7 +17,7 @@ CONFIG = """<bridge>
 
 
 def start_counter(pc):
-    return pc.start("counter", [PYTHON, "-m", "walkman.gym.supervisor", "counting_module:Module",
+    return pc.start("counter", [PYTHON, "-m", "walkman.gym.supervisor", "witness",
                                 "--name", "/counter"])
 
 
@@ -25,7 +26,8 @@ def rosservice(pc, *args: str) -> str:
 
 
 def executed(log) -> list:
-    return log.read_text().splitlines() if log.exists() else []
+    """What the witness ran: ``name seq`` each."""
+    return [f"{e.name} {e.seq}" for e in read_log(log)]
 
 
 @pytest.fixture
@@ -69,7 +71,7 @@ def test_a_gateway_started_before_roscore_waits_serves_and_survives_a_roscore_re
                message="the counter idle after start")
     reply = rosservice(pc, "/counter/send_command", "{command: count}")
     seq = int(re.search(r"seq: (\d+)", reply).group(1))
-    wait_until(lambda: executed(counter) == [f"executed count {seq}"], 20,
+    wait_until(lambda: executed(counter) == [f"count {seq}"], 20,
                message=f"count {seq} executed once")
 
     # Malformed pilot messages: refused with the reason, nothing reaches the module.
@@ -86,7 +88,7 @@ def test_a_gateway_started_before_roscore_waits_serves_and_survives_a_roscore_re
         return "gateway: 'fly' is not a switch command" in warnings.output()
 
     wait_until(refused_on_the_warning_topic, 60, message="the refusal on /counter/warning")
-    assert executed(counter) == [f"executed count {seq}"]
+    assert executed(counter) == [f"count {seq}"]
 
     # roscore dies and comes back: the gateway registers again, the tools work again.
     pc.kill("roscore")
@@ -131,7 +133,7 @@ def test_a_second_gateway_on_the_same_roscore_refuses_instead_of_doubling_comman
                message="the counter idle after start")
     reply = rosservice(pc, "/counter/send_command", "{command: once}")
     seq = int(re.search(r"seq: (\d+)", reply).group(1))
-    wait_until(lambda: executed(counter) == [f"executed once {seq}"], 20,
+    wait_until(lambda: executed(counter) == [f"once {seq}"], 20,
                message="the command executed exactly once")
 
 
