@@ -192,8 +192,12 @@ class _Inbox:
 
     def __init__(self, decode: Callable[[Bottle], PilotCommand],
                  validity: float = DEFAULT_VALIDITY,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic,
+                 taking_accepts: bool = True) -> None:
         self.decode = decode
+        #: taking a command is accepting it (commands); a switch is accepted or refused by
+        #: the lifecycle, which says so itself (:meth:`PilotInterfaces.receipt`)
+        self.taking_accepts = taking_accepts
         self.validity = validity
         self.clock = clock
         self.queue: "queue.Queue[Tuple[PilotCommand, float]]" = queue.Queue(maxsize=1000)
@@ -247,7 +251,8 @@ class _Inbox:
                 return None
             lifetime = (command.lifetime or Lifetime()).older(self.clock() - arrived)
             if not lifetime.expired(self.validity):
-                self._receipt(command, CommandState.ACCEPTED)
+                if self.taking_accepts:
+                    self._receipt(command, CommandState.ACCEPTED)
                 return command
             self.expired += 1
             refusal = describe_expiry(command_text(command), lifetime, self.validity)
@@ -272,7 +277,7 @@ class PilotInterfaces:
         self.prefix = prefix.rstrip("/")
         self.nameclient = nameclient or NameClient()
         self.statuses = list(statuses) if statuses else None
-        self.switch = _Inbox(decode_command, validity)
+        self.switch = _Inbox(decode_command, validity, taking_accepts=False)
         self.commands = _Inbox(command_decoder, validity)
         self.status_encoder = status_encoder or (
             lambda seq, state, data: encode_status(seq, state, data, self.statuses))

@@ -52,7 +52,8 @@ from typing import Any, Callable, Dict, List, Optional, Type
 from nodekit.logs import time_prefix
 from walkman.gym import inifile
 from walkman.gym.bridge_link import BridgeLink
-from walkman.gym.interfaces import PilotInterfaces, decoder_for, validity_of
+from walkman.gym.command_life import CommandState, Receipt
+from walkman.gym.interfaces import PilotCommand, PilotInterfaces, decoder_for, validity_of
 from walkman.gym.link_loss import LinkLossDecider, link_loss_of
 from walkman.gym.pacing import TickSchedule
 from walkman.gym.lifecycle import State, Switch
@@ -364,6 +365,21 @@ class ModuleRunner:
         self.interfaces.send_status()
         return outcome
 
+    def _switch_told(self, command: PilotCommand) -> None:
+        """A pilot's switch, and its receipt: accepted (carried out, or a start waiting for
+        the HAL) or refused with why (:mod:`walkman.gym.command_life`)."""
+        before = self.state
+        outcome = self.switch(command.name)
+        if command.seq is None:
+            return
+        pending = command.name.strip().lower() == "start" and self.start_pending
+        if outcome in (None, Outcome.REFUSED) and not pending:
+            self.interfaces.receipt(Receipt(command.seq, CommandState.REFUSED,
+                                            f"'{command.name}' is not carried out while "
+                                            f"{before.value}"))
+        else:
+            self.interfaces.receipt(Receipt(command.seq, CommandState.ACCEPTED))
+
     def follow_link(self) -> None:
         """The module's link-loss policy, now (watchdog thread): the switch it makes is a
         pilot's, with its safe pause and hold; the warning says why once it took effect."""
@@ -419,7 +435,7 @@ class ModuleRunner:
                     break
                 if command.name.strip().lower() in ("stop", "quit"):
                     self.start_pending = False
-                self.switch(command.name)
+                self._switch_told(command)
             if self.start_pending and not self.quit_requested and \
                     (self.robot_ready.is_set() or self.robot_failure is not None):
                 self.switch("start")
