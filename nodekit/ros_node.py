@@ -171,9 +171,11 @@ class RosNode:
                         action()
 
     def _pid(self) -> Optional[int]:
+        import rosgraph
+
         try:
             return int(self._master().getPid())
-        except Exception:  # noqa: BLE001 -- master down: keep the old one
+        except (OSError, rosgraph.MasterException):   # master down: keep the old one
             return None
 
     def _register_again(self) -> bool:

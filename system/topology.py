@@ -29,6 +29,7 @@ import os
 import random
 import re
 import shlex
+import subprocess
 import sys
 import time
 from dataclasses import dataclass, field
@@ -206,7 +207,7 @@ class Pc:
         proc = Proc([*self.wrap, *argv], self.env, f"{self.name}:{argv[0]}")
         try:
             proc.wait(timeout)
-        except Exception:
+        except subprocess.TimeoutExpired:
             proc.kill()
             raise WaitTimeout(f"{' '.join(argv)} did not finish in {timeout} s:\n"
                               + proc.output())

@@ -2,7 +2,7 @@
 
 import pytest
 
-from walkman.gym.inifile import IniError
+from walkman.inifile import IniError
 from walkman.hal.arbitration import JointArbiter, owner_of
 from walkman.hal.config import load_config
 

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from codec_helpers import FUZZ
 from walkman.control.trajectory import (JointTrajectory, quintic, quintic_acceleration,
                                         quintic_velocity)
-from walkman.gym.inifile import IniError, parse_ini
+from walkman.inifile import IniError, parse_ini
 from walkman.gym.interfaces import (InterfaceError, PilotCommand, _Inbox, decode_command,
                                     decode_status, encode_command, encode_status)
 from walkman.gym.lifecycle import TRANSITIONS, IllegalTransition, State, next_state

@@ -50,7 +50,7 @@ import time
 from typing import Any, Callable, Dict, List, Optional, Type
 
 from nodekit.logs import time_prefix
-from walkman.gym import inifile
+from walkman import inifile
 from walkman.gym.bridge_link import BridgeLink
 from walkman.gym.command_life import CommandState, Receipt
 from walkman.gym.interfaces import PilotCommand, PilotInterfaces, decoder_for, validity_of

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Dict, List, Optional
 
-from walkman.gym.inifile import IniError, parse_ini
+from walkman.inifile import IniError, parse_ini
 from walkman.hal.arbitration import POLICIES
 from walkman.model.description import CHAINS, Robot, walkman
 

@@ -45,6 +45,7 @@ from walkman.hal.backend import Backend
 from walkman.hal.chain import ChainBoard
 from walkman.hal.sim import HARNESS_MODES
 from walkman.hal.config import HalConfig, load_config
+from walkman.inifile import IniError
 from walkman.hal.controlboard import ControlBoardError, JointData, Stamp
 from walkman.hal.protocol import ChainState
 from walkman.model.mjcf import STATIONS
@@ -487,7 +488,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                         format="[%(levelname)s] %(message)s", stream=sys.stderr)
     try:
         config = load_config(options.config)
-    except Exception as exc:  # noqa: BLE001 - configuration errors are user errors
+    except (IniError, OSError, ValueError) as exc:   # the user's file; a bug shows its trace
         log.error("%s", exc)
         return 2
     backend = make_backend(options.backend, options.scene == "drc", options.harness,

@@ -19,7 +19,7 @@ from typing import ClassVar, List, Optional, Sequence, Union
 
 from yarp_lite.bottle import Bottle, decode, encode_chunks
 from yarp_lite.bottle_text import format_bottle, is_complete, parse
-from yarp_lite.errors import LocalProtocolError, RemoteProtocolError
+from yarp_lite.errors import LocalProtocolError, RemoteProtocolError, YarpError
 from yarp_lite.framing import envelope_of, wants_reply
 from yarp_lite.stream import Stream
 
@@ -235,5 +235,5 @@ def require_text(payload: Optional[Payload], carrier: str) -> str:
         return ""
     try:
         return payload.text()
-    except Exception as exc:  # a raw binary payload that is not a Bottle
+    except (YarpError, ValueError) as exc:  # a raw binary payload that is not a Bottle
         raise LocalProtocolError(f"carrier {carrier} can only send Bottles: {exc}") from exc
