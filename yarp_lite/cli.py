@@ -608,6 +608,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     name, rest = args[0], args[1:]
     if name in ("--version", "-v"):
         name = "version"
+    if name in ("--help", "-h"):       # as the real ``yarp --help``: the usage
+        return cmd_help([], admin)
     chosen = COMMANDS.get(name)
     if chosen is None:
         log.error("unknown command %r; 'yarp-lite help' lists them", name)

@@ -128,3 +128,11 @@ def test_cli_usage_errors(lite_world, lite, args, problem):
     result = lite_world.run_tool(lite, *args)
     assert result.returncode == 2
     assert problem in result.stderr
+
+
+@pytest.mark.parametrize("flag", ["--help", "-h"])
+def test_help_flags_print_the_usage_as_the_real_yarp_does(lite_world, lite, flag):
+    result = lite_world.run_tool(lite, flag)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("Usage:") and "Here are commands you can use" in \
+        result.stdout
