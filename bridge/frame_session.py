@@ -107,7 +107,9 @@ class LinkStats:
 class Outbox(Protocol):
     """Reliable messages to send, kept until the peer acknowledges them."""
 
-    def unacknowledged(self, after: int = 0, limit: int = 1 << 30) -> List[Queued]: ...
+    def unacknowledged(self, after: int = 0, limit: int = 1 << 30) -> List[Queued]:
+        """What the next frame carries; the journal then counts them as claimed (too late
+        to cancel: :meth:`bridge.journal.Journal.cancel`)."""
 
     def acknowledge(self, upto: int) -> int:
         """Forget up to ``upto``; :class:`BridgeProtocolError` past what was ever sent."""

@@ -118,6 +118,7 @@ def _round_trip_ms(sock: socket.socket) -> Optional[float]:
 
 
 def _kernel_queue(sock: socket.socket) -> KernelQueue:
+    """What the frame session needs to know of ``sock`` before each frame (cheap ioctls)."""
     return KernelQueue(_unsent_bytes(sock), _only_unacknowledged(sock),
                        (_round_trip_ms(sock) or 0.0) / 1000.0)
 
@@ -174,7 +175,8 @@ class _Connector:
     own (at most :data:`MAX_HANDSHAKES`; more are refused), so a stranger can neither stall
     it nor, without the key, get a connection installed.  Every proven connection goes to
     the channel's ``_install``, which replaces an older one; every way out of a handshake
-    moves the phase, and closes the socket unless it was installed.
+    moves the phase, and closes the socket unless it was installed.  (A part of its
+    channel: it reads the channel's settings and shares its phase, counters and threads.)
     """
 
     def __init__(self, channel: "TcpChannel") -> None:
@@ -376,8 +378,7 @@ class TcpChannel:
         self.drops = DropLedger("TCP channel", log)
         self._phase = ChannelPhase()
         self._streams = Streams(period, time.monotonic())
-        self._lock = threading.Lock()   # the current connection, its phase, ``_urgent``
-        self._wake = threading.Condition(self._lock)
+        self._wake = threading.Condition()   # the current connection, its phase, _urgent
         self._urgent = False
         self._connection: Optional[_Connection] = None
         self._stopping = threading.Event()
