@@ -9,8 +9,11 @@ With Mesa's software OpenGL (llvmpipe) librviz corrupts its heap about once in
 when it dies; the PI itself never loads librviz, Ogre or OpenGL.
 
 The PI hands us one end of a socket pair (``--fd``) and speaks
-:mod:`pilot.view3d_protocol` over it.  Once ROS is up (our rospy node,
-``<pi>_view3d_<pid>``, is a :class:`~nodekit.ros_node.RosNode`):
+:mod:`pilot.view3d_protocol` over it.  We load Python, Qt and librviz and
+register our rospy node (``<pi>_view3d_<pid>``, a
+:class:`~nodekit.ros_node.RosNode`), then wait for the PI's ``go``: the PI
+keeps one of us warm beside the view it shows, to take over at once when that
+one dies.  Once told to go:
 
 1. On the GUI thread, RViz's ``VisualizationFrame`` is built from
    :data:`RVIZ_CONFIG` -- the robot from ``/robot_description`` placed by
@@ -51,7 +54,7 @@ import threading
 import time
 from typing import Dict, List, Optional, Sequence
 
-from pilot.view3d_protocol import (AddMarker, Decoder, Direction, EnableDisplay, MarkerMoved,
+from pilot.view3d_protocol import (AddMarker, Decoder, Direction, EnableDisplay, Go, MarkerMoved,
                                    Message, Ping, Pong, RemoteProtocolError, RemoveMarker,
                                    RosNodes, UpdateMarker, WindowReady, encode)
 
@@ -200,14 +203,14 @@ class RenderChild(QObject):
 
     ros_ready = Signal()
 
-    def __init__(self, sock: socket.socket, pi_name: str, markers_topic: str,
-                 forget: Sequence[str] = ()) -> None:
+    def __init__(self, sock: socket.socket, pi_name: str, markers_topic: str) -> None:
         super().__init__()
         from nodekit.ros_node import RosNode
 
         self.sock = sock
         self.markers_topic = markers_topic
-        self.forget = list(forget)
+        self.go: Optional[Go] = None            # the PI's word to be the view
+        self.ros_up = False
         self.decoder = Decoder(Direction.TO_CHILD)
         self.markers: Dict[str, Sequence[float]] = {}   # name -> pose, as the PI last said
         self.displays: Dict[str, bool] = {}
@@ -218,7 +221,7 @@ class RenderChild(QObject):
         self.notifier.activated.connect(self._readable)
         self.ros = RosNode(f"{pi_name}_view3d_{os.getpid()}")
         self.ros.when_ready(self.ros_ready.emit)
-        self.ros_ready.connect(self._build, Qt.QueuedConnection)
+        self.ros_ready.connect(self._on_ros_ready, Qt.QueuedConnection)
         self.phases: Dict[str, float] = {}     # phase -> when it ended (monotonic)
 
     def start(self) -> None:
@@ -257,7 +260,12 @@ class RenderChild(QObject):
             self._quit(0)
 
     def _apply(self, message: Message) -> None:
-        if isinstance(message, Ping):
+        if isinstance(message, Go):
+            if self.go is None:
+                self.go = message
+                self.phases["told to go"] = time.monotonic()
+                self._build_when_ready()
+        elif isinstance(message, Ping):
             self.send(Pong(message.seq))
         elif isinstance(message, AddMarker):
             self.markers[message.name] = message.pose
@@ -297,15 +305,29 @@ class RenderChild(QObject):
             wanted = self.displays.get(display.getName())
             if wanted is not None and display.isEnabled() != wanted:
                 display.setEnabled(wanted)
+                log.info("3-D view: display %s %s", display.getName(), "on" if wanted else "off")
 
-    # -- once ROS is up --------------------------------------------------------------------
+    # -- once ROS is up and the PI said go -------------------------------------------------
+
+    def _on_ros_ready(self) -> None:
+        self.ros_up = True
+        self.phases["ROS"] = time.monotonic()
+        self._build_when_ready()
+
+    def _build_when_ready(self) -> None:
+        if self.ros_up and self.go is not None and self.frame is None:
+            self._build()
 
     def _build(self) -> None:
         from python_qt_binding.QtWidgets import QApplication
         from rviz import bindings as rviz
 
-        self.phases["ROS"] = time.monotonic()
         frame = rviz.VisualizationFrame()
+        # A top-level the window manager never sees, out of sight until the PI embeds it; set
+        # before librviz makes its native windows (changed after, Qt would make them again,
+        # the OpenGL one moved under a new parent).
+        frame.setWindowFlags(Qt.Window | Qt.FramelessWindowHint |
+                             Qt.X11BypassWindowManagerHint)
         frame.setSplashPath("")
         frame.initialize()
         config = rviz.Config()
@@ -320,9 +342,6 @@ class RenderChild(QObject):
         frame.menuBar().hide()
         frame.statusBar().hide()
         frame.setHideButtonVisibility(False)
-        # A top-level the window manager never sees, out of sight until the PI embeds it.
-        frame.setWindowFlags(Qt.Window | Qt.FramelessWindowHint |
-                             Qt.X11BypassWindowManagerHint)
         frame.move(-10000, -10000)
         frame.resize(640, 480)
         frame.show()
@@ -331,8 +350,10 @@ class RenderChild(QObject):
         self._enable_displays()
         self.send(WindowReady(int(frame.winId()), os.getpid()))
         self.phases["librviz"] = time.monotonic()
-        marks = [("python", process_started()), *self.phases.items()]
-        log.info("3-D view: window up %.2f s after our start (%s)", marks[-1][1] - marks[0][1],
+        marks = [("python", process_started()),
+                 *sorted(self.phases.items(), key=lambda phase: phase[1])]
+        log.info("3-D view: window up %.2f s after the PI's go, %.2f s after our start (%s)",
+                 marks[-1][1] - self.phases["told to go"], marks[-1][1] - marks[0][1],
                  ", ".join(f"{name} {end - begin:.2f} s" for (_, begin), (name, end)
                            in zip(marks, marks[1:])))
 
@@ -349,13 +370,13 @@ class RenderChild(QObject):
         from nodekit.ros_node import nodes_of_this_process
 
         own = f"/{self.ros.name}"
+        forget = list(self.go.forget) if self.go is not None else []
         try:
-            if self.forget:
+            if forget:
                 import rosnode
 
-                rosnode.cleanup_master_blacklist(rosgraph.Master(own), self.forget)
-                log.info("3-D view: unregistered the dead view's nodes %s",
-                         ", ".join(self.forget))
+                rosnode.cleanup_master_blacklist(rosgraph.Master(own), forget)
+                log.info("3-D view: unregistered the dead view's nodes %s", ", ".join(forget))
             self.ros.adopt()
             found = nodes_of_this_process(rosgraph.Master(own))
         except Exception as exc:  # noqa: BLE001 -- the master went away meanwhile
@@ -382,8 +403,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--pi", required=True, help="the PI's name (our node is <pi>_view3d_<pid>)")
     parser.add_argument("--markers", required=True,
                         help="the interactive marker server's topic (/pilot_markers/<pi>)")
-    parser.add_argument("--forget", action="append", default=[],
-                        help="a dead view's ROS node to unregister (repeatable)")
     return parser
 
 
@@ -399,7 +418,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     from python_qt_binding.QtWidgets import QApplication
 
     app = QApplication(sys.argv[:1])
-    child = RenderChild(sock, options.pi, options.markers, options.forget)
+    child = RenderChild(sock, options.pi, options.markers)
     child.start()
     from rviz import bindings  # noqa: F401 -- loaded (Ogre...) while the ROS thread registers
     return app.exec_()

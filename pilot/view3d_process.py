@@ -9,16 +9,21 @@ reading fills its socket; what does not fit waits in an outbox, and the
 liveness check kills a child that stays stuck).  A thread per child waits for
 its exit and hands it to the GUI thread.
 
-:class:`RenderSupervisor` keeps one child alive.  A child is *up* once it said
-``window``; from then it is pinged every :data:`PING_EVERY` s and killed when
-it has not answered for :data:`HANG_AFTER` s (heap corruption can deadlock
-malloc as well as crash it).  A child that never shows its window within
-:data:`START_TIMEOUT` s is killed too.  When a child dies the supervisor says
-why (``crashed: signal 11 (SIGSEGV)``) and starts the next one after the
-delay :class:`RestartPolicy` gives: at once after a child that had been up,
-longer and longer after children that died before they were up (a broken
-installation must not spin).  Nothing here blocks the GUI thread, so the rest
-of the PI never notices.
+:class:`RenderSupervisor` keeps one child showing the view.  A child loads
+Python, Qt and librviz and registers its ROS node, then waits to be told
+``go``; once the view is up the supervisor starts a second child, which stays
+warm, so that when the first dies the spare is told to go and only builds
+librviz's frame (about half a fresh start; the next spare starts once the new
+view is up).  A child is *up* once it said ``window``; from then it is pinged
+every :data:`PING_EVERY` s and killed when it has not answered for
+:data:`HANG_AFTER` s (heap corruption can deadlock malloc as well as crash
+it).  A child that shows no window within :data:`START_TIMEOUT` s of its go
+is killed too.  When the view dies the supervisor says why (``crashed:
+signal 11 (SIGSEGV)``) and starts the next after the delay
+:class:`RestartPolicy` gives: at once after a view that had been up, longer
+and longer after views that died before they were up (a broken installation
+must not spin).  Nothing here blocks the GUI thread, so the rest of the PI
+never notices.
 
 Each child runs in a folder of its own (:class:`CrashFolders`), where its
 faulthandler stacks and the kernel's core file land: a crash's folder is kept
@@ -43,8 +48,8 @@ from typing import List, Optional, Sequence
 
 from python_qt_binding.QtCore import QObject, QSocketNotifier, Qt, QTimer, Signal
 
-from pilot.view3d_protocol import (Decoder, Direction, Message, Ping, Pong, RemoteProtocolError,
-                                   RosNodes, WindowReady, encode)
+from pilot.view3d_protocol import (Decoder, Direction, Go, Message, Ping, Pong,
+                                   RemoteProtocolError, RosNodes, WindowReady, encode)
 
 log = logging.getLogger("pilot.view3d")
 
@@ -166,6 +171,8 @@ class RenderProcess(QObject):
             pass_fds=(theirs.fileno(),), cwd=str(folder), env=env)
         theirs.close()
         self.pid = self.proc.pid
+        self.folder = folder                # its working folder (renamed after its pid)
+        self.warm = False                   # started as a spare, before it was needed
         self.killed_because = ""            # why we killed it, if we did
         self.sock = ours
         self.sock.setblocking(False)
@@ -252,31 +259,37 @@ class RenderProcess(QObject):
 
 
 class RenderSupervisor(QObject):
-    """Keeps one render child alive for the 3-D view; says when it is up, down, and why."""
+    """Keeps one render child showing the 3-D view (and one warm beside it); says when the
+    view is up, down, and why."""
 
     up = Signal(int, int)                   # X window, pid
-    down = Signal(object, float)            # ChildExit, seconds until the next start
+    down = Signal(object, float)            # ChildExit, seconds until the next view
     message = Signal(object)                # the child's other messages (moved, nodes)
 
     def __init__(self, pi_name: str, markers_topic: str,
                  folders: Optional[CrashFolders] = None,
-                 child_module: str = "pilot.view3d_child") -> None:
+                 child_module: str = "pilot.view3d_child", standby: bool = True) -> None:
+        """``standby``: keep a second child loaded and registered, told to go when the first
+        dies (the view is back in the time librviz takes to build its frame)."""
         super().__init__()
         self.child_module = child_module
+        self.standby = standby
         self.ping_every, self.hang_after, self.start_timeout = \
             PING_EVERY, HANG_AFTER, START_TIMEOUT
         self.pi_name = pi_name
         self.markers_topic = markers_topic
         self.folders = folders or CrashFolders(CrashFolders.default_root())
         self.policy = RestartPolicy()
-        self.child: Optional[RenderProcess] = None
-        self.folder: Optional[Path] = None
+        self.child: Optional[RenderProcess] = None      # the one told to go
+        self.spare: Optional[RenderProcess] = None      # loaded, waiting to be told
+        self.went_at = 0.0                  # when the child was told to go
         self.up_at: Optional[float] = None
         self.answered_at = 0.0
         self.nodes: Optional[RosNodes] = None   # the child's ROS nodes, once it said them
         self.forget: List[str] = []         # the last dead child's ROS nodes
         self.starts = 0
         self._seq = 0
+        self.answered_seq = 0               # the child's last pong: it read all sent before
         self._closed = False
         self.pinger = QTimer(self)
         self.pinger.timeout.connect(self._ping)
@@ -288,26 +301,42 @@ class RenderSupervisor(QObject):
     def pid(self) -> Optional[int]:
         return self.child.pid if self.child is not None else None
 
+    @property
+    def folder(self) -> Optional[Path]:
+        return self.child.folder if self.child is not None else None
+
     def start(self) -> None:
+        """Tell the spare to go, or start a child and tell it (its Go waits in the socket)."""
         if self._closed or self.child is not None:
             return
-        argv = ["--pi", self.pi_name, "--markers", self.markers_topic]
-        for node in self.forget:
-            argv += ["--forget", node]
-        folder = self.folders.new()
-        child = RenderProcess(self.child_module, argv, folder)
-        self.folder = self.folders.named_for(folder, child.pid)
-        self.child, self.up_at, self.nodes = child, None, None
+        child, self.spare = self.spare or self._spawn(), None
+        self.child, self.up_at, self.nodes, self.answered_seq = child, None, None, 0
+        self.went_at = self.answered_at = time.monotonic()
         self.starts += 1
-        child.message.connect(self._message)
-        child.exited.connect(self._exited)
-        self.answered_at = time.monotonic()
+        child.send(Go(tuple(self.forget)))
         self.pinger.start(int(self.ping_every * 1000))
-        log.info("pilot: 3-D view starting (pid %d, folder %s)", child.pid, self.folder)
+        log.info("pilot: 3-D view starting (pid %d, %s, folder %s)", child.pid,
+                 "the warm spare" if child.warm else "a new process", child.folder)
+
+    def _spawn(self) -> RenderProcess:
+        folder = self.folders.new()
+        child = RenderProcess(self.child_module,
+                              ["--pi", self.pi_name, "--markers", self.markers_topic], folder)
+        child.folder = self.folders.named_for(folder, child.pid)
+        child.message.connect(lambda message, c=child: self._message(c, message))
+        child.exited.connect(lambda code, c=child: self._exited(c, code))
+        return child
 
     def send(self, message: Message) -> None:
         if self.child is not None:
             self.child.send(message)
+
+    def ping(self) -> int:
+        """Ask the child to answer; once :attr:`answered_seq` reaches the number returned, it
+        has read everything sent before (one ordered stream)."""
+        self._seq += 1
+        self.send(Ping(self._seq))
+        return self._seq
 
     def kill(self, why: str) -> None:
         """Kill the child; its exit is reported with ``why``."""
@@ -318,24 +347,30 @@ class RenderSupervisor(QObject):
         self._closed = True
         self.pinger.stop()
         self.restart.stop()
-        if self.child is not None:
-            child, self.child = self.child, None
-            child.exited.disconnect(self._exited)
-            child.close()
-            if self.folder is not None:
-                self.folders.settle(self.folder)
+        for child in (self.child, self.spare):
+            if child is not None:
+                child.close()
+                self.folders.settle(child.folder)
+        self.child = self.spare = None
 
-    def _message(self, message: Message) -> None:
+    def _message(self, child: RenderProcess, message: Message) -> None:
+        if child is not self.child:
+            return                              # a spare has nothing to say yet
         self.answered_at = time.monotonic()
         if isinstance(message, WindowReady):
             self.up_at = time.monotonic()
-            log.info("pilot: 3-D view up (pid %d, window 0x%x) %.2f s after its start",
-                     message.pid, message.window, self.up_at - self.child.started_at)
+            log.info("pilot: 3-D view up (pid %d, window 0x%x) %.2f s after its go",
+                     message.pid, message.window, self.up_at - self.went_at)
             self.up.emit(message.window, message.pid)
+            if self.standby and self.spare is None:
+                self.spare = self._spawn()
+                self.spare.warm = True
         elif isinstance(message, RosNodes):
             self.nodes = message
             self.message.emit(message)
-        elif not isinstance(message, Pong):
+        elif isinstance(message, Pong):
+            self.answered_seq = max(self.answered_seq, message.seq)
+        else:
             self.message.emit(message)
 
     def _ping(self) -> None:
@@ -344,31 +379,38 @@ class RenderSupervisor(QObject):
             return
         now = time.monotonic()
         if self.up_at is None:
-            if now - child.started_at > self.start_timeout:
+            if now - self.went_at > self.start_timeout:
                 self.kill(f"hung: no window after {self.start_timeout:g} s")
             return
         if now - self.answered_at > self.hang_after or child.stuck:
             self.kill(f"hung: no answer for {now - self.answered_at:.0f} s")
             return
-        self._seq += 1
-        child.send(Ping(self._seq))
+        self.ping()
 
-    def _exited(self, returncode: int) -> None:
-        child, self.child = self.child, None
+    def _exited(self, child: RenderProcess, returncode: int) -> None:
+        if self._closed:
+            return
+        kept = self.folders.settle(child.folder)
+        reason = child.killed_because or describe_exit(returncode)
+        if child is self.spare:                 # the next view will be a new process
+            self.spare = None
+            log.warning("pilot: the 3-D view's spare (pid %d) %s%s", child.pid, reason,
+                        f"; kept its evidence in {child.folder}" if kept else "")
+            return
+        if child is not self.child:
+            return
+        self.child = None
         self.pinger.stop()
         now = time.monotonic()
         up_for = None if self.up_at is None else now - self.up_at
-        kept = self.folders.settle(self.folder) if self.folder is not None else False
-        exit = ChildExit(child.pid, returncode, now - child.started_at, up_for,
-                         child.killed_because or describe_exit(returncode),
-                         self.folder if kept else None)
+        exit = ChildExit(child.pid, returncode, now - self.went_at, up_for, reason,
+                         child.folder if kept else None)
         self.forget = [self.nodes.node, *self.nodes.librviz] if self.nodes is not None \
             else [f"/{self.pi_name}_view3d_{child.pid}"]
         delay = self.policy.died(up_for)
         self._report(exit, delay)
         self.down.emit(exit, delay)
-        if not self._closed:
-            self.restart.start(int(delay * 1000))
+        self.restart.start(int(delay * 1000))
 
     def _report(self, exit: ChildExit, delay: float) -> None:
         """The log line of a death, and the stacks faulthandler left (the core stays put)."""
@@ -379,6 +421,9 @@ class RenderSupervisor(QObject):
         if exit.folder is not None:
             found = self.folders.evidence(exit.folder)
             evidence = f"; kept {', '.join(p.name for p in found)} in {exit.folder}"
+            if found and found[0].name == "stacks.txt":   # written as it crashed
+                evidence += (f" (it crashed {time.time() - found[0].stat().st_mtime:.1f} s "
+                             f"before we knew: the core is written first)")
         log.warning("pilot: 3-D view (pid %d) %s after %.1f s (%s)%s; restarting %s", exit.pid,
                     exit.reason, exit.ran_for, up, evidence,
                     "now" if delay == 0 else f"in {delay:g} s")

@@ -9,7 +9,9 @@ the pilot left them, which displays are switched off) and tells every new
 child again; the child owns nothing it cannot be told.  The two talk over one
 stream socket, one JSON object per line (UTF-8, ``\\n``-terminated)::
 
-    PI -> child   {"type": "add", "name": "drc_valve", "pose": [x, y, z, roll, pitch, yaw]}
+    PI -> child   {"type": "go", "forget": ["/pi_view3d_<pid>", "/rviz_..."]}   (be the view:
+                      build librviz's frame; first unregister a dead view's ROS nodes)
+                  {"type": "add", "name": "drc_valve", "pose": [x, y, z, roll, pitch, yaw]}
                   {"type": "update", "name": ..., "pose": [...]}   (move an existing marker)
                   {"type": "remove", "name": ...}
                   {"type": "display", "name": "Cloud", "enabled": false}
@@ -64,6 +66,15 @@ class Direction(enum.Enum):
 
 
 # -- messages: PI -> child ------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Go:
+    """Be the view now: build librviz's frame.  A child waits for it, so the PI can keep one
+    warmed up (Python, Qt, librviz loaded, ROS registered) to take over from a dead one;
+    ``forget`` are the dead one's ROS nodes, to unregister."""
+
+    forget: Tuple[str, ...] = ()
+
 
 @dataclass(frozen=True)
 class AddMarker:
@@ -132,13 +143,13 @@ class Pong:
     seq: int
 
 
-ToChild = Union[AddMarker, UpdateMarker, RemoveMarker, EnableDisplay, Ping]
+ToChild = Union[Go, AddMarker, UpdateMarker, RemoveMarker, EnableDisplay, Ping]
 ToPi = Union[WindowReady, RosNodes, MarkerMoved, Pong]
 Message = Union[ToChild, ToPi]
 
 #: The wire name of each message, and the direction it travels in.
 TYPES: Dict[str, Tuple[Type[Any], Direction]] = {
-    "add": (AddMarker, Direction.TO_CHILD), "update": (UpdateMarker, Direction.TO_CHILD),
+    "go": (Go, Direction.TO_CHILD), "add": (AddMarker, Direction.TO_CHILD), "update": (UpdateMarker, Direction.TO_CHILD),
     "remove": (RemoveMarker, Direction.TO_CHILD), "display": (EnableDisplay, Direction.TO_CHILD),
     "ping": (Ping, Direction.TO_CHILD),
     "window": (WindowReady, Direction.TO_PI), "nodes": (RosNodes, Direction.TO_PI),
@@ -176,6 +187,12 @@ def _bool(value: Any) -> bool:
     return value
 
 
+def _names(value: Any) -> Tuple[str, ...]:
+    if not isinstance(value, (list, tuple)) or len(value) > 100:
+        raise ValueError(f"must be a list of at most 100 names, got {value!r:.80}")
+    return tuple(_name(v) for v in value)
+
+
 def _nodes(value: Any) -> Dict[str, str]:
     if not isinstance(value, dict) or not all(isinstance(k, str) and isinstance(v, str)
                                               for k, v in value.items()):
@@ -185,6 +202,7 @@ def _nodes(value: Any) -> Dict[str, str]:
 
 #: Each message's fields and their checks, in wire order.
 FIELDS: Dict[Type[Any], Dict[str, Any]] = {
+    Go: {"forget": _names},
     AddMarker: {"name": _name, "pose": _pose}, UpdateMarker: {"name": _name, "pose": _pose},
     RemoveMarker: {"name": _name}, EnableDisplay: {"name": _name, "enabled": _bool},
     Ping: {"seq": _int}, WindowReady: {"window": _int, "pid": _int},

@@ -5,18 +5,19 @@ Issue 31: librviz under llvmpipe used to take the whole PI down about once in
 (a roscore and a yarp-lite server, no robot), with ``--burners`` processes
 spinning ``while 1: pass`` beside it:
 
-1. the **start loop**: ``walkman-pilot --layout main-pilot`` started ``--starts``
+1. the **kill loop** (first, being the shorter: an interrupted run still has both
+   figures): one PI whose render process is SIGKILLed ``--kills`` times; each
+   time the time from the kill to the PI's ``3-D view up`` line of the new
+   process (both wall-clock: the PI's lines carry their time), and librviz's
+   picture on the screen again.  The next kill waits ``--settle`` s after the
+   view is back (a view that dies within 2 s of its window counts toward
+   :class:`pilot.view3d_process.RestartPolicy`'s back-off);
+2. the **start loop**: ``walkman-pilot --layout main-pilot`` started ``--starts``
    times; each time it waits for the 3-D view's window (the PI's log line
    ``3-D view up``), watches ``--hold`` s more (the old crash came a second or
    two after the window appeared), checks the PI is alive and librviz's picture
    is on the screen, and stops it with SIGTERM (as closing it does), checking
-   it exits 0 and leaves no render process behind;
-2. the **kill loop**: one PI whose render process is SIGKILLed ``--kills``
-   times; each time the time from the kill to the PI's ``3-D view up`` line of
-   the new process (both wall-clock: the PI's lines carry their time), and the
-   picture on the screen again.  The next kill waits ``--settle`` s after the
-   view is back (a view that dies within 2 s of its window counts toward
-   :class:`pilot.view3d_process.RestartPolicy`'s back-off).
+   it exits 0 and leaves no render process behind.
 
 It prints one line per start and kill and the figures at the end: PI deaths,
 render-process crashes (librviz's own, now harmless: their stacks and cores
@@ -47,7 +48,8 @@ PYTHON = sys.executable
 #: The PI's line when a render process's window is up (its time first: WALKMAN_LOG_TIME).
 VIEW_UP = re.compile(r"^(\d+\.\d+) \[pilot\] INFO pilot\.view3d: pilot: 3-D view up "
                      r"\(pid (\d+)")
-VIEW_DIED = re.compile(r"3-D view \(pid (\d+)\) (crashed|was killed|exited|hung)([^;]*)")
+VIEW_DIED = re.compile(r"^(\d+\.\d+) .*3-D view \(pid (\d+)\) (crashed|was killed|exited|hung)"
+                       r"([^;]*)")
 BACKGROUND = (40, 44, 52)       # RViz's, pilot.view3d_child.RVIZ_CONFIG
 #: Background pixels that mean librviz's picture is on the screen (the view is ~500x250).
 PICTURE_PIXELS = 20_000
@@ -61,6 +63,7 @@ class Figures:
     no_view: List[str] = field(default_factory=list)
     view_up: List[float] = field(default_factory=list)       # PI start -> view up, s
     view_deaths: List[str] = field(default_factory=list)     # librviz's own, in either loop
+    crash_back: List[float] = field(default_factory=list)     # noticed -> next view up, s
     kills: int = 0
     back: List[float] = field(default_factory=list)           # kill -> new view up, s
     not_back: List[str] = field(default_factory=list)
@@ -81,17 +84,18 @@ class Screen:
 
     def picture_shown(self, save: Optional[Path] = None) -> bool:
         """librviz's background covers a view's worth of the screen."""
-        image = self.grab()
+        import numpy as np
+        from python_qt_binding.QtGui import QImage
+
+        image = self.grab().convertToFormat(QImage.Format_RGB32)
         if save is not None:
             image.save(str(save))
-        hits = 0
-        for y in range(0, image.height(), 2):
-            for x in range(0, image.width(), 2):
-                c = image.pixelColor(x, y)
-                if abs(c.red() - BACKGROUND[0]) + abs(c.green() - BACKGROUND[1]) + \
-                        abs(c.blue() - BACKGROUND[2]) < 12:
-                    hits += 4
-        return hits >= PICTURE_PIXELS
+        bits = image.constBits()
+        bits.setsize(image.sizeInBytes())
+        pixels = np.frombuffer(bits, np.uint8).reshape(image.height(), image.bytesPerLine())
+        bgr = pixels[:, :image.width() * 4].reshape(image.height(), image.width(), 4)[..., :3]
+        distance = np.abs(bgr.astype(np.int16) - np.array(BACKGROUND[::-1], np.int16)).sum(axis=2)
+        return int((distance < 12).sum()) >= PICTURE_PIXELS
 
 
 def view_ups(pi: Proc) -> List[tuple]:
@@ -137,9 +141,18 @@ def start_pi(pc: Pc, name: str) -> Proc:
 
 
 def count_view_deaths(pi: Proc, figures: Figures, where: str, skip_killed: bool) -> None:
+    """The render process's deaths we did not cause, and how long the PI took to notice
+    (the kernel writes the core first) and to show the next view."""
+    ups = view_ups(pi)
     for m in map(VIEW_DIED.search, list(pi.lines)):
-        if m and not (skip_killed and m.group(2) == "was killed"):
-            figures.view_deaths.append(f"{where}: pid {m.group(1)} {m.group(2)}{m.group(3)}")
+        if m and not (skip_killed and m.group(3) == "was killed"):
+            noticed = float(m.group(1))
+            back = next((at - noticed for at, _ in ups if at > noticed), None)
+            if back is not None:
+                figures.crash_back.append(back)
+            figures.view_deaths.append(
+                f"{where}: pid {m.group(2)} {m.group(3)}{m.group(4)}; the next view up "
+                + (f"{back:.2f} s after the PI noticed" if back is not None else "never"))
 
 
 def stop_pi(pi: Proc, figures: Figures, where: str) -> None:
@@ -203,38 +216,42 @@ def kill_loop(pc: Pc, screen: Screen, figures: Figures, kills: int, settle: floa
               out: Path) -> None:
     pi = start_pi(pc, "pi_kills")
     try:
-        seen = 0
-        _, pid = wait_view_up(pi, seen, 180)
-        seen = 1
+        wait_view_up(pi, 0, 180)
         wait_picture(screen, 60)
-        for index in range(1, kills + 1):
-            figures.kills = index
-            figures.loads.append(os.getloadavg()[0])
+        while figures.kills < kills:
             time.sleep(settle)
-            first = index == 1
+            ups = view_ups(pi)
+            seen, pid = len(ups), ups[-1][1]
+            first = figures.kills == 0
             if first:
                 screen.picture_shown(out / "kill-before.png")
             killed_at = time.time()
-            os.kill(pid, signal.SIGKILL)
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:      # it died by itself (librviz): its successor comes
+                print(f"render process {pid} died by itself; waiting for the next",
+                      flush=True)
+                wait_view_up(pi, seen, 120)
+                continue
+            figures.kills += 1
+            figures.loads.append(os.getloadavg()[0])
             if first:
                 time.sleep(0.3)
                 screen.picture_shown(out / "kill-restarting.png")
             try:
                 at, new = wait_view_up(pi, seen, 60)
             except WaitTimeout as exc:
-                figures.not_back.append(f"kill {index}: {exc}")
-                print(f"kill {index}: NOT BACK {exc}", flush=True)
+                figures.not_back.append(f"kill {figures.kills}: {exc}")
+                print(f"kill {figures.kills}: NOT BACK {exc}", flush=True)
                 break
-            seen += 1
             figures.back.append(at - killed_at)
             shown = wait_picture(screen, 30)
             if first:
                 screen.picture_shown(out / "kill-after.png")
             if not shown:
-                figures.not_back.append(f"kill {index}: pid {new} up but no picture")
-            print(f"kill {index}: pid {pid} -> {new}, back in {at - killed_at:.2f} s; load "
-                  f"{figures.loads[-1]:.1f}", flush=True)
-            pid = new
+                figures.not_back.append(f"kill {figures.kills}: pid {new} up but no picture")
+            print(f"kill {figures.kills}: pid {pid} -> {new}, back in {at - killed_at:.2f} s; "
+                  f"load {figures.loads[-1]:.1f}", flush=True)
         if pi.popen.poll() is not None:
             figures.pi_deaths.append(f"kill loop: the PI died ({pi.popen.returncode})\n"
                                      + "\n".join(pi.lines[-30:]))
@@ -264,7 +281,8 @@ def report(figures: Figures, burners: int, state: Path) -> int:
     print(f"kills: {figures.kills}; back: {spread(figures.back)}; over 3 s: "
           f"{sum(1 for b in figures.back if b > 3.0)}; not back: {len(figures.not_back)}")
     print(f"render-process deaths not ours (librviz's crashes, survived): "
-          f"{len(figures.view_deaths)}")
+          f"{len(figures.view_deaths)}; the next view up after each: "
+          f"{spread(figures.crash_back)}")
     for line in figures.pi_deaths + figures.stop_failures + figures.no_view + \
             figures.not_back + figures.view_deaths:
         print(f"  {line}")
@@ -287,11 +305,13 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("out") / "pi-start-loop")
     options = parser.parse_args(argv)
     options.out.mkdir(parents=True, exist_ok=True)
+    for sig in (signal.SIGINT, signal.SIGTERM):    # (a background job ignores SIGINT)
+        signal.signal(sig, signal.default_int_handler)
     root = Path(tempfile.mkdtemp(prefix="pi-start-loop-"))
     burners = [subprocess.Popen([PYTHON, "-c", "while 1: pass"])
                for _ in range(options.burners)]
     figures = Figures()
-    pc = Pc("loop", root)
+    pc = Pc("loop", root, log_dir=options.out / "logs")     # every PI's output, stamped
     pc.extra_env.update({"WALKMAN_LOG_TIME": "1", "PYTHONFAULTHANDLER": "1"})
     try:
         with private_display() as display:
@@ -300,8 +320,9 @@ def main(argv: Optional[List[str]] = None) -> int:
             screen = Screen(display)
             print(f"pi_start_loop: Xvfb {display}, name servers in {root}, "
                   f"{options.burners} burner(s)", flush=True)
-            start_loop(pc, screen, figures, options.starts, options.hold)
+            # the kills first: the shorter loop, so an interrupted run still has both figures
             kill_loop(pc, screen, figures, options.kills, options.settle, options.out)
+            start_loop(pc, screen, figures, options.starts, options.hold)
     except KeyboardInterrupt:
         print("interrupted: the figures so far", flush=True)
     finally:

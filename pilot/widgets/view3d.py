@@ -123,6 +123,14 @@ class View3D(QWidget):
         self.displays[name] = enabled
         self._send(EnableDisplay(name, enabled))
 
+    def applied(self) -> Callable[[], bool]:
+        """A condition that turns true once the render process has applied everything asked
+        of it so far (markers, displays); false while there is none."""
+        if self.supervisor is None or self.embedded_pid is None:
+            return lambda: False
+        supervisor, pid, seq = self.supervisor, self.embedded_pid, self.supervisor.ping()
+        return lambda: supervisor.pid == pid and supervisor.answered_seq >= seq
+
     def close_view(self) -> None:
         if self.supervisor is not None:
             self.supervisor.close()

@@ -97,10 +97,10 @@ class Watch:
 def supervisor(qt, tmp_path, monkeypatch):
     made = []
 
-    def make(mode: str = "ok") -> Tuple[RenderSupervisor, Watch]:
+    def make(mode: str = "ok", standby: bool = False) -> Tuple[RenderSupervisor, Watch]:
         monkeypatch.setenv("FAKE_VIEW3D", mode)
         sup = RenderSupervisor("pi_t", "/pilot_markers/pi_t", CrashFolders(tmp_path / "crash"),
-                               child_module=FAKE)
+                               child_module=FAKE, standby=standby)
         made.append(sup)
         return sup, Watch(sup)
 
@@ -109,19 +109,23 @@ def supervisor(qt, tmp_path, monkeypatch):
         sup.close()
 
 
+@pytest.mark.parametrize("standby", [False, True], ids=["new process", "warm spare"])
 def test_a_killed_view_comes_back_at_once_and_the_next_is_told_the_dead_ones_nodes(
-        qt, supervisor, tmp_path):
-    sup, watch = supervisor()
+        qt, supervisor, tmp_path, standby):
+    sup, watch = supervisor(standby=standby)
     sup.start()
     wait_until(qt, lambda: watch.ups, 30, "the child's window")
     first = sup.pid
     assert watch.ups == [(4242, first)]
     sup.send(AddMarker("drc_valve", (0.5, 0.1, 0.0, 0.0, 0.0, 1.0)))
-    wait_until(qt, lambda: any(isinstance(m, MarkerMoved) for m in watch.messages), 10,
-               "the drag the child answers with")
+    seq = sup.ping()
+    wait_until(qt, lambda: sup.answered_seq >= seq, 10, "the child's answer to our ping")
+    # one ordered stream: the pong came after everything sent before it was handled
     assert MarkerMoved("drc_valve", (1.5, 0.1, 0.0, 0.0, 0.0, 1.0)) in watch.messages
     wait_until(qt, lambda: sup.nodes is not None, 10, "the child's ROS nodes")
     assert sup.nodes == RosNodes(f"/pi_t_view3d_{first}", {f"/rviz_{first}": "http://127.0.0.1:1/"})
+    spare = sup.spare.pid if standby else None
+    assert (sup.spare is not None) == standby     # started once the view was up
 
     os.kill(first, signal.SIGKILL)
     wait_until(qt, lambda: watch.downs, 10, "the death")
@@ -131,6 +135,8 @@ def test_a_killed_view_comes_back_at_once_and_the_next_is_told_the_dead_ones_nod
     assert sup.forget == [f"/pi_t_view3d_{first}", f"/rviz_{first}"]
     wait_until(qt, lambda: len(watch.ups) == 2, 30, "the next child's window")
     assert watch.ups[1][1] == sup.pid != first
+    if standby:
+        assert sup.pid == spare and sup.spare is not None and sup.spare.pid != spare
     assert not list((tmp_path / "crash").glob(f"pid{first}-*")), "a kill leaves no evidence"
 
 

@@ -16,13 +16,13 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from codec_helpers import FUZZ, feed_one_byte_at_a_time
-from pilot.view3d_protocol import (MAX_LINE, AddMarker, Decoder, Direction, EnableDisplay,
+from pilot.view3d_protocol import (MAX_LINE, AddMarker, Decoder, Direction, EnableDisplay, Go,
                                    LocalProtocolError, MarkerMoved, Ping, Pong,
                                    RemoteProtocolError, RemoveMarker, RosNodes, UpdateMarker,
                                    WindowReady, decode_line, encode)
 
 POSE = (0.66, 0.25, 0.08, 0.0, -1.0472, math.pi)
-TO_CHILD = [AddMarker("drc_valve", POSE), UpdateMarker("drc_valve", POSE),
+TO_CHILD = [Go(("/pi_view3d_41", "/rviz_17")), Go(), AddMarker("drc_valve", POSE), UpdateMarker("drc_valve", POSE),
             RemoveMarker("drc_door"), EnableDisplay("Cloud", False), Ping(7)]
 TO_PI = [WindowReady(0x400006, 4321), RosNodes("/pi_view3d_4321", {"/rviz_17": "http://h:1/"}),
          RosNodes("/pi_view3d_1"), MarkerMoved("drc_valve", POSE), Pong(7)]
@@ -85,6 +85,8 @@ def test_a_message_travelling_the_wrong_way_is_the_peers_error():
     (b'{"type":"remove","name":"v","colour":"red"}', "remove: unknown field(s) ['colour']"),
     (b'{"type":"display","name":"Cloud","enabled":1}', "display: field 'enabled' must be"),
     (b'{"type":"ping","seq":-1}', "ping: field 'seq'"),
+    (b'{"type":"go","forget":"/rviz_1"}', "go: field 'forget' must be a list"),
+    (b'{"type":"go","forget":[""]}', "go: field 'forget' must be a non-empty string"),
     (b'{"type":"teleport"}', "unknown message type 'teleport'"),
     (b'{"name":"v"}', "unknown message type None"),
     (b'[1,2]', "must be a JSON object"),

@@ -129,7 +129,8 @@ def view_pixels(disable: str = "") -> int:
     wait(lambda: view.container is not None, 60, "the 3-D view's window embedded")
     if disable:
         view.set_display_enabled(disable, False)
-    pump(1.5)
+        wait(view.applied(), 30, f"the 3-D view's process to switch {disable} off")
+    pump(1.5)                                 # librviz draws at 15 Hz
     container = view.container
     top_left = container.mapToGlobal(container.rect().topLeft())
     image = QApplication.primaryScreen().grabWindow(0, top_left.x(), top_left.y() + 40,
@@ -137,6 +138,7 @@ def view_pixels(disable: str = "") -> int:
     image.save(str(OUT / f"view3d{'-without-' + disable if disable else ''}.png"))
     if disable:
         view.set_display_enabled(disable, True)
+        wait(view.applied(), 30, f"the 3-D view's process to switch {disable} on")
     image = image.toImage()
     background = image.pixelColor(3, 3)       # the scene's background colour
     count = 0
