@@ -59,7 +59,7 @@ from bridge import compact, drops, frames
 from bridge.drops import Reason
 from bridge.errors import BridgeProtocolError, BridgeUsageError
 from bridge.expiry import aged_payload
-from bridge.flows import FlowKey, Form, Route
+from bridge.flows import Carriage, FlowKey, Form, Route
 from bridge.frames import DataFrame, Entry, Presence
 from bridge.journal import Queued
 from bridge.state_codec import StateDecoder, StateEncoder
@@ -432,6 +432,14 @@ class FrameSession:
         if streams is None or streams:
             if drops.hold_back(kernel.unsent):
                 held_back = kernel.unsent
+                # The stop-all is never held back behind a backlog: it is what must arrive.
+                urgent = {key for key, route in self.routes.items()
+                          if route.carriage is Carriage.URGENT and
+                          (streams is None or key in streams)}
+                if urgent:
+                    streaming = self._streaming_entries(self.streams.take(urgent))
+                    events = bool(streaming)
+                    encoded.extend(streaming)
             else:
                 streaming = self._streaming_entries(self.streams.take(streams))
                 events = streams is not None and bool(streaming)

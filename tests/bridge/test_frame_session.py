@@ -33,11 +33,13 @@ from walkman.gym.validity import Lifetime, split, stamp
 from yarp_lite.bottle import Bottle
 
 SWITCH, COMMAND, STATUS, STATE = FlowKey(7, 0), FlowKey(7, 1), FlowKey(7, 2), FlowKey(9, 0)
+STOP = FlowKey(250, 0)
 ROUTES = {route.key: route for route in [
     Route(SWITCH, "gaze_control/switch", Carriage.RELIABLE, Form.BOTTLE),
     Route(COMMAND, "gaze_control/command", Carriage.RELIABLE, Form.BOTTLE, expiring=True),
     Route(STATUS, "gaze_control/status", Carriage.LATEST, Form.BOTTLE, status_events=True),
-    Route(STATE, "walkman/state", Carriage.LATEST, Form.STATE)]}
+    Route(STATE, "walkman/state", Carriage.LATEST, Form.STATE),
+    Route(STOP, "stop_all", Carriage.URGENT, Form.BOTTLE)]}
 PERIOD = 0.5
 WALL = 1000.0
 NOTHING: frozenset = frozenset()      # no streaming flow: only what the outbox owes
@@ -268,6 +270,18 @@ def test_a_backlog_holds_streaming_values_back_but_not_commands(ends):
     assert out.held_back == drops.BACKLOG_LIMIT + 1
     assert [type(e) for e in pilot.session.receive_body(out.body)] == \
         [ReliableAccepted, PresenceHeard]
+    assert send(robot, pilot, 0.1, None) == [StreamValue(STATUS, Bottle([2, "a"]))]
+
+
+def test_a_backlog_never_holds_back_the_stop_all(ends):
+    robot, pilot = ends
+    robot.streams.post(STATUS, Bottle([2, "a"]))
+    robot.streams.post(STOP, Bottle(["stop_all", 42]), event=True)
+    slow = KernelQueue(unsent=drops.BACKLOG_LIMIT + 1)
+    out = robot.frame(0.0, None, kernel=slow)
+    assert out.held_back == drops.BACKLOG_LIMIT + 1
+    assert [e for e in pilot.session.receive_body(out.body) if isinstance(e, StreamValue)] \
+        == [StreamValue(STOP, Bottle(["stop_all", 42]))]                # the status waits
     assert send(robot, pilot, 0.1, None) == [StreamValue(STATUS, Bottle([2, "a"]))]
 
 
