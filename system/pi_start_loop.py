@@ -239,7 +239,7 @@ def kill_loop(pc: Pc, screen: Screen, figures: Figures, kills: int, settle: floa
                 time.sleep(0.3)
                 screen.picture_shown(out / "kill-restarting.png")
             try:
-                at, new = wait_view_up(pi, seen, 60)
+                at, new = wait_view_up(pi, seen, 180)
             except WaitTimeout as exc:
                 figures.not_back.append(f"kill {figures.kills}: {exc}")
                 print(f"kill {figures.kills}: NOT BACK {exc}", flush=True)

@@ -13,7 +13,6 @@ import logging
 import os
 import signal
 import time
-from pathlib import Path
 from typing import Callable, List, Tuple
 
 import pytest
