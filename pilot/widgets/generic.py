@@ -12,11 +12,13 @@ argument, a timed send for dangerous ones.  A refused command (by the module,
 its state machine or the gateway) shows the reason in the warnings.
 
 While the link to the robot is down (``/bridge/link``, :mod:`nodekit.link_watch`)
-a module that said nothing lately is not "not running": the widget says "link
-down for 12 s; module last heard running" in blue, keeps the buttons the last
-known state allows (what is sent waits for the link, and expires if it waits past
-its validity), and goes back to its usual colours when the link returns.  Only a
-module silent while the link is up reads "not running".  Commands held for the link
+every module's widget says so at once, in blue: "link down for 12 s; module last
+heard running" (a status a second old says no more than one of a minute: nothing
+crosses), or "module silent since before the cut (last: running)" for one the pilot
+had already seen go silent.  It keeps the buttons the last known state allows (what
+is sent waits for the link, and expires if it waits past its validity), and goes back
+to its usual colours when the link returns.  Only a module silent while the link is
+up reads "not running".  Commands held for the link
 (``/pilot/command_states``: queued) are listed with a "cancel queued" button; one refused
 or expired on the robot is shown among the warnings with why.
 
@@ -66,6 +68,8 @@ class GenericWidget(QGroupBox):
         self.heard_at: Optional[float] = None   # monotonic time of the last status
         self.status_stamp = 0.0                 # the gateway's stamp of it (wall clock)
         self.link_down_at: Optional[float] = None   # monotonic time the link went down
+        self.silent_before_cut = False   # absent already when the link went down
+        self.status_text = ""            # the last status as shown: its word and data
         self.timed: Dict[str, TimedButton] = {}
         outer = QVBoxLayout(self)
 
@@ -206,8 +210,7 @@ class GenericWidget(QGroupBox):
         self.state = event.state
         self.heard_at = time.monotonic() - max(0.0, time.time() - event.stamp)
         self.status_stamp = event.stamp
-        text = event.state + (f"  {event.data}" if event.data else "")
-        self.status_label.setText(text)
+        self.status_text = event.state + (f"  {event.data}" if event.data else "")
         self.refresh()
 
     def on_warning(self, event: WarningEvent) -> None:
@@ -251,12 +254,16 @@ class GenericWidget(QGroupBox):
     def on_link(self, event: LinkEvent) -> None:
         if event.state == "down":
             self.link_down_at = time.monotonic() - event.since
+            self.silent_before_cut = self.heard_at is None or \
+                self.link_down_at - self.heard_at > ABSENT_S
         else:
-            if self.link_down_at is not None and self.heard_at is not None:
+            if self.link_down_at is not None and self.heard_at is not None \
+                    and not self.silent_before_cut:
                 # Silence while the link was down says nothing about the module: its age
                 # counts again from the link's return (a status follows within a period).
                 self.heard_at = max(self.heard_at, time.monotonic() - STALE_S)
             self.link_down_at = None
+            self.silent_before_cut = False
         self.refresh()
 
     def show_problem(self, text: str) -> None:
@@ -270,9 +277,10 @@ class GenericWidget(QGroupBox):
 
     @property
     def presence(self) -> str:
-        """running, stale, absent, or link_down (silent, but the link is what failed)."""
+        """running, stale, absent, or link_down (whatever the module last said: nothing
+        it says now can cross)."""
         age = self.age
-        if self.link_down_at is not None and (age is None or age > STALE_S):
+        if self.link_down_at is not None:
             return "link_down"
         if age is None or age > ABSENT_S:
             return "absent"
@@ -294,11 +302,15 @@ class GenericWidget(QGroupBox):
             "color: #909090;" if presence != "running" else "")
         if presence == "link_down":
             down = time.monotonic() - self.link_down_at
-            last = "never heard" if self.state is None else f"last heard {self.state}"
+            last = "never heard" if self.state is None else \
+                f"silent since before the cut (last: {self.state})" if self.silent_before_cut \
+                else f"last heard {self.state}"
             self.status_label.setText(f"link down for {down:.0f} s; module {last}")
         elif presence == "absent":
             self.status_label.setText("not running" if self.state is None
                                       else f"not running (last: {self.state})")
+        else:      # the status itself (again, once the link is back: not "link down")
+            self.status_label.setText(self.status_text)
         self.age_label.setText("" if age is None else f"{age:.1f} s ago")
         waiting = list(self.queued.values())
         self.queued_label.setText("queued for the link: " + ", ".join(f"`{t}`" for t in waiting)

@@ -100,6 +100,35 @@ def test_a_silent_module_behind_a_broken_link_reads_link_down_not_dead(qt):
     assert widget.status_label.text() == "not running (last: tracking)"
 
 
+def test_the_link_down_shows_at_once_and_a_module_silent_before_the_cut_stays_silent(qt):
+    """Issue 33: the widget shows the link down as soon as it is told, not once the
+    module's last status is stale (3 s later: the PI said "tracking" in green for seconds
+    after the cut); a module already silent when the link went says so, and reads "not
+    running" again as soon as the link is back (not "ready" in grey for 7 s)."""
+    from pilot.catalogue import catalogue_of
+    from pilot.link import LinkEvent
+    from pilot.widgets.generic import ABSENT_S, LINK_DOWN_COLOUR, GenericWidget
+
+    live = GenericWidget(catalogue_of("gaze_control"), Recorder())
+    dead = GenericWidget(catalogue_of("temperature"), Recorder())
+    live.on_status(status("gaze_control", "tracking", age=0.2))
+    dead.on_status(status("temperature", "ready", age=ABSENT_S + 5))
+    dead.tick()
+    assert dead.status_label.text() == "not running (last: ready)"
+    for widget in (live, dead):
+        widget.on_link(LinkEvent("down", "the robot's bridge silent for 1.6 s", 0.0, 0))
+        assert widget.presence == "link_down"
+        assert LINK_DOWN_COLOUR in widget.status_label.styleSheet()
+        assert "start" not in enabled(widget.switch_buttons)   # nothing invites a queued start
+    assert live.status_label.text() == "link down for 0 s; module last heard tracking"
+    assert dead.status_label.text() == \
+        "link down for 0 s; module silent since before the cut (last: ready)"
+    for widget in (live, dead):
+        widget.on_link(LinkEvent("up", "", 0.0, 0))
+    assert live.presence == "running" and live.status_label.text() == "tracking"
+    assert dead.presence == "absent" and dead.status_label.text() == "not running (last: ready)"
+
+
 def test_queued_commands_are_listed_with_a_cancel_and_their_end_is_told(qt):
     from pilot.catalogue import catalogue_of
     from pilot.link import CommandStateEvent
