@@ -101,6 +101,24 @@ def lite_world(make_world, lite, monkeypatch):
     return world
 
 
+@pytest.fixture
+def emulated_link():
+    """The two emulated hosts (robot, pilot) and the radio between them
+    (:class:`bridge.emulation.EmulatedLink`), taken down after the test, a failed one too.
+    Needs root: mark the test ``requires("root")``.  Give it to
+    :class:`system.topology.Topology` (``link=``) to place the PCs on the hosts."""
+    import random
+
+    from bridge.emulation import EmulatedLink
+
+    link = EmulatedLink(f"we{os.getpid() % 100000}", random.randint(20, 250))
+    try:
+        link.up()
+        yield link
+    finally:
+        link.down()
+
+
 @pytest.fixture(autouse=True)
 def _quiet_logs(caplog):
     caplog.set_level(logging.INFO, logger="yarp_lite")

@@ -6,8 +6,9 @@ calls :meth:`Requirement.demand` or carries ``@pytest.mark.requires("name")``
 (``pytestmark`` for a whole module; conftest applies the marks).  Missing, the
 test *skips* with the reason -- on a developer's machine without root or the
 reference YARP -- unless ``WALKMAN_REQUIRE_<NAME>`` is set, as
-``launch_scripts/run_tests.sh`` (CI) does: then it *fails*, because a CI run
-that skipped the interop or emulated-network tests would pass by luck.
+``launch_scripts/run_tests.sh`` (CI) does, or ``CI=true`` (what CI services set)
+and that variable is not ``0``: then it *fails*, because a CI run that skipped the
+interop or emulated-network tests would pass by luck.
 
 A new need (a display for rendering tests, say) is one more entry in
 :data:`REQUIREMENTS`; nothing else changes.
@@ -36,7 +37,11 @@ class Requirement:
 
     @property
     def required(self) -> bool:
-        return os.environ.get(self.variable, "") not in ("", "0")
+        """Set and not ``0``; unset, whether this is a CI run (``CI=true``)."""
+        value = os.environ.get(self.variable)
+        if value is not None:
+            return value not in ("", "0")
+        return os.environ.get("CI", "").lower() in ("true", "1")
 
     def demand(self) -> None:
         """Return when met; otherwise skip the calling test, or fail it when required."""
@@ -44,8 +49,8 @@ class Requirement:
         if reason is None:
             return
         if self.required:
-            pytest.fail(f"{reason} ({self.variable} is set: this run must not skip it)",
-                        pytrace=False)
+            why = f"{self.variable} is set" if os.environ.get(self.variable) else "CI is set"
+            pytest.fail(f"{reason} ({why}: this run must not skip it)", pytrace=False)
         pytest.skip(f"{reason} (set {self.variable}=1 to make this a failure)")
 
 

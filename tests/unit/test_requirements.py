@@ -15,6 +15,7 @@ PRESENT = Requirement("gadget", lambda: None)
 
 def test_a_missing_requirement_skips_with_its_reason(monkeypatch):
     monkeypatch.delenv("WALKMAN_REQUIRE_GADGET", raising=False)
+    monkeypatch.delenv("CI", raising=False)
     with pytest.raises(pytest.skip.Exception, match="no gadget on this machine"):
         MISSING.demand()
 
@@ -28,7 +29,15 @@ def test_a_missing_requirement_fails_when_the_run_requires_it(monkeypatch, value
 
 def test_zero_means_not_required(monkeypatch):
     monkeypatch.setenv("WALKMAN_REQUIRE_GADGET", "0")
+    monkeypatch.setenv("CI", "true")
     with pytest.raises(pytest.skip.Exception):
+        MISSING.demand()
+
+
+def test_a_ci_run_requires_what_it_does_not_say_otherwise(monkeypatch):
+    monkeypatch.delenv("WALKMAN_REQUIRE_GADGET", raising=False)
+    monkeypatch.setenv("CI", "true")
+    with pytest.raises(pytest.fail.Exception, match="no gadget.*CI is set"):
         MISSING.demand()
 
 
