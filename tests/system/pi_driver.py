@@ -407,6 +407,108 @@ def latency() -> None:
     say("DONE")
 
 
+def said(word: str, timeout: float) -> str:
+    """Pump the GUI until the test writes a line starting with ``word``; the rest of it."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        QApplication.processEvents()
+        try:
+            line = STDIN.get(timeout=0.02)
+        except queue.Empty:
+            continue
+        if line.split()[:1] == [word]:
+            return line[len(word):].strip()
+    fail(f"the test never said {word!r}")
+    return ""
+
+
+def screenshot_of(name: str, *shown) -> None:
+    """The window once it has drawn what it shows now, scrolled to the widgets ``shown``
+    (their status lines: a layout's column is often wider and taller than the window)."""
+    from python_qt_binding.QtWidgets import QScrollArea
+
+    area = shown[0].parentWidget()
+    while area is not None and not isinstance(area, QScrollArea):
+        area = area.parentWidget()
+    if area is not None:
+        for each in shown:
+            area.ensureWidgetVisible(each.status_label)
+        area.horizontalScrollBar().setValue(0)
+    pump(0.3)
+    window.screenshot(OUT / name)
+
+
+def link_down() -> None:
+    """``link VICTIM OTHER``, for tests/system/test_pilot_link_down.py: start both modules
+    by clicks; after the test says ``killed`` (VICTIM kill -9'd, link up) VICTIM's widget
+    reads "not running" while OTHER's never stops showing its state; after ``cut TIME``
+    (the link's blackout began at wall time TIME) print ``LINKDOWN module seconds text``
+    when each module widget first shows "link down" (the label polled every 10 ms), and
+    ``GATEWAY module seconds`` when the gateway said so; no widget says "not running",
+    neither module's start is enabled; after ``restored`` OTHER shows its state again and
+    VICTIM "not running".  Screenshots: module-dead, link-down, link-back."""
+    from pilot.widgets.generic import ABSENT_S
+    from walkman.gym.lifecycle import State, lifecycle_of_status
+
+    names = sys.argv[3:5]
+    threading.Thread(target=read_stdin, daemon=True).start()
+    victim, other = (widget(name) for name in names)
+    for name, shown in zip(names, (victim, other)):
+        wait(lambda: shown.presence == "running", 60, f"{name}'s status")
+        wait_sendable(name)
+        if lifecycle_of_status(shown.state) != State.RUNNING:
+            click(shown.switch_buttons["start"], f"{name} start", shown)
+        wait(lambda: lifecycle_of_status(shown.state) == State.RUNNING, 60, f"{name} running")
+    say(f"STEP both running: {victim.status_label.text()!r}, {other.status_label.text()!r}")
+    said("killed", 120)
+
+    def victim_dead() -> bool:
+        # A late status greys OTHER (stale); "not running" or "link down" would be a lie.
+        if other.presence not in ("running", "stale"):
+            fail(f"{names[1]} reads {other.status_label.text()!r} ({other.presence}) while "
+                 f"only {names[0]} died")
+        return victim.status_label.text().startswith("not running")
+
+    wait(victim_dead, ABSENT_S + 30, f"{names[0]}'s widget to say not running")
+    screenshot_of("module-dead.png", victim, other)
+    say(f"STEP {names[0]} dead: {victim.status_label.text()!r}; {names[1]} "
+        f"{other.presence}: {other.status_label.text()!r}")
+
+    cut = float(said("cut", 120))
+    every = [w for widgets in window.module_widgets.values() for w in widgets]
+    shown_at = {}
+    end = time.monotonic() + 30
+    while len(shown_at) < len(every):
+        QApplication.processEvents()
+        for w in every:
+            if w not in shown_at and w.status_label.text().startswith("link down for"):
+                shown_at[w] = time.time()
+        if time.monotonic() > end:
+            fail(f"after 30 s: {[w.status_label.text() for w in every if w not in shown_at]}")
+        time.sleep(0.01)
+    screenshot_of("link-down.png", victim, other)
+    for name, shown in zip(names, (victim, other)):
+        gateway = time.time() - (time.monotonic() - shown.link_down_at)
+        say(f"GATEWAY {name} {gateway - cut:.3f}")
+        say(f"LINKDOWN {name} {shown_at[shown] - cut:.3f} {shown.status_label.text()}")
+        if shown.switch_buttons["start"].isEnabled():
+            fail(f"{name}'s start is enabled while the link is down (it would be queued)")
+    dead = [w.status_label.text() for w in every if "not running" in w.status_label.text()]
+    if dead:
+        fail(f"widgets say not running while only the link is down: {dead}")
+    say("STEP link down shown")
+
+    said("restored", 120)
+    wait(lambda: other.presence == "running" and
+         not other.status_label.text().startswith("link down"), 60,
+         f"{names[1]}'s state after the link's return")
+    wait(lambda: victim.status_label.text().startswith("not running"), 30,
+         f"{names[0]} not running after the link's return")
+    screenshot_of("link-back.png", victim, other)
+    say(f"STEP link back: {victim.status_label.text()!r}, {other.status_label.text()!r}")
+    say("DONE")
+
+
 if __name__ == "__main__":
     app = QApplication(sys.argv[:1])
     modules = configured_modules(Path(__file__).resolve().parents[2] / "models" / "bridge_drc.xml")
@@ -417,5 +519,5 @@ if __name__ == "__main__":
     wait(lambda: window.ros_up, 60, "the PI's ROS node")
     say(f"UP after {window.ready_after:.2f} s")
     {"first": first, "second": second, "latency": latency, "peer": peer,
-     "camera": camera}[sys.argv[1]]()
+     "camera": camera, "link": link_down}[sys.argv[1]]()
     window.close_link()
