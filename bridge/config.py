@@ -48,7 +48,7 @@ from typing import Callable, Dict, List, Optional, Tuple, TypeVar, Union
 from lxml import etree
 
 from bridge.flows import STATE_KIND, FlowKey
-from walkman.gym.interfaces import GYM_PORTS
+from walkman.gym.interfaces import GYM_PORTS, RECEIPT
 
 SCHEMA_PATH = Path(__file__).with_name("bridge.xsd")
 ROBOT, PILOT = "robot", "pilot"
@@ -96,6 +96,8 @@ class Channel:
     status_events: bool = False
     #: a GYM switch or command: its messages carry a validity (:mod:`walkman.gym.validity`)
     expiring: bool = False
+    #: a GYM module's receipts: what became of each command (:mod:`walkman.gym.command_life`)
+    receipts: bool = False
 
     @property
     def key(self) -> FlowKey:
@@ -142,6 +144,16 @@ class EmergencyStopFlow:
         return FlowKey(self.id, 1)
 
 
+@dataclass(frozen=True)
+class DatagramCopies:
+    """``<datagram_copies>``: how many datagram copies of each pilot command (and its
+    receipt) and of each status event also cross on the UDP channel, beside the TCP
+    channel's one (:mod:`bridge.copies`); 0: none."""
+
+    commands: int = 0
+    statuses: int = 0
+
+
 @dataclass
 class BridgeConfig:
     path: str
@@ -152,6 +164,7 @@ class BridgeConfig:
     gym_modules: Dict[str, Tuple[str, ...]] = field(default_factory=dict)  # name -> states
     robot_state: Optional[RobotStateFlow] = None
     emergency_stop: Optional[EmergencyStopFlow] = None
+    datagram_copies: DatagramCopies = DatagramCopies()
     state_rate: float = DEFAULT_STATE_RATE                 # Hz the robot state is sampled
     key_file: Optional[Path] = None      # the shared key, if the file names one
     _index: Dict[FlowKey, Channel] = field(default_factory=dict, repr=False, compare=False)
@@ -277,7 +290,8 @@ def parse(text: Union[str, bytes], where: str = "<bridge config>") -> BridgeConf
                 destination=destination, middleware="yarp", transport="tcp", reliable=reliable,
                 listen_port=listen, feed_port=feed, emit_port=emit, deliver_port=deliver,
                 statuses=statuses, line=element.sourceline,
-                status_events=flow == "status", expiring=direction == "pilot_to_robot"))
+                status_events=flow == "status", expiring=direction == "pilot_to_robot",
+                receipts=gym_port is RECEIPT))
     for element in root.iterfind("custom_modules/module"):
         name, module_id = element.get("name"), take_id(element)
         _check_name(name, element, where)
@@ -328,6 +342,14 @@ def parse(text: Union[str, bytes], where: str = "<bridge config>") -> BridgeConf
                               f"{copies}")
         config.emergency_stop = EmergencyStopFlow(take_id(element),
                                                   element.get("robot", "walkman"), copies)
+    for element in root.iterfind("datagram_copies"):
+        counts = {}
+        for attribute in ("commands", "statuses"):
+            counts[attribute] = _number(element, attribute, 0, where, int)
+            if not 0 <= counts[attribute] <= 5:
+                raise ConfigError(f"{where}:{element.sourceline}: {attribute} is 0..5 datagram "
+                                  f"copies, got {counts[attribute]}")
+        config.datagram_copies = DatagramCopies(**counts)
     for element in root.iterfind("ros_topics/topic"):
         line = element.sourceline
         topic_id = take_id(element)

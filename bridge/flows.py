@@ -15,10 +15,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
-from typing import TYPE_CHECKING, Dict, NamedTuple
+from typing import TYPE_CHECKING, Dict, NamedTuple, Optional
 
 if TYPE_CHECKING:  # config imports this module for FlowKey
-    from bridge.config import BridgeConfig, Channel
+    from bridge.config import BridgeConfig, Channel, DatagramCopies
 
 
 class FlowKey(NamedTuple):
@@ -73,6 +73,9 @@ class Route:
     expiring: bool = False
     fec: float = 0.0
     fec_auto: bool = False
+    #: a command, receipt or status also sent as this many datagrams on the UDP channel,
+    #: first copy wins (:mod:`bridge.copies`); 0: TCP only
+    copies: int = 0
 
     @property
     def on_tcp(self) -> bool:
@@ -80,29 +83,37 @@ class Route:
 
     @property
     def on_udp(self) -> bool:
-        return self.carriage in (Carriage.DATAGRAMS, Carriage.URGENT)
+        return self.carriage in (Carriage.DATAGRAMS, Carriage.URGENT) or self.copies > 0
 
     @property
     def reliable(self) -> bool:
         return self.carriage is Carriage.RELIABLE
 
 
-def route_of(channel: "Channel") -> Route:
-    """The route of one configured channel."""
+def route_of(channel: "Channel", copies: "Optional[DatagramCopies]" = None) -> Route:
+    """The route of one configured channel (``copies``: the configuration's
+    ``<datagram_copies>``)."""
     if channel.middleware == "ros":
         return Route(channel.key, channel.label, Carriage.DATAGRAMS, Form.ROS,
                      fec=channel.fec, fec_auto=channel.fec_auto)
     if channel.transport == "udp":
         return Route(channel.key, channel.label, Carriage.DATAGRAMS, Form.BOTTLE,
                      fec=channel.fec, fec_auto=channel.fec_auto)
+    copied = 0
+    if copies is not None:
+        copied = copies.statuses if channel.status_events else \
+            copies.commands if channel.reliable and (channel.expiring or channel.receipts) \
+            else 0
     return Route(channel.key, channel.label,
                  Carriage.RELIABLE if channel.reliable else Carriage.LATEST, Form.BOTTLE,
-                 status_events=channel.status_events, expiring=channel.expiring)
+                 status_events=channel.status_events, expiring=channel.expiring,
+                 copies=copied)
 
 
 def routes(config: "BridgeConfig") -> Dict[FlowKey, Route]:
     """Every flow of ``config`` with its route, the robot state's included."""
-    table = {channel.key: route_of(channel) for channel in config.channels}
+    table = {channel.key: route_of(channel, config.datagram_copies)
+             for channel in config.channels}
     state = config.robot_state
     if state is not None:
         table[state.key] = Route(state.key, f"{state.robot}/state",

@@ -18,7 +18,11 @@ rest again, in order (:meth:`FrameSession.peer_resumed`).  A frame numbers its f
 reliable entry (``seq``) and the others follow; the receiver journals each, refuses a
 gap as the peer's error and drops a number it already has (a duplicate, after a
 reconnect).  Every frame that follows an acceptance carries ``ack``, the highest number
-accepted, so the peer can forget it.
+accepted, so the peer can forget it.  A flow with datagram copies (:mod:`bridge.copies`)
+sends each reliable message a second way, on the UDP channel, as its frame leaves
+(:attr:`Outgoing.copies`); the receiving session journals a copy that is the next number
+it expects (:meth:`FrameSession.accept_copy`), and the frame that follows finds it there
+-- no drop, no second delivery.
 
 Streaming values (statuses, the robot state) wait in :class:`Streams`, one slot per
 flow, the newest value overwriting an older one.  The periodic frame, once per period T,
@@ -56,6 +60,7 @@ from typing import (AbstractSet, Any, Dict, FrozenSet, List, Mapping, Optional, 
                     Sequence, Tuple, Union)
 
 from bridge import compact, drops, frames
+from bridge.copies import ReliableCopy
 from bridge.drops import Reason
 from bridge.errors import BridgeProtocolError, BridgeUsageError
 from bridge.expiry import aged_payload
@@ -63,6 +68,7 @@ from bridge.flows import Carriage, FlowKey, Form, Route
 from bridge.frames import DataFrame, Entry, Presence
 from bridge.journal import Queued
 from bridge.state_codec import StateDecoder, StateEncoder
+from bridge.transit import Lateness, stamp
 
 MAX_RELIABLE_PER_FRAME = 256
 #: Shortest time between two event sends of one flow; more frequent events wait (coalesced).
@@ -91,6 +97,8 @@ class LinkStats:
     payload_in: int = 0
     reliable_sent: int = 0
     reliable_accepted: int = 0
+    #: reliable messages whose datagram copy was journalled before their frame came
+    reliable_by_copy: int = 0
     connects: int = 0
     #: empty frames sent after one the pilot waits for that was not acknowledged in time
     nudges: int = 0
@@ -120,7 +128,8 @@ class Inbox(Protocol):
 
     def accepted(self, session: int) -> int: ...
 
-    def accept(self, session: int, seq: int, ident: int, kind: int, payload: bytes) -> bool:
+    def accept(self, session: int, seq: int, ident: int, kind: int, payload: bytes,
+               late_by: float = 0.0) -> bool:
         """Keep one; False for a repeat, :class:`BridgeProtocolError` for a gap."""
 
 
@@ -286,6 +295,11 @@ class Outgoing:
     more: bool = False
     #: streaming values were held back behind this many unsent bytes (0: none)
     held_back: int = 0
+    #: the reliable messages of copied flows in this frame, as sent, for their datagram
+    #: copies (:mod:`bridge.copies`)
+    copies: Tuple[Tuple[FlowKey, int, bytes], ...] = ()
+    #: the frame's clock stamp (:mod:`bridge.transit`), which its copies carry too
+    clock: int = 0
 
 
 # -- the session -------------------------------------------------------------------------
@@ -317,6 +331,8 @@ class FrameSession:
         self._received_bottles: Dict[FlowKey, Any] = {}
         self._state_encoders: Dict[FlowKey, StateEncoder] = {}
         self._state_decoders: Dict[FlowKey, StateDecoder] = {}
+        self._copied_upto = 0    # highest number a datagram copy brought first
+        self.lateness = Lateness()
 
     # -- RESUME ----------------------------------------------------------------------
 
@@ -344,18 +360,20 @@ class FrameSession:
 
     # -- receiving -------------------------------------------------------------------
 
-    def receive_body(self, body: bytes) -> List[Event]:
+    def receive_body(self, body: bytes, read_at: Optional[float] = None) -> List[Event]:
         """A frame body as the link unsealed it; :class:`BridgeProtocolError` if bad."""
         frame = frames.parse_body(body)
         if not isinstance(frame, DataFrame):
             raise BridgeProtocolError(f"a {type(frame).__name__} frame after the handshake")
-        return self.receive(frame)
+        return self.receive(frame, read_at)
 
-    def receive(self, frame: DataFrame) -> List[Event]:
+    def receive(self, frame: DataFrame, read_at: Optional[float] = None) -> List[Event]:
         """The events of one data frame, in order (presence last); raises
         :class:`BridgeProtocolError` for anything the peer must not send -- the reliable
-        messages before it in the frame stay accepted, as the peer will learn by our ack."""
+        messages before it in the frame stay accepted, as the peer will learn by our ack.
+        ``read_at``: when its bytes were read (monotonic), to tell how late it came."""
         self._check_up("a data frame")
+        late_by = self._late_by(frame.clock, read_at)
         events: List[Event] = []
         if frame.ack is not None:
             self.queues.acknowledge(frame.ack)
@@ -371,7 +389,9 @@ class FrameSession:
                 if seq is None or entry.delta:
                     raise BridgeProtocolError(f"reliable entry {route.label} without a "
                                               f"sequence number")
-                events.append(self._accept(route, entry, seq))
+                accepted = self._accept(route, entry, seq, late_by)
+                if accepted is not None:
+                    events.append(accepted)
                 seq += 1
             else:
                 try:
@@ -383,9 +403,39 @@ class FrameSession:
             events.append(PresenceHeard(frame.presence))
         return events
 
-    def _accept(self, route: Route, entry: Entry, seq: int) -> Event:
+    def _late_by(self, clock: Optional[int], read_at: Optional[float]) -> float:
+        if clock is None or read_at is None:
+            return 0.0
+        return self.lateness.of(clock, read_at)
+
+    def accept_copy(self, key: FlowKey, copy: ReliableCopy,
+                    read_at: Optional[float] = None) -> Optional[Event]:
+        """A reliable message that came as a datagram copy (:mod:`bridge.copies`): journalled
+        if it is the next number from this connection's peer session; None when its frame
+        came first, when it is ahead of a gap the frames fill in order, or when it belongs
+        to another session.  :class:`BridgeProtocolError` for a payload no codec reads.
+        The caller serialises it with :meth:`receive`."""
+        route = self.routes.get(key)
+        if not self.up or route is None or not route.reliable or not route.copies or \
+                copy.session != self.peer_session or \
+                copy.seq != self.queues.accepted(self.peer_session) + 1:
+            return None
+        event = self._accept(route, Entry(key.id, key.kind, copy.payload), copy.seq,
+                             self._late_by(copy.clock, read_at))
+        if isinstance(event, ReliableAccepted):
+            self._copied_upto = copy.seq
+            self.stats.reliable_by_copy += 1
+        return event
+
+    def _accept(self, route: Route, entry: Entry, seq: int, late_by: float = 0.0
+                ) -> Optional[Event]:
+        """Journal one reliable message (``late_by``: seconds its frame came later than the
+        quickest, which its age grows by); None for the frame of one its copy brought."""
         compact.decode(entry.payload)  # refuse garbage before it is journalled
-        if not self.queues.accept(self.peer_session, seq, entry.id, entry.kind, entry.payload):
+        if not self.queues.accept(self.peer_session, seq, entry.id, entry.kind, entry.payload,
+                                  late_by):
+            if seq <= self._copied_upto:
+                return None
             return Dropped(Reason.DUPLICATE, f"{route.label} #{seq}")
         self.stats.reliable_accepted += 1
         return ReliableAccepted(route.key, seq)
@@ -426,7 +476,15 @@ class FrameSession:
         nudge = now >= self.nudges.at and self.nudges.take(now, kernel.only_unacknowledged)
         reliable = self.queues.unacknowledged(after=self.sent_upto or 0,
                                               limit=MAX_RELIABLE_PER_FRAME)
-        encoded = [self._reliable_entry(item, wall) for item in reliable]
+        encoded, copies = [], []
+        for item in reliable:
+            route = self.routes.get(FlowKey(item.id, item.kind))
+            payload = item.payload
+            if route is not None and route.expiring:   # it waited here: the module must know
+                payload = aged_payload(payload, wall - item.queued)
+            encoded.append(self._reliable_entry(item, payload))
+            if route is not None and route.copies:
+                copies.append((route.key, item.seq, payload))
         held_back = 0
         events = False
         if streams is None or streams:
@@ -451,8 +509,9 @@ class FrameSession:
         if not encoded and ack is None and presence is None and not nudge and \
                 now - self._last_tx < KEEPALIVE:
             return Outgoing(held_back=held_back)
+        clock = stamp(now)
         body = frames.data_body(ack=ack, seq=reliable[0].seq if reliable else None,
-                                encoded=encoded, presence=presence)
+                                encoded=encoded, presence=presence, clock=clock)
         self._last_tx = now
         self.ack_sent = accepted
         if presence is not None:
@@ -465,13 +524,10 @@ class FrameSession:
             self.nudges.awaited_frame_sent(now, kernel.round_trip)
         if nudge:
             self.stats.nudges += 1
-        return Outgoing(body, awaited, len(reliable) == MAX_RELIABLE_PER_FRAME, held_back)
+        return Outgoing(body, awaited, len(reliable) == MAX_RELIABLE_PER_FRAME, held_back,
+                        tuple(copies), clock)
 
-    def _reliable_entry(self, item: Queued, wall: float) -> bytes:
-        payload = item.payload
-        route = self.routes.get(FlowKey(item.id, item.kind))
-        if route is not None and route.expiring:   # it waited here: the module must know
-            payload = aged_payload(payload, wall - item.queued)
+    def _reliable_entry(self, item: Queued, payload: bytes) -> bytes:
         self.stats.payload_out += len(payload)
         return self._counted(Entry(item.id, item.kind, payload))
 

@@ -5,7 +5,7 @@ Theory of operation
 Everything one side has to say during a period T travels in one frame::
 
     frame  := varint(len(body)) body trailer
-    body   := flags [varint ack] [varint seq] [presence] entry*   (data)
+    body   := flags [varint ack] [varint seq] [presence] [varint clock] entry*   (data)
             | HELLO version side fingerprint[8] session[8] nonce[16] keyed
             | AUTH proof[16]
             | RESUME varint(accepted)
@@ -24,7 +24,9 @@ of the first reliable entry in the frame, the others follow in order.
 what it journalled.  ``presence`` (sent on a new connection and when it changes)
 lists which flows have the module's end connected on the sender's side, so the
 receiver shows a module's stand-in ports only while the module exists
-(:mod:`bridge.presence`).  A connection opens with HELLO and AUTH from each side and
+(:mod:`bridge.presence`).  ``clock`` is the sender's monotonic clock in ms (modulo
+2**28) when the frame left: the receiver tells from it how late a frame came
+(:mod:`bridge.transit`).  A connection opens with HELLO and AUTH from each side and
 a RESUME (the highest number already accepted from the peer's journal
 session): the sender resends everything after it, so nothing is lost or
 repeated across reconnects.
@@ -47,7 +49,7 @@ from bridge.errors import BridgeProtocolError, BridgeUsageError, NeedMoreData
 from bridge.flows import FlowKey
 from bridge.wire import Buffer, get_varint, put_varint, take
 
-PROTOCOL_VERSION = 3
+PROTOCOL_VERSION = 4
 DEFAULT_MAX_FRAME = 4 << 20
 #: Frames of the handshake are tiny; a bigger one is refused before it is buffered.
 MAX_HANDSHAKE_FRAME = 64
@@ -64,10 +66,13 @@ class Flags(IntFlag):
     RESUME = 0x08
     AUTH = 0x10
     PRESENCE = 0x20
+    CLOCK = 0x40
 
 
 _KNOWN_FLAGS = int(Flags.ACK | Flags.SEQ | Flags.HELLO | Flags.RESUME | Flags.AUTH |
-                   Flags.PRESENCE)
+                   Flags.PRESENCE | Flags.CLOCK)
+#: The clock field wraps at this (:data:`bridge.transit.MODULUS`).
+CLOCK_MODULUS = 1 << 28
 
 #: Which flows are present: ``(id, kind)`` pairs.
 Presence = FrozenSet[FlowKey]
@@ -87,6 +92,8 @@ class DataFrame:
     ack: Optional[int] = None
     seq: Optional[int] = None
     presence: Optional[Presence] = None
+    #: the sender's monotonic clock, ms modulo :data:`CLOCK_MODULUS`, when it left
+    clock: Optional[int] = None
 
 
 @dataclass(frozen=True)
@@ -138,10 +145,11 @@ def entry_bytes(entry: Entry) -> bytes:
 
 def data_body(entries: Iterable[Entry] = (), ack: Optional[int] = None,
               seq: Optional[int] = None, encoded: Optional[List[bytes]] = None,
-              presence: Optional[Presence] = None) -> bytes:
+              presence: Optional[Presence] = None, clock: Optional[int] = None) -> bytes:
     """A data frame's body; ``encoded`` may hold entries already through :func:`entry_bytes`."""
     flags = (Flags.ACK if ack is not None else 0) | (Flags.SEQ if seq is not None else 0) | \
-        (Flags.PRESENCE if presence is not None else 0)
+        (Flags.PRESENCE if presence is not None else 0) | \
+        (Flags.CLOCK if clock is not None else 0)
     body = bytearray((flags,))
     if ack is not None:
         put_varint(body, ack)
@@ -149,6 +157,10 @@ def data_body(entries: Iterable[Entry] = (), ack: Optional[int] = None,
         put_varint(body, seq)
     if presence is not None:
         body += presence_bytes(presence)
+    if clock is not None:
+        if not 0 <= clock < CLOCK_MODULUS:
+            raise BridgeUsageError(f"frame clock {clock} outside 0..{CLOCK_MODULUS - 1}")
+        put_varint(body, clock)
     for chunk in encoded if encoded is not None else (entry_bytes(e) for e in entries):
         body += chunk
     return bytes(body)
@@ -241,13 +253,17 @@ def parse_body(body: bytes) -> Frame:
             if pos != len(body):
                 raise BridgeProtocolError("bytes after RESUME")
             return Resume(accepted)
-        ack = seq = presence = None
+        ack = seq = presence = clock = None
         if flags & Flags.ACK:
             ack, pos = get_varint(body, pos, "ack")
         if flags & Flags.SEQ:
             seq, pos = get_varint(body, pos, "seq")
         if flags & Flags.PRESENCE:
             presence, pos = _parse_presence(body, pos)
+        if flags & Flags.CLOCK:
+            clock, pos = get_varint(body, pos, "clock")
+            if clock >= CLOCK_MODULUS:
+                raise BridgeProtocolError(f"frame clock {clock} exceeds {CLOCK_MODULUS - 1}")
         entries = []
         while pos < len(body):
             if pos + 2 > len(body):
@@ -263,7 +279,7 @@ def parse_body(body: bytes) -> Frame:
             entries.append(Entry(ident, head >> 5, payload, bool(head & 0x10)))
     except NeedMoreData as exc:
         raise BridgeProtocolError(f"frame truncated inside: {exc}") from None
-    return DataFrame(tuple(entries), ack, seq, presence)
+    return DataFrame(tuple(entries), ack, seq, presence, clock)
 
 
 def _parse_hello(body: bytes) -> Hello:

@@ -221,8 +221,11 @@ class Journal:
                                    (session,)).fetchone()
         return row[0] if row else 0
 
-    def accept(self, session: int, seq: int, ident: int, kind: int, payload: bytes) -> bool:
-        """Keep a received message for delivery; False if it is a repeat."""
+    def accept(self, session: int, seq: int, ident: int, kind: int, payload: bytes,
+               late_by: float = 0.0) -> bool:
+        """Keep a received message for delivery; False if it is a repeat.  ``late_by``:
+        seconds its frame came later than the quickest (:mod:`bridge.transit`), counted as
+        if it had come off the link that much earlier."""
         with self._lock:
             row = self._db.execute("SELECT accepted FROM peers WHERE session = ?",
                                    (session,)).fetchone()
@@ -237,7 +240,8 @@ class Journal:
                 self._db.execute("INSERT OR REPLACE INTO peers VALUES (?, ?, ?)",
                                  (session, seq, time.time()))
                 self._db.execute("INSERT INTO inbox (id, kind, payload, received) "
-                                 "VALUES (?, ?, ?, ?)", (ident, kind, payload, time.time()))
+                                 "VALUES (?, ?, ?, ?)",
+                                 (ident, kind, payload, time.time() - max(0.0, late_by)))
                 self._db.execute("DELETE FROM peers WHERE session != ? AND seen < ?",
                                  (session, time.time() - 30 * 86400))
                 self._db.execute("COMMIT")

@@ -38,6 +38,7 @@ from bridge import compact
 from bridge import presence as presence_rules
 from bridge import status as status_codec
 from bridge.config import PILOT, ROBOT, BridgeConfig, Channel
+from bridge.copies import FirstStatus, ReliableCopy, ReliableCopyCodec
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeProtocolError, BridgeUsageError
 from bridge.expiry import aged_payload
@@ -86,19 +87,33 @@ class StatusEvents:
         self._clock = clock
         self._previous: Dict[int, Tuple[Any, ...]] = {}
         self._commanded: Dict[int, float] = {}
+        self._unanswered: set = set()      # modules commanded, no change seen since
 
     def commanded(self, module_id: int) -> None:
         self._commanded[module_id] = self._clock()
+        self._unanswered.add(module_id)
 
     def is_event(self, module_id: int, status: Any) -> bool:
+        return self.classify(module_id, status) is not None
+
+    def classify(self, module_id: int, status: Any) -> Optional[str]:
+        """``"state"`` (its state changed), ``"first answer"`` (the first change of its data
+        after a command), ``"answer"`` (a later one within :data:`COMMAND_WINDOW` of the
+        command) or None (periodic).  Call once per status."""
         body = tuple(status[1:]) if isinstance(status, Bottle) else ()
         previous = self._previous.get(module_id)
         self._previous[module_id] = body
         if previous is None or body == previous:
-            return False
+            return None
         if body[:1] != previous[:1]:
-            return True
-        return self._clock() - self._commanded.get(module_id, -math.inf) < COMMAND_WINDOW
+            self._unanswered.discard(module_id)
+            return "state"
+        if self._clock() - self._commanded.get(module_id, -math.inf) < COMMAND_WINDOW:
+            if module_id in self._unanswered:
+                self._unanswered.discard(module_id)
+                return "first answer"
+            return "answer"
+        return None
 
 
 class Bridge:
@@ -152,7 +167,9 @@ class Bridge:
                               on_message=self._on_message, on_reliable=self._deliver_wake.set,
                               on_connected=self._on_link_up, link_timeout=link_timeout,
                               key=key, on_keys=self._on_keys, presence=self.local_presence,
-                              on_presence=self._on_peer_presence)
+                              on_presence=self._on_peer_presence,
+                              on_copies=self._send_copies)
+        self.first_status = FirstStatus()
         self.udp = UdpChannel(peer=peer, port=udp_port, peer_port=peer_udp_port or udp_port,
                               routes=udp_routes, gather=config.gather,
                               on_message=self._on_message, rate=udp_rate) if udp_routes else None
@@ -178,7 +195,9 @@ class Bridge:
         for route in self.routes.values():
             if not route.on_udp:
                 continue
-            if route.form is Form.STATE:
+            if route.reliable:   # a command's or receipt's datagram copies
+                codec = ReliableCopyCodec()
+            elif route.form is Form.STATE:
                 codec = StateUdpCodec(1.0 / self.config.state_rate)
             elif route.form is Form.ROS:
                 from bridge.endpoints.ros import codec_for
@@ -343,6 +362,7 @@ class Bridge:
                 with self._endpoint_lock:
                     endpoint = self._stand_ins.pop(key)
                     self._sources.pop(key, None)
+                self.first_status.forget(key)
                 endpoint.close()
                 closed.setdefault(channel.module, []).append(endpoint.port.name)
             else:
@@ -395,10 +415,23 @@ class Bridge:
                 self.refused += 1
                 log.error("refused a message on %s: %s", route.label, exc)
         elif route.carriage is Carriage.LATEST:
-            event = route.status_events and self.status_events.is_event(route.key.id, value)
-            self.tcp.post(route.key, value, event=event)
+            event = self.status_events.classify(route.key.id, value) \
+                if route.status_events else None
+            self.tcp.post(route.key, value, event=event is not None)
+            if event in ("state", "first answer") and route.copies and self.udp is not None:
+                # What a pilot waits for -- a new state, or the status that answers a
+                # command -- also goes as datagram copies.  (Later data changes go by TCP
+                # only: at 9600 bit/s the copies of every tick would cost more than the tail.)
+                self.udp.send_now(route.key, value, route.copies)
         elif self.udp is not None:
             self.udp.post(route.key, value)
+
+    def _send_copies(self, copies: List[Tuple[FlowKey, ReliableCopy]]) -> None:
+        """A frame left with reliable messages of copied flows: their datagram copies."""
+        if self.udp is None:
+            return
+        for key, copy in copies:
+            self.udp.send_now(key, copy, self.routes[key].copies)
 
     def _on_message(self, key: FlowKey, value: Any) -> None:
         stop = self.config.emergency_stop
@@ -408,6 +441,13 @@ class Bridge:
             elif key == stop.ack_key and self.pilot_stops is not None:
                 self.pilot_stops.on_ack(value)
             return
+        route = self.routes.get(key)
+        if route is not None and route.copies:   # a flow that also comes as datagrams
+            if isinstance(value, ReliableCopy):
+                self.tcp.accept_copy(key, value)
+                return
+            if not self.first_status.first(key, value):
+                return
         source = self._sources.get(key)
         if source is None:
             self.drops.drop(Reason.NOT_READY, f"{key}: local endpoint not open yet")

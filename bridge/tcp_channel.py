@@ -46,10 +46,11 @@ import termios
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import AbstractSet, Any, Callable, List, Optional
+from typing import AbstractSet, Any, Callable, List, Optional, Tuple
 
 from bridge import compact, drops
 from bridge.channel_phase import ChannelPhase
+from bridge.copies import ReliableCopy
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeError, BridgeProtocolError
 from bridge.flows import FlowKey, Route
@@ -147,6 +148,8 @@ class _Connection:
     closed: bool = False
     #: data frames that came in the same read as the peer's last handshake message
     early_frames: List[DataFrame] = field(default_factory=list)
+    #: the receive thread's frames and the UDP channel's copies reach the session in turn
+    receiving: threading.Lock = field(default_factory=threading.Lock)
 
     def read(self, link_timeout: float, stats: LinkStats) -> List[DataFrame]:
         """The frames the next bytes complete ([] after a quiet read timeout); raises
@@ -347,6 +350,9 @@ class TcpChannel:
     known); it goes to the peer
     on each new connection and whenever it changes (call :meth:`kick` to send a
     change at once), and the peer's arrives through ``on_presence(flows)``.
+    ``on_copies(copies)`` gets, after each frame left, its reliable messages of flows
+    with datagram copies (:mod:`bridge.copies`); the copies that come back go to
+    :meth:`accept_copy`.
     """
 
     def __init__(self, *, side: str, peer: str, port: int, listen: bool, config_text: str,
@@ -356,8 +362,11 @@ class TcpChannel:
                  link_timeout: float = 5.0, bind_host: str = "",
                  key: Optional[LinkKey] = None, on_keys: Optional[KeysHook] = None,
                  presence: Callable[[], Optional[Presence]] = frozenset,
-                 on_presence: Callable[[Presence], None] = lambda flows: None) -> None:
+                 on_presence: Callable[[Presence], None] = lambda flows: None,
+                 on_copies: Callable[[List[Tuple[FlowKey, ReliableCopy]]], None] = lambda copies: None
+                 ) -> None:
         self.side = side
+        self.on_copies = on_copies
         self.presence = presence
         self.on_presence = on_presence
         self.key = key if key is not None else LinkKey.none()
@@ -416,6 +425,23 @@ class TcpChannel:
         seq = self.journal.append(key[0], key[1], compact.encode(bottle))
         self.kick()
         return seq
+
+    def accept_copy(self, key: FlowKey, copy: ReliableCopy) -> bool:
+        """A reliable message's datagram copy: journalled if the current connection's
+        session expects it next (then delivered as if its frame had come); False if not."""
+        connection = self._connection
+        if connection is None or connection.closed:
+            return False
+        try:
+            with connection.receiving:
+                event = connection.session.accept_copy(key, copy, time.monotonic())
+        except BridgeProtocolError as exc:
+            self.drops.peer_error(exc, "reliable copy")
+            return False
+        if event is None:
+            return False
+        self._deliver(connection, [event])
+        return True
 
     def kick(self) -> None:
         with self._wake:
@@ -558,7 +584,9 @@ class TcpChannel:
         try:
             for frame in received:
                 self.stats.frames_in += 1
-                self._deliver(connection, connection.session.receive(frame))
+                with connection.receiving:
+                    events = connection.session.receive(frame, connection.last_rx)
+                self._deliver(connection, events)
         except BridgeProtocolError as exc:
             self._bad_frame(connection, exc)
             return False
@@ -640,5 +668,13 @@ class TcpChannel:
         connection.sock.sendall(frame)
         self.stats.frames_out += 1
         self.stats.bytes_out += len(frame)
+        if out.copies:
+            session = self.journal.session
+            try:
+                self.on_copies([(key, ReliableCopy(session, seq, payload, out.clock))
+                                for key, seq, payload in out.copies])
+            except Exception:  # noqa: BLE001 -- a consumer's bug: the frame has them anyway
+                self.stats.internal_errors += 1
+                log.exception("TCP channel: sending datagram copies failed (a bug)")
         if out.more:
             self.kick()

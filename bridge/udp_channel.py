@@ -38,14 +38,14 @@ import threading
 import time
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any, Callable, Deque, Dict, List, Optional, Protocol, Tuple
+from typing import Any, Callable, Deque, Dict, List, Optional, Protocol, Set, Tuple
 
 from bridge import datagrams, drops, fec, tiles
 from bridge.adaptive_fec import REPORT_INTERVAL, FecAdapter, LossMeter
 from bridge.datagrams import BODY_BUDGET, Datagram
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeError, BridgeProtocolError
-from bridge.flows import FlowKey, Route
+from bridge.flows import Carriage, FlowKey, Route
 from bridge.link import DatagramOpener, DatagramSealer
 
 log = logging.getLogger("bridge.udp")
@@ -92,6 +92,11 @@ class UdpRoute:
         """Repairs sized from the receiver's loss reports (``fec`` is then unused)."""
         return self.route.fec_auto
 
+    @property
+    def copied(self) -> bool:
+        """Each message comes as several copies: a repeated part is expected, no drop."""
+        return self.route.copies > 0 or self.route.carriage is Carriage.URGENT
+
 
 @dataclass
 class FlowStats:
@@ -103,6 +108,8 @@ class FlowStats:
     completeness_sum: float = 0.0
     repaired: int = 0
     repairs_sent: int = 0
+    #: datagrams that came again (a flow sent as copies, bridge.copies): not a loss, no drop
+    repeats: int = 0
 
     @property
     def mean_completeness(self) -> float:
@@ -139,7 +146,7 @@ class _Partial:
     data: Dict[int, bytes] = field(default_factory=dict)
     repairs: Dict[int, Dict[int, bytes]] = field(default_factory=dict)
     repaired: int = 0
-    raw: int = 0              # data datagrams that came off the wire (not repaired)
+    raw: Set[int] = field(default_factory=set)   # data parts that came off the wire
 
 
 _is_newer = drops.is_newer
@@ -186,7 +193,8 @@ class Reassembler:
         self.loss = loss if loss is not None else LossMeter()
         self._partials: Dict[FlowKey, Dict[int, _Partial]] = {}
         self._last: Dict[FlowKey, int] = {}
-        self._counted: Dict[FlowKey, int] = {}   # the message of each flow counted last
+        # the message of each flow counted last, and its parts that came off the wire
+        self._counted: Dict[FlowKey, Tuple[int, Set[int]]] = {}
 
     def feed(self, raw: bytes, now: float) -> List[Tuple[FlowKey, Any]]:
         try:
@@ -204,8 +212,15 @@ class Reassembler:
                                               f"(limit {MAX_PARTS})")
             return []
         if not _is_newer(datagram.message, self._last.get(key)):
-            if not datagram.is_repair and datagram.message == self._counted.get(key):
-                self.loss.late()     # arrived after its message was given up: not lost
+            counted = self._counted.get(key)
+            if not datagram.is_repair and counted is not None and \
+                    datagram.message == counted[0]:
+                if datagram.index not in counted[1]:
+                    counted[1].add(datagram.index)
+                    self.loss.late()     # arrived after its message was given up: not lost
+                elif route.copied:       # a copy of a part that came: what copies are for
+                    self._flow(route).repeats += 1
+                    return []
             self.drops.drop(Reason.STALE, f"{route.label} message {datagram.message}")
             return []
         pending = self._partials.setdefault(key, {})
@@ -224,14 +239,20 @@ class Reassembler:
         if datagram.is_repair:
             partial.repairs.setdefault(datagram.index, {})[datagram.repair_row] = datagram.body
             self._repair(partial, datagram.index)
+        elif datagram.index in partial.raw:          # a copy (or replay) of a part that came
+            self._flow(route).repeats += 1
+            return []
         else:
             partial.data[datagram.index] = datagram.body
-            partial.raw += 1
+            partial.raw.add(datagram.index)
             self._repair(partial, datagram.index // partial.group)
         if len(partial.data) == partial.parts:
             del pending[datagram.message]
             return self._finish(key, datagram.message, partial)
         return []
+
+    def _flow(self, route: UdpRoute) -> FlowStats:
+        return self.stats.flows.setdefault(route.label, FlowStats())
 
     def _repair(self, partial: _Partial, group_index: int) -> None:
         repairs = partial.repairs.get(group_index)
@@ -262,10 +283,10 @@ class Reassembler:
 
     def _finish(self, key: FlowKey, message: int, partial: _Partial) -> List[Tuple[FlowKey, Any]]:
         route = self.routes[key]
-        flow = self.stats.flows.setdefault(route.label, FlowStats())
+        flow = self._flow(route)
         flow.repaired += partial.repaired
-        self.loss.record(partial.raw, partial.parts)
-        self._counted[key] = message
+        self.loss.record(len(partial.raw), partial.parts)
+        self._counted[key] = (message, partial.raw)
         self.stats.loss = round(self.loss.loss, 4)
         if not _is_newer(message, self._last.get(key)):
             flow.superseded += 1
@@ -502,16 +523,25 @@ class UdpChannel:
                 with self._cond:
                     self._cond.wait(0.5)
                 continue
-            self._report()
-            self._refill()
-            active = [key for key, queue in self._queues.items() if queue]
-            if not active:
-                with self._cond:
-                    if not self._slots and not self._stopping.is_set():
-                        self._cond.wait(0.5)
-                continue
-            for key in active:
-                self._send(key, self._queues[key].popleft())
+            try:
+                self._send_round()
+            except Exception:  # noqa: BLE001 -- our bug: seen and counted, the thread lives
+                self.stats.internal_errors += 1
+                log.exception("UDP channel: sending failed (a bug); going on")
+                self._stopping.wait(0.1)
+
+    def _send_round(self) -> None:
+        """The loss report when due, then one datagram of each flow that has some."""
+        self._report()
+        self._refill()
+        active = [key for key, queue in self._queues.items() if queue]
+        if not active:
+            with self._cond:
+                if not self._slots and not self._stopping.is_set():
+                    self._cond.wait(0.5)
+            return
+        for key in active:
+            self._send(key, self._queues[key].popleft())
 
     # -- receiving ---------------------------------------------------------------------
 

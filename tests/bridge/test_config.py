@@ -62,6 +62,22 @@ def test_the_project_config_has_state_and_topics():
     assert topics["/multisense/points"].transport == "udp"
     assert topics["/multisense/left/camera_info"].fec == 0.5
     assert not topics["/multisense/points"].latch
+    assert loaded.datagram_copies == config.DatagramCopies(commands=2, statuses=2)
+
+
+def test_datagram_copies_go_to_commands_receipts_and_statuses_only():
+    from bridge.flows import routes
+
+    table = {route.label: route for route in routes(config.load(MODELS / "bridge_drc.xml"))
+             .values()}
+    copied = {label: route.copies for label, route in table.items() if route.copies}
+    assert {label for label in copied if label.startswith("drc_valve/")} == {
+        "drc_valve/switch", "drc_valve/command", "drc_valve/status", "drc_valve/receipt"}
+    assert not any(label.startswith("encoder_bridge") for label in copied)  # not a GYM module
+    assert table["drc_valve/command"].on_tcp and table["drc_valve/command"].on_udp
+    assert table["drc_valve/warning"].copies == 0 and not table["drc_valve/warning"].on_udp
+    bare = config.parse('<bridge><modules><module name="a" id="1"/></modules></bridge>')
+    assert not any(route.copies for route in routes(bare).values())   # off unless asked
 
 
 def test_fec_auto_asks_for_repairs_sized_from_the_measured_loss():
@@ -108,6 +124,8 @@ BAD = [
      'channel="udp" fec="sometimes"/></ros_topics></bridge>', 2, "fec"),
     ('<bridge><ros_topics>\n<topic name="/a" type="a/B" id="1" direction="robot_to_pilot" '
      'channel="udp" fec="0.9"/></ros_topics></bridge>', 2, "fec is a repair fraction 0..0.5 or auto"),
+    ('<bridge>\n<datagram_copies commands="9"/></bridge>', 2, "commands is 0..5 datagram "
+     "copies, got 9"),
     ('<modules>\n<module name="a\udcff" id="1"/></modules>', 2, "not text"),  # UnicodeEncodeError
     (b'<modules><module name="a\xff" id="1"/></modules>', 1, "malformed XML"),
     ('<!DOCTYPE bridge [<!ENTITY x SYSTEM "file:///etc/hostname">]>\n<bridge><modules>'

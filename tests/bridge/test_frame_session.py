@@ -7,6 +7,7 @@ tested in test_tcp_channel.py, the link that seals its frames in test_link.py.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Dict, List, Optional, Tuple
 
@@ -16,6 +17,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from bridge import compact, drops, frame_session, frames
+from bridge.copies import ReliableCopy
 from bridge.drops import Reason
 from bridge.errors import BridgeProtocolError, BridgeUsageError
 from bridge.flows import Carriage, FlowKey, Form, Route
@@ -28,6 +30,7 @@ from bridge.journal import Journal, Queued
 from bridge.link import FrameReceived, LinkConnection, LinkKey, LinkUp, PeerAuthenticated, \
     PeerHello
 from bridge.state_codec import Layout, RobotState
+from bridge.transit import stamp as clock_stamp
 from codec_helpers import FUZZ, bottle_values
 from walkman.gym.validity import Lifetime, split, stamp
 from yarp_lite.bottle import Bottle
@@ -55,6 +58,7 @@ class MemoryQueues:
         self.last_seq = 0
         self.peers: Dict[int, int] = {}
         self.inbox: List[Tuple[FlowKey, bytes]] = []
+        self.late: List[float] = []         # seconds each message's frame came late
 
     def append(self, key: FlowKey, bottle: Bottle, queued: float = WALL) -> int:
         self.last_seq += 1
@@ -76,7 +80,8 @@ class MemoryQueues:
     def accepted(self, session: int) -> int:
         return self.peers.get(session, 0)
 
-    def accept(self, session: int, seq: int, ident: int, kind: int, payload: bytes) -> bool:
+    def accept(self, session: int, seq: int, ident: int, kind: int, payload: bytes,
+               late_by: float = 0.0) -> bool:
         accepted = self.peers.get(session)
         if seq <= (accepted or 0):
             return False
@@ -84,6 +89,7 @@ class MemoryQueues:
             raise BridgeProtocolError(f"reliable message {seq} arrives after {accepted}")
         self.peers[session] = seq
         self.inbox.append((FlowKey(ident, kind), payload))
+        self.late.append(late_by)
         return True
 
     def received(self) -> List[Bottle]:
@@ -93,14 +99,15 @@ class MemoryQueues:
 class End:
     """One bridge's side: its queues, its streams, its session on the current connection."""
 
-    def __init__(self, journal_session: int, queues=None) -> None:
+    def __init__(self, journal_session: int, queues=None, routes=ROUTES) -> None:
         self.queues = queues if queues is not None else MemoryQueues(journal_session)
+        self.routes = routes
         self.streams = Streams(PERIOD, 0.0)
         self.session: Optional[FrameSession] = None
         self.presence: Optional[frozenset] = frozenset()
 
     def open(self, peer: "End") -> FrameSession:
-        self.session = FrameSession(self.queues, ROUTES, self.streams, peer.queues.session,
+        self.session = FrameSession(self.queues, self.routes, self.streams, peer.queues.session,
                                     period=PERIOD)
         self.streams.restart()
         return self.session
@@ -202,6 +209,61 @@ def test_an_expiring_command_leaves_older_by_its_time_in_the_outbox(ends):
     (command, switch) = robot.queues.received()
     assert split(command) == (Bottle(["go"]), Lifetime(2.5, 60.0))
     assert switch == Bottle(["start"])                 # not expiring: untouched
+
+
+COPIED = {**ROUTES, COMMAND: dataclasses.replace(ROUTES[COMMAND], copies=2)}
+
+
+@pytest.fixture
+def copied() -> Tuple[End, End]:
+    """Ends whose commands also go as datagram copies (bridge.copies)."""
+    robot, pilot = End(0x70B07, routes=COPIED), End(0x9170, routes=COPIED)
+    pilot.presence = None                             # only the commands in these frames
+    connect(robot, pilot)
+    return robot, pilot
+
+
+def test_a_frame_names_its_copied_messages_as_sent_and_no_others(copied):
+    robot, pilot = copied
+    pilot.queues.append(COMMAND, stamp(Bottle(["go"]), Lifetime(0.5, 60.0)), queued=WALL)
+    pilot.queues.append(SWITCH, Bottle(["start"]), queued=WALL)
+    out = pilot.frame(0.0, wall=WALL + 2.0)
+    ((key, seq, payload),) = out.copies
+    assert (key, seq) == (COMMAND, 1)
+    assert split(compact.decode(payload)) == (Bottle(["go"]), Lifetime(2.5, 60.0))  # aged
+    robot.session.receive_body(out.body)
+    assert robot.queues.received()[0] == compact.decode(payload)   # the frame's own bytes
+    assert pilot.frame(0.1).copies == ()       # sent once: no copy without its frame
+
+
+def test_the_first_of_copy_and_frame_is_journalled_and_the_other_is_no_drop(copied):
+    robot, pilot = copied
+    pilot.queues.append(COMMAND, Bottle(["one"]))
+    pilot.queues.append(COMMAND, Bottle(["two"]))
+    out = pilot.frame(0.0)
+    (_, _, first), (_, _, second) = out.copies
+    copy = lambda seq, payload: ReliableCopy(pilot.queues.session, seq, payload)  # noqa: E731
+    assert robot.session.accept_copy(COMMAND, copy(2, second)) is None   # ahead of a gap
+    assert robot.session.accept_copy(COMMAND, copy(1, first)) == ReliableAccepted(COMMAND, 1)
+    assert robot.session.accept_copy(COMMAND, copy(1, first)) is None    # the second copy
+    assert robot.session.receive_body(out.body) == [ReliableAccepted(COMMAND, 2)]  # no drop
+    assert robot.session.accept_copy(COMMAND, copy(2, second)) is None   # its frame was first
+    assert [split(m)[0] for m in robot.queues.received()] == [Bottle(["one"]),
+                                                                 Bottle(["two"])]
+    assert robot.session.stats.reliable_by_copy == 1
+
+
+def test_a_copy_of_another_session_or_flow_is_not_taken(copied):
+    robot, pilot = copied
+    pilot.queues.append(COMMAND, Bottle(["one"]))
+    pilot.queues.append(SWITCH, Bottle(["start"]))
+    payload = compact.encode(Bottle(["one"]))
+    assert robot.session.accept_copy(COMMAND, ReliableCopy(0xBAD, 1, payload)) is None
+    assert robot.session.accept_copy(SWITCH, ReliableCopy(pilot.queues.session, 1,
+                                                          payload)) is None  # not copied
+    with pytest.raises(BridgeProtocolError):
+        robot.session.accept_copy(COMMAND, ReliableCopy(pilot.queues.session, 1, b"\xff\xff"))
+    assert robot.queues.received() == []
 
 
 def test_a_full_outbox_asks_for_the_next_frame_at_once(ends):
@@ -358,11 +420,13 @@ def test_a_session_nudges_with_empty_frames_only_while_bytes_are_unacknowledged(
     at = robot.session.nudge_at
     assert at == pytest.approx(NUDGE_AFTER)
     assert robot.frame(at - 0.001, kernel=lost).body is None      # not yet
-    empties = []
+    empties, times = [], []
     while robot.session.nudge_at < math.inf:
-        out = robot.frame(robot.session.nudge_at, kernel=lost)
-        empties.append(out.body)
-    assert empties == [frames.data_body()] * NUDGES
+        times.append(robot.session.nudge_at)
+        out = robot.frame(times[-1], kernel=lost)
+        empties.append(frames.parse_body(out.body))
+    assert empties == [DataFrame(clock=clock_stamp(at)) for at in times]   # nothing but the clock
+    assert len(empties) == NUDGES
     assert robot.session.stats.nudges == NUDGES
     robot.queues.append(SWITCH, Bottle(["another"]))
     robot.frame(1.0, kernel=KernelQueue(round_trip=0.3))
@@ -375,7 +439,7 @@ def test_an_empty_frame_says_we_are_alive_after_a_second_of_silence(ends):
     robot, _ = ends
     assert robot.frame(0.0).body is not None           # the first word
     assert robot.frame(KEEPALIVE - 0.01).body is None
-    assert robot.frame(KEEPALIVE).body == frames.data_body()
+    assert frames.parse_body(robot.frame(KEEPALIVE).body) == DataFrame(clock=clock_stamp(KEEPALIVE))
 
 
 # -- misuse and bad input -------------------------------------------------------------------
@@ -527,3 +591,17 @@ def test_any_story_delivers_each_command_once_in_order_and_the_newest_status(sto
     assert robot.queues.received() == commands
     assert pilot.queues.outbox == {} and robot.queues.outbox == {}
     assert (heard[-1] if heard else None) == status
+
+
+def test_a_frame_read_late_ages_its_messages_by_the_time_it_was_held(ends):
+    """The sender's clock on every frame: a frame left unread 6 s in a stalled bridge's
+    socket (or retransmitted after a blackout) is journalled as that much older, whatever
+    the two PCs' clocks say (bridge.transit)."""
+    robot, pilot = ends
+    offset = 5000.0                                   # the robot's clock is 5000 s behind
+    robot.session.receive_body(pilot.frame(10.0).body, read_at=10.02 - offset)
+    pilot.queues.append(COMMAND, Bottle(["on", "time"]))
+    robot.session.receive_body(pilot.frame(11.0).body, read_at=11.02 - offset)
+    pilot.queues.append(COMMAND, Bottle(["held"]))
+    robot.session.receive_body(pilot.frame(12.0).body, read_at=18.02 - offset)
+    assert robot.queues.late == [0.0, 6.0]

@@ -79,8 +79,8 @@ def test_unknown_flags_and_malformed_handshake_frames_are_refused():
     with pytest.raises(BridgeProtocolError, match="unknown bits"):
         frames.parse_body(b"\x80")
     with pytest.raises(BridgeProtocolError, match="malformed HELLO"):
-        frames.parse_body(b"\x04\x03r")
-    with pytest.raises(BridgeProtocolError, match="protocol 1, we speak 3"):
+        frames.parse_body(b"\x04\x04r")
+    with pytest.raises(BridgeProtocolError, match="protocol 1, we speak 4"):
         frames.parse_body(b"\x04\x01r" + bytes(16))
     good = frames.hello_body(Hello("robot", bytes(8), 1, bytes(16)))
     with pytest.raises(BridgeProtocolError, match="unknown side"):

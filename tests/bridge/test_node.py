@@ -43,6 +43,21 @@ def test_changing_data_is_an_event_only_right_after_a_command():
     assert not events.is_event(4, status(2, "running", 1.0))    # modules are apart
 
 
+def test_the_status_answering_a_command_is_told_apart_from_later_ones():
+    """The first change after a command, and a new state, also go as datagram copies
+    (bridge.copies); later changes within the window are events by TCP only."""
+    clock = Clock()
+    events = StatusEvents(clock)
+    events.classify(3, status(2, "running", 40.0))
+    events.commanded(3)
+    assert events.classify(3, status(3, "running", 41.0)) == "first answer"
+    assert events.classify(3, status(4, "running", 42.0)) == "answer"
+    assert events.classify(3, status(5, "running", 42.0)) is None   # nothing changed
+    events.commanded(3)
+    assert events.classify(3, status(6, "reached", 42.0)) == "state"
+    assert events.classify(3, status(7, "reached", 43.0)) == "answer"  # answered by the state
+
+
 # -- presence: the pilot's stand-ins, against a yarp-lite server ------------------------------
 
 PRESENCE_CONFIG = """<bridge><modules><module name="gaze_control" id="7"/></modules></bridge>"""

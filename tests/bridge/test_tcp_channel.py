@@ -37,19 +37,21 @@ class End:
 
     def __init__(self, side: str, port: int, state_dir, listen: bool, peer: str = "127.0.0.1",
                  config_text: str = "config", period: float = 0.2,
-                 key: LinkKey = KEY) -> None:
+                 key: LinkKey = KEY, routes: List[Route] = ROUTES, **channel: Any) -> None:
         self.state_dir = state_dir
         self.journal = Journal(state_dir)
         self.streams: List[Tuple[Any, Any]] = []
         self.reliable: List[Bottle] = []
+        self.held_for: List[float] = []   # seconds since each came off the link, as journalled
         self.lock = threading.Lock()
         self.here: Any = frozenset()      # the presence this side tells (None: not known)
         self.heard: List[Any] = []        # the peer's presences, as they came
         self.channel = TcpChannel(side=side, peer=peer, port=port, listen=listen,
-                                  config_text=config_text, journal=self.journal, routes=ROUTES,
+                                  config_text=config_text, journal=self.journal, routes=routes,
                                   period=period, on_message=self._on_message,
                                   on_reliable=self._drain, link_timeout=2.0, key=key,
-                                  presence=lambda: self.here, on_presence=self.heard.append)
+                                  presence=lambda: self.here, on_presence=self.heard.append,
+                                  **channel)
 
     def _on_message(self, key, value) -> None:
         self.streams.append((key, value))
@@ -61,6 +63,7 @@ class End:
             for message in self.journal.undelivered():
                 row, payload = message.row, message.payload
                 self.reliable.append(compact.decode(payload))
+                self.held_for.append(time.time() - message.received)
                 self.journal.delivered(row)
 
     def start(self) -> "End":
