@@ -16,9 +16,13 @@ pose fields, and after the test says ``restarted`` (roscore and bridge restarted
 under it) the PI shows the module again, librviz takes the new bridge's cloud,
 the PI sends ``look_at X+0.1`` and draws the robot), ``camera`` (the camera tab in
 the lab, no bridge: frames with a black sky and a cloud without depth there read
-100 %, nothing hatched).  ``PI_NAME`` and ``PI_LAYOUT``
-choose the PI's name and layout.  Each step prints ``STEP name``; failures print
-``FAIL why`` and exit 1.  Screenshots go to OUTDIR.
+100 %, nothing hatched), ``valve COUNT`` (for bench/bench_valve_topologies.py: the
+whole valve task COUNT times by clicks, printing ``TIMED run command state click-time
+shown-time`` per step and ``SHOWN time state stamp`` for every status the task widget
+showed, ``stamp`` the gateway's receipt; after each run but the last it waits for the
+bench to say ``next``).  ``PI_NAME`` and ``PI_LAYOUT`` choose the
+PI's name and layout (``PI_LAYOUTS`` the file of layouts).  Each step prints ``STEP
+name``; failures print ``FAIL why`` and exit 1.  Screenshots go to OUTDIR.
 """
 
 from __future__ import annotations
@@ -35,7 +39,7 @@ from python_qt_binding.QtTest import QTest
 from python_qt_binding.QtWidgets import QApplication, QPushButton
 
 from pilot.app import PilotWindow, configured_modules
-from pilot.layouts import load_layout
+from pilot.layouts import DEFAULT_LAYOUTS, load_layout
 from pilot.link import CLOUD_TOPIC, IMAGE_TOPIC
 from pilot.widgets.camera import percent
 
@@ -407,6 +411,53 @@ def latency() -> None:
     say("DONE")
 
 
+#: The valve task a pilot clicks through, and the state each button ends in.
+VALVE_TASK = (("valvedatasent", "ready"), ("reach", "reached"), ("approach", "approached"),
+              ("grasp", "grasped"), ("turn", "grasped"), ("ungrasp", "ungrasped"),
+              ("move_away", "moved_away"), ("home", "idle"))
+
+
+def valve_runs() -> None:
+    """The valve task COUNT times, each step timed from its click to the widget showing
+    the state it ends in (the turn: through its countdown and ``turning``)."""
+    count = int(sys.argv[3])
+    threading.Thread(target=read_stdin, daemon=True).start()
+    valve = widget("drc_valve")
+    shown = valve.on_status                       # the window routes statuses by this name
+    seen = []                                     # (when shown, state), every status
+
+    def on_status(event) -> None:
+        shown(event)
+        seen.append((time.time(), event.state))
+        say(f"SHOWN {seen[-1][0]:.6f} {event.state} {event.stamp:.6f}")
+
+    def shown_at(state: str, after: float) -> float:
+        return next(when for when, said in seen if when >= after and said == state)
+
+    valve.on_status = on_status
+    wait(lambda: valve.state is not None, 60, "drc_valve's status")
+    wait_sendable("drc_valve")
+    if valve.state != "idle":
+        click(valve.switch_buttons["start"], "drc_valve start", valve)
+        wait(lambda: valve.state == "idle", 60, "drc_valve idle")
+    for run in range(count):
+        for command, state in VALVE_TASK:
+            button = valve.buttons[command]
+            wait(button.isEnabled, 60, f"{command} enabled")
+            at = time.time()
+            click(button, f"drc_valve {command}", valve)
+            since = at
+            if command == "turn":
+                wait(lambda: valve.state == "turning", 60, "turning after the countdown")
+                since = shown_at("turning", at)
+            wait(lambda: valve.state == state, 120, f"drc_valve {state} after {command}")
+            say(f"TIMED {run} {command} {state} {at:.6f} {shown_at(state, since):.6f}")
+        say(f"RUN {run} done")
+        if run + 1 < count:
+            wait_word("next", 300)                # the bench reads the valve's angle
+    say("DONE")
+
+
 def said(word: str, timeout: float) -> str:
     """Pump the GUI until the test writes a line starting with ``word``; the rest of it."""
     end = time.monotonic() + timeout
@@ -512,12 +563,14 @@ def link_down() -> None:
 if __name__ == "__main__":
     app = QApplication(sys.argv[:1])
     modules = configured_modules(Path(__file__).resolve().parents[2] / "models" / "bridge_drc.xml")
-    layout = load_layout(os.environ.get("PI_LAYOUT", "main-pilot"), modules=list(modules))
+    layout = load_layout(os.environ.get("PI_LAYOUT", "main-pilot"), modules=list(modules),
+                         path=Path(os.environ.get("PI_LAYOUTS", DEFAULT_LAYOUTS)))
     window = PilotWindow(layout, modules, os.environ.get("PI_NAME", f"pi_test_{sys.argv[1]}"))
     window.show()
     window.start()
     wait(lambda: window.ros_up, 60, "the PI's ROS node")
     say(f"UP after {window.ready_after:.2f} s")
     {"first": first, "second": second, "latency": latency, "peer": peer,
-     "camera": camera, "link": link_down}[sys.argv[1]]()
+     "camera": camera, "valve": valve_runs,
+     "link": link_down}[sys.argv[1]]()
     window.close_link()
