@@ -20,7 +20,9 @@ Outputs are :class:`~yarp_lite.connection.OutgoingConnection`s the port
 initiated (on request of its owner, a ``yarp connect``, or the name server
 restoring a persistent connection).  :meth:`Port.write` sends on all of them
 from the calling thread; a broken output is dropped and logged, never raised
-at the writer.
+at the writer.  A port told to :meth:`Port.hold_for_late_readers` keeps its
+recent messages and hands each new output what its reader has not taken
+(:mod:`yarp_lite.held`); real YARP ports hold nothing.
 
 A peer's bytes never take a port down: a protocol violation closes that one
 connection with a log line naming the peer and the problem.  While a port is
@@ -49,6 +51,7 @@ from yarp_lite.contact import Contact, apply_environment, check_port_name
 from yarp_lite.errors import (AuthenticationError, LocalProtocolError, NetworkError,
                               RemoteProtocolError, YarpError)
 from yarp_lite.framing import DEFAULT_MAX_MESSAGE
+from yarp_lite.held import Held, HeldMessages, HoldPolicy
 from yarp_lite.nameclient import NameClient
 from yarp_lite.stream import SocketStream, Stream, authenticate
 
@@ -175,12 +178,15 @@ class _InputUnit:
 
 
 class _OutputUnit:
-    __slots__ = ("connection", "route", "spec")
+    __slots__ = ("connection", "route", "spec", "gate")
 
     def __init__(self, connection: OutgoingConnection, route: Route, spec: str) -> None:
         self.connection = connection
         self.route = route
         self.spec = spec
+        #: held by a new connection until its held messages are handed over: later writes
+        #: wait behind them, so the reader sees every message in the order written
+        self.gate = threading.Lock()
 
 
 class _AdminView:
@@ -338,6 +344,8 @@ class Port:
         self._open = False
         self._closing = False
         self._input_events = threading.Condition(self._lock)
+        #: what the port keeps for readers that connect later (None: nothing, as YARP)
+        self.held: Optional[HeldMessages] = None
         if name is not None:
             self.open(name)
 
@@ -463,6 +471,15 @@ class Port:
     def is_open(self) -> bool:
         return self._open
 
+    def hold_for_late_readers(self, count: int, max_age: float) -> None:
+        """Keep the last ``count`` messages written, none older than ``max_age`` seconds,
+        and send each new output connection first the ones its reader has not taken
+        (:mod:`yarp_lite.held`): for messages that say something once, which a reader
+        connecting (again) a moment after they were written must not miss.  The port
+        keeps each written Bottle: do not change one after writing it."""
+        with self._lock:
+            self.held = HeldMessages(HoldPolicy(count, max_age))
+
     # -- connections ---------------------------------------------------------------
 
     def add_output(self, target: str, carrier: str = "", quiet: bool = False) -> bool:
@@ -517,15 +534,40 @@ class Port:
             return False, f"Cannot connect to {spec}"
         route = Route(self.name, address.name, connection.carrier_name,
                       connection.carrier.connectionless)
+        unit = _OutputUnit(connection, route, spec)
         with self._lock:
             if not self._open:
                 connection.close()
                 return False, f"Cannot connect to {spec}"
-            self._outputs[address.name] = _OutputUnit(connection, route, spec)
+            self._outputs[address.name] = unit
+            owed = self.held.owed(route.target) if self.held is not None else []
+            if owed:
+                unit.gate.acquire()     # a fresh lock: free; writes to it wait from now on
         if _rooted(route.target) and _rooted(route.source):
             log.info("Sending output from %s to %s using %s", route.source, route.target,
                      route.carrier)
+        if owed and not self._hand_over(unit, owed):
+            return False, f"Cannot connect to {spec}: it left while taking held messages"
         return True, f"Added connection from {self.name} to {spec}"
+
+    def _hand_over(self, unit: _OutputUnit, owed: List[Held]) -> bool:
+        """Send a new output the held messages its reader has not taken, then let the
+        writes waiting at its gate through; False (and the output dropped) if it failed."""
+        target = unit.route.target
+        try:
+            for held in owed:
+                unit.connection.send(held.command, held.payload, timeout=self.timeout)
+                with self._lock:
+                    self.held.handed(held, target)
+            log.debug("%s: handed %d held message(s) to %s", self.name, len(owed), target)
+            return True
+        except YarpError as exc:
+            log.info("%s: output to %s failed while taking held messages (%s); removing it",
+                     self.name, target, exc)
+            self._drop_output(unit)
+            return False
+        finally:
+            unit.gate.release()
 
     def remove_output(self, target: str, quiet: bool = False) -> bool:
         target = Contact.parse(target).name or target
@@ -620,20 +662,38 @@ class Port:
         command = f"D {envelope}" if envelope else "D"
         with self._lock:
             outputs = list(self._outputs.values())
+            held = self.held.written(command, payload) if self.held is not None else None
         all_ok = True
         for unit in outputs:
             try:
-                if skip_busy:
-                    if not unit.connection.send_unless_busy(command, payload):
-                        self.skipped_writes += 1
-                else:
-                    unit.connection.send(command, payload, timeout=self.timeout)
+                sent = self._send_to(unit, command, payload, skip_busy)
             except YarpError as exc:
                 all_ok = False
                 log.info("%s: output to %s failed (%s); removing it", self.name,
                          unit.route.target, exc)
                 self._drop_output(unit)
+                continue
+            if not sent:
+                self.skipped_writes += 1
+            elif held is not None:
+                with self._lock:
+                    self.held.taken(held, unit.route.target)
         return all_ok
+
+    def _send_to(self, unit: _OutputUnit, command: str, payload: Payload,
+                 skip_busy: bool) -> bool:
+        """One message to one output, after any held messages it is still being handed;
+        False when skipped (``skip_busy`` and that output busy)."""
+        if not skip_busy:
+            with unit.gate:
+                unit.connection.send(command, payload, timeout=self.timeout)
+            return True
+        if not unit.gate.acquire(blocking=False):
+            return False
+        try:
+            return unit.connection.send_unless_busy(command, payload)
+        finally:
+            unit.gate.release()
 
     def write_with_reply(self, bottle: Union[Bottle, Sequence],
                          timeout: Optional[float] = None) -> Optional[Bottle]:

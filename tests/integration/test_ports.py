@@ -392,3 +392,81 @@ def test_an_idle_input_survives_a_process_wide_socket_timeout(lite_world, ports)
         assert port.input_count == 1
     finally:
         socket.setdefaulttimeout(previous)
+
+
+# -- holding messages for readers that connect later (yarp_lite.held) ------------------------
+
+
+def test_a_plain_port_drops_what_it_writes_with_no_reader_as_yarp(lite_world, ports):
+    out = ports(Port, "/plain/out")
+    assert out.write(["nobody listens"])
+    received = []
+    ports(Port, "/plain/in", reader=received.append)
+    assert network.connect("/plain/out", "/plain/in").ok
+    assert out.write(["now"])
+    wait_until(lambda: received == [["now"]], timeout=5)
+
+
+def test_a_holding_port_hands_a_late_reader_what_it_wrote_before(lite_world, ports):
+    out = ports(Port)
+    out.hold_for_late_readers(count=8, max_age=30.0)
+    out.open("/held/out")
+    out.write(["7", "expired", "too old"])
+    out.write(["8", "accepted"])
+    received = []
+    ports(Port, "/held/in", reader=received.append)
+    assert network.connect("/held/out", "/held/in").ok
+    out.write(["9", "accepted"])
+    wait_until(lambda: len(received) == 3, timeout=5, message=f"got {received}")
+    assert received == [["7", "expired", "too old"], ["8", "accepted"], ["9", "accepted"]]
+    assert out.held.handed_over == 2
+
+
+def test_a_reader_back_under_its_name_gets_only_what_it_missed(lite_world, ports):
+    out = ports(Port)
+    out.hold_for_late_readers(count=8, max_age=30.0)
+    out.open("/again/out")
+    first = []
+    reader = ports(Port, "/again/in", reader=first.append)
+    assert network.connect("/again/out", "/again/in").ok
+    out.write(["taken"])
+    wait_until(lambda: first == [["taken"]], timeout=5)
+    reader.close()                                     # a restarting process
+    wait_until(lambda: out.output_count == 0, timeout=5, message="the reader gone")
+    out.write(["missed"])
+    second = []
+    ports(Port, "/again/in", reader=second.append)
+    assert network.connect("/again/out", "/again/in").ok
+    wait_until(lambda: second == [["missed"]], timeout=5, message=f"got {second}")
+    # a reader that was never there gets the recent history, as a latched topic
+    other = []
+    ports(Port, "/again/look", reader=other.append)
+    assert network.connect("/again/out", "/again/look").ok
+    wait_until(lambda: other == [["taken"], ["missed"]], timeout=5, message=f"got {other}")
+    assert second == [["missed"]]
+
+
+def test_what_is_written_while_a_reader_is_handed_the_backlog_comes_after_it(lite_world,
+                                                                               ports):
+    out = ports(Port)
+    out.hold_for_late_readers(count=100, max_age=30.0)
+    out.open("/order/out")
+    for number in range(20):
+        out.write([number])
+    received = []
+
+    def slow_reader(bottle):
+        time.sleep(0.005)          # the hand-over takes a while: writes come meanwhile
+        received.append(bottle[0])
+
+    ports(Port, "/order/in", reader=slow_reader)
+    connecting = threading.Thread(target=network.connect, args=("/order/out", "/order/in"))
+    connecting.start()
+    for number in range(20, 60):
+        out.write([number])
+        time.sleep(0.001)
+    connecting.join()
+    wait_until(lambda: len(received) >= 60 and out.output_count == 1, timeout=10,
+               message=f"got {len(received)}")
+    time.sleep(0.1)
+    assert received == list(range(60))     # each once, in the order written
