@@ -156,6 +156,39 @@ def test_no_command_lost_or_run_twice_through_kills_and_restarts(pcs, lite, coun
     assert executed(counter_env) == list(range(1, 51))
 
 
+def test_a_receipt_written_while_the_robot_bridge_restarts_reaches_the_pilot(pcs, lite,
+                                                                           counter_env):
+    """Issue 33: four expirations of a 100-round chaos run never reached the pilot, written
+    by the module while the killed robot bridge was not yet connected again to its
+    ``receipt:o``.  The module's port now holds them for the bridge's return."""
+    pcs.start_name_servers()
+    module = start_counter(pcs)
+    module.wait_for("ready for the pilot", 60)
+    pcs.start_bridge(pcs.robot)
+    pcs.start_bridge(pcs.pilot)
+    pcs.wait_linked()
+    wait_shown(pcs, lite)
+    receipts = pcs.pilot.world.tool(lite, "read", "/test/receipts", "/counter/receipt:o")
+    warnings = pcs.pilot.world.tool(lite, "read", "/test/warnings", "/counter/warning:o")
+    switch(pcs, lite, "start", 2)
+    receipts.wait_for(r"^accepted$", 30)     # ``yarp read`` prints ``2 accepted`` so
+
+    pcs.kill_bridge(pcs.robot)
+    wait_until(lambda: not exists(pcs.robot, lite, "/counter/receipt:o",
+                                  "/bridge/robot/counter/receipt"), 30,
+               message="the module's receipt port without its bridge reader")
+    # On the robot, while no bridge reads: a switch that waited too long, refused as expired.
+    written = pcs.robot.world.run_tool(lite, "write", "/test/late", "/counter/switch:i",
+                                       input_text="pause 9 (age 100 valid 5)\n")
+    assert written.returncode == 0, written.stdout + written.stderr
+    module.wait_for(r"`pause` expired after 100 s in the queue \(valid 5 s\); not run", 20)
+    pcs.start_bridge(pcs.robot)
+    pcs.wait_linked()
+    receipts.wait_for(r"^9 expired ", 30)
+    warnings.wait_for(r"`pause` expired after 100 s in the queue", 30)
+    assert receipts.lines.count("accepted") == 1     # what the old bridge took: not again
+
+
 def test_a_real_yarp_pilot_and_name_server_see_no_difference(tmp_path, reference, lite,
                                                              monkeypatch):
     """Pilot side on the reference yarpserver, typed with the reference ``yarp`` tools."""

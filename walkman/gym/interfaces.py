@@ -27,6 +27,13 @@ A switch or command may end with its lifetime, ``(age A valid V)``
 (:mod:`walkman.gym.validity`): one that has waited longer than its validity
 when it would start is refused on the warning port as expired, never run.
 
+The module's reliable outputs (``warning`` and ``receipt``) hold their recent
+messages for a reader that connects later (:data:`HELD_MESSAGES`,
+:func:`held_for`; :mod:`yarp_lite.held`): a receipt or warning written while
+the robot bridge restarts reaches it when it reconnects, instead of being
+dropped by a port with no reader.  A reader gets only what it has not taken
+under its name, so a restarted bridge is not sent again what its journal has.
+
 Statuses are dictionary-compressed like the DRC modules did: a module that
 declares its list of states sends each as one character (``'a'`` for the
 first...), 16 bits on the wire instead of a word; :func:`decode_status`
@@ -76,6 +83,19 @@ GYM_PORTS: Tuple[GymPort, ...] = (
     GymPort("receipt", "receipt:o", False, True),
 )
 SWITCH, COMMAND, STATUS, WARNING, RECEIPT = GYM_PORTS
+
+#: How many warnings, and receipts, a module keeps for a reader that connects later.
+HELD_MESSAGES = 256
+#: ... and for how long at least: a robot bridge restarted by its supervisor is back well
+#: within it (seconds); longer, and the pilot's station has long been told the link is down.
+HELD_SECONDS = 60.0
+
+
+def held_for(validity: float) -> float:
+    """Seconds a module keeps a warning or receipt for a late reader: a minute, or as long
+    as its commands may wait, if longer -- a receipt matters while the pilot may still be
+    waiting for its command to start."""
+    return max(HELD_SECONDS, validity)
 
 
 @dataclass(frozen=True)
@@ -277,6 +297,7 @@ class PilotInterfaces:
         self.prefix = prefix.rstrip("/")
         self.nameclient = nameclient or NameClient()
         self.statuses = list(statuses) if statuses else None
+        self.validity = validity
         self.switch = _Inbox(decode_command, validity, taking_accepts=False)
         self.commands = _Inbox(command_decoder, validity)
         self.status_encoder = status_encoder or (
@@ -299,11 +320,16 @@ class PilotInterfaces:
         command.open(COMMAND.of(self.prefix), wait=wait)
         self.status_port = Port(nameclient=self.nameclient)
         self.status_port.open(STATUS.of(self.prefix), wait=wait)
-        self.warning_port = Port(nameclient=self.nameclient)
-        self.warning_port.open(WARNING.of(self.prefix), wait=wait)
-        self.receipt_port = Port(nameclient=self.nameclient)
-        self.receipt_port.open(RECEIPT.of(self.prefix), wait=wait)
+        self.warning_port = self._reliable_output(WARNING, wait)
+        self.receipt_port = self._reliable_output(RECEIPT, wait)
         self.ports = [switch, command, self.status_port, self.warning_port, self.receipt_port]
+
+    def _reliable_output(self, gym_port: GymPort, wait: float) -> Port:
+        """A port whose messages say something once: held for readers that connect later."""
+        port = Port(nameclient=self.nameclient)
+        port.hold_for_late_readers(HELD_MESSAGES, held_for(self.validity))
+        port.open(gym_port.of(self.prefix), wait=wait)
+        return port
 
     def set_status(self, state: str, data: Sequence = ()) -> bool:
         """Record the status; True when it changed (the watchdog then sends it at once)."""
