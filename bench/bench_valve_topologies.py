@@ -160,14 +160,27 @@ def counted(before: Dict, after: Dict) -> Dict[str, Dict[str, int]]:
             for direction, counters in after.get("counters", {}).items()}
 
 
+class BenchTopology(Topology):
+    """A topology whose bridges may pace UDP to another budget (``--udp-rate``, a diagnosis)."""
+
+    udp_rate: Optional[str] = None
+
+    def _argv(self, component: Component) -> List[str]:
+        argv = super()._argv(component)
+        if self.udp_rate and component.name.startswith("bridge_"):
+            argv[argv.index("--udp-rate") + 1] = self.udp_rate
+        return argv
+
+
 def run_topology(kind: str, root: Path, link, display: str, options, result: Result,
                  first_run: int) -> None:
     """``options.runs`` valve tasks on a freshly started ``kind``, added to ``result``."""
     profile = "lab" if kind == "lab" else kind
     root = root / f"{kind}-{first_run}"
-    topology = Topology("lab" if kind == "lab" else "drc", root,
-                        link=None if kind == "lab" else link, profile=profile,
-                        extra=[VALVE], extra_env={LOG_TIME_ENV: "1"})
+    topology = BenchTopology("lab" if kind == "lab" else "drc", root,
+                             link=None if kind == "lab" else link, profile=profile,
+                             extra=[VALVE], extra_env={LOG_TIME_ENV: "1"})
+    topology.udp_rate = options.udp_rate
     for name in options.without:
         topology.table.pop(name, None)
     for pc in topology.unique_pcs():
@@ -284,6 +297,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--without", default="",
                         help="leave these components out (comma-separated; a diagnosis, "
                              "e.g. perception: what its stream costs the task)")
+    parser.add_argument("--udp-rate",
+                        help="the bridges' UDP budget instead of the topology's (60 %% of the "
+                             "link; a diagnosis: e.g. 1440 on degraded, 15 %%)")
     parser.add_argument("--only", default=",".join(TOPOLOGIES),
                         help="topologies, comma-separated (default %(default)s)")
     parser.add_argument("--layout", default="valve-bench",
@@ -324,8 +340,9 @@ def main(argv: Optional[List[str]] = None) -> int:
         if link is not None:
             link.down()
     report(results, options.runs * options.rounds)
-    if options.without:
-        say(f"(without {', '.join(options.without)}: not the topology a user starts)")
+    if options.without or options.udp_rate:
+        say(f"(without {', '.join(options.without) or 'nothing'}, UDP budget "
+            f"{options.udp_rate or 'as started'}: not the topology a user starts)")
     say(f"\n({time.monotonic() - began:.0f} s in all)")
     say_machine("after")
     return 0
