@@ -175,7 +175,8 @@ class Bridge:
                               on_message=self._on_message, rate=udp_rate) if udp_routes else None
         stop = config.emergency_stop
         self.stop_all_here = None        # the robot's StopAll, once the name server answers
-        self.pilot_stops = PilotStops(lambda order: self._send_urgent(stop.stop_key, order)) \
+        self.pilot_stops = PilotStops(
+            lambda order, again: self._send_urgent(stop.stop_key, order, tcp=not again)) \
             if stop is not None and side == PILOT else None
         self.robot_stops = RobotStops(self._carry_out_stop,
                                       lambda ack: self._send_urgent(stop.ack_key, ack)) \
@@ -518,9 +519,11 @@ class Bridge:
 
     # -- the stop-all -------------------------------------------------------------------
 
-    def _send_urgent(self, key: FlowKey, value: Bottle) -> None:
-        """Every way at once: the TCP channel's next frame, and repeated datagrams."""
-        self.tcp.post(key, value, event=True)
+    def _send_urgent(self, key: FlowKey, value: Bottle, tcp: bool = True) -> None:
+        """Every way at once: the TCP channel's next frame (unless ``tcp`` is False: a
+        resending, which the connection already carries), and repeated datagrams."""
+        if tcp:
+            self.tcp.post(key, value, event=True)
         if self.udp is not None:
             self.udp.send_now(key, value, self.config.emergency_stop.copies)
 

@@ -5,11 +5,16 @@ Theory of operation
 The pilot's stop-all (``stop_all`` on ``/bridge/pilot/rpc:i``, which the gateway's
 ``/pilot/stop_all`` and the PI's button call) must reach the robot even when the
 link is bad: it skips the journal and the period, goes at once on the TCP channel
-*and* as repeated datagrams on the UDP channel, and is sent again every
-:data:`RESEND` until the robot acknowledges it.  Each stop carries a random id;
-the robot acts on the first copy of an id (:class:`walkman.gym.stop_all.StopAll`:
-the HAL holds, every module pauses) and answers every copy with the same
-acknowledgement, which comes back the same two ways.  ``release`` travels alike.
+*and* as repeated datagrams on the UDP channel, and is sent again -- as datagrams only,
+after :data:`RESEND`, then twice as long each time up to :data:`RESEND_MAX` -- until the
+robot acknowledges it.  Each stop carries a random id; the robot acts on the first copy
+of an id (:class:`walkman.gym.stop_all.StopAll`: the HAL holds, every module pauses) and
+answers the copies with the same acknowledgement, which comes back the same two ways, at
+most once per :data:`ANSWER_GAP`.  ``release`` travels alike.
+
+The back-off and the gap keep the stop from drowning itself: on a 9600 bit/s radio a TCP
+copy and three datagrams every 250 ms, each copy answered by four more, were more than
+the link carries, and the acknowledgements were lost in their own queue.
 
 Messages (Bottles): ``stop_all ID`` / ``release ID`` pilot->robot;
 ``held ID HAL_OK MS MODULE...`` / ``released ID HAL_OK MS`` robot->pilot.  They
@@ -29,8 +34,12 @@ from yarp_lite.bottle import Bottle
 
 log = logging.getLogger("bridge.stop")
 
-#: Seconds between two sendings of a stop not yet acknowledged.
+#: Seconds before a stop not yet acknowledged is sent again; the wait doubles each time.
 RESEND = 0.25
+#: The longest wait between two sendings.
+RESEND_MAX = 2.0
+#: Seconds between two answers the robot sends to copies of one stop.
+ANSWER_GAP = 0.2
 #: Stop ids a robot remembers (a late copy of an old stop is answered, never acted on again).
 REMEMBERED = 64
 VERBS = {"stop_all": "held", "release": "released"}
@@ -73,12 +82,14 @@ def parse_ack(bottle: Any) -> Ack:
 
 
 Send = Callable[[Bottle], None]
+#: ``send(order, again)``: ``again`` is a resending (datagrams only, :mod:`bridge.node`).
+SendOrder = Callable[[Bottle, bool], None]
 
 
 class PilotStops:
     """The pilot side: sends a stop or release until acknowledged."""
 
-    def __init__(self, send: Send) -> None:
+    def __init__(self, send: SendOrder) -> None:
         self._send = send
         self._lock = threading.Condition()
         self._acks: Dict[int, Ack] = {}
@@ -89,15 +100,17 @@ class PilotStops:
         started = time.monotonic()
         deadline = started + timeout
         order = Bottle([word, stop_id])
+        wait, again = RESEND, False
         with self._lock:
             while stop_id not in self._acks:
-                self._send(order)
+                self._send(order, again)
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     log.error("%s %d: no acknowledgement from the robot within %g s", word,
                               stop_id, timeout)
                     return None
-                self._lock.wait(min(RESEND, remaining))
+                self._lock.wait(min(wait, remaining))
+                wait, again = min(2 * wait, RESEND_MAX), True
             ack = self._acks.pop(stop_id)
         rtt = (time.monotonic() - started) * 1000.0
         return Ack(ack.stop_id, ack.word, ack.hal, ack.took_ms, ack.modules, rtt)
@@ -118,11 +131,13 @@ class PilotStops:
 @dataclass
 class RobotStops:
     """The robot side: carries out each order once (``carry_out(word, id) -> Ack``, run in
-    a thread of its own), answers every copy."""
+    a thread of its own), answers its copies, at most once per :data:`ANSWER_GAP`."""
 
     carry_out: Callable[[str, int], Ack]
     send: Send
+    clock: Callable[[], float] = time.monotonic
     _done: Dict[int, Optional[Ack]] = field(default_factory=dict)
+    _answered: Dict[int, float] = field(default_factory=dict)
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
     def on_order(self, bottle: Any) -> None:
@@ -134,12 +149,17 @@ class RobotStops:
         with self._lock:
             if stop_id in self._done:
                 ack = self._done[stop_id]
-                if ack is not None:      # a copy after the answer: answer again
+                now = self.clock()
+                if ack is not None and now - self._answered.get(stop_id, -ANSWER_GAP) >= \
+                        ANSWER_GAP:      # a copy after the answer: answer again, now and then
+                    self._answered[stop_id] = now
                     self.send(encode_ack(ack))
                 return                   # a copy while it is carried out: one answer comes
             self._done[stop_id] = None
             while len(self._done) > REMEMBERED:
-                del self._done[next(iter(self._done))]
+                gone = next(iter(self._done))
+                del self._done[gone]
+                self._answered.pop(gone, None)
         threading.Thread(target=self._carry_out, args=(word, stop_id),
                          name=f"stop {stop_id}", daemon=True).start()
 
@@ -147,4 +167,5 @@ class RobotStops:
         ack = self.carry_out(word, stop_id)
         with self._lock:
             self._done[stop_id] = ack
+            self._answered[stop_id] = self.clock()
         self.send(encode_ack(ack))
