@@ -32,13 +32,14 @@ server still knows it, and registers it again after a name server restart.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import itertools
 import logging
 import socket
 import threading
 import time
-from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
+from typing import Callable, Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 from yarp_lite import admin, auth
 from yarp_lite.admin import Route
@@ -848,6 +849,8 @@ class RegistrationKeeper:
         self._wake = threading.Event()
         self._thread: Optional[threading.Thread] = None
         self._turn = 0  # which port the next check asks about
+        self._round = threading.Lock()   # the background round vs held()
+        self._holding = 0
 
     @classmethod
     def instance(cls) -> "RegistrationKeeper":
@@ -873,11 +876,25 @@ class RegistrationKeeper:
         """Run one check soon (tests and tools use this instead of sleeping)."""
         self._wake.set()
 
+    @contextlib.contextmanager
+    def held(self) -> Iterator[None]:
+        """No background round meanwhile (one under way ends first): for a caller that
+        runs :meth:`check_all` itself and counts what one round asks."""
+        with self._round:
+            self._holding += 1
+        try:
+            yield
+        finally:
+            with self._round:
+                self._holding -= 1
+
     def _run(self) -> None:
         while True:
             self._wake.wait(self.PERIOD)
             self._wake.clear()
-            self.check_all()
+            with self._round:
+                if not self._holding:
+                    self.check_all()
 
     def check_all(self) -> None:
         """One round: ask each name server about one of our ports; re-register if lost."""

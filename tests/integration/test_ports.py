@@ -283,17 +283,18 @@ def test_noticing_a_restart_costs_one_query_per_name_server_not_a_list_per_port(
         asked["list"] += 1
         return listing(client)
 
-    monkeypatch.setattr(NameClient, "query", counted_query)
-    monkeypatch.setattr(NameClient, "list", counted_list)
     keeper = RegistrationKeeper.instance()
-    keeper.check_all()
-    keeper.check_all()
-    assert len(asked["query"]) == 2 and asked["list"] == 0, asked
-    assert asked["query"][0] != asked["query"][1]  # each port's turn comes
-    lite_world.stop_server()
-    lite_world.start_server()
-    keeper.check_all()
-    assert asked["list"] == 1  # the one asked about was lost: find the others
+    with keeper.held():   # the keeper's own rounds would be counted too (a flake: 2 lists)
+        monkeypatch.setattr(NameClient, "query", counted_query)
+        monkeypatch.setattr(NameClient, "list", counted_list)
+        keeper.check_all()
+        keeper.check_all()
+        assert len(asked["query"]) == 2 and asked["list"] == 0, asked
+        assert asked["query"][0] != asked["query"][1]  # each port's turn comes
+        lite_world.stop_server()
+        lite_world.start_server()
+        keeper.check_all()
+        assert asked["list"] == 1  # the one asked about was lost: find the others
     for index in range(6):
         assert query(NameClient(), f"/keep/p{index}") is not None
 
