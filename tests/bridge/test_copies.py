@@ -21,6 +21,7 @@ from bridge.errors import BridgeProtocolError
 from bridge.udp_channel import UdpChannel, UdpRoute
 from codec_helpers import FUZZ
 from harness import free_port, wait_until
+from test_node import Clock
 from test_tcp_channel import COMMAND, ROUTES, End
 from walkman.gym.validity import split
 from yarp_lite.bottle import Bottle
@@ -56,21 +57,14 @@ def test_any_bytes_are_a_copy_or_the_peers_error(data):
 # -- which status copy is written -----------------------------------------------------------
 
 
-class Clock:
-    def __init__(self) -> None:
-        self.now = 0.0
-
-    def __call__(self) -> float:
-        return self.now
-
-
 def test_the_first_status_copy_is_written_and_a_late_older_one_never():
     clock = Clock()
     first = FirstStatus(clock)
+    start = clock.now
     assert first.first("valve", Bottle([5, "reached"]))
     assert not first.first("valve", Bottle([5, "reached"]))      # the other copy
     assert first.first("valve", Bottle([6, "grasped"]))          # by datagram, ahead of TCP
-    clock.now = 0.3
+    clock.now = start + 0.3
     assert not first.first("valve", Bottle([5, "reached"]))      # TCP's late one: overtaken
     assert first.first("door", Bottle([5, "reached"]))           # flows are apart
     assert (first.repeats, first.overtaken) == (1, 1)
@@ -80,7 +74,7 @@ def test_a_module_restarted_counts_again_after_a_while_or_once_it_left():
     clock = Clock()
     first = FirstStatus(clock)
     first.first("valve", Bottle([900, "idle"]))
-    clock.now = OVERTAKEN + 0.1          # restarted later than a late copy can come
+    clock.now += OVERTAKEN + 0.1          # restarted later than a late copy can come
     assert first.first("valve", Bottle([1, "initializing"]))
     first.forget("valve")                # its stand-in closed: it left
     assert first.first("valve", Bottle([1, "initializing"]))
