@@ -8,6 +8,7 @@ for byte (and on rejection of invalid binary input).
 
 from __future__ import annotations
 
+import resource
 import subprocess
 from pathlib import Path
 
@@ -29,6 +30,17 @@ ORACLE_SETTINGS = settings(max_examples=400, deadline=None)
 #: garbage (a string length of 2**31-1 read past the buffer).
 CRASHED = "crashed"
 
+#: Real YARP allocates what a Bottle declares (a string or list of 2**31 entries) before it
+#: notices the input is short: uncapped, one such draw took the oracle to 19 GB and reading
+#: its garbage answer took pytest to 10 GB.  Capped, the allocation fails (YARP throws: a
+#: crash, as above) and an answer longer than any input here can give is garbage too.
+ORACLE_MEMORY = 1 << 30
+ANSWER_LIMIT = 1 << 20
+
+
+def _cap_memory() -> None:
+    resource.setrlimit(resource.RLIMIT_AS, (ORACLE_MEMORY, ORACLE_MEMORY))
+
 
 class Oracle:
     def __init__(self, binary: Path) -> None:
@@ -37,16 +49,20 @@ class Oracle:
 
     def _start(self) -> subprocess.Popen:
         return subprocess.Popen([str(self.binary)], stdin=subprocess.PIPE,
-                                stdout=subprocess.PIPE, text=True, bufsize=1)
+                                stdout=subprocess.PIPE, text=True, bufsize=1,
+                                preexec_fn=_cap_memory)
 
     def ask(self, line: str):
         assert self.proc.stdin and self.proc.stdout
         try:
             self.proc.stdin.write(line + "\n")
             self.proc.stdin.flush()
-            answer = self.proc.stdout.readline().rstrip("\n")
+            answer = self.proc.stdout.readline(ANSWER_LIMIT)
         except BrokenPipeError:
             answer = ""
+        if answer and not answer.endswith("\n"):
+            answer = ""                       # longer than the limit: garbage, see above
+        answer = answer.rstrip("\n")
         if answer == "ERR":
             return None
         words = answer.split(" ", 2)
