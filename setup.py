@@ -9,7 +9,13 @@ setup(
                 "ROS pilot nodes",
     python_requires=">=3.11",
     packages=find_packages(include=["yarp_lite*", "walkman*", "bridge*", "rosnodes*", "system*", "nodekit*", "pilot*"]),
-    package_data={"": ["*.xml", "*.xsd", "*.ini", "*.urdf", "*.msg", "*.srv"]},
+    package_data={"": ["*.xml", "*.xsd", "*.ini", "*.urdf", "*.msg", "*.srv"],
+                  # the robot's models, configurations, contexts and layouts (walkman.MODELS_DIR)
+                  "walkman": ["models/*.xml", "models/*.ini", "models/*.urdf", "models/contexts/*/*.ini"],
+                  # the ROS packages (message definitions, launch files) the nodes need
+                  "rosnodes": ["walkman_msgs/package.xml", "walkman_msgs/msg/*.msg",
+                               "walkman_msgs/srv/*.srv", "walkman_launch/package.xml",
+                               "walkman_launch/launch/*.launch", "walkman_launch/scripts/*"]},
     include_package_data=True,
     install_requires=["numpy"],
     extras_require={

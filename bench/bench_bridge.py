@@ -62,6 +62,7 @@ from bridge_harness import HERE as TEST_HELPERS, PYTHON, TwoPCs  # noqa: E402
 from harness import YarpWorld, lite_implementation, wait_until  # noqa: E402
 from system.processes import descendants, usage  # noqa: E402
 from host import cpu_seconds, say_machine  # noqa: E402  (bench/ is the script's folder)
+from walkman import MODELS_DIR  # noqa: E402
 
 ROLES = str(HERE / "bridge_roles.py")
 LITE = lite_implementation()
@@ -121,7 +122,7 @@ def direct_table_1(link: EmulatedLink, mode: str, duration: float) -> Dict[str, 
     from walkman.hal import protocol
     from walkman.hal.config import load_config
 
-    chains = load_config(ROOT / "models" / "hal_chains.ini").chains
+    chains = load_config(MODELS_DIR / "hal_chains.ini").chains
     sources = [protocol.port_names("walkman", name)["state_si"] for name in chains]
     sources += [f"/m{i}/status:o" for i in range(5)]
     with one_network(link) as (robot, pilot):

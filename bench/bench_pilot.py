@@ -44,6 +44,7 @@ from system.display import display_env, private_display  # noqa: E402
 from system.processes import Proc  # noqa: E402
 from system.topology import PYTHON, Topology  # noqa: E402
 from host import cpu_seconds, say_machine  # noqa: E402  (bench/ is the script's folder)
+from walkman import MODELS_DIR  # noqa: E402
 
 DRIVER = ROOT / "tests" / "system" / "pi_driver.py"
 #: A layout with the camera and no 3-D view: the PI's own cost, librviz's rendering aside.
@@ -193,7 +194,7 @@ def run_topology(kind: str, root: Path, link, display: str, options) -> Dict[str
         figures["rospy"] = rospy_latency(topology, options.count)
         if kind == "drc":
             layouts = root / "bench_layouts.ini"
-            layouts.write_text((ROOT / "models" / "pilot_layouts.ini").read_text()
+            layouts.write_text((MODELS_DIR / "pilot_layouts.ini").read_text()
                                + BENCH_LAYOUTS)
             for layout in ("main-pilot", "camera-only"):
                 figures[layout], _ = pi_cpu(topology, display, layout, layouts, options.seconds)

@@ -65,6 +65,7 @@ from nodekit.logs import LOG_TIME_ENV  # noqa: E402
 from system.display import display_env, private_display  # noqa: E402
 from system.processes import Proc  # noqa: E402
 from system.topology import PYTHON, Component, Topology  # noqa: E402
+from walkman import MODELS_DIR  # noqa: E402
 
 DRIVER = ROOT / "tests" / "system" / "pi_driver.py"
 TOPOLOGIES = ("lab", "drc", "degraded")
@@ -197,7 +198,7 @@ def run_topology(kind: str, root: Path, link, display: str, options, result: Res
         say(f"  {kind}: topology up; the PI clicks the valve task {options.runs} times "
             f"(load {os.getloadavg()[0]:.1f})")
         layouts = root / "bench_layouts.ini"
-        layouts.write_text((ROOT / "models" / "pilot_layouts.ini").read_text() + BENCH_LAYOUTS)
+        layouts.write_text((MODELS_DIR / "pilot_layouts.ini").read_text() + BENCH_LAYOUTS)
         topology.pilot.extra_env.update(display_env(display), PI_LAYOUT=options.layout,
                                         PI_LAYOUTS=str(layouts), PI_NAME=f"bench_{kind}")
         out = root / "screens"

@@ -27,6 +27,7 @@ sys.path.insert(0, str(HERE.parent))
 
 from yarp_lite.freeport import free_port  # noqa: E402
 from host import say_machine  # noqa: E402  (bench/ is the script's folder)
+from walkman import MODELS_DIR  # noqa: E402
 
 HAL_ARGS: list = []
 
@@ -113,7 +114,7 @@ def main() -> int:
     print(f"  MuJoCo, full DRC scene, 1 kHz         {phys['mujoco_rtf']:8.1f}   (goal >= 5)")
     print(f"  sim backend step (servos, grasps)      {phys['sim_rtf']:8.1f}")
     print(f"  ethercat backend step (38 boards)      {phys['ethercat_rtf']:8.1f}")
-    models = HERE.parent / "models"
+    models = MODELS_DIR
     for title, config in (("8 chains, state every 2 ms (hal_chains.ini)", "hal_chains.ini"),
                           ("1 chain, state every 1 ms (hal_whole_body.ini)",
                            "hal_whole_body.ini")):

@@ -44,10 +44,11 @@ from walkman.hal.protocol import ChainState  # noqa: E402
 from yarp_lite.bottle import Bottle  # noqa: E402
 from yarp_lite.port import Port  # noqa: E402
 from yarp_lite.rpc import RpcServer  # noqa: E402
+from walkman import MODELS_DIR  # noqa: E402
 
 
 def hal(mode: str, rate: float = 100.0) -> None:
-    config = load_config(ROOT / "models" / "hal_chains.ini")
+    config = load_config(MODELS_DIR / "hal_chains.ini")
     chains = config.chains
     RpcServer(protocol.robot_rpc_name("walkman"),
               handler=lambda _: Bottle([Bottle([name, *joints]) for name, joints in chains.items()]))

@@ -36,10 +36,11 @@ from yarp_lite.lines import split_line
 from yarp_lite.nameserver.registry import Registry
 from yarp_lite.nameserver.service import NameService, OldReply
 from yarp_lite.nameserver.subscriptions import Subscriptions
+from walkman import MODELS_DIR
 
 YARP = (RemoteProtocolError,)
 BRIDGE = (BridgeProtocolError,)
-MODELS = config.SCHEMA_PATH.parents[1] / "models"
+MODELS = MODELS_DIR
 
 #: Bottles that cover every wire type, nesting, typed lists and dicts.
 SAMPLE_BOTTLES = [

@@ -31,9 +31,10 @@ from typing import Any, Dict, List, Optional
 from bridge import config as bridge_config
 from pilot.catalogue import catalogue_of
 from pilot.layouts import DEFAULT_LAYOUTS, Layout, LayoutError, Widget, load_layout
+from walkman import MODELS_DIR
 
 log = logging.getLogger("pilot.app")
-DEFAULT_CONFIG = Path(__file__).resolve().parents[1] / "models" / "bridge_drc.xml"
+DEFAULT_CONFIG = MODELS_DIR / "bridge_drc.xml"
 
 
 def configured_modules(path: Path) -> Dict[str, List[str]]:

@@ -17,7 +17,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Dict, List, Sequence, Tuple
 
-DEFAULT_LAYOUTS = Path(__file__).resolve().parents[1] / "models" / "pilot_layouts.ini"
+from walkman import MODELS_DIR
+
+DEFAULT_LAYOUTS = MODELS_DIR / "pilot_layouts.ini"
 #: Widgets that stand alone; the others name a module (``task:drc_valve``).
 PLAIN_WIDGETS = ("modules", "view3d", "camera", "status", "link", "log")
 MODULE_WIDGETS = ("task", "generic")

@@ -78,10 +78,11 @@ from yarp_lite.errors import YarpError
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
 from yarp_lite.rpc import RpcClient
+from walkman import MODELS_DIR
 
 log = logging.getLogger("walkman.gateway")
 
-DEFAULT_CONFIG = Path(__file__).resolve().parents[1] / "models" / "bridge_drc.xml"
+DEFAULT_CONFIG = MODELS_DIR / "bridge_drc.xml"
 #: How long a command waits for the connection to its module before it is refused (s).
 CONNECT_GRACE = 10.0
 #: Where the pilot bridge says how the link is (:mod:`bridge.node`), and takes cancels.

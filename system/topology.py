@@ -38,11 +38,12 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 from system.processes import REPO, ROSCORE_READY, Proc, WaitTimeout
 from yarp_lite.freeport import free_port, release
+from walkman import MODELS_DIR
 
 PYTHON = sys.executable
 #: The line ``yarp-lite server`` prints once it answers.
 YARP_SERVER_READY = r"Ready"
-BRIDGE_CONFIG = REPO / "models" / "bridge_drc.xml"
+BRIDGE_CONFIG = MODELS_DIR / "bridge_drc.xml"
 GENERATED = REPO / "build" / "ros" / "lib"
 
 

@@ -15,10 +15,11 @@ from pathlib import Path
 from typing import Dict, List, Optional
 
 from yarp_lite.bottle_text import parse
+from walkman import MODELS_DIR
 
 Sections = Dict[str, Dict[str, list]]
 
-SHIPPED_CONTEXTS = Path(__file__).resolve().parents[2] / "models" / "contexts"
+SHIPPED_CONTEXTS = MODELS_DIR / "contexts"
 
 
 class IniError(Exception):

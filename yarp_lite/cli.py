@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import sys
 import threading
 import time
@@ -597,7 +598,17 @@ def configure_logging(verbose: bool = False) -> None:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    args = list(sys.argv[1:] if argv is None else argv)
+    """The ``yarp-lite`` tool; a reader that closes our output (``| head``) ends it quietly."""
+    try:
+        return _run(list(sys.argv[1:] if argv is None else argv))
+    except BrokenPipeError:
+        # As the real yarp, which SIGPIPE ends: no traceback.  stdout is dead, so point it
+        # at /dev/null or the interpreter's own flush at exit fails again.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 128 + signal.SIGPIPE
+
+
+def _run(args: List[str]) -> int:
     configure_logging("--verbose" in args)
     args = [arg for arg in args if arg != "--verbose"]
     admin = False

@@ -9,8 +9,9 @@ import pytest
 from bridge import config
 from bridge.config import ConfigError
 from bridge.main import main as bridge_main
+from walkman import MODELS_DIR
 
-MODELS = Path(__file__).resolve().parents[2] / "models"
+MODELS = MODELS_DIR
 
 
 def test_the_papers_example_loads_as_printed():

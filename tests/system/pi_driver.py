@@ -42,6 +42,7 @@ from pilot.app import PilotWindow, configured_modules
 from pilot.layouts import DEFAULT_LAYOUTS, load_layout
 from pilot.link import CLOUD_TOPIC, IMAGE_TOPIC
 from pilot.widgets.camera import percent
+from walkman import MODELS_DIR
 
 OUT = Path(sys.argv[2])
 
@@ -562,7 +563,7 @@ def link_down() -> None:
 
 if __name__ == "__main__":
     app = QApplication(sys.argv[:1])
-    modules = configured_modules(Path(__file__).resolve().parents[2] / "models" / "bridge_drc.xml")
+    modules = configured_modules(MODELS_DIR / "bridge_drc.xml")
     layout = load_layout(os.environ.get("PI_LAYOUT", "main-pilot"), modules=list(modules),
                          path=Path(os.environ.get("PI_LAYOUTS", DEFAULT_LAYOUTS)))
     window = PilotWindow(layout, modules, os.environ.get("PI_NAME", f"pi_test_{sys.argv[1]}"))

@@ -11,11 +11,11 @@ import sys
 import pytest
 
 from system.processes import wait_until
-from system.topology import REPO
 from walkman.model.mjcf import PILOT_POSES
+from walkman import MODELS_DIR
 
 PYTHON = sys.executable
-CONFIG = REPO / "models" / "bridge_drc.xml"
+CONFIG = MODELS_DIR / "bridge_drc.xml"
 VALVE, WHEEL, DOOR = PILOT_POSES["valve"], PILOT_POSES["car"], PILOT_POSES["door"]
 GRASP = (("reach", "reached"), ("approach", "approached"), ("grasp", "grasped"))
 

@@ -28,6 +28,7 @@ from python_qt_binding.QtWidgets import QApplication
 
 from pilot.app import PilotWindow, configured_modules
 from pilot.layouts import load_layout
+from walkman import MODELS_DIR
 
 OUT = Path(sys.argv[1])
 BACKGROUND = (40, 44, 52)       # RViz's background in pilot.view3d_child.RVIZ_CONFIG
@@ -186,7 +187,7 @@ def main() -> None:
 
 if __name__ == "__main__":
     app = QApplication(sys.argv[:1])
-    modules = configured_modules(Path(__file__).resolve().parents[2] / "models" / "bridge_drc.xml")
+    modules = configured_modules(MODELS_DIR / "bridge_drc.xml")
     layout = load_layout("main-pilot", modules=list(modules))
     window = PilotWindow(layout, modules, os.environ.get("PI_NAME", "pi_view3d_test"))
     window.show()

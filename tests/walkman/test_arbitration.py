@@ -5,6 +5,7 @@ import pytest
 from walkman.inifile import IniError
 from walkman.hal.arbitration import JointArbiter, owner_of
 from walkman.hal.config import load_config
+from walkman import MODELS_DIR
 
 JOINTS = ["WaistLat", "WaistSag", "LShSag", "LHipSag"]
 
@@ -74,7 +75,7 @@ def test_bad_arbiter_arguments_are_refused():
 
 def _ini(tmp_path, text):
     path = tmp_path / "hal.ini"
-    chains = (__import__("pathlib").Path(__file__).parents[2] / "models" / "hal_chains.ini")
+    chains = (MODELS_DIR / "hal_chains.ini")
     path.write_text(chains.read_text() + text)
     return path
 

@@ -7,14 +7,14 @@ committed files and the description disagree, so they cannot drift apart.
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 from typing import Dict
 
 from walkman.model.description import walkman
 from walkman.model.mjcf import to_mjcf
 from walkman.model.urdf import to_urdf
+from walkman import MODELS_DIR
 
-MODELS = Path(__file__).resolve().parents[2] / "models"
+MODELS = MODELS_DIR
 
 
 def render() -> Dict[str, str]:
