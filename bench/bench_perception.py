@@ -69,7 +69,7 @@ def stages(frames: int) -> Dict[str, List[float]]:
     import mujoco
     import numpy as np
 
-    from rosnodes.msgs import generate
+    from nodekit.msgs import generate
     from rosnodes.perception import PerceptionNode
 
     generate()

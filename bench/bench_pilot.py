@@ -134,7 +134,7 @@ def publisher(count: int, base: float = 1.5) -> int:
     """Run on the pilot PC: publish look_at commands as ``rostopic pub`` would (targets from
     ``base``: runs with different bases are told apart in gaze_control's log)."""
     import rospy
-    from rosnodes.msgs import ensure_importable
+    from nodekit.msgs import ensure_importable
 
     ensure_importable()
     from walkman_msgs.msg import Command
@@ -225,7 +225,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     say_machine()
     options.count = 60 if options.quick else 200
     options.seconds = 15.0 if options.quick else 30.0
-    from rosnodes.msgs import generate
+    from nodekit.msgs import generate
 
     generate()
     link = open_link(options.loopback, say, prefix="wp", subnet=62)

@@ -318,7 +318,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         say(f"bench_valve_topologies: skipped: {reason} (run it with sudo)")
         return 0
     say_machine("before")
-    from rosnodes.msgs import generate
+    from nodekit.msgs import generate
 
     generate()
     results: Dict[str, Result] = {}

@@ -47,7 +47,7 @@ from typing import Callable, Dict, List, Optional, Tuple, TypeVar, Union
 
 from lxml import etree
 
-from bridge.flows import STATE_KIND, FlowKey
+from bridge.flows import STATE_KIND, Carriage, FlowKey, Form, Route
 from walkman.gym.interfaces import GYM_PORTS, RECEIPT
 
 SCHEMA_PATH = Path(__file__).with_name("bridge.xsd")
@@ -111,6 +111,24 @@ class Channel:
     def opened_on(self, side: str) -> str:
         """The YARP port the bridge opens for this flow on ``side``."""
         return self.listen_port if side == self.source else self.emit_port
+
+    def route(self, copies: "Optional[DatagramCopies]" = None) -> Route:
+        """How this flow crosses (``copies``: the configuration's ``<datagram_copies>``)."""
+        if self.middleware == "ros":
+            return Route(self.key, self.label, Carriage.DATAGRAMS, Form.ROS,
+                         fec=self.fec, fec_auto=self.fec_auto)
+        if self.transport == "udp":
+            return Route(self.key, self.label, Carriage.DATAGRAMS, Form.BOTTLE,
+                         fec=self.fec, fec_auto=self.fec_auto)
+        copied = 0
+        if copies is not None:
+            copied = copies.statuses if self.status_events else \
+                copies.commands if self.reliable and (self.expiring or self.receipts) \
+                else 0
+        return Route(self.key, self.label,
+                     Carriage.RELIABLE if self.reliable else Carriage.LATEST, Form.BOTTLE,
+                     status_events=self.status_events, expiring=self.expiring,
+                     copies=copied)
 
 
 @dataclass(frozen=True)
@@ -177,6 +195,22 @@ class BridgeConfig:
 
     def channel(self, key: FlowKey) -> Optional[Channel]:
         return self._by_key().get(key)
+
+    def routes(self) -> Dict[FlowKey, Route]:
+        """Every flow with its route, the robot state's and the stop-all's included: how
+        each crosses the link is decided here, once; the channels and the node look it up."""
+        table = {channel.key: channel.route(self.datagram_copies) for channel in self.channels}
+        state = self.robot_state
+        if state is not None:
+            table[state.key] = Route(state.key, f"{state.robot}/state",
+                                     Carriage.LATEST if state.transport == "tcp"
+                                     else Carriage.DATAGRAMS, Form.STATE)
+        stop = self.emergency_stop
+        if stop is not None:
+            table[stop.stop_key] = Route(stop.stop_key, "stop_all", Carriage.URGENT, Form.BOTTLE)
+            table[stop.ack_key] = Route(stop.ack_key, "stop_all/ack", Carriage.URGENT,
+                                        Form.BOTTLE)
+        return table
 
     def _by_key(self) -> Dict[FlowKey, Channel]:
         # Built when first needed; parse() appends channels, nothing removes them.

@@ -6,7 +6,7 @@ Every flow of the configuration is named on the wire by its 8-bit module id
 and the flow's *kind* within that module: a :class:`FlowKey`.  How the flow
 crosses the link -- which channel carries it, whether it is journalled, whether
 a change leaves at once, in which form its values travel, whether its messages
-carry a validity -- is decided once, by :func:`routes`, from the configuration;
+carry a validity -- is decided once, by :meth:`bridge.config.BridgeConfig.routes`;
 the TCP channel, the UDP channel and the bridge node only look it up.  Before,
 three functions of the node and both channels each decided part of it.
 """
@@ -15,10 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
-from typing import TYPE_CHECKING, Dict, NamedTuple, Optional
-
-if TYPE_CHECKING:  # config imports this module for FlowKey
-    from bridge.config import BridgeConfig, Channel, DatagramCopies
+from typing import NamedTuple
 
 
 class FlowKey(NamedTuple):
@@ -88,39 +85,3 @@ class Route:
     @property
     def reliable(self) -> bool:
         return self.carriage is Carriage.RELIABLE
-
-
-def route_of(channel: "Channel", copies: "Optional[DatagramCopies]" = None) -> Route:
-    """The route of one configured channel (``copies``: the configuration's
-    ``<datagram_copies>``)."""
-    if channel.middleware == "ros":
-        return Route(channel.key, channel.label, Carriage.DATAGRAMS, Form.ROS,
-                     fec=channel.fec, fec_auto=channel.fec_auto)
-    if channel.transport == "udp":
-        return Route(channel.key, channel.label, Carriage.DATAGRAMS, Form.BOTTLE,
-                     fec=channel.fec, fec_auto=channel.fec_auto)
-    copied = 0
-    if copies is not None:
-        copied = copies.statuses if channel.status_events else \
-            copies.commands if channel.reliable and (channel.expiring or channel.receipts) \
-            else 0
-    return Route(channel.key, channel.label,
-                 Carriage.RELIABLE if channel.reliable else Carriage.LATEST, Form.BOTTLE,
-                 status_events=channel.status_events, expiring=channel.expiring,
-                 copies=copied)
-
-
-def routes(config: "BridgeConfig") -> Dict[FlowKey, Route]:
-    """Every flow of ``config`` with its route, the robot state's included."""
-    table = {channel.key: route_of(channel, config.datagram_copies)
-             for channel in config.channels}
-    state = config.robot_state
-    if state is not None:
-        table[state.key] = Route(state.key, f"{state.robot}/state",
-                                 Carriage.LATEST if state.transport == "tcp"
-                                 else Carriage.DATAGRAMS, Form.STATE)
-    stop = config.emergency_stop
-    if stop is not None:
-        table[stop.stop_key] = Route(stop.stop_key, "stop_all", Carriage.URGENT, Form.BOTTLE)
-        table[stop.ack_key] = Route(stop.ack_key, "stop_all/ack", Carriage.URGENT, Form.BOTTLE)
-    return table

@@ -49,7 +49,7 @@ from walkman.gym.validity import ValidityError, split
 from bridge.journal import Journal, QueueFull, is_tombstone
 from bridge.link import LinkKey
 from bridge.presence import READER_GRACE, Presence, PresenceMemory
-from bridge.flows import Carriage, FlowKey, Form, Route, routes
+from bridge.flows import Carriage, FlowKey, Form, Route
 from bridge.tcp_channel import TcpChannel
 from bridge.udp_channel import UdpChannel, UdpRoute
 from yarp_lite.bottle import Bottle
@@ -146,7 +146,7 @@ class Bridge:
         self._status_ports: List[Port] = []
         self.keeper = None
         self.ros_node = None
-        self.routes: Dict[FlowKey, Route] = routes(config)
+        self.routes: Dict[FlowKey, Route] = config.routes()
         self._stand_in_keys = presence_rules.stand_ins(config, side)
         self._watched = presence_rules.watched(config, side)
         self._module_ends: Dict[FlowKey, Any] = {}   # endpoints whose program's port is watched

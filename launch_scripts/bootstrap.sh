@@ -56,5 +56,5 @@ else
   say "Python packages already installed in .venv"
 fi
 say "generating the walkman_msgs ROS messages (skipped when up to date)"
-"$VENV/bin/python" -m rosnodes.msgs
+"$VENV/bin/python" -m nodekit.msgs
 say "ready: source launch_scripts/walkman_env.sh (ROS tools, messages and .venv/bin on PATH)"

@@ -226,7 +226,7 @@ class PilotLink:
 
     def start(self) -> None:
         from nodekit.ros_node import RosNode
-        from rosnodes.msgs import ensure_importable
+        from nodekit.msgs import ensure_importable
 
         ensure_importable()
         self._ros = RosNode(self.name)

@@ -7,5 +7,6 @@
   depth, point cloud) on the robot roscore.
 * :mod:`joint_state` -- ``walkman-joint-state``: ``sensor_msgs/JointState`` and TF
   from the HAL's ports, on either side of the bridge.
-* :mod:`msgs` -- builds the ``walkman_msgs`` package (``walkman_msgs/``) with genpy.
+* ``walkman_msgs/`` -- our ROS messages and services (:mod:`nodekit.msgs` generates their
+  Python code: the bridge and the Pilot Interface need them too).
 """

@@ -74,6 +74,7 @@ from walkman.gym.interfaces import (COMMAND, RECEIPT, STATUS, SWITCH, WARNING, I
 from walkman.gym.validity import (DANGEROUS_GRACE, Lifetime, ValidityError, check_validity,
                                   stamp)
 from yarp_lite.bottle import Bottle
+from yarp_lite.bottle_text import parse
 from yarp_lite.errors import YarpError
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
@@ -126,7 +127,7 @@ def lifetime(module: str, asked: float) -> Lifetime:
 def life_text(sent: str) -> str:
     """A sent command's text as the pilot typed it: ``(turn 1.57) 42`` -> ``turn 1.57``."""
     try:
-        return command_text(decode_command(Bottle.from_text(sent)))
+        return command_text(decode_command(parse(sent)))
     except (InterfaceError, ValueError):
         return sent
 
@@ -141,7 +142,7 @@ def build_command(msg: Any, seq: int,
     text = (msg.text or "").strip()
     if text:
         try:
-            parsed = decode(Bottle.from_text(text))
+            parsed = decode(parse(text))
         except (InterfaceError, ValueError) as exc:
             raise GatewayError(f"command text {text!r} is not a command: {exc}") from None
         return PilotCommand(parsed.name, parsed.args, seq)
@@ -828,7 +829,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     if options.countdown <= 0:
         print("walkman-pilot-gateway: --countdown must be positive", file=sys.stderr)
         return 2
-    from rosnodes.msgs import ensure_importable
+    from nodekit.msgs import ensure_importable
 
     ensure_importable()
     unique = options.name or f"pilot_gateway_{os.uname().nodename.replace('-', '_')}_{os.getpid()}"

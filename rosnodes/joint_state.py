@@ -101,7 +101,7 @@ def main(argv=None) -> int:
 
             publishers["tf"] = rospy.Publisher("/tf", TFMessage, queue_size=5)
 
-    from rosnodes.msgs import ensure_importable
+    from nodekit.msgs import ensure_importable
 
     ensure_importable()
     ros.when_ready(open_topics)

@@ -205,7 +205,7 @@ def parse_args(argv: Optional[List[str]] = None) -> argparse.Namespace:
 
 def main(argv: Optional[List[str]] = None) -> int:
     options = parse_args(argv)
-    from rosnodes.msgs import generate
+    from nodekit.msgs import generate
 
     generate()
 

@@ -200,7 +200,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                         help="cancel every K-th command once accepted (default 0: none)")
     options = parser.parse_args(argv)
     from nodekit.ros_node import RosNode
-    from rosnodes.msgs import ensure_importable
+    from nodekit.msgs import ensure_importable
 
     ensure_importable()
     modules = [m.strip() for m in options.modules.split(",") if m.strip()]

@@ -449,7 +449,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--out", type=Path, help="report folder (default out/compare-<time>)")
     options = parser.parse_args(argv)
     out = options.out or REPO / "out" / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
-    from rosnodes.msgs import generate
+    from nodekit.msgs import generate
 
     generate()
     progress = lambda text: print(f"[compare] {text}", flush=True)  # noqa: E731

@@ -88,7 +88,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     options = parser.parse_args(argv)
     if options.loss is not None and not 0 <= options.loss <= 100:
         parser.error(f"--loss must be a percentage between 0 and 100, not {options.loss}")
-    from rosnodes.msgs import generate
+    from nodekit.msgs import generate
 
     generate()
     if options.interactive:

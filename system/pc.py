@@ -143,7 +143,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         if ensure_bridge_key(options.key):
             print(f"[{options.side}] created a new bridge key {options.key}: copy it to the "
                   f"other PC (scp -p {options.key} <other>:{options.key})", flush=True)
-    from rosnodes.msgs import generate
+    from nodekit.msgs import generate
 
     generate()
     pc = Pc(options.side, options.dir, yarp_port=options.yarp_port, ros_port=options.ros_port,

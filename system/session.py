@@ -201,7 +201,7 @@ def record_main() -> int:
     from sensor_msgs.msg import Image, JointState, PointCloud2
     from tf2_msgs.msg import TFMessage
 
-    from rosnodes.msgs import ensure_importable
+    from nodekit.msgs import ensure_importable
 
     ensure_importable()
     from walkman_msgs.msg import Countdown, SentCommand, Status, Warning

@@ -47,38 +47,16 @@ proportional to the bytes received.
 
 from __future__ import annotations
 
+import math
 import struct
-from enum import IntEnum
 from typing import Any, Iterable, Iterator, List, Optional, Sequence, Union
 
 from yarp_lite.errors import LocalProtocolError, NeedMoreData, RemoteProtocolError
+from yarp_lite.values import (_INT32_MAX, _INT32_MIN, _INT64_MAX, _INT64_MIN,  # noqa: F401
+                              DICT_CODE, GROUP_MASK, MAX_DEPTH, UNIT_MASK, VOCAB_FALSE,
+                              VOCAB_TRUE, Float32, Float64, Int8, Int16, Int32, Int64, Tag,
+                              Vocab, vocab_decode, vocab_encode)
 
-
-class Tag(IntEnum):
-    """YARP 3.5 Bottle type tags (``BOTTLE_TAG_*`` in Bottle.h)."""
-
-    INT8 = 32
-    INT16 = 64
-    INT32 = 1
-    INT64 = 1 + 16
-    VOCAB32 = 1 + 8
-    FLOAT32 = 128
-    FLOAT64 = 2 + 8
-    STRING = 4
-    BLOB = 4 + 8
-    LIST = 256
-    DICT = 512
-
-
-UNIT_MASK = (Tag.INT8 | Tag.INT16 | Tag.INT32 | Tag.INT64 | Tag.FLOAT32 | Tag.FLOAT64
-             | Tag.VOCAB32 | Tag.STRING | Tag.BLOB)
-GROUP_MASK = Tag.LIST | Tag.DICT
-DICT_CODE = Tag.LIST | Tag.DICT
-#: Deepest nesting accepted from a peer; deeper input is an attack, not data.
-MAX_DEPTH = 100
-
-_INT32_MIN, _INT32_MAX = -(1 << 31), (1 << 31) - 1
-_INT64_MIN, _INT64_MAX = -(1 << 63), (1 << 63) - 1
 
 _S8 = struct.Struct("<b")
 _S16 = struct.Struct("<h")
@@ -94,137 +72,17 @@ _FIXED = {Tag.INT8: "b", Tag.INT16: "h", Tag.INT32: "i", Tag.INT64: "q",
 _FIXED_SIZE = {tag: struct.calcsize("<" + fmt) for tag, fmt in _FIXED.items()}
 
 
-# --------------------------------------------------------------------------
-# Value types
-
-
-def _checked_int(cls: type, value: Any, low: int, high: int) -> int:
-    number = int(value)
-    if not low <= number <= high:
-        raise LocalProtocolError(f"{number} does not fit in {cls.__name__}")
-    return number
-
-
-class Int8(int):
-    """An integer sent with the INT8 tag."""
-
-    def __new__(cls, value: Any = 0) -> "Int8":
-        return super().__new__(cls, _checked_int(cls, value, -128, 127))
-
-
-class Int16(int):
-    """An integer sent with the INT16 tag."""
-
-    def __new__(cls, value: Any = 0) -> "Int16":
-        return super().__new__(cls, _checked_int(cls, value, -(1 << 15), (1 << 15) - 1))
-
-
-class Int32(int):
-    """An integer sent with the INT32 tag (plain ints that fit get it anyway)."""
-
-    def __new__(cls, value: Any = 0) -> "Int32":
-        return super().__new__(cls, _checked_int(cls, value, _INT32_MIN, _INT32_MAX))
-
-
-class Int64(int):
-    """An integer sent with the INT64 tag even when it would fit in 32 bits."""
-
-    def __new__(cls, value: Any = 0) -> "Int64":
-        return super().__new__(cls, _checked_int(cls, value, _INT64_MIN, _INT64_MAX))
-
-
-class Float32(float):
-    """A float sent with the FLOAT32 tag; the value is rounded to single precision."""
-
-    def __new__(cls, value: Any = 0.0) -> "Float32":
-        return super().__new__(cls, _F32.unpack(_F32.pack(float(value)))[0])
-
-
-class Float64(float):
-    """A float sent with the FLOAT64 tag (plain floats get it anyway)."""
-
-
-def vocab_encode(text: str) -> int:
-    """Pack up to four characters into a vocab code, first character lowest."""
-    raw = text.encode("utf-8", "surrogateescape")[:4]
-    code = 0
-    for shift, byte in enumerate(raw):
-        code |= byte << (8 * shift)
-    return code - (1 << 32) if code > _INT32_MAX else code
-
-
-def vocab_decode(code: int) -> str:
-    """Unpack a vocab code exactly as YARP's ``Vocab32::decode`` does.
-
-    YARP divides the *signed* code by 256 and skips non-positive remainders,
-    so for negative codes the result differs from a plain byte split; we
-    follow it so that text output matches.
-    """
-    sign = -1 if code < 0 else 1
-    magnitude = abs(code)
-    chars = bytearray()
-    for _ in range(4):
-        if sign > 0 and magnitude % 256:  # C's % keeps the sign: negatives never print
-            chars.append(magnitude % 256)
-        magnitude //= 256
-    return chars.decode("utf-8", "surrogateescape")
-
-
-class Vocab(str):
-    """A vocab: a short identifier sent as one int32 (``[add]``, ``[ok]``).
-
-    The string value is the decoded text; :attr:`code` is the wire integer,
-    kept exactly even when the text alone could not reproduce it.
-    """
-
-    code: int
-
-    def __new__(cls, value: Union[str, int]) -> "Vocab":
-        if isinstance(value, Vocab):
-            code = value.code
-        elif isinstance(value, str):
-            code = vocab_encode(value)
-        else:
-            code = _checked_int(cls, value, _INT32_MIN, _INT32_MAX)
-        self = super().__new__(cls, vocab_decode(code))
-        self.code = code
-        return self
-
-    def __repr__(self) -> str:
-        return f"Vocab({str(self)!r})"
-
-    def __eq__(self, other: object) -> bool:
-        if isinstance(other, Vocab):
-            return self.code == other.code
-        return str.__eq__(self, other)
-
-    def __hash__(self) -> int:
-        return str.__hash__(self)
-
-
-VOCAB_TRUE = Vocab(ord("1"))
-VOCAB_FALSE = Vocab(0)
-
-
 class Bottle(list):
     """A YARP Bottle: a list whose items keep their wire types.
 
-    Construct from values or text: ``Bottle([1, "hello", (2.5, 3)])`` or
-    ``Bottle.from_text('1 hello (2.5 3)')``.  ``str(bottle)`` is YARP's text
-    form, the same text ``yarp read`` prints.
+    Construct from values, ``Bottle([1, "hello", (2.5, 3)])``, or from text with
+    :func:`yarp_lite.bottle_text.parse`.  ``str(bottle)`` is YARP's text form,
+    the same text ``yarp read`` prints.
     """
 
     __slots__ = ()
 
-    @classmethod
-    def from_text(cls, text: str) -> "Bottle":
-        from yarp_lite.bottle_text import parse  # text codec builds on this module
-
-        return cls(parse(text))
-
     def to_text(self) -> str:
-        from yarp_lite.bottle_text import format_bottle
-
         return format_bottle(self)
 
     def __str__(self) -> str:
@@ -587,3 +445,66 @@ def iter_leaves(bottle: Iterable[Value]) -> Iterator[Value]:
             yield from iter_leaves(item)
         else:
             yield item
+
+
+# --------------------------------------------------------------------------
+# Text form (``BottleImpl::toString``; parsing is in :mod:`yarp_lite.bottle_text`)
+
+
+def format_bottle(items: Iterable[Value]) -> str:
+    """Text form of a top-level Bottle (``BottleImpl::toString``)."""
+    return " ".join(format_value(item) for item in items)
+
+
+def format_value(value: Value) -> str:
+    """Text form of one item as it appears inside a Bottle (``toStringNested``)."""
+    tag = tag_of(value)
+    if tag in (Tag.INT32, Tag.INT64, Tag.INT8, Tag.INT16):
+        return str(int(value))
+    if tag == Tag.FLOAT64 or tag == Tag.FLOAT32:
+        return format_double(float(value))
+    if tag == Tag.STRING:
+        return quote_string(value)
+    if tag == Tag.VOCAB32:
+        code = value.code if isinstance(value, Vocab) else (ord("1") if value else 0)
+        if code == 0:
+            return "false"
+        if code == ord("1"):
+            return "true"
+        return "[" + Vocab(code) + "]"
+    if tag == Tag.BLOB:
+        return "{" + " ".join(str(byte) for byte in bytes(value)) + "}"
+    if isinstance(value, dict) and not isinstance(value, Dict):
+        value = Dict.from_mapping(value)
+    return "(" + format_bottle(value) + ")"
+
+
+def format_double(value: float) -> str:
+    """``yarp::conf::numeric::to_string`` for doubles: ``%.21g``, then ``.0``."""
+    if math.isnan(value):
+        text = "-nan" if math.copysign(1.0, value) < 0 else "nan"
+    else:
+        text = "%.21g" % value
+    if "." not in text and "e" not in text and text not in ("inf", "-inf", "nan"):
+        text += ".0"
+    return text
+
+
+def quote_string(text: str) -> str:
+    """``StoreString::quotedString``: quote and escape only when needed."""
+    need_quote = not text or text in ("true", "false")
+    for index, ch in enumerate(text):
+        if ("a" <= ch <= "z") or ("A" <= ch <= "Z") or ch == "_":
+            continue
+        if ("0" <= ch <= "9") or ch in ".-":
+            if index == 0:
+                need_quote = True
+                break
+            continue
+        need_quote = True
+        break
+    if not need_quote:
+        return text
+    escaped = text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") \
+        .replace("\r", "\\r").replace("\0", "\\0")
+    return '"' + escaped + '"'

@@ -30,10 +30,10 @@ whether more lines are needed.
 from __future__ import annotations
 
 import math
-from typing import Iterable
 
-from yarp_lite.bottle import (MAX_DEPTH, Bottle, Dict, Float32, Int64, Tag, Value, Vocab,
-                              tag_of, vocab_encode)
+from yarp_lite.bottle import (MAX_DEPTH, Bottle, Float32, Int64, Tag, Value, Vocab,
+                              format_bottle, format_double, format_value, quote_string,
+                              vocab_encode)
 from yarp_lite.errors import RemoteProtocolError
 
 _SEPARATORS = ", \t\n\r"
@@ -249,69 +249,6 @@ def _c_float(text: str) -> float:
         return float(text)
     except (ValueError, OverflowError):
         return 0.0
-
-
-# --------------------------------------------------------------------------
-# Formatting
-
-
-def format_bottle(items: Iterable[Value]) -> str:
-    """Text form of a top-level Bottle (``BottleImpl::toString``)."""
-    return " ".join(format_value(item) for item in items)
-
-
-def format_value(value: Value) -> str:
-    """Text form of one item as it appears inside a Bottle (``toStringNested``)."""
-    tag = tag_of(value)
-    if tag in (Tag.INT32, Tag.INT64, Tag.INT8, Tag.INT16):
-        return str(int(value))
-    if tag == Tag.FLOAT64 or tag == Tag.FLOAT32:
-        return format_double(float(value))
-    if tag == Tag.STRING:
-        return quote_string(value)
-    if tag == Tag.VOCAB32:
-        code = value.code if isinstance(value, Vocab) else (ord("1") if value else 0)
-        if code == 0:
-            return "false"
-        if code == ord("1"):
-            return "true"
-        return "[" + Vocab(code) + "]"
-    if tag == Tag.BLOB:
-        return "{" + " ".join(str(byte) for byte in bytes(value)) + "}"
-    if isinstance(value, dict) and not isinstance(value, Dict):
-        value = Dict.from_mapping(value)
-    return "(" + format_bottle(value) + ")"
-
-
-def format_double(value: float) -> str:
-    """``yarp::conf::numeric::to_string`` for doubles: ``%.21g``, then ``.0``."""
-    if math.isnan(value):
-        text = "-nan" if math.copysign(1.0, value) < 0 else "nan"
-    else:
-        text = "%.21g" % value
-    if "." not in text and "e" not in text and text not in ("inf", "-inf", "nan"):
-        text += ".0"
-    return text
-
-
-def quote_string(text: str) -> str:
-    """``StoreString::quotedString``: quote and escape only when needed."""
-    need_quote = not text or text in ("true", "false")
-    for index, ch in enumerate(text):
-        if ("a" <= ch <= "z") or ("A" <= ch <= "Z") or ch == "_":
-            continue
-        if ("0" <= ch <= "9") or ch in ".-":
-            if index == 0:
-                need_quote = True
-                break
-            continue
-        need_quote = True
-        break
-    if not need_quote:
-        return text
-    escaped = text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") \
-        .replace("\r", "\\r").replace("\0", "\\0")
-    return '"' + escaped + '"'
 
 
 __all__ = ["parse", "is_complete", "format_bottle", "format_value", "format_double",

@@ -21,7 +21,7 @@ from typing import Callable, Dict, List, Optional, Sequence
 
 from yarp_lite import __version__, nameconfig, network
 from yarp_lite.bottle import Bottle, Vocab
-from yarp_lite.bottle_text import format_bottle
+from yarp_lite.bottle_text import format_bottle, parse
 from yarp_lite.carriers import BottlePayload
 from yarp_lite.connection import OutgoingConnection
 from yarp_lite.contact import Contact
@@ -210,7 +210,7 @@ def cmd_name(args: List[str], admin: bool) -> int:
         out("Unregistered name.")
         return 0
     if key == "bot":
-        reply = client.bottle(Bottle.from_text(" ".join(args)))
+        reply = client.bottle(parse(" ".join(args)))
         out(format_bottle(reply))
         return 0
     for line in client.text(" ".join(args)):
@@ -336,7 +336,7 @@ def cmd_ping(args: List[str], admin: bool) -> int:
         raise UsageError("yarp-lite ping PORT")
     try:
         for line in network.describe(args[0]):
-            out(format_bottle(Bottle.from_text(line)))
+            out(format_bottle(parse(line)))
     except NetworkError as exc:
         log.error("%s", exc)
         return 1
@@ -404,7 +404,7 @@ def _write_loop(port: Port, verbatim: bool, admin: bool) -> None:
     for line in _stdin_lines():
         if line and ord(line[0]) < 32 and line[0] not in "\t":
             break
-        bottle = Bottle([0, line]) if verbatim else Bottle.from_text(line)
+        bottle = Bottle([0, line]) if verbatim else parse(line)
         if admin:
             for unit_route in port.output_routes():
                 contact = NameClient().query(unit_route.target)
@@ -507,7 +507,7 @@ def cmd_rpc(args: List[str], admin: bool) -> int:
                     return 0
                 try:
                     reply = connection.send("a" if admin else "d",
-                                            BottlePayload(Bottle.from_text(line)),
+                                            BottlePayload(parse(line)),
                                             want_reply=True)
                 except NetworkError:
                     pending = line
@@ -546,7 +546,7 @@ def cmd_rpcserver(args: List[str], admin: bool) -> int:
                 out(shown + (f"\n{then}" if then else ""))
                 return request
             out(shown)
-            reply = Bottle.from_text(next(lines, None) or "")
+            reply = parse(next(lines, None) or "")
             if then:
                 out(then)
             return reply

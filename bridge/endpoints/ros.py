@@ -293,7 +293,7 @@ class RosSource:
                                           queue_size=2, latch=channel.latch)
         self._arrivals = None
         if channel.ros_type in TILED_TYPES:
-            from rosnodes.msgs import ensure_importable
+            from nodekit.msgs import ensure_importable
 
             ensure_importable()
             self._arrivals = rospy.Publisher(arrival_topic(channel.label),

@@ -13,7 +13,7 @@ import rospy
 from sensor_msgs.msg import Image, PointCloud2
 
 from bridge.endpoints.ros import arrival_topic
-from rosnodes.msgs import ensure_importable
+from nodekit.msgs import ensure_importable
 
 LOCK = threading.Lock()
 

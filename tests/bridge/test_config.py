@@ -67,9 +67,7 @@ def test_the_project_config_has_state_and_topics():
 
 
 def test_datagram_copies_go_to_commands_receipts_and_statuses_only():
-    from bridge.flows import routes
-
-    table = {route.label: route for route in routes(config.load(MODELS / "bridge_drc.xml"))
+    table = {route.label: route for route in config.load(MODELS / "bridge_drc.xml").routes()
              .values()}
     copied = {label: route.copies for label, route in table.items() if route.copies}
     assert {label for label in copied if label.startswith("drc_valve/")} == {
@@ -78,7 +76,7 @@ def test_datagram_copies_go_to_commands_receipts_and_statuses_only():
     assert table["drc_valve/command"].on_tcp and table["drc_valve/command"].on_udp
     assert table["drc_valve/warning"].copies == 0 and not table["drc_valve/warning"].on_udp
     bare = config.parse('<bridge><modules><module name="a" id="1"/></modules></bridge>')
-    assert not any(route.copies for route in routes(bare).values())   # off unless asked
+    assert not any(route.copies for route in bare.routes().values())   # off unless asked
 
 
 def test_fec_auto_asks_for_repairs_sized_from_the_measured_loss():

@@ -26,7 +26,7 @@ from bridge.udp_channel import Reassembler, UdpRoute, UdpStats, message_datagram
 from bridge.wire import get_varint
 from bridge_harness import HERE, PYTHON, TwoPCs
 from harness import wait_until
-from rosnodes.msgs import ensure_importable
+from nodekit.msgs import ensure_importable
 
 ensure_importable()
 from sensor_msgs.msg import Image, PointCloud2, PointField  # noqa: E402

@@ -10,18 +10,19 @@ from bridge.stop_line import (ANSWER_GAP, Ack, PilotStops, RobotStops, StopLineE
                               parse_ack, parse_order)
 from harness import wait_until
 from yarp_lite.bottle import Bottle
+from yarp_lite.bottle_text import parse
 
 
 def test_orders_and_acknowledgements_read_back_and_bad_ones_are_refused():
-    assert parse_order(Bottle.from_text("stop_all 42")) == ("stop_all", 42)
+    assert parse_order(parse("stop_all 42")) == ("stop_all", 42)
     ack = Ack(42, "held", True, 12.5, ("gaze_control", "walking"))
-    assert parse_ack(Bottle.from_text(encode_ack(ack).to_text())) == ack
+    assert parse_ack(parse(encode_ack(ack).to_text())) == ack
     for text in ("stop 42", "stop_all", "stop_all x", "stop_all 1 2"):
         with pytest.raises(StopLineError, match="a stop order is"):
-            parse_order(Bottle.from_text(text))
+            parse_order(parse(text))
     for text in ("held", "held 1 1", "gone 1 1 2", "held 1 1 x", "held 1 1 2 3"):
         with pytest.raises(StopLineError, match="a stop acknowledgement is"):
-            parse_ack(Bottle.from_text(text))
+            parse_ack(parse(text))
 
 
 def test_the_robot_carries_out_each_stop_once_and_answers_copies_now_and_then():

@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import List
 
 from pilot.link import PilotLink, _Sender
-from rosnodes.msgs import ensure_importable
+from nodekit.msgs import ensure_importable
 
 ensure_importable()          # walkman_msgs, built as the PI builds it
 

@@ -51,7 +51,7 @@ PLAN = ["--short-every", "2", "--short-validity", "1.5", "--cancel-every", "3"]
 
 
 def short_run(tmp_path: Path, extra: list) -> dict:
-    from rosnodes.msgs import generate
+    from nodekit.msgs import generate
 
     generate()
     lines: list = []

@@ -8,7 +8,7 @@ from hypothesis import given, strategies as st
 from walkman.gym.command_life import (RANK, TERMINAL, CommandLife, CommandState as S, Ledger,
                                       Receipt, ReceiptError, decode_receipt, describe,
                                       encode_receipt)
-from yarp_lite.bottle import Bottle
+from yarp_lite.bottle_text import parse
 
 TURN = CommandLife("drc_valve", "command", 42, "turn 1.57", "pi_main", 1)
 
@@ -17,8 +17,8 @@ def test_a_receipt_round_trips_as_yarp_text():
     receipt = Receipt(42, S.EXPIRED, "`turn 1.57` expired after 23 s in the queue")
     bottle = encode_receipt(receipt)
     assert bottle.to_text() == '42 expired "`turn 1.57` expired after 23 s in the queue"'
-    assert decode_receipt(Bottle.from_text(bottle.to_text())) == receipt
-    assert decode_receipt(Bottle.from_text("7 accepted")) == Receipt(7, S.ACCEPTED)
+    assert decode_receipt(parse(bottle.to_text())) == receipt
+    assert decode_receipt(parse("7 accepted")) == Receipt(7, S.ACCEPTED)
 
 
 @pytest.mark.parametrize("text, problem", [
@@ -28,7 +28,7 @@ def test_a_receipt_round_trips_as_yarp_text():
 ])
 def test_a_malformed_receipt_is_refused_with_what_is_wrong(text, problem):
     with pytest.raises(ReceiptError, match=problem):
-        decode_receipt(Bottle.from_text(text))
+        decode_receipt(parse(text))
 
 
 def test_the_usual_life_through_a_blackout():

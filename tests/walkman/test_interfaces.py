@@ -8,6 +8,7 @@ from walkman.gym.interfaces import (PilotCommand, _Inbox, decode_command, encode
                                     readable)
 from walkman.gym.validity import Lifetime, stamp
 from yarp_lite.bottle import Bottle
+from yarp_lite.bottle_text import parse
 
 
 class Clock:
@@ -25,7 +26,7 @@ def inbox(validity: float = 10.0) -> "tuple[_Inbox, Clock]":
 
 def test_a_command_within_its_validity_starts_with_its_lifetime():
     box, clock = inbox()
-    box.feed(stamp(Bottle.from_text("(turn 1.57) 42"), Lifetime(3.0, 20.0)))
+    box.feed(stamp(parse("(turn 1.57) 42"), Lifetime(3.0, 20.0)))
     clock.now += 16.9                                  # 3 + 16.9 < 20
     command = box.get()
     assert command == PilotCommand("turn", (1.57,), 42, Lifetime(3.0, 20.0))
@@ -34,8 +35,8 @@ def test_a_command_within_its_validity_starts_with_its_lifetime():
 
 def test_one_that_waited_too_long_is_refused_as_expired_and_the_next_one_starts():
     box, clock = inbox()
-    box.feed(stamp(Bottle.from_text("(turn 1.57) 42"), Lifetime(23.0, None)))   # the queue
-    box.feed(Bottle.from_text("start 43"))              # bare: age 0 here, default validity
+    box.feed(stamp(parse("(turn 1.57) 42"), Lifetime(23.0, None)))   # the queue
+    box.feed(parse("start 43"))              # bare: age 0 here, default validity
     assert box.get() == PilotCommand("start", (), 43)
     assert box.take_rejections() == [
         "`turn 1.57` expired after 23 s in the queue (valid 10 s); not run"]
@@ -44,7 +45,7 @@ def test_one_that_waited_too_long_is_refused_as_expired_and_the_next_one_starts(
 
 def test_the_wait_in_the_module_counts_until_the_command_would_start():
     box, clock = inbox(validity=5.0)
-    box.feed(Bottle.from_text("go 7"))                   # arrives fresh...
+    box.feed(parse("go 7"))                   # arrives fresh...
     clock.now += 6.0                                    # ... but the module is busy
     assert box.get() is None
     assert box.take_rejections() == ["`go` expired after 6 s in the queue (valid 5 s); not run"]
@@ -52,7 +53,7 @@ def test_the_wait_in_the_module_counts_until_the_command_would_start():
 
 def test_a_malformed_lifetime_is_refused_with_its_reason():
     box, _ = inbox()
-    box.feed(Bottle.from_text("(turn 1) 4 (age soon)"))
+    box.feed(parse("(turn 1) 4 (age soon)"))
     assert box.get() is None
     assert box.take_rejections() == ["age must be a finite number of seconds >= 0, not 'soon'"]
 
@@ -76,9 +77,9 @@ def test_the_inbox_says_what_became_of_each_numbered_command():
     box, clock = inbox(validity=5.0)
     said = []
     box.on_receipt = said.append
-    box.feed(Bottle.from_text("(turn 1.5) 42"))
-    box.feed(Bottle.from_text("go"))                        # no number: nothing to name
-    box.feed(stamp(Bottle.from_text("(turn 2.0) 43"), Lifetime(9.0, None)))
+    box.feed(parse("(turn 1.5) 42"))
+    box.feed(parse("go"))                        # no number: nothing to name
+    box.feed(stamp(parse("(turn 2.0) 43"), Lifetime(9.0, None)))
     assert box.get() == PilotCommand("turn", (1.5,), 42)
     assert box.get() == PilotCommand("go")
     assert box.get() is None

@@ -485,15 +485,15 @@ def test_the_watchdog_beats_while_it_waits_for_a_safe_pause(make_runner):
 
 def test_each_numbered_switch_is_receipted_accepted_or_refused_with_why(make_runner):
     from walkman.gym.command_life import CommandState, Receipt
-    from yarp_lite.bottle import Bottle
+    from yarp_lite.bottle_text import parse
 
     runner = make_runner(Scripted)
     watchdog = in_background(runner.watchdog)
     try:
-        runner.interfaces.switch.feed(Bottle.from_text("start 11"))
+        runner.interfaces.switch.feed(parse("start 11"))
         says(runner, lambda: runner.interfaces.receipts, "the start's receipt")
-        runner.interfaces.switch.feed(Bottle.from_text("resume 12"))   # illegal while running
-        runner.interfaces.switch.feed(Bottle.from_text("pause"))       # no number: no receipt
+        runner.interfaces.switch.feed(parse("resume 12"))   # illegal while running
+        runner.interfaces.switch.feed(parse("pause"))       # no number: no receipt
         says(runner, lambda: len(runner.interfaces.receipts) == 2, "the resume's receipt")
         assert runner.interfaces.receipts == [
             Receipt(11, CommandState.ACCEPTED),

@@ -10,8 +10,9 @@ from hypothesis import given, strategies as st
 from walkman.gym.validity import (DEFAULT_VALIDITY, Lifetime, ValidityError, aged,
                                   check_validity, describe_expiry, split, stamp)
 from yarp_lite.bottle import Bottle
+from yarp_lite.bottle_text import parse
 
-TURN = Bottle.from_text("(turn 1.5) 42")
+TURN = parse("(turn 1.5) 42")
 
 
 def test_a_stamped_command_splits_back_into_itself_and_its_lifetime():
@@ -22,7 +23,7 @@ def test_a_stamped_command_splits_back_into_itself_and_its_lifetime():
 
 def test_a_command_without_a_trailer_has_no_lifetime():
     assert split(TURN) == (TURN, None)
-    assert split(Bottle.from_text("start 3")) == (Bottle.from_text("start 3"), None)
+    assert split(parse("start 3")) == (parse("start 3"), None)
 
 
 def test_each_hop_adds_the_time_it_held_the_command():
@@ -55,7 +56,7 @@ def test_the_refusal_says_what_how_old_and_not_run():
     ("start 3 (age 1 valid 2 3)", "a lifetime is"),
 ])
 def test_a_malformed_trailer_is_refused_with_what_is_wrong(text, problem):
-    bottle = Bottle.from_text(text)
+    bottle = parse(text)
     if problem is None:
         assert split(bottle) == (bottle, None)
         return

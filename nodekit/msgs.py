@@ -1,6 +1,6 @@
 """The ``walkman_msgs`` ROS package: generate its Python code with Debian's genpy.
 
-``python -m rosnodes.msgs`` writes ``build/ros/lib/walkman_msgs/{msg,srv}``;
+``python -m nodekit.msgs`` writes ``build/ros/lib/walkman_msgs/{msg,srv}``;
 ``launch_scripts/walkman_env.sh`` then puts it on ``PYTHONPATH`` and the package
 on ``ROS_PACKAGE_PATH``, so ``rosmsg show walkman_msgs/Status`` and
 ``rostopic pub /gaze_control/switch walkman_msgs/Switch ...`` work from any shell.
@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import List
 
 PACKAGE = "walkman_msgs"
-SOURCE = Path(__file__).resolve().parent / PACKAGE
+SOURCE = Path(__file__).resolve().parents[1] / "rosnodes" / PACKAGE   # the ROS package
 REPO = SOURCE.parents[1]
 OUTPUT = REPO / "build" / "ros" / "lib"
 SHARE = REPO / "build" / "ros" / "share"
@@ -39,7 +39,7 @@ def generate(force: bool = False) -> bool:
 
     missing = [name for name, path in SEARCH.items() if not path.is_dir()]
     if missing:
-        raise SystemExit(f"rosnodes.msgs: message definitions of {missing} are not installed "
+        raise SystemExit(f"nodekit.msgs: message definitions of {missing} are not installed "
                          f"(apt-get install ros-std-msgs)")
     wrote = False
     includes = [f"-I{PACKAGE}:{SOURCE / 'msg'}"] + [f"-I{n}:{p}" for n, p in SEARCH.items()]
@@ -56,7 +56,7 @@ def generate(force: bool = False) -> bool:
                 genpy.genpy_main.genmain(argv, f"gen{kind}_py", generator)
             except SystemExit as exit_:  # genmain always exits
                 if exit_.code:
-                    raise SystemExit(f"rosnodes.msgs: genpy failed on {kind} ({exit_.code})")
+                    raise SystemExit(f"nodekit.msgs: genpy failed on {kind} ({exit_.code})")
         wrote = True
     package_init = OUTPUT / PACKAGE / "__init__.py"
     if not package_init.exists():
