@@ -281,143 +281,183 @@ def parse(text: Union[str, bytes], where: str = "<bridge config>") -> BridgeConf
             raise ConfigError(f"{where}:{root.sourceline}: key names no file")
         config.key_file = (Path(where).parent / Path(key).expanduser()) \
             if not Path(key).expanduser().is_absolute() else Path(key).expanduser()
-    ids: Dict[int, int] = {}
-    claimed: Dict[Tuple[str, str], int] = {}
+    sections = _Sections(config, where)
+    sections.gym_modules(root)
+    sections.custom_modules(root)
+    sections.robot_state(root)
+    sections.emergency_stop(root)
+    sections.datagram_copies(root)
+    sections.ros_topics(root)
+    return config
 
-    def take_id(element: etree._Element) -> int:
-        value = _number(element, "id", 0, where, int)
+
+class _Sections:
+    """Reads the sections of one configuration into ``config``: ids are shared by every
+    section and each port is claimed once per side, so the checks live here."""
+
+    def __init__(self, config: BridgeConfig, where: str) -> None:
+        self.config, self.where = config, where
+        self.ids: Dict[int, int] = {}                      # id -> the line that took it
+        self.claimed: Dict[Tuple[str, str], int] = {}      # (side, port) -> line
+
+    def take_id(self, element: etree._Element) -> int:
+        value = _number(element, "id", 0, self.where, int)
         line = element.sourceline
         if not 0 <= value <= 255:
-            raise ConfigError(f"{where}:{line}: id {value} does not fit in 8 bits (0..255)")
-        if value in ids:
-            raise ConfigError(f"{where}:{line}: duplicate id {value} (first used on line "
-                              f"{ids[value]}); ids are shared by every section")
-        ids[value] = line
+            raise ConfigError(f"{self.where}:{line}: id {value} does not fit in 8 bits (0..255)")
+        if value in self.ids:
+            raise ConfigError(f"{self.where}:{line}: duplicate id {value} (first used on line "
+                              f"{self.ids[value]}); ids are shared by every section")
+        self.ids[value] = line
         return value
 
-    def claim(side: str, port: str, line: int) -> None:
-        if (side, port) in claimed:
-            raise ConfigError(f"{where}:{line}: port {port} on the {side} side is claimed twice "
-                              f"(also on line {claimed[side, port]})")
-        claimed[side, port] = line
+    def claim(self, side: str, port: str, line: int) -> None:
+        if (side, port) in self.claimed:
+            raise ConfigError(f"{self.where}:{line}: port {port} on the {side} side is claimed "
+                              f"twice (also on line {self.claimed[side, port]})")
+        self.claimed[side, port] = line
 
-    for element in root.iterfind("modules/module"):
-        name, module_id = element.get("name"), take_id(element)
-        _check_name(name, element, where)
-        config.modules[name] = module_id
-        statuses = tuple((element.get("statuses") or "").split())
-        config.gym_modules[name] = statuses
-        for kind, gym_port in enumerate(GYM_PORTS):   # the kind byte on the wire
-            flow, reliable = gym_port.flow, gym_port.reliable
-            direction = "pilot_to_robot" if gym_port.to_robot else "robot_to_pilot"
-            source, destination = DIRECTIONS[direction]
-            original = gym_port.of(name)
-            bridge_port = f"/bridge/{source}/{name}/{flow}"
-            if direction == "pilot_to_robot":
-                listen, feed, emit, deliver = original, "", bridge_port, original
-            else:
-                listen, feed, emit, deliver = bridge_port, original, original, None
-            claim(source, listen, element.sourceline)
-            claim(destination, emit, element.sourceline)
-            config.channels.append(Channel(
-                id=module_id, kind=kind, label=f"{name}/{flow}", source=source,
-                destination=destination, middleware="yarp", transport="tcp", reliable=reliable,
-                listen_port=listen, feed_port=feed, emit_port=emit, deliver_port=deliver,
-                statuses=statuses, line=element.sourceline,
-                status_events=flow == "status", expiring=direction == "pilot_to_robot",
-                receipts=gym_port is RECEIPT))
-    for element in root.iterfind("custom_modules/module"):
-        name, module_id = element.get("name"), take_id(element)
-        _check_name(name, element, where)
-        config.modules[name] = module_id
-        for kind, connection in enumerate(element.iterfind("connection")):
-            line = connection.sourceline
-            if kind > 7:
-                raise ConfigError(f"{where}:{line}: module {name} has more than 8 connections "
-                                  f"(the kind field has 3 bits); split it into two modules")
-            direction = connection.get("direction")
+    def gym_modules(self, root: etree._Element) -> None:
+        """GYM modules: one flow per GYM port (switch, command, status, warning, ...)."""
+        config, where = self.config, self.where
+        for element in root.iterfind("modules/module"):
+            name, module_id = element.get("name"), self.take_id(element)
+            _check_name(name, element, where)
+            config.modules[name] = module_id
+            statuses = tuple((element.get("statuses") or "").split())
+            config.gym_modules[name] = statuses
+            for kind, gym_port in enumerate(GYM_PORTS):   # the kind byte on the wire
+                flow, reliable = gym_port.flow, gym_port.reliable
+                direction = "pilot_to_robot" if gym_port.to_robot else "robot_to_pilot"
+                source, destination = DIRECTIONS[direction]
+                original = gym_port.of(name)
+                bridge_port = f"/bridge/{source}/{name}/{flow}"
+                if direction == "pilot_to_robot":
+                    listen, feed, emit, deliver = original, "", bridge_port, original
+                else:
+                    listen, feed, emit, deliver = bridge_port, original, original, None
+                self.claim(source, listen, element.sourceline)
+                self.claim(destination, emit, element.sourceline)
+                config.channels.append(Channel(
+                    id=module_id, kind=kind, label=f"{name}/{flow}", source=source,
+                    destination=destination, middleware="yarp", transport="tcp", reliable=reliable,
+                    listen_port=listen, feed_port=feed, emit_port=emit, deliver_port=deliver,
+                    statuses=statuses, line=element.sourceline,
+                    status_events=flow == "status", expiring=direction == "pilot_to_robot",
+                    receipts=gym_port is RECEIPT))
+
+    def custom_modules(self, root: etree._Element) -> None:
+        """Custom modules: up to eight connections each, as the paper's XML."""
+        config, where = self.config, self.where
+        for element in root.iterfind("custom_modules/module"):
+            name, module_id = element.get("name"), self.take_id(element)
+            _check_name(name, element, where)
+            config.modules[name] = module_id
+            for kind, connection in enumerate(element.iterfind("connection")):
+                line = connection.sourceline
+                if kind > 7:
+                    raise ConfigError(f"{where}:{line}: module {name} has more than 8 connections "
+                                      f"(the kind field has 3 bits); split it into two modules")
+                direction = connection.get("direction")
+                if direction not in DIRECTIONS:
+                    raise ConfigError(f"{where}:{line}: unknown direction {direction!r} "
+                                      f"(robot_to_pilot or pilot_to_robot)")
+                source, destination = DIRECTIONS[direction]
+                location = connection.get("location")
+                if location not in (ROBOT, PILOT):
+                    raise ConfigError(f"{where}:{line}: unknown location {location!r} "
+                                      f"(robot or pilot)")
+                if location != source:
+                    raise ConfigError(f"{where}:{line}: location {location} contradicts direction "
+                                      f"{direction}: data starts on the {source} side")
+                transport = connection.get("channel", "tcp")
+                if transport not in CHANNELS:
+                    raise ConfigError(f"{where}:{line}: unknown channel {transport!r} (tcp or udp)")
+                names = {attr: _relative(name, connection.get(attr), line, where)
+                         for attr in ("port_to_open", "source_port", "target_port")}
+                # Pilot commands are kept intact unless said otherwise; robot data streams.
+                default = "false" if direction == "pilot_to_robot" else "true"
+                streaming = connection.get("streaming", default) in ("true", "1")
+                self.claim(source, names["port_to_open"], line)
+                self.claim(destination, names["source_port"], line)
+                config.channels.append(Channel(
+                    id=module_id, kind=kind, label=f"{name}{connection.get('port_to_open')}",
+                    source=source, destination=destination, middleware="yarp", transport=transport,
+                    reliable=not streaming, listen_port=names["port_to_open"],
+                    feed_port=names["source_port"], emit_port=names["source_port"],
+                    deliver_port=names["target_port"], line=line))
+
+    def robot_state(self, root: etree._Element) -> None:
+        """The robot state flow (Table 1 codec)."""
+        config, where = self.config, self.where
+        for element in root.iterfind("robot_state"):
+            state_id = self.take_id(element)
+            transport = element.get("channel", "tcp")
+            if transport not in CHANNELS:
+                raise ConfigError(f"{where}:{element.sourceline}: unknown channel {transport!r}")
+            config.robot_state = RobotStateFlow(state_id, element.get("robot"), transport)
+            config.state_rate = _positive(element, "rate", DEFAULT_STATE_RATE, where)
+
+    def emergency_stop(self, root: etree._Element) -> None:
+        """The stop-all line."""
+        config, where = self.config, self.where
+        for element in root.iterfind("emergency_stop"):
+            copies = _number(element, "copies", 3, where, int)
+            if not 1 <= copies <= 10:
+                raise ConfigError(f"{where}:{element.sourceline}: copies is 1..10 datagrams, got "
+                                  f"{copies}")
+            config.emergency_stop = EmergencyStopFlow(self.take_id(element),
+                                                      element.get("robot", "walkman"), copies)
+
+    def datagram_copies(self, root: etree._Element) -> None:
+        """How many datagram copies commands and statuses get."""
+        config, where = self.config, self.where
+        for element in root.iterfind("datagram_copies"):
+            counts = {}
+            for attribute in ("commands", "statuses"):
+                counts[attribute] = _number(element, attribute, 0, where, int)
+                if not 0 <= counts[attribute] <= 5:
+                    raise ConfigError(f"{where}:{element.sourceline}: {attribute} is 0..5 datagram "
+                                      f"copies, got {counts[attribute]}")
+            config.datagram_copies = DatagramCopies(**counts)
+
+    def ros_topics(self, root: etree._Element) -> None:
+        """ROS topics: over UDP only."""
+        config, where = self.config, self.where
+        for element in root.iterfind("ros_topics/topic"):
+            line = element.sourceline
+            topic_id = self.take_id(element)
+            direction = element.get("direction")
             if direction not in DIRECTIONS:
                 raise ConfigError(f"{where}:{line}: unknown direction {direction!r} "
                                   f"(robot_to_pilot or pilot_to_robot)")
-            source, destination = DIRECTIONS[direction]
-            location = connection.get("location")
-            if location not in (ROBOT, PILOT):
-                raise ConfigError(f"{where}:{line}: unknown location {location!r} (robot or pilot)")
-            if location != source:
-                raise ConfigError(f"{where}:{line}: location {location} contradicts direction "
-                                  f"{direction}: data starts on the {source} side")
-            transport = connection.get("channel", "tcp")
+            transport = element.get("channel")
+            if transport == "tcp":
+                raise ConfigError(f"{where}:{line}: TCP-ROS is unsupported: ROS data would "
+                                  f"saturate the channel (use channel=\"udp\")")
             if transport not in CHANNELS:
-                raise ConfigError(f"{where}:{line}: unknown channel {transport!r} (tcp or udp)")
-            names = {attr: _relative(name, connection.get(attr), line, where)
-                     for attr in ("port_to_open", "source_port", "target_port")}
-            # Pilot commands are kept intact unless said otherwise; robot data streams.
-            default = "false" if direction == "pilot_to_robot" else "true"
-            streaming = connection.get("streaming", default) in ("true", "1")
-            claim(source, names["port_to_open"], line)
-            claim(destination, names["source_port"], line)
+                raise ConfigError(f"{where}:{line}: unknown channel {transport!r} (udp for ROS)")
+            topic, ros_type = element.get("name"), element.get("type")
+            if not topic.startswith("/") or "/" not in ros_type:
+                raise ConfigError(f"{where}:{line}: topic needs an absolute name and a "
+                                  f"package/Type, got {topic!r} {ros_type!r}")
+            source, destination = DIRECTIONS[direction]
+            self.claim(source, "ros:" + topic, line)
+            self.claim(destination, "ros:" + topic + ":publish", line)
+            fec_auto = element.get("fec") == "auto"
+            fec = 0.0 if fec_auto else _number(element, "fec", 0.0, where)
+            if not 0 <= fec <= 0.5:
+                raise ConfigError(f"{where}:{line}: fec is a repair fraction 0..0.5 or auto, "
+                                  f"got {fec}")
+            quality = _number(element, "quality", 80, where, int)
+            if not 0 <= quality <= 100:
+                raise ConfigError(f"{where}:{line}: quality is a JPEG quality 0..100, "
+                                  f"got {quality}")
             config.channels.append(Channel(
-                id=module_id, kind=kind, label=f"{name}{connection.get('port_to_open')}",
-                source=source, destination=destination, middleware="yarp", transport=transport,
-                reliable=not streaming, listen_port=names["port_to_open"],
-                feed_port=names["source_port"], emit_port=names["source_port"],
-                deliver_port=names["target_port"], line=line))
-    for element in root.iterfind("robot_state"):
-        state_id = take_id(element)
-        transport = element.get("channel", "tcp")
-        if transport not in CHANNELS:
-            raise ConfigError(f"{where}:{element.sourceline}: unknown channel {transport!r}")
-        config.robot_state = RobotStateFlow(state_id, element.get("robot"), transport)
-        config.state_rate = _positive(element, "rate", DEFAULT_STATE_RATE, where)
-    for element in root.iterfind("emergency_stop"):
-        copies = _number(element, "copies", 3, where, int)
-        if not 1 <= copies <= 10:
-            raise ConfigError(f"{where}:{element.sourceline}: copies is 1..10 datagrams, got "
-                              f"{copies}")
-        config.emergency_stop = EmergencyStopFlow(take_id(element),
-                                                  element.get("robot", "walkman"), copies)
-    for element in root.iterfind("datagram_copies"):
-        counts = {}
-        for attribute in ("commands", "statuses"):
-            counts[attribute] = _number(element, attribute, 0, where, int)
-            if not 0 <= counts[attribute] <= 5:
-                raise ConfigError(f"{where}:{element.sourceline}: {attribute} is 0..5 datagram "
-                                  f"copies, got {counts[attribute]}")
-        config.datagram_copies = DatagramCopies(**counts)
-    for element in root.iterfind("ros_topics/topic"):
-        line = element.sourceline
-        topic_id = take_id(element)
-        direction = element.get("direction")
-        if direction not in DIRECTIONS:
-            raise ConfigError(f"{where}:{line}: unknown direction {direction!r} "
-                              f"(robot_to_pilot or pilot_to_robot)")
-        transport = element.get("channel")
-        if transport == "tcp":
-            raise ConfigError(f"{where}:{line}: TCP-ROS is unsupported: ROS data would saturate "
-                              f"the channel (use channel=\"udp\")")
-        if transport not in CHANNELS:
-            raise ConfigError(f"{where}:{line}: unknown channel {transport!r} (udp for ROS)")
-        topic, ros_type = element.get("name"), element.get("type")
-        if not topic.startswith("/") or "/" not in ros_type:
-            raise ConfigError(f"{where}:{line}: topic needs an absolute name and a "
-                              f"package/Type, got {topic!r} {ros_type!r}")
-        source, destination = DIRECTIONS[direction]
-        claim(source, "ros:" + topic, line)
-        claim(destination, "ros:" + topic + ":publish", line)
-        fec_auto = element.get("fec") == "auto"
-        fec = 0.0 if fec_auto else _number(element, "fec", 0.0, where)
-        if not 0 <= fec <= 0.5:
-            raise ConfigError(f"{where}:{line}: fec is a repair fraction 0..0.5 or auto, "
-                              f"got {fec}")
-        quality = _number(element, "quality", 80, where, int)
-        if not 0 <= quality <= 100:
-            raise ConfigError(f"{where}:{line}: quality is a JPEG quality 0..100, got {quality}")
-        config.channels.append(Channel(
-            id=topic_id, kind=0, label=topic, source=source, destination=destination,
-            middleware="ros", transport="udp", reliable=False, ros_type=ros_type,
-            latch=element.get("latch", "false") in ("true", "1"),
-            quality=quality, fec=fec, fec_auto=fec_auto, line=line))
-    return config
+                id=topic_id, kind=0, label=topic, source=source, destination=destination,
+                middleware="ros", transport="udp", reliable=False, ros_type=ros_type,
+                latch=element.get("latch", "false") in ("true", "1"),
+                quality=quality, fec=fec, fec_auto=fec_auto, line=line))
 
 
 Number = TypeVar("Number", int, float)
