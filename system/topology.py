@@ -152,6 +152,20 @@ def ensure_bridge_key(path: Path) -> bool:
     return True
 
 
+
+def ros_environment(root: Path, ros_port: int) -> Dict[str, str]:
+    """What a process needs to be a ROS node of the roscore on ``ros_port`` (its files under
+    ``root``) that knows our messages -- ``rostopic echo /M/command`` included."""
+    return {
+        "ROS_MASTER_URI": f"http://127.0.0.1:{ros_port}", "ROS_IP": "127.0.0.1",
+        "ROS_HOME": str(root / "ros"), "ROS_LOG_DIR": str(root / "ros" / "log"),
+        "PYTHONPATH": os.pathsep.join(p for p in (str(GENERATED), str(REPO),
+                                                  os.environ.get("PYTHONPATH", "")) if p),
+        "ROS_PACKAGE_PATH": os.pathsep.join([str(REPO / "rosnodes"),
+                                             str(REPO / "build" / "ros" / "share"),
+                                             "/usr/share"]),
+    }
+
 @dataclass
 class Pc:
     """One computer: its environment, name servers and programs."""
@@ -175,15 +189,8 @@ class Pc:
             env.pop(key, None)
         env.update({
             "YARP_CONFIG_HOME": str(self.root / "yarp"), "YARP_DATA_HOME": str(self.root / "data"),
-            "ROS_MASTER_URI": f"http://127.0.0.1:{self.ros_port}", "ROS_IP": "127.0.0.1",
-            "ROS_HOME": str(self.root / "ros"), "ROS_LOG_DIR": str(self.root / "ros" / "log"),
             "XDG_STATE_HOME": str(self.root / "state"), "MUJOCO_GL": "osmesa",
-            "PYTHONUNBUFFERED": "1",
-            "PYTHONPATH": os.pathsep.join(p for p in (str(GENERATED), str(REPO),
-                                                      os.environ.get("PYTHONPATH", "")) if p),
-            "ROS_PACKAGE_PATH": os.pathsep.join([str(REPO / "rosnodes"),
-                                                 str(REPO / "build" / "ros" / "share"),
-                                                 "/usr/share"]),
+            "PYTHONUNBUFFERED": "1", **ros_environment(self.root, self.ros_port),
         })
         env.update(self.extra_env)
         return env

@@ -1,17 +1,68 @@
 """The PI's ROS link: what it refuses to send rather than lose.
 
-The link's publishers are stood in for here (one rospy node per process, and the
-test process must not become one); the GUI tests drive the real ones.
+The first test runs the link as the PI does -- its own process (one rospy node per
+process), a real roscore, its real publishers -- with ``rostopic echo`` as the only
+listener.  The rest stand its publishers in with counted fakes, for the cases a real
+graph makes slow to set up.
 """
 
 from __future__ import annotations
 
+import sys
 from typing import List
 
+from harness import YarpWorld, free_port, lite_implementation
 from pilot.link import PilotLink, _Sender
 from nodekit.msgs import ensure_importable
+from system.processes import ROSCORE_READY
+from system.topology import ros_environment
 
 ensure_importable()          # walkman_msgs, built as the PI builds it
+
+
+#: The PI's link in a process of its own: it says what each send returned, one per line.
+LINK_PROCESS = """
+import sys, threading, time
+from pilot.link import PilotLink, RosEvent
+ready = threading.Event()
+link = PilotLink("pi_test", ["gaze_control"],
+                 post=lambda event: ready.set() if isinstance(event, RosEvent) else None)
+link.start()
+ready.wait(60)
+print("refused:", link.command("gaze_control", "look_at", [1.0, 0.2, 0.1]), flush=True)
+sys.stdin.readline()                     # the test has started a listener
+deadline = time.monotonic() + 30
+while link.command("gaze_control", "look_at", [1.0, 0.2, 0.1]) and time.monotonic() < deadline:
+    time.sleep(0.1)                      # until the listener is connected: nothing leaves before
+print("sent:", link.command("gaze_control", "look_at", [1.0, 0.2, 0.1]), flush=True)
+sys.stdin.readline()
+link.close()
+"""
+
+
+def test_the_pi_link_sends_on_its_real_topics_only_to_a_listener(tmp_path):
+    world = YarpWorld(tmp_path / "yarp", lite_implementation())
+    ros_port = free_port()
+    env = {**world.env, **ros_environment(tmp_path, ros_port)}
+    try:
+        world.start_server()
+        world.start(["roscore", "-p", str(ros_port)], "roscore", env=env) \
+            .wait_for(ROSCORE_READY, 60)
+        link = world.start([sys.executable, "-c", LINK_PROCESS], "pilot link", stdin=True,
+                           env=env)
+        refused = link.wait_for(r"refused: (.*)", timeout=90).group(1)
+        assert "no gateway listens to /gaze_control/command" in refused
+        echo = world.start(["rostopic", "echo", "-n", "1", "/gaze_control/command"],
+                           "rostopic echo", env=env)
+        link.popen.stdin.write("go\n")
+        link.popen.stdin.flush()
+        assert link.wait_for(r"sent: (.*)", timeout=60).group(1).strip() == ""
+        echo.wait_for(r"command: \"?look_at", timeout=30)
+        assert "pi_test" in echo.output() and "1.0" in echo.output()
+        link.popen.stdin.write("done\n")
+        link.popen.stdin.flush()
+    finally:
+        world.close()
 
 
 class Publisher:
