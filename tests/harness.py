@@ -60,6 +60,17 @@ def free_port(span: int = 1) -> int:
     return freeport.free_port(span)
 
 
+
+class ManualClock:
+    """A clock the test moves (``clock.now += 1``): what is passed where code takes a clock
+    (``time.monotonic``), so its delays and deadlines pass at once and exactly."""
+
+    def __init__(self, now: float = 100.0) -> None:
+        self.now = now
+
+    def __call__(self) -> float:
+        return self.now
+
 @dataclass
 class Implementation:
     """One YARP implementation: how to run its server and its companion tool."""

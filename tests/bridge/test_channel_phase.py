@@ -8,14 +8,7 @@ import pytest
 
 from bridge.channel_phase import ChannelPhase
 from bridge.errors import BridgeUsageError
-
-
-class Clock:
-    def __init__(self) -> None:
-        self.now = 100.0
-
-    def __call__(self) -> float:
-        return self.now
+from harness import ManualClock as Clock
 
 
 def test_one_handshake_goes_up_and_down():

@@ -21,7 +21,7 @@ from bridge.errors import BridgeProtocolError
 from bridge.udp_channel import UdpChannel, UdpRoute
 from codec_helpers import FUZZ
 from harness import free_port, wait_until
-from test_node import Clock
+from harness import ManualClock as Clock
 from test_tcp_channel import COMMAND, ROUTES, End
 from walkman.gym.validity import split
 from yarp_lite.bottle import Bottle

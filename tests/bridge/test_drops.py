@@ -8,18 +8,11 @@ from bridge import drops
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeProtocolError
 from bridge.link import AuthenticationFailed, ForgedInput, ReplayedInput
-
-
-class Clock:
-    def __init__(self) -> None:
-        self.now = 0.0
-
-    def __call__(self) -> float:
-        return self.now
+from harness import ManualClock
 
 
 def test_a_flood_is_logged_by_the_burst_rule_with_its_counts(caplog):
-    clock = Clock()
+    clock = ManualClock(0.0)
     ledger = DropLedger("UDP channel", logging.getLogger("test.drops"), clock)
     with caplog.at_level(logging.INFO, logger="test.drops"):
         for _ in range(500):

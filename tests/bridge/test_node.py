@@ -7,15 +7,8 @@ import pytest
 
 from bridge.node import COMMAND_WINDOW, StatusEvents
 from harness import free_port, wait_until
+from harness import ManualClock as Clock
 from yarp_lite.bottle import Bottle
-
-
-class Clock:
-    def __init__(self) -> None:
-        self.now = 100.0
-
-    def __call__(self) -> float:
-        return self.now
 
 
 def status(seq: int, state: str, *data) -> Bottle:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from harness import ManualClock
 from rosnodes.perception import FrameClock, cloud_points, intrinsics
 
 
@@ -30,16 +31,8 @@ def test_a_wall_seen_straight_on_becomes_points_at_its_depth():
     assert points[1, 1, 3:].view(np.uint32)[0] == 0x123456
 
 
-class FakeClock:
-    def __init__(self) -> None:
-        self.now = 100.0
-
-    def __call__(self) -> float:
-        return self.now
-
-
 def test_frames_come_at_the_rate_asked_whatever_a_frame_costs():
-    clock = FakeClock()
+    clock = ManualClock()
     frames = FrameClock(2.0, clock)
     taken = []
     for _ in range(10):
@@ -51,7 +44,7 @@ def test_frames_come_at_the_rate_asked_whatever_a_frame_costs():
 
 
 def test_a_frame_that_fell_behind_is_taken_now_not_caught_up_in_a_burst():
-    clock = FakeClock()
+    clock = ManualClock()
     frames = FrameClock(2.0, clock)
     clock.now += frames.wait()
     clock.now += 1.7                           # one frame took 1.7 s (a loaded PC)

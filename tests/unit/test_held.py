@@ -9,14 +9,7 @@ from yarp_lite.bottle import Bottle
 from yarp_lite.carriers import BottlePayload
 from yarp_lite.errors import LocalProtocolError
 from yarp_lite.held import HeldMessages, HoldPolicy
-
-
-class Clock:
-    def __init__(self) -> None:
-        self.now = 100.0
-
-    def __call__(self) -> float:
-        return self.now
+from harness import ManualClock as Clock
 
 
 def texts(held) -> list:

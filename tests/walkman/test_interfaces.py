@@ -9,14 +9,7 @@ from walkman.gym.interfaces import (PilotCommand, _Inbox, decode_command, encode
 from walkman.gym.validity import Lifetime, stamp
 from yarp_lite.bottle import Bottle
 from yarp_lite.bottle_text import parse
-
-
-class Clock:
-    def __init__(self) -> None:
-        self.now = 100.0
-
-    def __call__(self) -> float:
-        return self.now
+from harness import ManualClock as Clock
 
 
 def inbox(validity: float = 10.0) -> "tuple[_Inbox, Clock]":

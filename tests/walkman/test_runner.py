@@ -19,6 +19,7 @@ from typing import Iterator, List, Tuple
 import pytest
 
 from harness import wait_until
+from harness import ManualClock
 from walkman.gym import runner as runner_module
 from walkman.gym.interfaces import RecordingInterfaces
 from walkman.gym.lifecycle import State
@@ -335,22 +336,12 @@ class Stopping(Scripted):
     link_loss = LinkLoss.stop(after=5.0)
 
 
-class Clock:
-    """The runner's clock, moved by the test: the policy's delays pass at once."""
-
-    def __init__(self) -> None:
-        self.now = 1000.0
-
-    def __call__(self) -> float:
-        return self.now
-
-
 @pytest.fixture
 def linked(make_runner):
     """A started module whose robot bridge said the link is up; the test's clock."""
-    clock = Clock()
+    clock = ManualClock(1000.0)
 
-    def make(module_class: type) -> Tuple[ModuleRunner, Clock]:
+    def make(module_class: type) -> Tuple[ModuleRunner, ManualClock]:
         runner = make_runner(module_class, clock=clock)
         runner.link.feed(LINK_UP, clock())
         runner.switch("start")
@@ -358,7 +349,7 @@ def linked(make_runner):
     return make
 
 
-def cut(runner: ModuleRunner, clock: Clock, then_wait: float) -> None:
+def cut(runner: ModuleRunner, clock: ManualClock, then_wait: float) -> None:
     """The pilot's bridge goes silent: the robot bridge says so (every half second, as
     it does) while ``then_wait`` seconds pass."""
     for _ in range(int(then_wait / 0.5) + 1):
@@ -416,7 +407,7 @@ def test_a_module_that_continues_is_never_switched(linked):
 
 
 def test_in_the_lab_no_bridge_ever_speaks_and_nothing_is_down(make_runner):
-    clock = Clock()
+    clock = ManualClock(1000.0)
     runner = make_runner(Pausing, clock=clock)
     runner.switch("start")
     clock.now += 3600.0
