@@ -13,7 +13,7 @@ import signal
 import pytest
 
 from bridge_harness import PYTHON, TwoPCs
-from harness import wait_until
+from harness import Implementation, wait_until
 from pilot_side import (GYM_PORTS, bridge_status, executed, exists, send, switch,
                         wait_nothing_in_flight, wait_shown)
 
@@ -42,6 +42,19 @@ def start_counter(pcs: TwoPCs):
                             "--name", "/counter"], "counter module")
 
 
+def start_linked(pcs: TwoPCs, lite: Implementation):
+    """Name servers, the witness module ready, both bridges linked and the module shown on
+    the pilot's name server: where most tests start.  Returns the module's process."""
+    pcs.start_name_servers()
+    module = start_counter(pcs)
+    module.wait_for("ready for the pilot", 60)
+    pcs.start_bridge(pcs.robot)
+    pcs.start_bridge(pcs.pilot)
+    pcs.wait_linked()
+    wait_shown(pcs, lite)
+    return module
+
+
 @pytest.fixture
 def counter_env(pcs, tmp_path, monkeypatch):
     log = tmp_path / "executed.log"
@@ -56,14 +69,10 @@ def test_switch_command_and_status_cross_the_bridge(pcs, lite, counter_env, orde
         pcs.start_bridge(pcs.pilot, wait=False)
         pcs.start_name_servers()
         module = start_counter(pcs)
+        pcs.wait_linked()
+        wait_shown(pcs, lite)
     else:
-        pcs.start_name_servers()
-        module = start_counter(pcs)
-        module.wait_for("ready for the pilot", 60)
-        pcs.start_bridge(pcs.robot)
-        pcs.start_bridge(pcs.pilot)
-    pcs.wait_linked()
-    wait_shown(pcs, lite)
+        module = start_linked(pcs, lite)
     reader = pcs.pilot.world.tool(lite, "read", "/test/status", "/counter/status:o")
     switch(pcs, lite, "start", 2)
     sender = send(pcs, 1, 5)
@@ -161,13 +170,7 @@ def test_a_receipt_written_while_the_robot_bridge_restarts_reaches_the_pilot(pcs
     """Issue 33: four expirations of a 100-round chaos run never reached the pilot, written
     by the module while the killed robot bridge was not yet connected again to its
     ``receipt:o``.  The module's port now holds them for the bridge's return."""
-    pcs.start_name_servers()
-    module = start_counter(pcs)
-    module.wait_for("ready for the pilot", 60)
-    pcs.start_bridge(pcs.robot)
-    pcs.start_bridge(pcs.pilot)
-    pcs.wait_linked()
-    wait_shown(pcs, lite)
+    module = start_linked(pcs, lite)
     receipts = pcs.pilot.world.tool(lite, "read", "/test/receipts", "/counter/receipt:o")
     warnings = pcs.pilot.world.tool(lite, "read", "/test/warnings", "/counter/warning:o")
     switch(pcs, lite, "start", 2)
@@ -199,12 +202,7 @@ def test_a_real_yarp_pilot_and_name_server_see_no_difference(tmp_path, reference
     log = tmp_path / "executed.log"
     monkeypatch.setenv("COUNTER_LOG", str(log))
     try:
-        pcs.start_name_servers()
-        start_counter(pcs).wait_for("ready for the pilot", 60)
-        pcs.start_bridge(pcs.robot)
-        pcs.start_bridge(pcs.pilot)
-        pcs.wait_linked()
-        wait_shown(pcs, lite)
+        start_linked(pcs, lite)
         reader = pcs.pilot.world.tool(reference, "read", "/test/status", "/counter/status:o")
         writer = pcs.pilot.world.tool(reference, "write", "/test/w", "/counter/switch:i",
                                       stdin=True)

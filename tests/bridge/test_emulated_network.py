@@ -14,7 +14,6 @@ no command.
 from __future__ import annotations
 
 import os
-import random
 import re
 import subprocess
 import time
@@ -47,13 +46,9 @@ CONFIG = """<bridge period="0.5" gather="0.4">
 
 
 @pytest.fixture
-def link():
-    emulated = EmulatedLink(f"wt{os.getpid() % 100000}", random.randint(20, 250))
-    try:
-        emulated.up()
-        yield emulated
-    finally:
-        emulated.down()
+def link(emulated_link):
+    """conftest's two emulated hosts, under the name these tests read best with."""
+    return emulated_link
 
 
 @pytest.fixture
