@@ -62,9 +62,9 @@ def compile_cpp(source: Path, name: str, libraries: tuple = ("YARP_os", "YARP_in
     command = ["g++", "-O2", "-std=c++17", *includes, str(source), f"-I{root / 'include'}",
                f"-L{root / 'lib'}", *(f"-l{library}" for library in libraries),
                f"-Wl,-rpath,{root / 'lib'}",
-               "-lpthread", "-o", f"{target}.tmp"]
+               "-lpthread", "-o", f"{target}.{os.getpid()}.tmp"]   # two test workers may race
     result = subprocess.run(command, capture_output=True, text=True)
     if result.returncode != 0:
         raise RuntimeError(f"compiling {source} failed:\n{result.stderr[-2000:]}")
-    os.replace(f"{target}.tmp", target)
+    os.replace(f"{target}.{os.getpid()}.tmp", target)
     return target
