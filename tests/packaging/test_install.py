@@ -1,8 +1,9 @@
 """The packages install as a user installs them, and run from there.
 
 * ``pip install ./yarp_lite`` into a bare virtual environment (no system site
-  packages): the distribution needs nothing outside the standard library, and
-  the installed ``yarp-lite`` runs a network on its own.
+  packages): the distribution needs nothing outside the standard library, the
+  installed ``yarp-lite`` runs a network on its own, and yarp_lite's own tests
+  (every ``tests/unit`` file that needs nothing else) pass against it.
 * ``pip install .[sim,bridge]`` into a clean one that sees Debian's packages
   (rospy): every console script answers ``--help``, the models ship as package
   data, and an installed GYM module (the chaos witness) runs against the
@@ -15,6 +16,7 @@ the tree under test stays clean) and run from a folder outside it, with no
 
 from __future__ import annotations
 
+import ast
 import json
 import os
 import shutil
@@ -71,6 +73,17 @@ def lite_bin(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
+def lite_test_bin(tmp_path_factory) -> Path:
+    """Another bare environment with the lone yarp-lite, and pytest and hypothesis to test it
+    (kept apart from ``lite_bin``, whose package list is checked)."""
+    bin_dir = install(tmp_path_factory.mktemp("yarp-lite-tested"), REPO / "yarp_lite", "SRC",
+                      system_site=False)
+    run([bin_dir / "pip", "install", "-q", "--disable-pip-version-check", "pytest",
+         "hypothesis"], bin_dir, outside_env())
+    return bin_dir
+
+
+@pytest.fixture(scope="module")
 def system_bin(tmp_path_factory) -> Path:
     return install(tmp_path_factory.mktemp("walkman"), REPO, "SRC[sim,bridge]",
                    system_site=True)
@@ -117,6 +130,43 @@ def test_the_installed_yarp_lite_runs_a_network(lite_bin, tmp_path):
         reader.wait_for(r"hello \(1 2\) 3\.5", timeout=20)
     finally:
         world.close()
+
+
+#: The standalone suite's conftest: the project's hypothesis settings without the rest.
+STANDALONE_CONFTEST = """
+from hypothesis import settings
+settings.register_profile("standalone", deadline=None, derandomize=True, database=None)
+settings.load_profile("standalone")
+"""
+STANDALONE_IMPORTS = {"__future__", "yarp_lite", "pytest", "hypothesis"}
+
+
+def standalone_tests() -> List[Path]:
+    """The ``tests/unit`` files of yarp_lite that import nothing but yarp_lite, the
+    standard library, pytest and hypothesis: its tests, runnable without the system."""
+    found = []
+    for path in sorted((REPO / "tests" / "unit").glob("test_*.py")):
+        tops = {(node.module or "").split(".")[0] if isinstance(node, ast.ImportFrom)
+                else alias.name.split(".")[0]
+                for node in ast.walk(ast.parse(path.read_text()))
+                if isinstance(node, (ast.Import, ast.ImportFrom))
+                for alias in (node.names if isinstance(node, ast.Import) else [None])}
+        if "yarp_lite" in tops and tops <= STANDALONE_IMPORTS | set(sys.stdlib_module_names):
+            found.append(path)
+    return found
+
+
+def test_yarp_lites_own_tests_pass_against_the_lone_installed_package(lite_test_bin, tmp_path):
+    tests = standalone_tests()
+    assert len(tests) >= 10, [t.name for t in tests]
+    suite = tmp_path / "suite"
+    suite.mkdir()
+    for path in tests:
+        shutil.copy(path, suite / path.name)
+    (suite / "conftest.py").write_text(STANDALONE_CONFTEST)
+    summary = run([lite_test_bin / "python", "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                   suite], tmp_path, outside_env(), timeout=900).strip().splitlines()[-1]
+    assert "passed" in summary and "failed" not in summary and "error" not in summary, summary
 
 
 def test_every_installed_console_script_answers_help(system_bin, tmp_path):
