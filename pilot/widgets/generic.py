@@ -124,7 +124,7 @@ class GenericWidget(QGroupBox):
         box = QWidget()
         grid = QGridLayout(box)
         grid.setContentsMargins(0, 0, 0, 0)
-        self.command_box = QComboBox()
+        self.command_box = ChoiceBox()
         self.command_box.setObjectName("command")
         self.command_box.addItems(list(self.catalogue.commands))
         self.free_text = QLineEdit()
@@ -326,8 +326,35 @@ class GenericWidget(QGroupBox):
         """Task widgets enable their buttons here."""
 
 
+class _WheelOnlyWhenChosen:
+    """A field the mouse wheel changes only once the pilot chose it (clicked or tabbed in).
+
+    Qt's spin boxes and combo boxes take the wheel from under the pointer: a pilot
+    scrolling a tab changed ``drc_drive``'s roll to -1.35 without seeing it.  Here the
+    wheel over a field it does not have focus scrolls the page, as everywhere else.
+    """
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.setFocusPolicy(Qt.StrongFocus)     # the wheel alone never gives focus
+
+    def wheelEvent(self, event) -> None:  # noqa: N802 -- Qt's name
+        if self.hasFocus():
+            super().wheelEvent(event)
+        else:
+            event.ignore()                      # to the scroll area around it
+
+
+class NumberField(_WheelOnlyWhenChosen, QDoubleSpinBox):
+    """A command's number."""
+
+
+class ChoiceBox(_WheelOnlyWhenChosen, QComboBox):
+    """A choice among commands."""
+
+
 def number_field() -> QDoubleSpinBox:
-    field = QDoubleSpinBox()
+    field = NumberField()
     field.setDecimals(3)
     field.setRange(-100.0, 100.0)
     field.setSingleStep(0.05)

@@ -338,3 +338,61 @@ def test_the_status_tab_shows_module_states_temperatures_and_torques(qt):
     colours = {image.pixelColor(x, y).name() for x in range(0, image.width(), 2)
                for y in range(0, image.height(), 2)}
     assert {"#40a0e0", "#d03030"} <= colours
+
+
+def wheel(widget, notches: int) -> bool:
+    """Turn the mouse wheel over ``widget``'s middle as Qt delivers it; True if it took it."""
+    from python_qt_binding.QtCore import QPoint, QPointF, Qt
+    from python_qt_binding.QtGui import QWheelEvent
+    from python_qt_binding.QtWidgets import QApplication
+
+    middle = QPointF(widget.width() / 2, widget.height() / 2)
+    event = QWheelEvent(middle, QPointF(widget.mapToGlobal(middle.toPoint())), QPoint(0, 0),
+                        QPoint(0, -120 * notches), Qt.NoButton, Qt.NoModifier,
+                        Qt.NoScrollPhase, False)
+    QApplication.sendEvent(widget, event)
+    return event.isAccepted()
+
+
+def test_scrolling_over_a_tab_changes_no_field_the_pilot_did_not_choose(qt):
+    """Issue 32: the mouse wheel over a pose field scrolled it (drc_drive's roll to -1.35)
+    instead of the page.  A field takes the wheel only once clicked or tabbed into."""
+    from python_qt_binding.QtTest import QTest
+    from python_qt_binding.QtCore import Qt
+    from python_qt_binding.QtWidgets import QScrollArea
+
+    from pilot.catalogue import catalogue_of
+    from pilot.widgets.tasks import TaskWidget
+
+    widget = TaskWidget(catalogue_of("drc_drive"), Recorder())
+    area = QScrollArea()
+    area.setWidget(widget)
+    area.resize(360, 160)                                  # smaller than the widget: it scrolls
+    area.show()
+    area.activateWindow()
+    qt.processEvents()
+    fields = [field for fields in widget.fields.values() for field in fields]
+    combo = widget.command_box
+    before = [field.value() for field in fields]
+    for field in fields:
+        area.ensureWidgetVisible(field)
+        qt.processEvents()
+        assert not wheel(field, 3), f"{field.objectName()} took the wheel while not chosen"
+    assert not wheel(combo, 2)
+    assert [field.value() for field in fields] == before
+    assert combo.currentIndex() == 0
+    # What a field ignores, Qt hands to its parents (for a real wheel; a sent event stops at
+    # its receiver, so here the page gets it directly): the page scrolls.
+    bar = area.verticalScrollBar()
+    bar.setValue(0)
+    assert wheel(area.viewport(), 1) and bar.value() > 0
+    # A field the pilot chose takes the wheel, as before.
+    chosen = fields[0]
+    area.ensureWidgetVisible(chosen)
+    QTest.mouseClick(chosen, Qt.LeftButton)
+    chosen.setFocus(Qt.MouseFocusReason)
+    qt.processEvents()
+    assert chosen.hasFocus()
+    assert wheel(chosen, 1)
+    assert chosen.value() != before[0]
+    area.close()
