@@ -71,11 +71,13 @@ class Catalogue:
 def legal_switches(status: Optional[str]) -> List[str]:
     """The lifecycle commands legal now (Figure 8), from the module's last status word.
 
-    Nothing known about the module (it never spoke): only ``start``, which the
-    GYM runner accepts in its constructor state.
+    Nothing known (the module never spoke, or not for a long while): none.  A GYM
+    module's program says its state from its constructor on, so a silent one is not
+    running (or not reachable): a ``start`` would wait in the queues for a program that
+    nobody launched, until its validity ran out.  Advanced mode still allows every one.
     """
     if status is None:
-        return ["start"]
+        return []
     return [switch.value for switch in TRANSITIONS[lifecycle_of_status(status)]]
 
 

@@ -334,12 +334,27 @@ class _WheelOnlyWhenChosen:
     wheel over a field it does not have focus scrolls the page, as everywhere else.
     """
 
+    #: How a pilot chooses a field; focus given by Qt itself (the first field of a window
+    #: that became active) is not a choice.
+    CHOSEN_BY = (Qt.MouseFocusReason, Qt.TabFocusReason, Qt.BacktabFocusReason,
+                 Qt.ShortcutFocusReason)
+
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
         self.setFocusPolicy(Qt.StrongFocus)     # the wheel alone never gives focus
+        self.chosen = False
 
-    def wheelEvent(self, event) -> None:  # noqa: N802 -- Qt's name
-        if self.hasFocus():
+    def focusInEvent(self, event) -> None:  # noqa: N802 -- Qt's name
+        self.chosen = event.reason() in self.CHOSEN_BY
+        super().focusInEvent(event)
+
+    def focusOutEvent(self, event) -> None:  # noqa: N802
+        if event.reason() != Qt.PopupFocusReason:   # a combo's own list keeps it chosen
+            self.chosen = False
+        super().focusOutEvent(event)
+
+    def wheelEvent(self, event) -> None:  # noqa: N802
+        if self.chosen and self.hasFocus():
             super().wheelEvent(event)
         else:
             event.ignore()                      # to the scroll area around it
