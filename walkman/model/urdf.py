@@ -35,8 +35,13 @@ def to_urdf(robot: Robot) -> str:
                      f'izz="{izz:.6g}"/></inertial>')
         for tag in ("visual", "collision"):
             for geom in link.geoms:
+                # The description's colours (MuJoCo's too): without a material RViz draws
+                # every link in one flat red.
+                material = (f'<material name="rgba_{_v(geom.rgba).replace(" ", "_")}">'
+                            f'<color rgba="{_v(geom.rgba)}"/></material>'
+                            if tag == "visual" else "")
                 lines.append(f'    <{tag}><origin xyz="{_v(geom.pos)}" rpy="{_rpy(geom)}"/>'
-                             f"<geometry>{_geometry(geom)}</geometry></{tag}>")
+                             f"<geometry>{_geometry(geom)}</geometry>{material}</{tag}>")
         lines.append("  </link>")
     for joint in robot.joints:
         lines.append(f'  <joint name="{joint.name}" type="revolute">')
