@@ -45,6 +45,9 @@ from pilot.link import (CommandStateEvent, CountdownEvent, LinkEvent, StatusEven
 from pilot.widgets.timed_button import TimedButton
 from walkman.gym.lifecycle import State, lifecycle_of_status
 
+#: Number fields side by side before the next line: three label-and-field pairs fit the
+#: task area of the main-pilot layout at 1400 pixels (six ran past the right edge).
+FIELDS_PER_LINE = 3
 #: A status older than this is grey (the module sends one every 0.5 s; the bridge every T).
 STALE_S = 3.0
 #: Silent this long (or never heard): "not running".
@@ -131,7 +134,7 @@ class GenericWidget(QGroupBox):
         self.free_text.setPlaceholderText("command and numbers, e.g. look_at 1.0 0.4 0.1")
         self.free_text.setVisible(not self.catalogue.commands)
         self.command_box.setVisible(bool(self.catalogue.commands))
-        self.fields_row = QHBoxLayout()
+        self.fields_row = QGridLayout()
         self.number_fields: List[QDoubleSpinBox] = []
         self.send_button = QPushButton("send")
         self.send_button.setObjectName("send")
@@ -154,11 +157,12 @@ class GenericWidget(QGroupBox):
         spec = self.catalogue.commands.get(name)
         if spec is None:
             return
-        for label in spec.fields:
-            self.fields_row.addWidget(QLabel(label))
+        for index, label in enumerate(spec.fields):
+            line, place = divmod(index, FIELDS_PER_LINE)
+            self.fields_row.addWidget(QLabel(label), line, 2 * place)
             field = number_field()
             field.setObjectName(f"arg_{label}")
-            self.fields_row.addWidget(field)
+            self.fields_row.addWidget(field, line, 2 * place + 1)
             self.number_fields.append(field)
         self.send_button.setText("send (3 s, click again to cancel)" if spec.dangerous
                                  else "send")

@@ -24,7 +24,7 @@ from typing import Dict, List, Optional, Sequence
 from python_qt_binding.QtWidgets import QGridLayout, QLabel, QPushButton, QWidget
 
 from pilot.catalogue import Catalogue
-from pilot.widgets.generic import GenericWidget, number_field
+from pilot.widgets.generic import FIELDS_PER_LINE, GenericWidget, number_field
 from pilot.widgets.timed_button import TimedButton
 from walkman.gym.lifecycle import State, lifecycle_of_status
 from walkman.model.mjcf import PILOT_POSES
@@ -63,7 +63,8 @@ class TaskWidget(GenericWidget):
         grid = QGridLayout(panel)
         grid.setContentsMargins(0, 0, 0, 0)
         starting = STARTING_VALUES.get(self.module, {})
-        for row, (name, spec) in enumerate(catalogue.commands.items()):
+        row = 0
+        for name, spec in catalogue.commands.items():
             button = TimedButton(name) if spec.dangerous else QPushButton(name)
             button.setObjectName(f"do_{name}")
             if spec.dangerous:
@@ -82,11 +83,15 @@ class TaskWidget(GenericWidget):
                 if column < len(values):
                     field.setValue(values[column])
                 caption = QLabel(label.lower())
-                grid.addWidget(caption, row, 1 + 2 * column)
-                grid.addWidget(field, row, 2 + 2 * column)
+                # A pose's six numbers in two lines of three: in one line they ran past
+                # the right edge of a 1600-pixel screen, behind a scroll bar.
+                line, place = divmod(column, FIELDS_PER_LINE)
+                grid.addWidget(caption, row + line, 1 + 2 * place)
+                grid.addWidget(field, row + line, 2 + 2 * place)
                 fields.append(field)
             self.fields[name] = fields
             self.buttons[name] = button
+            row += max(1, -(-len(fields) // FIELDS_PER_LINE))
         self.task_area.addWidget(panel)
         self.refresh()
 
