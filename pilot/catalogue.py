@@ -19,7 +19,7 @@ state.  The lifecycle buttons follow Figure 8 (:mod:`walkman.gym.lifecycle`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Dict, List, Mapping, Optional, Sequence, Tuple
+from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from walkman.gym.lifecycle import TRANSITIONS, lifecycle_of_status
 from walkman.modules import module_class
@@ -51,12 +51,19 @@ class CommandSpec:
         return None
 
 
+def plain_numbers(state: str, values: Sequence[float]) -> str:
+    """A status's numbers with nothing known about them (another team's module)."""
+    return " ".join(f"{value:g}" for value in values)
+
+
 @dataclass
 class Catalogue:
     module: str
     statuses: List[str]
     commands: Dict[str, CommandSpec] = field(default_factory=dict)
     table: Optional[Mapping[str, Mapping[str, str]]] = None
+    #: (state, numbers) -> what the pilot reads: the module class's ``describe_status``
+    describe: Callable[[str, Sequence[float]], str] = plain_numbers
 
     def legal(self, state: str) -> List[str]:
         """The commands the module accepts in ``state``, in the table's order."""
@@ -100,4 +107,4 @@ def catalogue_of(module: str, statuses: Sequence[str] = ()) -> Catalogue:
         fewest, most, usage = arguments.get(name, (0, 0, ""))
         commands[name] = CommandSpec(name, fewest, most, usage, name in dangerous)
     return Catalogue(module, list(statuses) or list(getattr(cls, "statuses", [])), commands,
-                     table)
+                     table, getattr(cls, "describe_status", plain_numbers))

@@ -214,7 +214,9 @@ class GenericWidget(QGroupBox):
         self.state = event.state
         self.heard_at = time.monotonic() - max(0.0, time.time() - event.stamp)
         self.status_stamp = event.stamp
-        self.status_text = event.state + (f"  {event.data}" if event.data else "")
+        whole = event.values and len(event.values) == len(event.data.split())
+        data = self.catalogue.describe(event.state, event.values) if whole else event.data
+        self.status_text = event.state + (f"  {data}" if data else "")
         self.refresh()
 
     def on_warning(self, event: WarningEvent) -> None:

@@ -398,3 +398,31 @@ def test_scrolling_over_a_tab_changes_no_field_the_pilot_did_not_choose(qt):
     assert wheel(chosen, 1)
     assert chosen.value() != before[0]
     area.close()
+
+
+def test_a_status_reads_with_names_and_units_not_raw_numbers(qt):
+    """Issue 32: "tracking 0.36208946309668233 0.8348273937608888" and "monitoring 26 300
+    27 300" told a pilot nothing; each module's class says what its numbers are."""
+    from pilot.catalogue import catalogue_of
+    from pilot.link import StatusEvent
+    from pilot.widgets.generic import GenericWidget
+    from walkman.modules.temperature import joint_names
+
+    def shown(module: str, state: str, *values) -> str:
+        widget = GenericWidget(catalogue_of(module), Recorder())
+        data = " ".join(str(v) for v in values)
+        widget.on_status(StatusEvent(module, state, data, tuple(map(float, values)), 3,
+                                     time.time()))
+        return widget.status_label.text()
+
+    assert shown("gaze_control", "tracking", 0.36208946309668233, 0.8348273937608888) == \
+        "tracking  neck yaw 0.36 rad, pitch 0.83 rad"
+    assert shown("gaze_control", "unreachable", 3.0, -1.0, 0.5) == \
+        "unreachable  target (3.00, -1.00, 0.50) m"
+    names = joint_names()
+    assert shown("temperature", "monitoring", 26, 300, 27, 315) == \
+        f"monitoring  {names[26]} 30.0 C, {names[27]} 31.5 C"
+    assert shown("drc_valve", "idle", 0.66, 0.25, 0.08) == "idle  valve at (0.66, 0.25, 0.08) m"
+    # Numbers of another shape than declared are shown as they came, never dropped.
+    assert shown("temperature", "monitoring", 26, 300, 99) == "monitoring  26 300 99"
+    assert shown("gaze_control", "tracking", 0.5) == "tracking  0.5"

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import logging
 import time
-from typing import Any, Callable, Dict, FrozenSet, List, Mapping, Optional, Tuple
+from typing import Any, Callable, Dict, FrozenSet, List, Mapping, Optional, Sequence, Tuple
 
 from walkman.gym.interfaces import PilotCommand, PilotInterfaces
 from walkman.gym.link_loss import LinkLoss
@@ -90,6 +90,21 @@ class GenericThread:
     #: ``LinkLoss.CONTINUE`` (as at the DRC), ``LinkLoss.pause(after=5.0)`` or
     #: ``LinkLoss.stop(after=...)``.  Say in the class why the module's choice is right.
     link_loss: LinkLoss = LinkLoss.CONTINUE
+    #: How a pilot reads a status's numbers, per state (``"*"``: every other state): a
+    #: format over them with names and units, e.g. ``"neck yaw {0:.2f} rad"``.  Without
+    #: one, or for numbers that do not fit it, they are shown as they came.
+    status_format: Mapping[str, str] = {}
+
+    @classmethod
+    def describe_status(cls, state: str, values: Sequence[float]) -> str:
+        """A status's numbers as the pilot reads them (the PI shows this beside the state)."""
+        template = cls.status_format.get(state, cls.status_format.get("*"))
+        if template is not None and values:
+            try:
+                return template.format(*values)
+            except (IndexError, ValueError):
+                pass    # not the shape the module declared: the numbers as they are
+        return " ".join(f"{value:g}" for value in values)
 
     def __init__(self, name: str, config: Dict[str, Any], interfaces: PilotInterfaces,
                  on_status_change=lambda: None) -> None:

@@ -47,6 +47,7 @@ TABLE = grasp_table("doordatasent", {
 
 class Module(GraspTask):
     statuses = task_statuses(TABLE)
+    status_format = {"*": "door opened {0:.2f} rad"}
     table = TABLE
     arguments = {"doordatasent": (8, 8, "X Y Z ROLL PITCH YAW HANDLE_LENGTH DOOR_WIDTH"),
                  "turn": (0, 1, "ANGLE rad"), "open": (0, 1, "ANGLE rad")}

@@ -49,6 +49,7 @@ TURN_SPEED, FOOT_SPEED = 0.6, 0.1
 
 class Module(GraspTask):
     statuses = task_statuses(DRIVE_TABLE)
+    status_format = {"*": "wheel at ({0:.2f}, {1:.2f}, {2:.2f}) m, steered {3:.2f} rad"}
     table = DRIVE_TABLE
     arguments = {"steeringwheeldatasent": (7, 10, "X Y Z ROLL PITCH YAW RADIUS [PX PY PZ]"),
                  "turn_left": (0, 1, "ANGLE rad"), "turn_right": (0, 1, "ANGLE rad"),

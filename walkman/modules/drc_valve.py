@@ -52,6 +52,7 @@ def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
 
 class Module(GraspTask):
     statuses = task_statuses(TABLE)
+    status_format = {"*": "valve at ({0:.2f}, {1:.2f}, {2:.2f}) m"}
     table = TABLE
     arguments = {"valvedatasent": (7, 7, "X Y Z ROLL PITCH YAW RADIUS"),
                  "turn": (0, 1, "ANGLE rad")}

@@ -48,6 +48,8 @@ def neck_angles(kinematics, q: np.ndarray, target: np.ndarray,
 
 class Module(ControlThread):
     statuses = ["ready", "moving", "tracking", "unreachable"]
+    status_format = {"unreachable": "target ({0:.2f}, {1:.2f}, {2:.2f}) m",
+                     "*": "neck yaw {0:.2f} rad, pitch {1:.2f} rad"}
     arguments = {"look_at": (3, 3, "X Y Z m, pelvis frame"), "track": (3, 3, "X Y Z m"),
                  "home": (0, 0, ""), "set_time": (1, 1, "T s, 0.1..20")}
     # The head moves nothing else and keeps looking where the pilot will want to see when

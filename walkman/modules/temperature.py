@@ -9,17 +9,37 @@ it cooled 2 C below it).
 
 from __future__ import annotations
 
+from functools import lru_cache
+from typing import List, Sequence
+
 import numpy as np
 
 from walkman.gym.link_loss import LinkLoss
 from walkman.gym.thread import ControlThread
+from walkman.model.description import walkman
 
 PER_SECOND = 7
 HYSTERESIS = 2.0
 
 
+@lru_cache(maxsize=1)
+def joint_names() -> List[str]:
+    """The robot's joints in the HAL's order: what a status's joint index counts."""
+    return walkman().joint_names
+
+
 class Module(ControlThread):
     statuses = ["monitoring", "hot"]
+
+    @classmethod
+    def describe_status(cls, state: str, values: Sequence[float]) -> str:
+        """``(joint index, tenths of a degree)`` pairs as ``LKneej 30.0 C``."""
+        names = joint_names()
+        pairs = list(zip(values[0::2], values[1::2]))
+        if len(values) % 2 or any(not 0 <= index < len(names) or index != int(index)
+                                  for index, _ in pairs):
+            return super().describe_status(state, values)
+        return ", ".join(f"{names[int(index)]} {tenths / 10:.1f} C" for index, tenths in pairs)
     # It only watches: its warnings wait in the robot bridge's queue for the pilot.
     link_loss = LinkLoss.CONTINUE
 

@@ -101,6 +101,7 @@ def read_log(path: Path) -> List[Execution]:
 
 class Module(GenericThread):
     statuses = ["idle", "counting"]
+    status_format = {"counting": "ran command {0:.0f}"}
     #: Held commands must still run after long outages, unless the pilot asks for less.
     command_validity = 3600.0
 
