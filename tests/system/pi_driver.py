@@ -318,9 +318,14 @@ def drag_marker() -> None:
     feedback.pose.position.x, feedback.pose.position.y, feedback.pose.position.z = 0.61, -0.12, 0.05
     feedback.pose.orientation.z = feedback.pose.orientation.w = 0.5 ** 0.5   # yaw pi/2
     fields = valve.fields["valvedatasent"]
-    end = time.monotonic() + 10              # a drag is a stream of pose updates
+    # A drag is a stream of pose updates.  The marker server lives in the render process:
+    # if librviz takes it down meanwhile (its own crash, which the PI survives), the PI
+    # starts another and the drag goes on once the new one listens -- as a pilot would
+    # drag again when the view is back.
+    end = time.monotonic() + 90
     while abs(fields[0].value() - 0.61) >= 1e-3 and time.monotonic() < end:
-        topic.publish(feedback)
+        if topic.get_num_connections() > 0:
+            topic.publish(feedback)
         pump(0.3)
     if abs(fields[0].value() - 0.61) >= 1e-3:
         view = window.view3d
