@@ -39,7 +39,7 @@ from python_qt_binding.QtWidgets import (QComboBox, QDoubleSpinBox, QGridLayout,
                                          QListWidgetItem, QPushButton, QVBoxLayout, QWidget)
 from python_qt_binding.QtGui import QColor
 
-from pilot.catalogue import Catalogue, legal_switches
+from pilot.catalogue import Catalogue, catalogue_of, legal_switches
 from pilot.link import (CommandStateEvent, CountdownEvent, LinkEvent, StatusEvent,
                         WarningEvent)
 from pilot.widgets.timed_button import TimedButton
@@ -214,9 +214,7 @@ class GenericWidget(QGroupBox):
         self.state = event.state
         self.heard_at = time.monotonic() - max(0.0, time.time() - event.stamp)
         self.status_stamp = event.stamp
-        whole = event.values and len(event.values) == len(event.data.split())
-        data = self.catalogue.describe(event.state, event.values) if whole else event.data
-        self.status_text = event.state + (f"  {data}" if data else "")
+        self.status_text = status_text(event, self.catalogue)
         self.refresh()
 
     def on_warning(self, event: WarningEvent) -> None:
@@ -330,6 +328,15 @@ class GenericWidget(QGroupBox):
 
     def refresh_commands(self, state: Optional[str]) -> None:
         """Task widgets enable their buttons here."""
+
+
+def status_text(event: StatusEvent, catalogue: Optional[Catalogue] = None) -> str:
+    """A status as the pilot reads it: its state, and its numbers named as the module's
+    class declares (``tracking  neck yaw 0.36 rad, pitch 0.83 rad``)."""
+    catalogue = catalogue or catalogue_of(event.module)
+    whole = event.values and len(event.values) == len(event.data.split())
+    data = catalogue.describe(event.state, event.values) if whole else event.data
+    return event.state + (f"  {data}" if data else "")
 
 
 class _WheelOnlyWhenChosen:

@@ -13,19 +13,24 @@ from collections import deque
 from typing import Deque, Dict, Optional, Tuple
 
 import numpy as np
-from python_qt_binding.QtCore import QPointF, QRectF
-from python_qt_binding.QtGui import QColor, QPainter, QPen
-from python_qt_binding.QtWidgets import (QHBoxLayout, QTableWidget, QTableWidgetItem,
-                                         QVBoxLayout, QWidget)
+from python_qt_binding.QtCore import QPointF, QRectF, Qt
+from python_qt_binding.QtGui import QColor, QFont, QPainter, QPen
+from python_qt_binding.QtWidgets import (QHBoxLayout, QHeaderView, QTableWidget,
+                                         QTableWidgetItem, QToolTip, QVBoxLayout, QWidget)
 
 from pilot.link import JointsEvent, StatusEvent, TemperaturesEvent
+from pilot.widgets.generic import status_text
 
 HISTORY_S = 120.0
 HOT_C = 70.0        # the temperature module's "hot" level (FACTS: boards shut down at 80)
 
 
 class JointPlot(QWidget):
-    """Bars of the latest value per joint, and the largest value over time."""
+    """Bars of the latest value per joint, named, on a scale with units; below, the largest
+    value over time.  Hovering a bar names its joint and value."""
+
+    AXIS_W = 44          # px left of the bars for the scale
+    NAMES_H = 86         # px under the bars for the joint names (turned upright)
 
     def __init__(self, title: str, unit: str, warn: Optional[float], parent=None) -> None:
         super().__init__(parent)
@@ -33,7 +38,8 @@ class JointPlot(QWidget):
         self.names: Tuple[str, ...] = ()
         self.values = np.zeros(0)
         self.history: Deque[Tuple[float, float]] = deque()
-        self.setMinimumSize(360, 200)
+        self.setMinimumSize(420, 350)
+        self.setMouseTracking(True)
 
     def update_values(self, names, values: np.ndarray) -> None:
         self.names, self.values = tuple(names), np.asarray(values, float)
@@ -44,33 +50,99 @@ class JointPlot(QWidget):
             self.history.popleft()
         self.update()
 
+    # -- geometry, shared by painting and hovering ---------------------------------------
+
+    def _bar_width(self) -> float:
+        return (self.width() - self.AXIS_W - 6) / max(1, len(self.values))
+
+    def _bars_bottom(self) -> float:
+        return self.height() * 0.58
+
+    def joint_at(self, x: float) -> Optional[int]:
+        """The index of the bar under ``x``, if any."""
+        if not self.values.size or x < self.AXIS_W:
+            return None
+        index = int((x - self.AXIS_W) // self._bar_width())
+        return index if 0 <= index < len(self.values) else None
+
+    def peak(self) -> Tuple[float, str]:
+        """The largest magnitude now and whose it is."""
+        if not self.values.size or not np.isfinite(self.values).any():
+            return 0.0, ""
+        index = int(np.nanargmax(np.abs(self.values)))
+        name = self.names[index] if index < len(self.names) else f"#{index}"
+        return float(abs(self.values[index])), name
+
+    def mouseMoveEvent(self, event) -> None:  # noqa: N802 -- Qt's name
+        index = self.joint_at(event.pos().x())
+        if index is None:
+            QToolTip.hideText()
+            return
+        name = self.names[index] if index < len(self.names) else f"#{index}"
+        QToolTip.showText(event.globalPos(), f"{name}: {self.values[index]:.1f} {self.unit}",
+                          self)
+
+    # -- painting ------------------------------------------------------------------------
+
     def paintEvent(self, _event) -> None:  # noqa: N802 -- Qt's name
         painter = QPainter(self)
         painter.fillRect(self.rect(), QColor("#20242c"))
         painter.setPen(QColor("#e0e0e0"))
         w, h = self.width(), self.height()
-        peak = float(np.nanmax(np.abs(self.values))) if self.values.size else 0.0
-        painter.drawText(6, 14, f"{self.title}  (max {peak:.1f} {self.unit})")
+        peak, whose = self.peak()
+        painter.drawText(6, 14, f"{self.title} ({self.unit})" + (
+            f"   max {peak:.1f} {self.unit} at {whose}" if whose else ""))
         if not self.values.size:
             painter.drawText(6, 34, "no data yet")
             return
         top = max(peak, self.warn or 0.0, 1e-6) * 1.1
-        bars_h = h * 0.55
-        width = (w - 12) / len(self.values)
+        left, bottom, ceiling = self.AXIS_W, self._bars_bottom(), 24.0
+        scale = (bottom - ceiling) / top
+        small = QFont(painter.font())
+        small.setPointSizeF(max(6.0, small.pointSizeF() * 0.8))
+        painter.setFont(small)
+        # The scale: three ticks with their values, and the warning level.
+        for fraction in (0.0, 0.5, 1.0):
+            value = top / 1.1 * fraction
+            y = bottom - value * scale
+            painter.setPen(QColor("#505860"))
+            painter.drawLine(QPointF(left, y), QPointF(w - 6, y))
+            painter.setPen(QColor("#a0a0a0"))
+            painter.drawText(QRectF(0, y - 8, left - 4, 16), Qt.AlignRight | Qt.AlignVCenter,
+                             f"{value:.0f}")
+        if self.warn is not None:
+            y = bottom - self.warn * scale
+            painter.setPen(QPen(QColor("#d03030"), 1, Qt.DashLine))
+            painter.drawLine(QPointF(left, y), QPointF(w - 6, y))
+        width = self._bar_width()
         for i, value in enumerate(np.abs(self.values)):
-            bar = 0.0 if not np.isfinite(value) else value / top * (bars_h - 24)
+            bar = 0.0 if not np.isfinite(value) else value * scale
             hot = self.warn is not None and value >= self.warn
-            painter.fillRect(QRectF(6 + i * width, bars_h - bar, max(1.0, width - 1), bar),
+            painter.fillRect(QRectF(left + i * width, bottom - bar, max(1.0, width - 1), bar),
                              QColor("#d03030" if hot else "#40a0e0"))
+        # Each bar's joint, written upward under it.
+        painter.setPen(QColor("#c0c0c0"))
+        for i, name in enumerate(self.names[:len(self.values)]):
+            painter.save()
+            painter.translate(left + (i + 0.5) * width + 4, bottom + 3)
+            painter.rotate(-90)
+            painter.drawText(QRectF(-self.NAMES_H, -8, self.NAMES_H, 12),
+                             Qt.AlignRight | Qt.AlignVCenter, name)
+            painter.restore()
+        # Over time: the largest value of each sample.
+        graph_top, graph_bottom = bottom + self.NAMES_H + 18, h - 6.0
+        painter.setPen(QColor("#a0a0a0"))
+        painter.drawText(6, int(graph_top - 4),
+                         f"largest over the last {HISTORY_S:.0f} s ({self.unit}, "
+                         f"0 to {top / 1.1:.0f})")
         painter.setPen(QPen(QColor("#f0c040"), 1.5))
-        if len(self.history) > 1:
+        if len(self.history) > 1 and graph_bottom > graph_top:
             t0 = self.history[-1][0] - HISTORY_S
-            points = [QPointF(6 + (t - t0) / HISTORY_S * (w - 12),
-                              h - 6 - v / top * (h - bars_h - 16)) for t, v in self.history]
+            points = [QPointF(left + (t - t0) / HISTORY_S * (w - left - 6),
+                              graph_bottom - v / top * (graph_bottom - graph_top))
+                      for t, v in self.history]
             for a, b in zip(points, points[1:]):
                 painter.drawLine(a, b)
-        painter.setPen(QColor("#a0a0a0"))
-        painter.drawText(6, int(bars_h + 12), f"largest over the last {HISTORY_S:.0f} s")
 
 
 class StatusTab(QWidget):
@@ -87,6 +159,11 @@ class StatusTab(QWidget):
             self.table.setItem(row, 0, QTableWidgetItem(module))
             self.table.setItem(row, 1, QTableWidgetItem("not running"))
             self.table.setItem(row, 2, QTableWidgetItem("never"))
+        header = self.table.horizontalHeader()
+        header.setSectionResizeMode(0, QHeaderView.ResizeToContents)
+        header.setSectionResizeMode(1, QHeaderView.Stretch)   # the state and its numbers
+        header.setSectionResizeMode(2, QHeaderView.ResizeToContents)
+        self.table.setMaximumHeight(36 + 30 * max(1, len(modules)))
         layout.addWidget(self.table)
         plots = QHBoxLayout()
         self.temperatures = JointPlot("temperatures", "\u00b0C", HOT_C)
@@ -98,7 +175,7 @@ class StatusTab(QWidget):
     def on_status(self, event: StatusEvent) -> None:
         row = self.rows.get(event.module)
         if row is not None:
-            self.table.item(row, 1).setText(event.state)
+            self.table.item(row, 1).setText(status_text(event))
             self.heard[event.module] = time.monotonic() - max(0.0, time.time() - event.stamp)
 
     def on_joints(self, event: JointsEvent) -> None:

@@ -319,7 +319,7 @@ def test_the_link_widget_shows_the_bridge_status_and_bit_rates_per_id(qt):
 
 
 def test_the_status_tab_shows_module_states_temperatures_and_torques(qt):
-    from pilot.link import JointsEvent, TemperaturesEvent
+    from pilot.link import JointsEvent, StatusEvent, TemperaturesEvent
     from pilot.widgets.status import StatusTab
 
     tab = StatusTab(["drc_valve", "walking"])
@@ -338,6 +338,16 @@ def test_the_status_tab_shows_module_states_temperatures_and_torques(qt):
     colours = {image.pixelColor(x, y).name() for x in range(0, image.width(), 2)
                for y in range(0, image.height(), 2)}
     assert {"#40a0e0", "#d03030"} <= colours
+    # Read at a glance: the peak is named, each bar is a joint, the state has its numbers.
+    assert tab.temperatures.peak() == (75.0, "RKneeSag")
+    assert tab.torques.peak() == (80.0, "RKneeSag")
+    plot = tab.temperatures
+    assert [plot.joint_at(plot.AXIS_W + (i + 0.5) * plot._bar_width()) for i in range(2)] == \
+        [0, 1]
+    assert plot.joint_at(plot.AXIS_W - 1) is None
+    tab.on_status(StatusEvent("drc_valve", "idle", "0.66 0.25 0.08", (0.66, 0.25, 0.08), 4,
+                              time.time()))
+    assert tab.table.item(0, 1).text() == "idle  valve at (0.66, 0.25, 0.08) m"
 
 
 def wheel(widget, notches: int) -> bool:
