@@ -221,14 +221,14 @@ class PilotWindow(QMainWindow):
         from pilot.widgets.link import LinkWidget
         from pilot.widgets.log import LogView
         from pilot.widgets.status import StatusTab
-        from pilot.widgets.tasks import TASK_MODULES, TaskWidget
+        from pilot.widgets.tasks import TASK_MODULES, task_widget_class
         from pilot.widgets.view3d import View3D
 
         advanced = self.advanced_box.isChecked
         if spec.kind in ("task", "generic"):
             catalogue = catalogue_of(spec.module, self.modules.get(spec.module, []))
-            cls = TaskWidget if spec.kind == "task" and spec.module in TASK_MODULES \
-                else GenericWidget
+            cls = task_widget_class(spec.module) \
+                if spec.kind == "task" and spec.module in TASK_MODULES else GenericWidget
             widget = cls(catalogue, self, advanced)
             self.module_widgets[spec.module].append(widget)
             return [widget]

@@ -339,8 +339,9 @@ def status_text(event: StatusEvent, catalogue: Optional[Catalogue] = None) -> st
     return event.state + (f"  {data}" if data else "")
 
 
-class _WheelOnlyWhenChosen:
-    """A field the mouse wheel changes only once the pilot chose it (clicked or tabbed in).
+class WheelOnlyWhenChosen:
+    """A field the mouse wheel changes only once the pilot chose it (clicked or tabbed in):
+    mixed into number fields, choice boxes and sliders.
 
     Qt's spin boxes and combo boxes take the wheel from under the pointer: a pilot
     scrolling a tab changed ``drc_drive``'s roll to -1.35 without seeing it.  Here the
@@ -373,11 +374,11 @@ class _WheelOnlyWhenChosen:
             event.ignore()                      # to the scroll area around it
 
 
-class NumberField(_WheelOnlyWhenChosen, QDoubleSpinBox):
+class NumberField(WheelOnlyWhenChosen, QDoubleSpinBox):
     """A command's number."""
 
 
-class ChoiceBox(_WheelOnlyWhenChosen, QComboBox):
+class ChoiceBox(WheelOnlyWhenChosen, QComboBox):
     """A choice among commands."""
 
 

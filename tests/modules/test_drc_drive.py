@@ -1,7 +1,8 @@
 """drc_drive end to end: HAL at the driving rig, the module as a process, yarp-lite write.
 
-Done when turn_left/turn_right turn the sim steering wheel by the angle and accelerate
-presses the sim throttle for the time asked.
+Done when turn_left/turn_right turn the sim steering wheel by the angle, the status
+shows the wheel's angle as the robot measures it, and accelerate presses the sim
+throttle for the time and as far as asked.
 """
 
 import time
@@ -20,12 +21,18 @@ def test_steer_and_accelerate(task_at):
     for command, state in (("reach", "reached"), ("approach", "approached"),
                            ("grasp", "grasped"), ("drive", "drive")):
         drive.command(command, state)
+    start = drive.scene.prop("steering")
     for command, angle in (("turn_left 0.5", 0.5), ("turn_right 1.0", -1.0)):
         before = drive.scene.prop("steering")
         drive.send("command", command)
         wait_until(lambda: drive.pilot.state() != "drive", 10, message=command)
         drive.pilot.wait_state("drive", 40)
         assert drive.scene.prop("steering") - before == pytest.approx(angle, rel=0.1), command
+    # The status: the angle asked in all, and the one the hand on the rim measures, which is
+    # the wheel's in the world.
+    centre_x, centre_y, centre_z, asked, measured = drive.pilot.data()
+    assert asked == pytest.approx(-0.5)
+    assert measured == pytest.approx(drive.scene.prop("steering") - start, abs=0.1)
     drive.send("command", "accelerate 1")
     drive.pilot.wait_warning("the foot is not on the pedal (rotate_foot first)")
     drive.send("command", "rotate_foot")   # from drive back to drive: see it leave first
@@ -40,6 +47,12 @@ def test_steer_and_accelerate(task_at):
     pressed = sum(b[0] - a[0] for a, b in zip(samples, samples[1:]) if a[1] > peak / 2)
     assert peak > 0.1  # of the pedal's 0.35 rad
     assert 0.8 * 2 <= pressed <= 2 + 2.0, pressed
+    drive.send("command", "accelerate 1 0.4")      # 40 % of the travel
+    wait_until(lambda: drive.pilot.state() == "accelerating", 10, message="accelerating 40 %")
+    partial = []
+    while drive.pilot.state() != "drive":
+        partial.append(drive.scene.prop("throttle"))
+    assert 0.1 * peak < max(partial) < 0.75 * peak, (max(partial), peak)
     drive.send("command", "move_away_foot")   # from drive back to drive: see it leave first
     wait_until(lambda: drive.pilot.state() != "drive", 10, message="move_away_foot")
     drive.pilot.wait_state("drive", 40)

@@ -436,3 +436,45 @@ def test_a_status_reads_with_names_and_units_not_raw_numbers(qt):
     # Numbers of another shape than declared are shown as they came, never dropped.
     assert shown("temperature", "monitoring", 26, 300, 99) == "monitoring  26 300 99"
     assert shown("gaze_control", "tracking", 0.5) == "tracking  0.5"
+
+
+def test_the_drive_widget_steers_to_the_sliders_angle_from_the_measured_one(qt):
+    """Issue 32, Fig. 14: a steering slider; ``steer`` sends the turn that takes the wheel
+    from the angle the robot measures (the module's status) to the slider's."""
+    import math
+
+    from python_qt_binding.QtCore import Qt
+    from python_qt_binding.QtTest import QTest
+
+    from pilot.catalogue import catalogue_of
+    from pilot.link import StatusEvent
+    from pilot.widgets.tasks import DriveWidget, task_widget_class
+
+    assert task_widget_class("drc_drive") is DriveWidget
+    sent = Recorder()
+    widget = DriveWidget(catalogue_of("drc_drive"), sent)
+    assert not widget.steer_button.isEnabled()              # not driving yet
+    assert not widget.steer()                               # and nothing measured
+    assert sent.sent == [] and "not known yet" in warnings(widget)[0]
+
+    def drive_status(measured: float) -> None:
+        values = (0.55, 0.1, 0.03, 0.2, measured)
+        widget.on_status(StatusEvent("drc_drive", "drive", " ".join(map(str, values)), values,
+                                     9, time.time()))
+
+    drive_status(0.0)
+    assert widget.steer_button.isEnabled()
+    assert widget.measured_label.text() == "measured: +0\u00b0"
+    widget.slider.setValue(30)
+    QTest.mouseClick(widget.steer_button, Qt.LeftButton)
+    module, name, numbers, dangerous = sent.sent[-1]
+    assert (module, name, dangerous) == ("drc_drive", "turn_left", False)
+    assert numbers[0] == pytest.approx(math.radians(30))
+    drive_status(0.6)                                        # the wheel went further
+    widget.slider.setValue(-30)
+    assert widget.steer()
+    assert sent.sent[-1][1:3] == ("turn_right", [pytest.approx(0.6 + math.radians(30))])
+    # The throttle: accelerate's time and amount, counted down as a dangerous command.
+    assert [f.objectName() for f in widget.fields["accelerate"]] == \
+        ["accelerate_SECONDS", "accelerate_AMOUNT"]
+    assert [f.value() for f in widget.fields["accelerate"]] == [1.0, 1.0]

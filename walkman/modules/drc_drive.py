@@ -16,8 +16,9 @@ While driving:
   wheel's axis by A rad (default 0.5), counter-clockwise / clockwise as the
   driver sees it; the wheel turns with it;
 * ``rotate_foot``: the right foot's sole goes over the throttle pad;
-* ``accelerate [T]``: the foot presses the pad 4 cm down, holds it T seconds
-  (default 1), and lets it up -- refused until the foot is on the pedal;
+* ``accelerate [T] [AMOUNT]``: the foot presses the pad AMOUNT of its 4-cm travel
+  down (0.1..1, default 1: the whole), holds it T seconds (default 1), and lets it
+  up -- refused until the foot is on the pedal;
 * ``move_away_foot``: the foot back to the floor;
 * ``ungrasp``, then ``move_away_hand`` (the arm back to where it started).
 
@@ -45,15 +46,21 @@ PEDAL_CLEARANCE = 0.03               # m above the pad when the foot is on the p
 PRESS_DEPTH = 0.04                   # m the foot pushes the pad down
 APPROACH_GAP, REACH_GAP = 0.04, 0.15
 TURN_SPEED, FOOT_SPEED = 0.6, 0.1
+#: The states in which the left hand holds the rim (:data:`DRIVE_TABLE`).
+HOLDING_THE_WHEEL = frozenset({"grasped", "drive", "turning_left", "turning_right",
+                               "accelerating", "rotating_foot", "moving_away_foot"})
 
 
 class Module(GraspTask):
     statuses = task_statuses(DRIVE_TABLE)
-    status_format = {"*": "wheel at ({0:.2f}, {1:.2f}, {2:.2f}) m, steered {3:.2f} rad"}
+    #: The wheel's centre, the angle the pilot asked in all, and the angle the hand holding
+    #: the rim is at now, measured by the robot's own joints (forward kinematics).
+    status_format = {"*": "wheel at ({0:.2f}, {1:.2f}, {2:.2f}) m, steered {3:.2f} rad, "
+                          "measured {4:.2f} rad"}
     table = DRIVE_TABLE
     arguments = {"steeringwheeldatasent": (7, 10, "X Y Z ROLL PITCH YAW RADIUS [PX PY PZ]"),
                  "turn_left": (0, 1, "ANGLE rad"), "turn_right": (0, 1, "ANGLE rad"),
-                 "accelerate": (0, 1, "SECONDS")}
+                 "accelerate": (0, 2, "SECONDS AMOUNT")}
     dangerous = frozenset({"accelerate"})
     joints = GraspTask.joints + RIGHT_LEG
     # Never pause a car's driver: a pause holds the posture of the moment, so a pause during
@@ -69,7 +76,25 @@ class Module(GraspTask):
     def status_data(self) -> List[float]:
         if self.target is None:
             return []
-        return [*map(float, self.target["center"]), float(self.target["steered"])]
+        return [*map(float, self.target["center"]), float(self.target["steered"]),
+                self.measured_steer()]
+
+    def measured_steer(self) -> float:
+        """How far the wheel is turned, from where the hand holding its rim is (sensed):
+        the angle about the wheel's axis from the grip to the hand.  Before the hand
+        holds the rim, the angle asked (there is nothing to measure it by)."""
+        wheel = self.target
+        if self.fsm.state not in HOLDING_THE_WHEEL:
+            return float(wheel["steered"])
+        hand, _ = self.pose(self.hand)
+        axis = wheel["axis"] / np.linalg.norm(wheel["axis"])
+
+        def in_plane(point: np.ndarray) -> np.ndarray:
+            offset = point - wheel["center"]
+            return offset - axis @ offset * axis
+
+        start, now = in_plane(wheel["grip"]), in_plane(hand)
+        return float(np.arctan2(axis @ np.cross(start, now), start @ now))
 
     def _start_steeringwheeldatasent(self, x, y, z, roll, pitch, yaw, radius,
                                      *pedal: float) -> None:
@@ -107,13 +132,15 @@ class Module(GraspTask):
                      np.eye(3))
         self.foot_on_pedal = True
 
-    def _start_accelerate(self, seconds: float = 1.0) -> None:
+    def _start_accelerate(self, seconds: float = 1.0, amount: float = 1.0) -> None:
         if not self.foot_on_pedal:
             raise ValueError("the foot is not on the pedal (rotate_foot first)")
         if not 0.1 <= seconds <= 10:
             raise ValueError(f"accelerate for 0.1..10 s, got {seconds}")
+        if not 0.1 <= amount <= 1.0:
+            raise ValueError(f"press the throttle 0.1..1 of its travel, got {amount}")
         above = self.target["pedal"] + [0.0, 0.0, PEDAL_CLEARANCE]
-        pressed = self.target["pedal"] - [0.0, 0.0, PRESS_DEPTH]
+        pressed = self.target["pedal"] - [0.0, 0.0, amount * PRESS_DEPTH]
         self.line_to(self.foot, pressed, FOOT_SPEED, np.eye(3), contact=True)
         # The pad pushes back: hold the commanded depth, then let it up.
         self.then(lambda: self.hold_for(seconds),
