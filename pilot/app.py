@@ -130,7 +130,7 @@ ROUTES = {events.StatusEvent: "on_status", events.WarningEvent: "on_warning",
           events.ImageEvent: "on_image", events.CloudEvent: "on_cloud",
           events.ArrivalEvent: "on_arrival",
           events.BridgeEvent: "on_bridge", events.LinkEvent: "on_link",
-          events.CommandStateEvent: "on_command_state"}
+          events.CommandStateEvent: "on_command_state", events.BatteryEvent: "on_battery"}
 
 
 class _Events(QObject):

@@ -89,6 +89,16 @@ class JointsEvent:
 
 
 @dataclass(frozen=True)
+class BatteryEvent:
+    """The robot's battery (``/battery``, the HAL's batteryWrapper stream)."""
+
+    percent: float
+    voltage: float
+    current: float        # A drawn (positive while discharging)
+    stamp: float
+
+
+@dataclass(frozen=True)
 class TemperaturesEvent:
     names: Tuple[str, ...]
     celsius: np.ndarray
@@ -359,7 +369,7 @@ class PilotLink:
 
     def _open_topics(self) -> None:
         import rospy
-        from sensor_msgs.msg import Image, JointState, PointCloud2
+        from sensor_msgs.msg import BatteryState, Image, JointState, PointCloud2
         from bridge.endpoints.ros import arrival_topic
         from walkman_msgs.msg import (Arrival, Command, CommandState, Countdown,
                                       JointTemperatures, Link, SentCommand, Status, Switch,
@@ -378,6 +388,7 @@ class PilotLink:
         rospy.Subscriber("/pilot/command_states", CommandState, self._on_command_state,
                          queue_size=200)
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=1)
+        rospy.Subscriber("/battery", BatteryState, self._on_battery, queue_size=1)
         rospy.Subscriber("/joint_temperatures", JointTemperatures, self._on_temperatures,
                          queue_size=1)
         if self.camera:
@@ -428,6 +439,10 @@ class PilotLink:
     def _on_joints(self, msg: Any) -> None:
         self.post(JointsEvent(tuple(msg.name), np.array(msg.position, float),
                               np.array(msg.effort, float), msg.header.stamp.to_sec()))
+
+    def _on_battery(self, msg: Any) -> None:
+        self.post(BatteryEvent(100.0 * msg.percentage, msg.voltage, -msg.current,
+                               msg.header.stamp.to_sec()))
 
     def _on_temperatures(self, msg: Any) -> None:
         self.post(TemperaturesEvent(tuple(msg.name), np.array(msg.celsius, float),

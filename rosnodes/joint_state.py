@@ -11,6 +11,8 @@ the Table 1 resolution) and publishes on the local roscore:
   kinematics with Pinocchio on ``models/walkman.urdf``) and the camera's optical
   frame (perception's cloud), so RViz or ``tf_echo`` can place the robot;
 * ``/joint_temperatures`` -- ``walkman_msgs/JointTemperatures``, once a second;
+* ``/battery`` -- ``sensor_msgs/BatteryState``, as the HAL's ``batteryWrapper`` stream
+  brings it (once a second; on the robot only: the bridge carries the topic);
 * the ``/robot_description`` parameter (the URDF), as ``robot_state_publisher``
   sets it, for RViz's RobotModel -- set again after a roscore restart.
 """
@@ -67,12 +69,59 @@ def publish_slow(publisher, robot, now) -> None:
         log.warning("joint state: cannot set /robot_description: %s", exc)
 
 
+def battery_state(values, stamp):
+    """``sensor_msgs/BatteryState`` of a ``batteryWrapper`` reading (None if malformed)."""
+    from sensor_msgs.msg import BatteryState
+
+    from walkman.hal.battery import CAPACITY_WH, FULL_V, decode_reading
+
+    try:
+        reading = decode_reading(list(values))
+    except ValueError as exc:
+        log.warning("joint state: battery: %s", exc)
+        return None
+    msg = BatteryState(voltage=reading.voltage, current=-reading.current,  # discharging: < 0
+                       percentage=reading.charge / 100.0, temperature=reading.temperature,
+                       design_capacity=CAPACITY_WH / FULL_V, present=True,
+                       power_supply_status=BatteryState.POWER_SUPPLY_STATUS_DISCHARGING,
+                       power_supply_technology=BatteryState.POWER_SUPPLY_TECHNOLOGY_LION,
+                       location=f"yarp status {int(reading.status)}")
+    msg.charge = msg.design_capacity * msg.percentage
+    msg.capacity = msg.design_capacity
+    msg.header.stamp = stamp
+    return msg
+
+
+def follow_battery(robot: str, publishers) -> "tuple":
+    """A port that publishes each battery reading of the HAL on ``/battery``."""
+    from nodekit.connections import ConnectionKeeper
+    from walkman.hal.protocol import battery_port_name
+    from yarp_lite.port import Port
+
+    def on_reading(bottle) -> None:
+        import rospy
+
+        if "battery" in publishers:
+            msg = battery_state(bottle, rospy.Time.now())
+            if msg is not None:
+                publishers["battery"].publish(msg)
+
+    port = Port(reader=on_reading)
+    port.open(f"/joint_state/{robot}/battery:i", wait=float("inf"))
+    keeper = ConnectionKeeper(period=1.0)
+    keeper.want(battery_port_name(robot), port.name, port, ours_is_source=False)
+    keeper.start()
+    return port, keeper
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="walkman-joint-state",
                                      description="The HAL's joints as JointState and TF.")
     parser.add_argument("--robot", default="walkman")
     parser.add_argument("--rate", type=float, default=50.0, help="Hz (default 50)")
     parser.add_argument("--no-tf", action="store_true", help="only /joint_states")
+    parser.add_argument("--no-battery", dest="battery", action="store_false",
+                        help="no /battery (the pilot's copy: the bridge brings the robot's)")
     options = parser.parse_args(argv)
     if not 0 < options.rate <= 500:
         parser.error("--rate must be in (0, 500]")
@@ -96,6 +145,10 @@ def main(argv=None) -> int:
         publishers["joints"] = rospy.Publisher("/joint_states", JointState, queue_size=5)
         publishers["temperatures"] = rospy.Publisher("/joint_temperatures", JointTemperatures,
                                                      queue_size=2)
+        if options.battery:
+            from sensor_msgs.msg import BatteryState
+
+            publishers["battery"] = rospy.Publisher("/battery", BatteryState, queue_size=2)
         if kinematics is not None:
             from tf2_msgs.msg import TFMessage
 
@@ -109,6 +162,7 @@ def main(argv=None) -> int:
     robot = Robot("/joint_state", robot=options.robot, connect_timeout=float("inf"),
                   state_interval=state_interval(1.0 / options.rate))
     log.info("joint state: reading %d joints of /%s", len(robot.joint_names), options.robot)
+    battery = follow_battery(options.robot, publishers) if options.battery else None
     stop = threading.Event()
     import signal
 
@@ -156,6 +210,9 @@ def main(argv=None) -> int:
              optical.transform.rotation.z, optical.transform.rotation.w) = OPTICAL_ROTATION
             transforms.append(optical)
             publishers["tf"].publish(TFMessage(transforms))
+    if battery is not None:
+        battery[1].stop()
+        battery[0].close()
     robot.close()
     ros.stop()
     return 0

@@ -81,7 +81,8 @@ def components(kind: str, perception_rate: float = 1.0) -> List[Component]:
                   r"ROS topics and services up", ("lab",)),
         Component("gateway", "pilot", (PYTHON, "-m", "rosnodes.gateway", "--link", "bridge"),
                   r"ROS topics and services up", ("drc",)),
-        Component("joint_state_pilot", "pilot", (PYTHON, "-m", "rosnodes.joint_state"),
+        Component("joint_state_pilot", "pilot", (PYTHON, "-m", "rosnodes.joint_state",
+                                                 "--no-battery"),   # the bridge brings it
                   r"joint state: reading", ("drc",)),
         # The session's log: every topic of the pilot's roscore (commands sent, statuses,
         # warnings, countdowns, robot state, perception), replayable with `rosbag play`.

@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import html
 import time
-from typing import Dict
+from typing import Dict, Optional
 
 from python_qt_binding.QtWidgets import QTextEdit
 
-from pilot.link import CommandStateEvent, LinkEvent, SentEvent, StatusEvent, WarningEvent
+from pilot.link import (BatteryEvent, CommandStateEvent, LinkEvent, SentEvent, StatusEvent,
+                        WarningEvent)
+from walkman.hal.battery import WARNING_LEVELS as BATTERY_LEVELS
 
 MAX_LINES = 2000
 
@@ -27,6 +29,7 @@ class LogView(QTextEdit):
         self.me = me
         self.states: Dict[str, str] = {}
         self.link_state = ""
+        self.battery_level: Optional[float] = None   # the lowest level the charge is under
         self.lines = 0
 
     def _line(self, stamp: float, text: str, colour: str = "") -> None:
@@ -55,6 +58,15 @@ class LogView(QTextEdit):
 
     def on_warning(self, event: WarningEvent) -> None:
         self._line(event.stamp, f"/{event.module} WARNING: {event.text}", "#d00000")
+
+    def on_battery(self, event: BatteryEvent) -> None:
+        """A line when the charge falls below a level (the HAL warns on the robot too)."""
+        below = [level for level in BATTERY_LEVELS if event.percent < level]
+        lowest = min(below, default=None)
+        if lowest is not None and (self.battery_level is None or lowest < self.battery_level):
+            self._line(event.stamp, f"BATTERY below {lowest:g} %: {event.percent:.1f} %, "
+                                    f"{event.voltage:.1f} V", "#d00000")
+        self.battery_level = lowest
 
     def on_link(self, event: LinkEvent) -> None:
         before, self.link_state = self.link_state, event.state

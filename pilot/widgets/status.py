@@ -1,4 +1,4 @@
-"""The status tab (paper, Figure 15): modules and warnings, temperatures and torques.
+"""The status tab (paper, Figure 15): modules, temperatures and torques, the battery.
 
 Per joint, the latest temperature and torque are bars (red above the warning
 level); over time, the hottest joint and the largest torque are lines of the
@@ -18,7 +18,7 @@ from python_qt_binding.QtGui import QColor, QFont, QPainter, QPen
 from python_qt_binding.QtWidgets import (QHBoxLayout, QHeaderView, QTableWidget,
                                          QTableWidgetItem, QToolTip, QVBoxLayout, QWidget)
 
-from pilot.link import JointsEvent, StatusEvent, TemperaturesEvent
+from pilot.link import BatteryEvent, JointsEvent, StatusEvent, TemperaturesEvent
 from pilot.widgets.generic import status_text
 
 HISTORY_S = 120.0
@@ -38,7 +38,7 @@ class JointPlot(QWidget):
         self.names: Tuple[str, ...] = ()
         self.values = np.zeros(0)
         self.history: Deque[Tuple[float, float]] = deque()
-        self.setMinimumSize(420, 350)
+        self.setMinimumSize(360, 350)
         self.setMouseTracking(True)
 
     def update_values(self, names, values: np.ndarray) -> None:
@@ -131,18 +131,56 @@ class JointPlot(QWidget):
             painter.restore()
         # Over time: the largest value of each sample.
         graph_top, graph_bottom = bottom + self.NAMES_H + 18, h - 6.0
+        # Its own scale: the largest of the window (a past peak above today's bars).
+        ceiling_history = max([v for _, v in self.history] + [top / 1.1, 1e-6])
         painter.setPen(QColor("#a0a0a0"))
         painter.drawText(6, int(graph_top - 4),
                          f"largest over the last {HISTORY_S:.0f} s ({self.unit}, "
-                         f"0 to {top / 1.1:.0f})")
+                         f"0 to {ceiling_history:.0f})")
         painter.setPen(QPen(QColor("#f0c040"), 1.5))
         if len(self.history) > 1 and graph_bottom > graph_top:
             t0 = self.history[-1][0] - HISTORY_S
             points = [QPointF(left + (t - t0) / HISTORY_S * (w - left - 6),
-                              graph_bottom - v / top * (graph_bottom - graph_top))
+                              graph_bottom - v / ceiling_history * (graph_bottom - graph_top))
                       for t, v in self.history]
             for a, b in zip(points, points[1:]):
                 painter.drawLine(a, b)
+
+
+class BatteryGauge(QWidget):
+    """Figure 15's horizontal bar: the charge, its voltage and current, coloured by level."""
+
+    def __init__(self, parent=None) -> None:
+        super().__init__(parent)
+        self.reading: Optional[BatteryEvent] = None
+        self.setMinimumHeight(34)
+
+    def on_battery(self, event: BatteryEvent) -> None:
+        self.reading = event
+        self.update()
+
+    def colour(self) -> str:
+        if self.reading is None:
+            return "#606060"
+        return "#d03030" if self.reading.percent < 10 else \
+            "#e0a020" if self.reading.percent < 20 else "#30a040"
+
+    def text(self) -> str:
+        if self.reading is None:
+            return "battery: no reading yet"
+        r = self.reading
+        return f"battery {r.percent:.0f} %   {r.voltage:.1f} V   {r.current:.1f} A"
+
+    def paintEvent(self, _event) -> None:  # noqa: N802 -- Qt's name
+        painter = QPainter(self)
+        rect = QRectF(self.rect()).adjusted(1, 1, -1, -1)
+        painter.fillRect(rect, QColor("#20242c"))
+        if self.reading is not None:
+            share = min(max(self.reading.percent / 100.0, 0.0), 1.0)
+            painter.fillRect(QRectF(rect.x(), rect.y(), rect.width() * share, rect.height()),
+                             QColor(self.colour()))
+        painter.setPen(QColor("#f0f0f0"))
+        painter.drawText(rect, Qt.AlignCenter, self.text())
 
 
 class StatusTab(QWidget):
@@ -171,6 +209,8 @@ class StatusTab(QWidget):
         plots.addWidget(self.temperatures)
         plots.addWidget(self.torques)
         layout.addLayout(plots)
+        self.battery = BatteryGauge()
+        layout.addWidget(self.battery)
 
     def on_status(self, event: StatusEvent) -> None:
         row = self.rows.get(event.module)
@@ -180,6 +220,9 @@ class StatusTab(QWidget):
 
     def on_joints(self, event: JointsEvent) -> None:
         self.torques.update_values(event.names, event.effort)
+
+    def on_battery(self, event: BatteryEvent) -> None:
+        self.battery.on_battery(event)
 
     def on_temperatures(self, event: TemperaturesEvent) -> None:
         self.temperatures.update_values(event.names, event.celsius)

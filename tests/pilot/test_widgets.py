@@ -478,3 +478,50 @@ def test_the_drive_widget_steers_to_the_sliders_angle_from_the_measured_one(qt):
     assert [f.objectName() for f in widget.fields["accelerate"]] == \
         ["accelerate_SECONDS", "accelerate_AMOUNT"]
     assert [f.value() for f in widget.fields["accelerate"]] == [1.0, 1.0]
+
+
+def test_the_battery_bar_and_the_log_say_the_charge_and_each_level_once(qt):
+    """Figure 15's battery bar: green, orange under 20 %, red under 10 %; the log says each
+    level the charge falls under once."""
+    from pilot.link import BatteryEvent
+    from pilot.widgets.log import LogView
+    from pilot.widgets.status import StatusTab
+
+    tab = StatusTab(["temperature"])
+    assert tab.battery.text() == "battery: no reading yet"
+    log = LogView("pi_test")
+    colours = []
+    for percent in (64.0, 21.0, 19.5, 19.0, 9.0, 8.5, 4.0):
+        event = BatteryEvent(percent, 46.0, 12.5, time.time())
+        tab.on_battery(event)
+        log.on_battery(event)
+        colours.append(tab.battery.colour())
+    assert tab.battery.text() == "battery 4 %   46.0 V   12.5 A"
+    assert colours == ["#30a040", "#30a040", "#e0a020", "#e0a020", "#d03030", "#d03030",
+                       "#d03030"]
+    said = [line for line in log.toPlainText().splitlines() if "BATTERY" in line]
+    assert [line.split("BATTERY ")[1].split(":")[0] for line in said] == \
+        ["below 20 %", "below 10 %", "below 5 %"]
+    image = tab.battery.grab().toImage()
+    assert image.pixelColor(3, image.height() // 2).name() == "#d03030"   # the bar is drawn
+    assert image.pixelColor(image.width() - 3, image.height() // 2).name() == "#20242c"
+
+
+def test_the_history_line_stays_in_its_own_strip_after_a_past_peak(qt):
+    """A torque peak gone from the bars still draws inside the history strip, not over them."""
+    from python_qt_binding.QtGui import QColor
+
+    from pilot.widgets.status import JointPlot
+
+    plot = JointPlot("torques", "N\u00b7m", None)
+    plot.resize(400, 360)
+    names = ("LHipSag", "RKneeSag")
+    for value in (5.0, 300.0, 5.0, 5.0):              # a peak, then small torques again
+        plot.update_values(names, np.array([value, 1.0]))
+        plot.history[-1] = (plot.history[-1][0] + len(plot.history), plot.history[-1][1])
+    image = plot.grab().toImage()
+    strip_top = int(plot._bars_bottom() + plot.NAMES_H + 18)
+    yellow = [(x, y) for x in range(image.width()) for y in range(image.height())
+              if image.pixelColor(x, y).red() > 200 and image.pixelColor(x, y).green() > 150
+              and image.pixelColor(x, y).blue() < 120]
+    assert yellow and all(y >= strip_top - 2 for _, y in yellow), min(y for _, y in yellow)

@@ -243,6 +243,15 @@ def second() -> None:
             not in caption or ("red: tiles" in caption) != bool(image.missing):
         fail(f"the camera says {caption!r}, the bridge {image}, {cloud}")
     say("STEP camera shows the bridge's reports")
+    # The robot's battery: HAL -> walkman-joint-state -> /battery -> the bridge -> this PI.
+    wait(lambda: window.status.battery.reading is not None, 60, "the robot's battery")
+    say(f"STEP battery shown: {window.status.battery.text()}")
+    window.tabs.setCurrentIndex(next(i for i in range(window.tabs.count())
+                                     if window.status.isAncestorOf(window.tabs.widget(i))
+                                     or window.tabs.widget(i).isAncestorOf(window.status)))
+    pump(0.5)
+    window.screenshot(OUT / "status.png")
+    window.tabs.setCurrentIndex(0)
     click(window.stop_button, "STOP ALL")
     wait(lambda: "HAL held" in window.banner.text(), 20, "the robot's answer to STOP ALL")
     wait(lambda: valve.state == "paused", 20, "drc_valve paused by the stop-all")

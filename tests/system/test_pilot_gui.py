@@ -102,6 +102,8 @@ def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
                        second.output())
     assert pixels, second.output()
     assert "STEP camera shows the bridge's reports" in second.output(), second.output()
+    assert re.search(r"STEP battery shown: battery 100 %   5\d\.\d V", second.output()), \
+        second.output()
     # STOP ALL crossed the bridge: the robot's HAL held and the modules paused, then let go.
     assert "STEP released" in second.output(), second.output()
     assert re.search(r"gateway: stop_all: HAL held; pause sent to .*drc_valve", gateway), \

@@ -75,6 +75,15 @@ def hal_warning_port_name(robot: str) -> str:
     return f"/{robot}/warning:o"
 
 
+def battery_port_name(robot: str) -> str:
+    """YARP's ``batteryWrapper`` stream (:mod:`walkman.hal.battery`); ``.../rpc:i`` beside it."""
+    return f"/{robot}/battery/data:o"
+
+
+def battery_rpc_name(robot: str) -> str:
+    return f"/{robot}/battery/rpc:i"
+
+
 def ft_port_name(robot: str, sensor: str) -> str:
     return f"/{robot}/{sensor}/analog:o"
 

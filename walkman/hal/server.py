@@ -40,8 +40,10 @@ import numpy as np
 
 from walkman.hal import protocol
 from walkman.hal import analog, controlboard
+from walkman.hal import battery as battery_codec
 from walkman.hal.arbitration import JointArbiter, owner_of
 from walkman.hal.backend import Backend
+from walkman.hal.battery import Battery, electric_power
 from walkman.hal.chain import ChainBoard
 from walkman.hal.sim import HARNESS_MODES
 from walkman.hal.config import HalConfig, load_config
@@ -61,6 +63,8 @@ log = logging.getLogger("walkman.hal")
 
 SENSOR_PERIOD_S = 0.01
 WORLD_PERIOD_S = 1.0 / 30
+BATTERY_STEP_S = 0.01        # the battery drains by the power of each 10 ms
+BATTERY_PERIOD_S = 1.0       # batteryWrapper's default period
 STATUS_PERIOD_S = 5.0
 #: How far the physics may fall behind the wall clock and catch up by stepping back to back;
 #: further behind, simulated time slips instead (an overrun).  Modules run on the robot's time
@@ -113,8 +117,12 @@ class Publisher(threading.Thread):
 
 class HalServer:
     def __init__(self, backend: Backend, config: HalConfig,
-                 nameclient: Optional[NameClient] = None, realtime: bool = True) -> None:
+                 nameclient: Optional[NameClient] = None, realtime: bool = True,
+                 battery: Optional[Battery] = None) -> None:
         self.backend = backend
+        self.battery = battery or Battery()
+        self.battery_port: Optional[Port] = None
+        self.battery_stamp = Stamp()
         self.config = config
         self.robot = config.robot
         self.nameclient = nameclient or NameClient()
@@ -195,6 +203,10 @@ class HalServer:
                        analog.rpc_name(name))
         self.imu_port = self._open(Port(nameclient=self.nameclient),
                                    protocol.imu_port_name(self.robot))
+        self.battery_port = self._open(Port(nameclient=self.nameclient),
+                                       protocol.battery_port_name(self.robot))
+        self._open(RpcServer(nameclient=self.nameclient, handler=self._battery_rpc),
+                   protocol.battery_rpc_name(self.robot))
         if getattr(self.backend, "plant", None) is not None:
             self.world_port = self._open(Port(nameclient=self.nameclient),
                                          protocol.world_port_name(self.robot))
@@ -376,6 +388,29 @@ class HalServer:
             self.publisher.publish(self.imu_port, protocol.encode_inertial(
                 imu.rpy, imu.acceleration, imu.gyro), envelope)
 
+    def _drain_battery(self, dt: float) -> None:
+        """The motors draw by their torques and velocities, the computers always."""
+        self.battery.step(electric_power(self.backend.torques(), self.backend.velocities()), dt)
+
+    def _publish_battery(self) -> None:
+        """``batteryWrapper``'s stream once a second; a level crossed is a warning."""
+        for text in self.battery.warnings():
+            log.warning("HAL: %s", text)
+            self._warn(text, "", "", "battery")
+        if self.battery_port is not None and self.battery_port.has_outputs:
+            envelope = self.battery_stamp.update(time.time()).envelope()
+            self.publisher.publish(self.battery_port,
+                                   battery_codec.encode_reading(self.battery.reading()), envelope)
+
+    def _battery_rpc(self, request: Bottle) -> Bottle:
+        """``[ibat] [btnf]`` -> ``[is] [btnf] "info"``, as ``batteryWrapper`` answers."""
+        if len(request) >= 2 and request[0] == Vocab("ibat") and request[1] == Vocab("btnf"):
+            reading = self.battery.reading()
+            return Bottle([Vocab("is"), Vocab("btnf"),
+                           f"simulated {battery_codec.CAPACITY_WH:g} Wh pack, "
+                           f"{reading.charge:.1f} %, {reading.voltage:.1f} V"])
+        return Bottle([Vocab("fail")])
+
     def _publish_world(self) -> None:
         if self.world_port is not None and self.world_port.has_outputs:
             plant = self.backend.plant
@@ -391,6 +426,8 @@ class HalServer:
         state_every = max(1, round(self.config.period_ms / 1000.0 / backend.dt))
         sensor_every = max(1, round(SENSOR_PERIOD_S / backend.dt))
         world_every = max(1, round(WORLD_PERIOD_S / backend.dt))
+        battery_every = max(1, round(BATTERY_STEP_S / backend.dt))
+        battery_out_every = max(1, round(BATTERY_PERIOD_S / backend.dt))
         self.started_at = time.perf_counter()
         deadline = self.started_at
         next_status = self.started_at + STATUS_PERIOD_S
@@ -405,6 +442,10 @@ class HalServer:
                 self._publish_sensors()
             if self.steps % world_every == 0:
                 self._publish_world()
+            if self.steps % battery_every == 0:
+                self._drain_battery(battery_every * backend.dt)
+            if self.steps % battery_out_every == 0:
+                self._publish_battery()
             self.publisher.flush()
             for event in getattr(backend, "events", []):
                 log.info("%s", event)
@@ -479,6 +520,10 @@ def main(argv: Optional[List[str]] = None) -> int:
                         help="where the robot starts in the drc scene (default: at the valve)")
     parser.add_argument("--thermal-speedup", type=float, default=1.0,
                         help="heat the motors faster than real time (demos, tests)")
+    parser.add_argument("--battery", type=float, default=100.0, metavar="PERCENT",
+                        help="the battery's charge at start (default 100)")
+    parser.add_argument("--battery-speedup", type=float, default=1.0,
+                        help="drain the battery faster than real time (demos, tests)")
     parser.add_argument("--duration", type=float, help="stop after this much simulated time")
     parser.add_argument("--verbose", action="store_true")
     options = parser.parse_args(argv)
@@ -491,9 +536,13 @@ def main(argv: Optional[List[str]] = None) -> int:
     except (IniError, OSError, ValueError) as exc:   # the user's file; a bug shows its trace
         log.error("%s", exc)
         return 2
+    try:
+        battery = Battery(options.battery, options.battery_speedup)
+    except ValueError as exc:
+        parser.error(str(exc))
     backend = make_backend(options.backend, options.scene == "drc", options.harness,
                            options.thermal_speedup, options.station)
-    server = HalServer(backend, config)
+    server = HalServer(backend, config, battery=battery)
     signal.signal(signal.SIGTERM, lambda *_: setattr(server, "running", False))
     try:
         server.open()
