@@ -87,6 +87,11 @@ class GenericWidget(QGroupBox):
         top.addWidget(self.age_label)
         outer.addLayout(top)
 
+        # Everything a pilot acts with: hidden while the module was never heard (nobody
+        # launched it), so a page of modules shows only buttons that can work.
+        self.body = QWidget()
+        body = QVBoxLayout(self.body)
+        body.setContentsMargins(0, 0, 0, 0)
         switches = QHBoxLayout()
         self.switch_buttons: Dict[str, QPushButton] = {}
         for word in SWITCH_ORDER:
@@ -95,12 +100,12 @@ class GenericWidget(QGroupBox):
             button.clicked.connect(lambda _=False, w=word: self._switch(w))
             switches.addWidget(button)
             self.switch_buttons[word] = button
-        outer.addLayout(switches)
+        body.addLayout(switches)
 
         self.task_area = QVBoxLayout()     # task widgets put their panel here
-        outer.addLayout(self.task_area)
+        body.addLayout(self.task_area)
 
-        outer.addWidget(self._command_entry())
+        body.addWidget(self._command_entry())
         held = QHBoxLayout()
         self.queued_label = QLabel("")
         self.queued_label.setObjectName("queued")
@@ -113,12 +118,13 @@ class GenericWidget(QGroupBox):
         self.cancel_button.clicked.connect(self._cancel_queued)
         held.addWidget(self.queued_label, 1)
         held.addWidget(self.cancel_button)
-        outer.addLayout(held)
+        body.addLayout(held)
         self.queued: Dict[int, str] = {}       # seq -> text: commands waiting for the link
         self.warnings = QListWidget()
         self.warnings.setObjectName("warnings")
         self.warnings.setMaximumHeight(90)
-        outer.addWidget(self.warnings)
+        body.addWidget(self.warnings)
+        outer.addWidget(self.body)
         self.refresh()
 
     # -- the command entry ----------------------------------------------------------------
@@ -311,8 +317,9 @@ class GenericWidget(QGroupBox):
                 else f"last heard {self.state}"
             self.status_label.setText(f"link down for {down:.0f} s; module {last}")
         elif presence == "absent":
-            self.status_label.setText("not running" if self.state is None
-                                      else f"not running (last: {self.state})")
+            self.status_label.setText(
+                f"not launched on the robot (walkman-module {self.module} starts it)"
+                if self.state is None else f"not running (last: {self.state})")
         else:      # the status itself (again, once the link is back: not "link down")
             self.status_label.setText(self.status_text)
         self.age_label.setText("" if age is None else f"{age:.1f} s ago")
@@ -320,6 +327,7 @@ class GenericWidget(QGroupBox):
         self.queued_label.setText("queued for the link: " + ", ".join(f"`{t}`" for t in waiting)
                                   if waiting else "")
         self.cancel_button.setVisible(bool(waiting))
+        self.body.setVisible(self.state is not None or self.advanced())
         known = None if presence == "absent" else self.state
         legal = set(legal_switches(known))
         for word, button in self.switch_buttons.items():

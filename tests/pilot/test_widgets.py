@@ -62,10 +62,12 @@ def test_the_generic_widget_enables_what_the_lifecycle_allows_and_greys_a_stale_
     from pilot.widgets.generic import ABSENT_S, STALE_S, GenericWidget
 
     widget = GenericWidget(catalogue_of("temperature"), Recorder())
-    assert widget.presence == "absent" and widget.status_label.text() == "not running"
+    assert widget.presence == "absent" and widget.status_label.text() == \
+        "not launched on the robot (walkman-module temperature starts it)"
     assert enabled(widget.switch_buttons) == []     # nobody launched it: nothing to start
+    assert widget.body.isHidden()                   # nor any button shown that cannot work
     widget.on_status(status("temperature", "ready"))
-    assert widget.presence == "running"
+    assert widget.presence == "running" and not widget.body.isHidden()
     assert enabled(widget.switch_buttons) == ["pause", "stop", "quit"]
     widget.on_status(status("temperature", "paused"))
     assert enabled(widget.switch_buttons) == ["resume", "stop", "quit"]
@@ -375,6 +377,7 @@ def test_scrolling_over_a_tab_changes_no_field_the_pilot_did_not_choose(qt):
     from pilot.widgets.tasks import TaskWidget
 
     widget = TaskWidget(catalogue_of("drc_drive"), Recorder())
+    widget.on_status(status("drc_drive", "idle"))          # launched: its fields are shown
     area = QScrollArea()
     area.setWidget(widget)
     area.resize(360, 160)                                  # smaller than the widget: it scrolls
