@@ -51,7 +51,7 @@ def two_pass(renderer, model, qpos):
     """What the node did before: mujoco.Renderer, a full mj_forward, colour then depth."""
     import mujoco
 
-    from rosnodes.perception import CAMERA
+    from walkman.head_camera import CAMERA
 
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
@@ -70,10 +70,10 @@ def stages(frames: int) -> Dict[str, List[float]]:
     import numpy as np
 
     from nodekit.msgs import generate
-    from rosnodes.perception import PerceptionNode
+    from walkman.head_camera import HeadCamera
 
     generate()
-    node = PerceptionNode("walkman", 2.0, WIDTH, HEIGHT, STEP)
+    node = HeadCamera("walkman", 2.0, WIDTH, HEIGHT, STEP)
     camera = node.camera
     from walkman.hal.sim import SCENE_PATH
 

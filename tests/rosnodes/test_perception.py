@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from harness import ManualClock
-from rosnodes.perception import FrameClock, cloud_points, intrinsics
+from walkman.head_camera import FrameClock, cloud_points, intrinsics
 
 
 def test_intrinsics_of_mujocos_pinhole():
@@ -57,7 +57,7 @@ COMPARE = r"""
 import json
 import mujoco
 import numpy as np
-from rosnodes.perception import CAMERA, SceneCamera, intrinsics
+from walkman.head_camera import CAMERA, SceneCamera, intrinsics
 
 camera = SceneCamera(320, 240)
 model = camera.model
