@@ -205,3 +205,43 @@ def test_an_installed_module_runs_against_the_installed_name_server(system_bin, 
         run([*tool, "exists", "/counter/switch:i"], tmp_path, env, timeout=30)
     finally:
         world.close()
+
+
+#: Issue 30: walkman-chaos started tests.bridge.counting_module, which no distribution
+#: contains.  Its witness and the virtual control board now ship in the package.
+PROBE = r"""
+import importlib.metadata, json, os, sys
+from system import chaos_run
+from walkman.gym.interfaces import RecordingInterfaces
+from walkman.gym.runner import load_module_class
+from walkman.hal import virtual_board
+from walkman.modules import witness
+
+spec = chaos_run.WITNESS.argv[chaos_run.WITNESS.argv.index("walkman.gym.supervisor") + 1]
+module_class = load_module_class(spec)
+os.environ[witness.LOG_VARIABLE] = "executed.log"
+interfaces = RecordingInterfaces("/counter", module_class)
+module = module_class("witness", {}, interfaces)
+module.custom_init()
+interfaces.commands.feed(["count", 5])
+module.run()
+module.custom_release()
+files = [str(f) for f in importlib.metadata.files("walkman-architecture")]
+print(json.dumps({"spec": spec, "class_file": sys.modules[module_class.__module__].__file__,
+                  "board_file": virtual_board.__file__, "files": files,
+                  "ran": [e.seq for e in witness.read_log("executed.log")]}))
+"""
+
+
+def test_the_installed_chaos_runs_its_witness_and_board_from_the_package(system_bin, tmp_path):
+    helped = run([system_bin / "walkman-chaos", "--help"], tmp_path, outside_env())
+    assert "usage: walkman-chaos" in helped and "--cancel-every" in helped
+    probe = json.loads(run([system_bin / "python", "-c", PROBE], tmp_path, outside_env()))
+    site = system_bin.parent
+    assert probe["spec"] == "witness"
+    assert Path(probe["class_file"]).is_relative_to(site), probe["class_file"]
+    assert Path(probe["board_file"]).is_relative_to(site), probe["board_file"]
+    assert probe["ran"] == [5]
+    packaged = probe["files"]
+    assert "walkman/modules/witness.py" in packaged and "walkman/hal/virtual_board.py" in packaged
+    assert not [f for f in packaged if f.split("/")[0] in ("tests", "fuzz")]
