@@ -37,6 +37,16 @@ log = logging.getLogger("pilot.app")
 DEFAULT_CONFIG = MODELS_DIR / "bridge_drc.xml"
 
 
+#: The window's size where the screen has room (the GUI tests' Xvfb screen is 1400x900).
+PREFERRED_SIZE = (1400, 900)
+
+
+def window_size(available) -> tuple:
+    """The preferred size, or the screen's room where it is smaller (a 1366x768 laptop):
+    the window opens whole on the screen, and grows with it when the pilot maximises it."""
+    return (min(PREFERRED_SIZE[0], available.width()), min(PREFERRED_SIZE[1], available.height()))
+
+
 def configured_modules(path: Path) -> Dict[str, List[str]]:
     """The GYM modules of a bridge configuration and their declared states."""
     config = bridge_config.load(path)
@@ -116,7 +126,7 @@ def main(argv: Optional[List[str]] = None) -> int:
 # -- the window ---------------------------------------------------------------------------
 
 from python_qt_binding.QtCore import QObject, Qt, QTimer, Signal  # noqa: E402
-from python_qt_binding.QtWidgets import (QCheckBox, QHBoxLayout, QLabel,  # noqa: E402
+from python_qt_binding.QtWidgets import (QApplication, QCheckBox, QHBoxLayout, QLabel,  # noqa: E402
                                          QMainWindow, QPushButton, QSplitter,
                                          QScrollArea, QTabWidget, QVBoxLayout, QWidget)
 
@@ -190,7 +200,7 @@ class PilotWindow(QMainWindow):
         outer.addWidget(splitter, 1)
         outer.addWidget(self.advanced_box)
         self.setCentralWidget(central)
-        self.resize(1400, 900)
+        self.resize(*window_size(QApplication.primaryScreen().availableGeometry()))
 
         needs_camera = any(w.kind in ("camera", "view3d") for w in layout.widgets())
         self.link = events.PilotLink(name, list(modules), self.events.arrived.emit,

@@ -528,3 +528,13 @@ def test_the_history_line_stays_in_its_own_strip_after_a_past_peak(qt):
               if image.pixelColor(x, y).red() > 200 and image.pixelColor(x, y).green() > 150
               and image.pixelColor(x, y).blue() < 120]
     assert yellow and all(y >= strip_top - 2 for _, y in yellow), min(y for _, y in yellow)
+
+
+def test_the_window_opens_whole_on_a_laptop_screen(qt):
+    """Issue 32: the PI opened at 1400x900 on a 1366x768 screen, its right and bottom cut off."""
+    from python_qt_binding.QtCore import QRect
+
+    from pilot.app import window_size
+
+    assert window_size(QRect(0, 0, 1366, 740)) == (1366, 740)     # a laptop, minus its panel
+    assert window_size(QRect(0, 0, 1920, 1050)) == (1400, 900)
