@@ -53,6 +53,30 @@ def link_transforms(kinematics, q: np.ndarray) -> List[Tuple[str, np.ndarray, np
     return out
 
 
+def tf_message(kinematics, q: np.ndarray, now):
+    """``/tf``: every link in the pelvis frame, and the camera's optical frame."""
+    from geometry_msgs.msg import TransformStamped
+    from tf2_msgs.msg import TFMessage
+
+    transforms = []
+    for link, position, quaternion in link_transforms(kinematics, q):
+        transform = TransformStamped()
+        transform.header.stamp, transform.header.frame_id = now, "pelvis"
+        transform.child_frame_id = link
+        (transform.transform.translation.x, transform.transform.translation.y,
+         transform.transform.translation.z) = position.tolist()
+        (transform.transform.rotation.x, transform.transform.rotation.y,
+         transform.transform.rotation.z, transform.transform.rotation.w) = quaternion.tolist()
+        transforms.append(transform)
+    optical = TransformStamped()     # the camera's optical frame: z ahead, y down
+    optical.header.stamp, optical.header.frame_id = now, "multisense_frame"
+    optical.child_frame_id = "multisense_optical_frame"
+    (optical.transform.rotation.x, optical.transform.rotation.y,
+     optical.transform.rotation.z, optical.transform.rotation.w) = OPTICAL_ROTATION
+    transforms.append(optical)
+    return TFMessage(transforms)
+
+
 def publish_slow(publisher, robot, now) -> None:
     """Temperatures, and ``/robot_description`` when the master lacks it (a new roscore)."""
     import rospy
@@ -189,27 +213,7 @@ def main(argv=None) -> int:
         publishers["joints"].publish(msg)
         tick += 1
         if "tf" in publishers and tick % tf_every == 0:
-            from geometry_msgs.msg import TransformStamped
-            from tf2_msgs.msg import TFMessage
-
-            transforms = []
-            for link, position, quaternion in link_transforms(kinematics, q):
-                transform = TransformStamped()
-                transform.header.stamp, transform.header.frame_id = now, "pelvis"
-                transform.child_frame_id = link
-                (transform.transform.translation.x, transform.transform.translation.y,
-                 transform.transform.translation.z) = position.tolist()
-                (transform.transform.rotation.x, transform.transform.rotation.y,
-                 transform.transform.rotation.z, transform.transform.rotation.w) = \
-                    quaternion.tolist()
-                transforms.append(transform)
-            optical = TransformStamped()     # the camera's optical frame: z ahead, y down
-            optical.header.stamp, optical.header.frame_id = now, "multisense_frame"
-            optical.child_frame_id = "multisense_optical_frame"
-            (optical.transform.rotation.x, optical.transform.rotation.y,
-             optical.transform.rotation.z, optical.transform.rotation.w) = OPTICAL_ROTATION
-            transforms.append(optical)
-            publishers["tf"].publish(TFMessage(transforms))
+            publishers["tf"].publish(tf_message(kinematics, q, now))
     if battery is not None:
         battery[1].stop()
         battery[0].close()
