@@ -212,6 +212,17 @@ class BridgeConfig:
                                         Form.BOTTLE)
         return table
 
+    def id_names(self) -> Dict[int, str]:
+        """What each 8-bit id carries, as a pilot reads it (a module, a topic, the robot's
+        state, the stop-all)."""
+        names = {ident: module for module, ident in self.modules.items()}
+        names.update({c.id: c.label for c in self.channels if c.middleware == "ros"})
+        if self.robot_state is not None:
+            names[self.robot_state.id] = f"{self.robot_state.robot} state"
+        if self.emergency_stop is not None:
+            names[self.emergency_stop.id] = "stop all"
+        return names
+
     def _by_key(self) -> Dict[FlowKey, Channel]:
         # Built when first needed; parse() appends channels, nothing removes them.
         if len(self._index) != len(self.channels):

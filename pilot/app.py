@@ -78,6 +78,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     options = build_parser().parse_args(argv)
     try:
         modules = configured_modules(options.config)
+        id_names = bridge_config.load(options.config).id_names()
         if options.list_layouts:
             from pilot.layouts import parse_layouts
 
@@ -104,7 +105,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     from python_qt_binding.QtWidgets import QApplication
 
     app = QApplication.instance() or QApplication(sys.argv[:1])
-    window = PilotWindow(layout, modules, name, advanced=options.advanced)
+    window = PilotWindow(layout, modules, name, advanced=options.advanced, id_names=id_names)
     window.show()
     window.start()
     from python_qt_binding.QtCore import QTimer
@@ -149,8 +150,10 @@ class _Events(QObject):
 
 class PilotWindow(QMainWindow):
     def __init__(self, layout: Layout, modules: Dict[str, List[str]], name: str,
-                 advanced: bool = False) -> None:
+                 advanced: bool = False, id_names: Optional[Dict[int, str]] = None) -> None:
         super().__init__()
+        self.id_names = id_names if id_names is not None else \
+            bridge_config.load(DEFAULT_CONFIG).id_names()
         self.layout_spec = layout
         self.name = name
         self.modules = modules
@@ -261,7 +264,7 @@ class PilotWindow(QMainWindow):
             self.status = StatusTab(list(self.modules))
             return [self.status]
         if spec.kind == "link":
-            self.link_widget = LinkWidget()
+            self.link_widget = LinkWidget(self.id_names)
             return [self.link_widget]
         if spec.kind == "log":
             self.log = LogView(self.name)

@@ -12,8 +12,8 @@ from __future__ import annotations
 import time
 from typing import Dict, Optional
 
-from python_qt_binding.QtWidgets import (QLabel, QTableWidget, QTableWidgetItem, QVBoxLayout,
-                                         QWidget)
+from python_qt_binding.QtWidgets import (QHeaderView, QLabel, QTableWidget, QTableWidgetItem,
+                                         QVBoxLayout, QWidget)
 
 from pilot.link import BridgeEvent
 
@@ -30,16 +30,18 @@ def bit_rates(before: Dict, after: Dict, seconds: float) -> Dict[str, float]:
 
 
 class LinkWidget(QWidget):
-    def __init__(self, parent=None) -> None:
+    def __init__(self, id_names: Optional[Dict[int, str]] = None, parent=None) -> None:
         super().__init__(parent)
+        self.id_names = id_names or {}     # what each 8-bit id carries (the bridge config)
         self.setObjectName("link")
         layout = QVBoxLayout(self)
         self.summary = QLabel("no bridge heard (the lab topology has none)")
         self.summary.setObjectName("link_summary")
         self.summary.setWordWrap(True)
         layout.addWidget(self.summary)
-        self.rates = QTableWidget(0, 2)
-        self.rates.setHorizontalHeaderLabels(["8-bit id", "bit/s"])
+        self.rates = QTableWidget(0, 3)
+        self.rates.setHorizontalHeaderLabels(["8-bit id", "carries", "bit/s"])
+        self.rates.horizontalHeader().setSectionResizeMode(1, QHeaderView.Stretch)
         layout.addWidget(self.rates)
         self.flows = QLabel("")
         self.flows.setWordWrap(True)
@@ -67,7 +69,8 @@ class LinkWidget(QWidget):
             self.rates.setRowCount(len(rates))
             for row, (ident, bits) in enumerate(sorted(rates.items(), key=lambda kv: int(kv[0]))):
                 self.rates.setItem(row, 0, QTableWidgetItem(ident))
-                self.rates.setItem(row, 1, QTableWidgetItem(f"{bits:,.0f}"))
+                self.rates.setItem(row, 1, QTableWidgetItem(self.id_names.get(int(ident), "")))
+                self.rates.setItem(row, 2, QTableWidgetItem(f"{bits:,.0f}"))
         flows = (status.get("udp", {}) or {}).get("flows", {}) or {}
         self.flows.setText("perception: " + ", ".join(
             f"{name} {float(flow.get('mean_completeness', 0)):.0%} complete"

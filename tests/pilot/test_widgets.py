@@ -298,7 +298,13 @@ def test_the_link_widget_shows_the_bridge_status_and_bit_rates_per_id(qt):
     from pilot.link import BridgeEvent
     from pilot.widgets import link as link_widget
 
-    widget = link_widget.LinkWidget()
+    from bridge import config as bridge_config
+    from walkman import MODELS_DIR
+
+    names = bridge_config.load(MODELS_DIR / "bridge_drc.xml").id_names()
+    assert names[2] == "drc_valve" and names[20] == "walkman state" and \
+        names[31] == "/multisense/points" and names[250] == "stop all"
+    widget = link_widget.LinkWidget({3: "counter", 20: "walkman state"})
     assert "no bridge heard" in widget.summary.text()
     first = {"link": "up", "link_since_s": 12, "round_trip_ms": 41.5, "queued_commands": 0,
              "refused": 1, "dropped": {"stale": 2},
@@ -311,9 +317,10 @@ def test_the_link_widget_shows_the_bridge_status_and_bit_rates_per_id(qt):
     assert text.startswith("link down for 12 s | round trip 41.5 ms")
     assert "refused 1 | dropped 2 (stale 2)" in text
     assert "#d00000" in widget.summary.styleSheet()
-    rows = {widget.rates.item(r, 0).text(): widget.rates.item(r, 1).text()
+    rows = {widget.rates.item(r, 0).text(): (widget.rates.item(r, 1).text(),
+                                              widget.rates.item(r, 2).text())
             for r in range(widget.rates.rowCount())}
-    assert rows == {"3": "2,400", "17": "0", "20": "500"}
+    assert rows == {"3": ("counter", "2,400"), "17": ("", "0"), "20": ("walkman state", "500")}
     assert widget.flows.text() == "perception: /multisense/points 93% complete"
     widget.heard -= link_widget.SILENT_S + 1
     widget.tick()
