@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 
-from yarp_lite.bottle import (MAX_DEPTH, Bottle, Float32, Int64, Tag, Value, Vocab,
+from yarp_lite.bottle import (MAX_DEPTH, Bottle, Float32, Int64, Value, Vocab,
                               format_bottle, format_double, format_value, quote_string,
                               vocab_encode)
 from yarp_lite.errors import RemoteProtocolError

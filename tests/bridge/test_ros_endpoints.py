@@ -24,7 +24,7 @@ from bridge.flows import Carriage, FlowKey, Form, Route
 from bridge.link import TAG_SIZE
 from bridge.udp_channel import Reassembler, UdpRoute, UdpStats, message_datagrams
 from bridge.wire import get_varint
-from bridge_harness import HERE, PYTHON, TwoPCs
+from bridge_harness import HERE, TwoPCs
 from harness import wait_until
 from nodekit.msgs import ensure_importable
 

@@ -11,7 +11,7 @@ import pytest
 from harness import free_port, wait_until
 from system.processes import ROSCORE_READY
 from system.topology import ros_environment
-from tests.walkman.test_gym_hal import Pilot, start_hal, start_module
+from tests.walkman.test_gym_hal import Pilot, start_hal
 
 PYTHON = sys.executable
 STATUSES = ["waiting", "streaming", "idle"]
