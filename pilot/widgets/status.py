@@ -1,4 +1,5 @@
-"""The status tab (paper, Figure 15): modules, temperatures and torques, the battery.
+"""The status tab (paper, Figure 15): modules and their warnings, temperatures and torques,
+the battery.
 
 Per joint, the latest temperature and torque are bars (red above the warning
 level); over time, the hottest joint and the largest torque are lines of the
@@ -10,16 +11,17 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from typing import Deque, Dict, Optional, Tuple
+from typing import Deque, Dict, List, Optional, Tuple
 
 import numpy as np
 from python_qt_binding.QtCore import QPointF, QRectF, Qt
 from python_qt_binding.QtGui import QColor, QFont, QPainter, QPen
-from python_qt_binding.QtWidgets import (QHBoxLayout, QHeaderView, QTableWidget,
+from python_qt_binding.QtWidgets import (QHBoxLayout, QHeaderView, QLabel, QLineEdit,
+                                         QListWidget, QListWidgetItem, QTableWidget,
                                          QTableWidgetItem, QToolTip, QVBoxLayout, QWidget)
 
-from pilot.link import BatteryEvent, JointsEvent, StatusEvent, TemperaturesEvent
-from pilot.widgets.generic import status_text
+from pilot.link import BatteryEvent, JointsEvent, StatusEvent, TemperaturesEvent, WarningEvent
+from pilot.widgets.generic import ChoiceBox, status_text
 
 HISTORY_S = 120.0
 HOT_C = 70.0        # the temperature module's "hot" level (FACTS: boards shut down at 80)
@@ -183,6 +185,55 @@ class BatteryGauge(QWidget):
         painter.drawText(rect, Qt.AlignCenter, self.text())
 
 
+class WarningsPanel(QWidget):
+    """Every module's warnings, newest first, filtered by module and by words (Fig. 15 (A))."""
+
+    ALL = "all modules"
+    LIMIT = 500          # the oldest go beyond this many
+
+    def __init__(self, modules, parent=None) -> None:
+        super().__init__(parent)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        filters = QHBoxLayout()
+        self.module_filter = ChoiceBox()
+        self.module_filter.setObjectName("warning_module")
+        self.module_filter.addItems([self.ALL, *modules])
+        self.text_filter = QLineEdit()
+        self.text_filter.setObjectName("warning_text")
+        self.text_filter.setPlaceholderText("only warnings with these words")
+        filters.addWidget(QLabel("warnings of"))
+        filters.addWidget(self.module_filter)
+        filters.addWidget(self.text_filter, 1)
+        layout.addLayout(filters)
+        self.list = QListWidget()
+        self.list.setObjectName("warnings")
+        self.list.setMaximumHeight(120)
+        layout.addWidget(self.list)
+        self.warnings: List[WarningEvent] = []
+        self.module_filter.currentTextChanged.connect(lambda _: self.refresh())
+        self.text_filter.textChanged.connect(lambda _: self.refresh())
+
+    def on_warning(self, event: WarningEvent) -> None:
+        self.warnings.append(event)
+        del self.warnings[:-self.LIMIT]
+        self.refresh()
+
+    def shown(self) -> List[WarningEvent]:
+        module = self.module_filter.currentText()
+        words = self.text_filter.text().lower().split()
+        return [w for w in reversed(self.warnings)
+                if module in (self.ALL, w.module) and all(word in w.text.lower() for word in words)]
+
+    def refresh(self) -> None:
+        self.list.clear()
+        for event in self.shown():
+            stamp = time.strftime("%H:%M:%S", time.localtime(event.stamp))
+            item = QListWidgetItem(f"{stamp}  /{event.module}  {event.text}")
+            item.setForeground(QColor("#c00000"))
+            self.list.addItem(item)
+
+
 class StatusTab(QWidget):
     def __init__(self, modules, parent=None) -> None:
         super().__init__(parent)
@@ -203,6 +254,8 @@ class StatusTab(QWidget):
         header.setSectionResizeMode(2, QHeaderView.ResizeToContents)
         self.table.setMaximumHeight(36 + 30 * max(1, len(modules)))
         layout.addWidget(self.table)
+        self.warnings = WarningsPanel(list(modules))
+        layout.addWidget(self.warnings)
         plots = QHBoxLayout()
         self.temperatures = JointPlot("temperatures", "\u00b0C", HOT_C)
         self.torques = JointPlot("torques", "N\u00b7m", None)
@@ -223,6 +276,9 @@ class StatusTab(QWidget):
 
     def on_battery(self, event: BatteryEvent) -> None:
         self.battery.on_battery(event)
+
+    def on_warning(self, event: WarningEvent) -> None:
+        self.warnings.on_warning(event)
 
     def on_temperatures(self, event: TemperaturesEvent) -> None:
         self.temperatures.update_values(event.names, event.celsius)

@@ -545,3 +545,26 @@ def test_the_window_opens_whole_on_a_laptop_screen(qt):
 
     assert window_size(QRect(0, 0, 1366, 740)) == (1366, 740)     # a laptop, minus its panel
     assert window_size(QRect(0, 0, 1920, 1050)) == (1400, 900)
+
+
+def test_the_status_tab_lists_every_modules_warnings_with_filters(qt):
+    """Fig. 15 (A): the warnings of every module, newest first, filtered by module and words."""
+    from pilot.link import WarningEvent
+    from pilot.widgets.status import StatusTab
+
+    tab = StatusTab(["temperature", "drc_valve"])
+    for module, text in (("temperature", "LKneeSag at 71.0 C (limit 70 C)"),
+                         ("drc_valve", "not sent: turn is not legal in idle"),
+                         ("temperature", "RKneeSag at 72.5 C (limit 70 C)")):
+        tab.on_warning(WarningEvent(module, text, time.time()))
+    lines = [tab.warnings.list.item(i).text() for i in range(tab.warnings.list.count())]
+    assert [line.split("  ", 1)[1] for line in lines] == [
+        "/temperature  RKneeSag at 72.5 C (limit 70 C)",
+        "/drc_valve  not sent: turn is not legal in idle",
+        "/temperature  LKneeSag at 71.0 C (limit 70 C)"]
+    tab.warnings.module_filter.setCurrentText("drc_valve")
+    assert [w.text for w in tab.warnings.shown()] == ["not sent: turn is not legal in idle"]
+    assert tab.warnings.list.count() == 1
+    tab.warnings.module_filter.setCurrentText("all modules")
+    tab.warnings.text_filter.setText("lknee")
+    assert [w.text for w in tab.warnings.shown()] == ["LKneeSag at 71.0 C (limit 70 C)"]
