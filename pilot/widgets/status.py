@@ -149,6 +149,95 @@ class JointPlot(QWidget):
                 painter.drawLine(a, b)
 
 
+def body_layout() -> Tuple[Dict[str, Tuple[float, float]], List[Tuple[str, str]]]:
+    """Each joint seen from the front (lateral, up; metres, the pelvis at 0) with the robot
+    standing straight, and the bones between joints: what a silhouette is drawn from."""
+    from walkman.model.description import walkman
+
+    robot = walkman()
+    link_at: Dict[str, Tuple[float, float, float]] = {"pelvis": (0.0, 0.0, 0.0)}
+    places: Dict[str, Tuple[float, float]] = {}
+    joint_of_link: Dict[str, str] = {}
+    bones: List[Tuple[str, str]] = []
+    for joint in robot.joints:                   # parents come before their children
+        x, y, z = link_at[joint.parent]
+        ox, oy, oz = joint.origin
+        link_at[joint.child] = (x + ox, y + oy, z + oz)
+        places[joint.name] = (y + oy, z + oz)
+        if joint.parent in joint_of_link:
+            bones.append((joint_of_link[joint.parent], joint.name))
+        joint_of_link[joint.child] = joint.name
+    return places, bones
+
+
+def heat_colour(share: float) -> QColor:
+    """Blue (cool, small) through green and yellow to red (hot, large)."""
+    share = min(max(share, 0.0), 1.0)
+    return QColor.fromHsvF((1.0 - share) * 0.66, 0.9, 0.95)
+
+
+class BodyView(QWidget):
+    """Fig. 15 (B): a figure of the robot whose joints are coloured by their value."""
+
+    def __init__(self, title: str, unit: str, parent=None) -> None:
+        super().__init__(parent)
+        self.title, self.unit = title, unit
+        self.places, self.bones = body_layout()
+        self.values: Dict[str, float] = {}
+        self.setMinimumSize(220, 260)
+        self.setMouseTracking(True)
+
+    def update_values(self, names, values) -> None:
+        self.values = {name: float(value) for name, value in zip(names, values)
+                       if name in self.places and np.isfinite(value)}
+        self.update()
+
+    def _points(self) -> Dict[str, QPointF]:
+        ys = [p[0] for p in self.places.values()]
+        zs = [p[1] for p in self.places.values()]
+        span = max(max(ys) - min(ys), max(zs) - min(zs), 1e-6)
+        scale = min(self.width() - 20, self.height() - 44) / span
+        middle_y, top = (max(ys) + min(ys)) / 2, max(zs)
+        return {name: QPointF(self.width() / 2 - (y - middle_y) * scale,   # it faces us
+                              28 + (top - z) * scale) for name, (y, z) in self.places.items()}
+
+    def joint_at(self, x: float, y: float) -> Optional[str]:
+        """The joint drawn nearest ``(x, y)``, within 10 px."""
+        distance, name = min((abs(p.x() - x) + abs(p.y() - y), name)
+                             for name, p in self._points().items())
+        return name if distance <= 10 else None
+
+    def mouseMoveEvent(self, event) -> None:  # noqa: N802 -- Qt's name
+        name = self.joint_at(event.pos().x(), event.pos().y())
+        if name is None:
+            QToolTip.hideText()
+            return
+        value = self.values.get(name)
+        QToolTip.showText(event.globalPos(), f"{name}: " + (
+            "no data" if value is None else f"{value:.1f} {self.unit}"), self)
+
+    def paintEvent(self, _event) -> None:  # noqa: N802 -- Qt's name
+        painter = QPainter(self)
+        painter.setRenderHint(QPainter.Antialiasing)
+        painter.fillRect(self.rect(), QColor("#20242c"))
+        magnitudes = [abs(v) for v in self.values.values()]
+        low, high = (min(magnitudes), max(magnitudes)) if magnitudes else (0.0, 1.0)
+        painter.setPen(QColor("#e0e0e0"))
+        painter.drawText(6, 14, f"{self.title}: {low:.0f} (blue) to {high:.0f} (red) {self.unit}"
+                         if magnitudes else f"{self.title}: no data yet")
+        points = self._points()
+        painter.setPen(QPen(QColor("#707880"), 3))
+        for a, b in self.bones:
+            painter.drawLine(points[a], points[b])
+        painter.setPen(Qt.NoPen)
+        for name, point in points.items():
+            value = self.values.get(name)
+            colour = QColor("#505860") if value is None else \
+                heat_colour((abs(value) - low) / max(high - low, 1e-6))
+            painter.setBrush(colour)
+            painter.drawEllipse(point, 5.5, 5.5)
+
+
 class BatteryGauge(QWidget):
     """Figure 15's horizontal bar: the charge, its voltage and current, coloured by level."""
 
@@ -253,6 +342,7 @@ class StatusTab(QWidget):
         header.setSectionResizeMode(1, QHeaderView.Stretch)   # the state and its numbers
         header.setSectionResizeMode(2, QHeaderView.ResizeToContents)
         self.table.setMaximumHeight(36 + 30 * max(1, len(modules)))
+        self.table.setMinimumHeight(min(36 + 30 * max(1, len(modules)), 160))
         layout.addWidget(self.table)
         self.warnings = WarningsPanel(list(modules))
         layout.addWidget(self.warnings)
@@ -262,6 +352,12 @@ class StatusTab(QWidget):
         plots.addWidget(self.temperatures)
         plots.addWidget(self.torques)
         layout.addLayout(plots)
+        bodies = QHBoxLayout()
+        self.temperature_body = BodyView("temperatures", "\u00b0C")
+        self.torque_body = BodyView("torques", "N\u00b7m")
+        bodies.addWidget(self.temperature_body)
+        bodies.addWidget(self.torque_body)
+        layout.addLayout(bodies)
         self.battery = BatteryGauge()
         layout.addWidget(self.battery)
 
@@ -273,6 +369,7 @@ class StatusTab(QWidget):
 
     def on_joints(self, event: JointsEvent) -> None:
         self.torques.update_values(event.names, event.effort)
+        self.torque_body.update_values(event.names, event.effort)
 
     def on_battery(self, event: BatteryEvent) -> None:
         self.battery.on_battery(event)
@@ -282,6 +379,7 @@ class StatusTab(QWidget):
 
     def on_temperatures(self, event: TemperaturesEvent) -> None:
         self.temperatures.update_values(event.names, event.celsius)
+        self.temperature_body.update_values(event.names, event.celsius)
 
     def tick(self) -> None:
         now = time.monotonic()

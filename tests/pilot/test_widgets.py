@@ -568,3 +568,30 @@ def test_the_status_tab_lists_every_modules_warnings_with_filters(qt):
     tab.warnings.module_filter.setCurrentText("all modules")
     tab.warnings.text_filter.setText("lknee")
     assert [w.text for w in tab.warnings.shown()] == ["LKneeSag at 71.0 C (limit 70 C)"]
+
+
+def test_the_body_views_colour_each_joint_where_it_is_on_the_robot(qt):
+    """Fig. 15 (B): two figures of the robot, each joint coloured by its temperature/torque."""
+    from pilot.widgets.status import StatusTab, body_layout
+    from pilot.link import TemperaturesEvent
+    from walkman.modules.temperature import joint_names
+
+    places, bones = body_layout()
+    names = joint_names()
+    assert set(places) == set(names) and len(bones) >= len(names) - 6
+    assert places["NeckYawj"][1] > places["WaistLat"][1] > places["LAnkSag"][1]   # head up
+    assert places["LShSag"][0] > 0 > places["RShSag"][0]                         # left is +y
+    tab = StatusTab(["temperature"])
+    body = tab.temperature_body
+    body.resize(300, 320)
+    celsius = np.full(len(names), 35.0)
+    celsius[names.index("RKneeSag")] = 75.0
+    tab.on_temperatures(TemperaturesEvent(tuple(names), celsius, time.time()))
+    image = body.grab().toImage()                      # (the layout may size it first)
+    knee = body._points()["RKneeSag"]
+    assert body.joint_at(knee.x(), knee.y()) == "RKneeSag"
+    hot = image.pixelColor(int(knee.x()), int(knee.y()))
+    cool = image.pixelColor(*map(int, (body._points()["LKneeSag"].x(),
+                                       body._points()["LKneeSag"].y())))
+    assert hot.red() > 200 and hot.blue() < 80          # the hot knee is red
+    assert cool.blue() > 200 and cool.red() < 80        # the others are blue
