@@ -49,6 +49,17 @@ class World:
         up_z = 1.0 - 2.0 * (x * x + y * y)
         return math.acos(max(-1.0, min(1.0, up_z)))
 
+    def body_position(self, joint: str) -> List[float]:
+        """Where a free body is (x, y, z in the world), by its free joint's name."""
+        adr = self.model.joint(joint).qposadr[0]
+        return list(self._positions()[adr:adr + 3])
+
+    def upright(self, joint: str) -> float:
+        """The cosine of a free body's tilt from upright (1: standing straight)."""
+        adr = self.model.joint(joint).qposadr[0]
+        w, x, y, z = self._positions()[adr + 3:adr + 7]
+        return 1.0 - 2.0 * (x * x + y * y)
+
     def close(self) -> None:
         self.port.close()
 

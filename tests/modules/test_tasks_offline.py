@@ -11,7 +11,8 @@ import pytest
 from walkman.gym.offline import OfflineWorld
 from walkman.hal.sim import SimBackend
 from walkman.model.mjcf import PILOT_POSES
-from walkman.modules import drc_door, drc_drive, drc_valve, task
+from walkman.model.mjcf import PLUG_HALF, PLUG_SOCKETS, PLUG_TABLE_TOP
+from walkman.modules import drc_door, drc_drive, drc_plug, drc_valve, task
 
 WHEEL, DOOR, VALVE = PILOT_POSES["car"], PILOT_POSES["door"], PILOT_POSES["valve"]
 
@@ -206,3 +207,30 @@ def test_the_valve_hand_backs_off_to_the_reach_depth_only_as_far_as_needed():
     world.run_until(lambda: module.state == "moved_away", 30, "moved away")
     grip, _ = module.thread.pose(module.thread.hand)
     assert np.linalg.norm(grip - reach) < 0.02
+
+
+def plug_position(world) -> np.ndarray:
+    plant = world.backend.plant
+    adr = plant.m.joint("plug").qposadr[0]
+    return np.array(plant.d.qpos[adr:adr + 3])
+
+
+def test_the_plug_is_pulled_moved_and_seated_in_the_other_socket():
+    """The surprise task on simulated time: the plug stands in socket b at the end, and an
+    insert before the plug is over a socket is refused without a motion."""
+    world, module = started("plug", drc_plug.Module, "drc_plug")
+    module.do(PILOT_POSES["plug"], "ready", 1)
+    for command, state in (("reach", "reached"), ("approach", "approached"),
+                           ("grasp", "grasped"), ("pull", "pulled")):
+        module.do(command, state)
+    assert plug_position(world)[2] > PLUG_TABLE_TOP + PLUG_HALF[2] + 0.07
+    module.command("insert")                       # not over a socket yet: refused
+    world.step(0.1)
+    assert module.state == "pulled" and any("insert" in w for w in module.warnings)
+    for command, state in (("move_to_socket", "over_socket"), ("insert", "inserted"),
+                           ("ungrasp", "ungrasped"), ("move_away", "moved_away")):
+        module.do(command, state)
+    world.step(0.5)
+    x, y, z = plug_position(world)
+    assert np.hypot(x - PLUG_SOCKETS["b"][0], y - PLUG_SOCKETS["b"][1]) < 0.015
+    assert z == pytest.approx(PLUG_TABLE_TOP + PLUG_HALF[2], abs=0.01)

@@ -9,8 +9,11 @@ from pilot.layouts import DEFAULT_LAYOUTS, LayoutError, load_layout, parse_layou
 from pilot.link import image_pixels
 from rosnodes.stations import STATION_SPAN, SequenceNumbers, parse_sent, station_of
 from yarp_lite.bottle import Bottle
+from bridge import config as bridge_config
+from walkman import MODELS_DIR
 
-MODULES = ["drc_valve", "drc_door", "drc_drive", "walking", "gaze_control", "temperature"]
+#: The GYM modules of the shipped drc configuration: the layouts must name only those.
+MODULES = list(bridge_config.load(MODELS_DIR / "bridge_drc.xml").gym_modules)
 
 
 def test_the_valve_widget_offers_the_task_in_its_order_and_only_legal_steps():

@@ -16,6 +16,8 @@ The scene (``drc=True``) adds what the DRC modules act on, all articulated:
   throttle pedal in front of the right foot -- the robot drives standing;
 * a door with a lever handle and a latch (to the robot's left): it opens
   away from the robot only while the handle is turned down;
+* the surprise task's table (station ``plug``): two open sockets side by side
+  and a plug with a handle standing in the left one, free to be lifted out;
 * a **support harness**: the pelvis is welded (``harness``) to a trolley
   (``harness_trolley``) that rides on x/y rails and turns about z, its height
   on a spring that carries part of the weight.  The trolley's brake
@@ -41,17 +43,22 @@ from walkman.model.description import (STANDING_PELVIS_HEIGHT, Geom, Robot, home
 #: Parts a hand can grasp: (name, body, site) -- the site is where the hand must be.
 GRASPABLE = (("valve", "valve_wheel", "valve_grip"),
              ("steering_wheel", "steering_wheel", "steering_grip"),
-             ("door_handle", "door_handle", "door_handle_grip"))
+             ("door_handle", "door_handle", "door_handle_grip"),
+             ("plug", "plug", "plug_grip"))
 HANDS = ("l", "r")
 #: Where the robot can start: station -> (x, y, yaw) of the pelvis in the world.
 STATIONS = {"valve": (0.0, 0.0, 0.0), "car": (0.0, -2.5, 0.0), "door": (0.34, 2.25, 0.0),
-            "door_far": (-0.16, 2.25, 0.0), "yard": (-3.0, 0.0, 0.0)}
+            "door_far": (-0.16, 2.25, 0.0), "yard": (-3.0, 0.0, 0.0), "plug": (0.0, -5.0, 0.0)}
+#: The plug station's two sockets (world x, y of each centre; their floor is the table top).
+PLUG_SOCKETS = {"a": (0.62, -4.70), "b": (0.62, -4.88)}
+PLUG_TABLE_TOP = 0.98
 #: The command a pilot sends at a station to tell its task module where the part is (its
 #: pose in the pelvis frame, as perception would measure it): one copy of the scene's numbers
 #: for tests and benchmarks.
 PILOT_POSES = {"valve": "valvedatasent 0.66 0.25 0.08 0 0 0 0.15",
                "car": "steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18",
-               "door": "doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6"}
+               "door": "doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6",
+               "plug": "plugdatasent 0.62 0.30 -0.045 0 0 0 0 -0.18"}
 #: Vertical stiffness (N/m) of the harness spring and its share of the robot's weight when
 #: the feet touch the floor (trolley mode).
 HARNESS_STIFFNESS = 3000.0
@@ -184,7 +191,49 @@ def scene_bodies() -> List[str]:
           <site name="door_handle_grip" pos="0 0.09 0" size="0.015" rgba="1 1 0 0.6"/>
         </body>
       </body>
-    </body>""".splitlines()
+    </body>""".splitlines() + plug_bodies()
+
+
+#: The plug's body: a 5x5x8 cm block (half sizes) with a handle bar on top, along y.
+PLUG_HALF = (0.025, 0.025, 0.04)
+#: The sockets: open boxes, 7 cm inside (1 cm of play each side of the plug), 6 cm deep.
+SOCKET_INNER, SOCKET_WALL, SOCKET_DEPTH = 0.035, 0.008, 0.06
+
+
+def plug_bodies() -> List[str]:
+    """The surprise task's table, its two sockets, and the plug standing in socket a."""
+    (xa, ya), (xb, yb) = PLUG_SOCKETS["a"], PLUG_SOCKETS["b"]
+    top, inner, wall, depth = PLUG_TABLE_TOP, SOCKET_INNER, SOCKET_WALL, SOCKET_DEPTH
+    out = ["    <!-- the surprise task: pull the plug from socket a, push it into socket b -->",
+           f'    <body name="plug_table" pos="{xa:g} {(ya + yb) / 2:g} {top / 2:g}">',
+           f'      <geom name="plug_table_top" type="box" size="0.15 0.22 {top / 2:g}" '
+           f'rgba="0.55 0.45 0.35 1"/>',
+           "    </body>"]
+    for name, (x, y) in PLUG_SOCKETS.items():
+        out.append(f'    <body name="socket_{name}" pos="{x:g} {y:g} {top:g}">')
+        half = inner + wall / 2
+        for index, (dx, dy, sx, sy) in enumerate(((half, 0, wall / 2, half + wall / 2),
+                                                  (-half, 0, wall / 2, half + wall / 2),
+                                                  (0, half, half + wall / 2, wall / 2),
+                                                  (0, -half, half + wall / 2, wall / 2))):
+            out.append(f'      <geom name="socket_{name}_wall{index}" type="box" '
+                       f'size="{sx:g} {sy:g} {depth / 2:g}" pos="{dx:g} {dy:g} {depth / 2:g}" '
+                       f'rgba="0.2 0.2 0.25 1"/>')
+        out.append("    </body>")
+    hx, hy, hz = PLUG_HALF
+    out += [f'    <body name="plug" pos="{xa:g} {ya:g} {top + hz + 0.001:g}">',
+            '      <freejoint name="plug"/>',
+            # Props do not touch each other (contype 2, conaffinity 1); the plug must touch
+            # the table and the sockets as well as the robot.
+            f'      <geom name="plug_block" type="box" size="{hx:g} {hy:g} {hz:g}" mass="0.3" '
+            f'friction="0.6" contype="3" conaffinity="3" rgba="0.1 0.3 0.8 1"/>',
+            f'      <geom name="plug_handle" type="capsule" size="0.012" '
+            f'fromto="0 {-hy - 0.005:g} {hz + 0.015:g} 0 {hy + 0.005:g} {hz + 0.015:g}" mass="0.05" '
+            f'contype="3" conaffinity="3" rgba="0.9 0.9 0.9 1"/>',
+            f'      <site name="plug_grip" pos="0 0 {hz + 0.015:g}" size="0.015" '
+            f'rgba="1 1 0 0.6"/>',
+            "    </body>"]
+    return out
 
 
 def harness_body(robot: Robot) -> List[str]:
