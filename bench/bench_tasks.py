@@ -20,7 +20,8 @@ import numpy as np
 from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import SimBackend
 from walkman.model.mjcf import PILOT_POSES
-from walkman.modules import drc_door, drc_drive, drc_valve, walking
+from walkman.modules import drc_door, drc_drive, drc_plug, drc_valve, walking
+from walkman.model.mjcf import PLUG_SOCKETS
 from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 Step = Tuple[str, str]
@@ -43,6 +44,12 @@ TASKS: Dict[str, Tuple[str, type, List[Step], Callable[[OfflineWorld], str]]] = 
         ("open", "opened"), ("ungrasp", "ungrasped"), ("move_away", "moved_away"),
         ("home", "idle")],
         lambda world: f"door open {np.degrees(world.prop('door')):.1f} deg (goal > 30)"),
+    "drc_plug": ("plug", drc_plug.Module, [
+        (PILOT_POSES["plug"], "ready"), ("reach", "reached"),
+        ("approach", "approached"), ("grasp", "grasped"), ("pull", "pulled"),
+        ("move_to_socket", "over_socket"), ("insert", "inserted"), ("ungrasp", "ungrasped"),
+        ("move_away", "moved_away"), ("home", "idle")],
+        lambda world: f"plug {100 * plug_off_socket_b(world):.1f} cm from socket b's centre"),
     "walking": ("yard", walking.Module, [
         ("go_straight 1.0", "idle"), ("turn 0.8", "idle"), ("step_side 0.3", "idle"),
         ("go_straight -0.5", "idle")],
@@ -50,6 +57,13 @@ TASKS: Dict[str, Tuple[str, type, List[Step], Callable[[OfflineWorld], str]]] = 
             np.subtract(world.backend.plant.base_pose(), START[0])[[0, 1, 3]])),
 }
 START: List[Tuple[float, ...]] = []
+
+
+def plug_off_socket_b(world: OfflineWorld) -> float:
+    """How far (m) the plug's centre stands from socket b's, across the table."""
+    plant = world.backend.plant
+    adr = plant.m.joint("plug").qposadr[0]
+    return float(np.hypot(*np.subtract(plant.d.qpos[adr:adr + 2], PLUG_SOCKETS["b"])))
 
 
 def timed_ticks(module: OfflineModule) -> List[float]:

@@ -58,7 +58,7 @@ PLUG_TABLE_TOP = 0.98
 PILOT_POSES = {"valve": "valvedatasent 0.66 0.25 0.08 0 0 0 0.15",
                "car": "steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18",
                "door": "doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6",
-               "plug": "plugdatasent 0.62 0.30 -0.045 0 0 0 0 -0.18"}
+               "plug": "plugdatasent 0.62 0.30 0.0 0 0 0 0 -0.18"}
 #: Vertical stiffness (N/m) of the harness spring and its share of the robot's weight when
 #: the feet touch the floor (trolley mode).
 HARNESS_STIFFNESS = 3000.0
@@ -194,10 +194,12 @@ def scene_bodies() -> List[str]:
     </body>""".splitlines() + plug_bodies()
 
 
-#: The plug's body: a 5x5x8 cm block (half sizes) with a handle bar on top, along y.
+#: The plug's body: a 5x5x8 cm block (half sizes) with a handle bar along y on a post.
 PLUG_HALF = (0.025, 0.025, 0.04)
-#: The sockets: open boxes, 7 cm inside (1 cm of play each side of the plug), 6 cm deep.
-SOCKET_INNER, SOCKET_WALL, SOCKET_DEPTH = 0.035, 0.008, 0.06
+PLUG_HANDLE_UP = 0.06      # m from the block's top to the handle's axis
+#: The sockets: open boxes 9 cm inside, 6 cm deep: 2 cm of play each side of the plug, what
+#: a real socket's chamfer gives a hand that places it to 1 cm.
+SOCKET_INNER, SOCKET_WALL, SOCKET_DEPTH = 0.045, 0.008, 0.06
 
 
 def plug_bodies() -> List[str]:
@@ -227,10 +229,16 @@ def plug_bodies() -> List[str]:
             # the table and the sockets as well as the robot.
             f'      <geom name="plug_block" type="box" size="{hx:g} {hy:g} {hz:g}" mass="0.3" '
             f'friction="0.6" contype="3" conaffinity="3" rgba="0.1 0.3 0.8 1"/>',
+            # The handle stands on a post, high enough that the hand holding it stays above
+            # the socket's walls while the plug goes in.
+            f'      <geom name="plug_post" type="capsule" size="0.01" '
+            f'fromto="0 0 {hz:g} 0 0 {hz + PLUG_HANDLE_UP:g}" mass="0.03" contype="3" '
+            f'conaffinity="3" rgba="0.9 0.9 0.9 1"/>',
             f'      <geom name="plug_handle" type="capsule" size="0.012" '
-            f'fromto="0 {-hy - 0.005:g} {hz + 0.015:g} 0 {hy + 0.005:g} {hz + 0.015:g}" mass="0.05" '
-            f'contype="3" conaffinity="3" rgba="0.9 0.9 0.9 1"/>',
-            f'      <site name="plug_grip" pos="0 0 {hz + 0.015:g}" size="0.015" '
+            f'fromto="0 {-hy - 0.005:g} {hz + PLUG_HANDLE_UP:g} 0 {hy + 0.005:g} '
+            f'{hz + PLUG_HANDLE_UP:g}" mass="0.05" contype="3" conaffinity="3" '
+            f'rgba="0.9 0.9 0.9 1"/>',
+            f'      <site name="plug_grip" pos="0 0 {hz + PLUG_HANDLE_UP:g}" size="0.015" '
             f'rgba="1 1 0 0.6"/>',
             "    </body>"]
     return out
@@ -307,6 +315,11 @@ def to_mjcf(robot: Robot, drc: bool = True, timestep: float = 0.001) -> str:
     lines.append("  </worldbody>")
     lines += actuators(robot)
     lines += sensors(robot)
+    if drc:
+        # A hand holds the plug by a weld, as it holds every part: its palm must not push
+        # the plug it carries (the fingers have no contact at all).
+        lines += ["  <contact>", *(f'    <exclude body1="{hand}_hand" body2="plug"/>'
+                                  for hand in HANDS), "  </contact>"]
     lines += equalities(drc)
     lines += keyframe(robot)
     lines.append("</mujoco>")
