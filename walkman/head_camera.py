@@ -217,6 +217,7 @@ class HeadCamera:
         self.step = step
         self.camera = SceneCamera(width, height)
         self.region: Optional[Region] = None
+        self.port = None                          # the HAL's world, once open_yarp ran
         self.world: Optional[np.ndarray] = None
         self.world_time = 0.0
         self._lock = threading.Lock()
@@ -270,9 +271,8 @@ class HeadCamera:
         self.port = port
 
     def close_port(self) -> None:
-        port = getattr(self, "port", None)
-        if port is not None:
-            port.close()
+        if self.port is not None:
+            self.port.close()
 
     def messages(self, stamp) -> Optional[tuple]:
         from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField
