@@ -52,6 +52,7 @@ STARTING_VALUES: Dict[str, Dict[str, List[float]]] = {
     "drc_drive": {"steeringwheeldatasent": _pose(PILOT_POSES["car"]), "turn_left": [0.3],
                   "turn_right": [0.3], "accelerate": [1.0, 1.0]},
     "drc_plug": {"plugdatasent": _pose(PILOT_POSES["plug"])},
+    "drc_wall": {"walldatasent": _pose(PILOT_POSES["wall"])},
     "walking": {"go_straight": [0.5], "turn": [0.3], "step_side": [0.1]},
     "gaze_control": {"look_at": [1.0, 0.2, 0.1], "set_time": [1.5]},
 }

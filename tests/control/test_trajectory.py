@@ -55,6 +55,18 @@ def test_circular_keeps_its_radius_and_turns_by_the_angle(p0, r0, center, axis, 
     assert np.allclose(derivative(trajectory, 1.0 - 1e-4)[0], 0, atol=1e-3)
 
 
+@given(vectors, rotations, vectors, vectors.filter(lambda a: np.linalg.norm(a) > 0.1),
+       st.floats(-6.3, 6.3))
+def test_a_tool_going_round_a_circle_keeps_its_orientation(p0, r0, center, axis, angle):
+    """A drill cutting a circle: the point goes round as on any arc, the frame never turns."""
+    turning, tool = CartesianTrajectory(), CartesianTrajectory()
+    turning.set_circular((p0, r0), center, axis, angle, duration=1.0)
+    tool.set_circular((p0, r0), center, axis, angle, duration=1.0, turn_orientation=False)
+    for t in np.linspace(0, 1, 11):
+        assert np.allclose(tool.at(t)[0], turning.at(t)[0])
+        assert np.allclose(tool.at(t)[1], r0)
+
+
 def test_bad_parameters_are_refused_by_name():
     trajectory = CartesianTrajectory()
     pose = (np.zeros(3), np.eye(3))

@@ -10,8 +10,8 @@ from walkman.gym.runner import load_module_class
 class Task:
     """A started task module, piloted the way a user does: ``yarp-lite write``."""
 
-    def __init__(self, world, lite, name: str, scene: World) -> None:
-        self.name, self.scene = name, scene
+    def __init__(self, world, lite, name: str, scene: World, hal) -> None:
+        self.name, self.scene, self.hal = name, scene, hal
         self.pilot = Pilot(world, name, load_module_class(name).statuses)
         self.send = lambda port, line: self.pilot.send(lite, port, line)
 
@@ -25,15 +25,17 @@ class Task:
 
 @pytest.fixture
 def task_at(lite_world, lite):
-    """``task_at(station, module)``: HAL at a station of the scene, the module started."""
+    """``task_at(station, module)``: HAL at a station of the scene, the module started
+    (``task.hal`` is the HAL's process: its log says what the simulated world did)."""
     made = []
+    hals = []
 
     def start(station: str, name: str, *hal_options: str) -> Task:
         if not made:
-            start_hal(lite_world, "sim", "--station", station, *hal_options)
+            hals.append(start_hal(lite_world, "sim", "--station", station, *hal_options))
             made.append(World())
         start_module(lite_world, name).wait_for("ready for the pilot", timeout=60)
-        task = Task(lite_world, lite, name, made[0])
+        task = Task(lite_world, lite, name, made[0], hals[0])
         made.append(task)
         task.send("switch", "start")
         task.pilot.wait_state("idle", 30)

@@ -3,7 +3,9 @@
 ``s(tau) = 10 tau^3 - 15 tau^4 + 6 tau^5`` with ``tau = t / T`` goes from 0
 to 1 with zero velocity and acceleration at both ends.  Linear trajectories
 interpolate positions (and, for Cartesian poses, orientations on SO(3));
-circular ones rotate about an axis by ``s * angle``.
+circular ones rotate about an axis by ``s * angle`` -- the pose turning with
+the arc (a hand on a valve), or only the position, the orientation kept (a
+drill cutting a circle: section 2.5's circular trajectory of a tool).
 """
 
 from __future__ import annotations
@@ -105,8 +107,10 @@ class CartesianTrajectory:
         self._at = lambda s: (p0 + s * (p1 - p0), r0 @ pin.exp3(s * twist))
 
     def set_circular(self, start: Pose, center, axis, angle: float, duration: float,
-                     t0: float = 0.0) -> None:
-        """Rotate ``start`` about the line through ``center`` along ``axis`` by ``angle`` rad."""
+                     t0: float = 0.0, turn_orientation: bool = True) -> None:
+        """Rotate ``start`` about the line through ``center`` along ``axis`` by ``angle`` rad
+        (its orientation too, unless ``turn_orientation`` is False: then only its point
+        goes round, the frame keeps the start's orientation)."""
         p0, r0 = _vector(start[0], "start position"), _rotation(start[1], "start rotation")
         center = _vector(center, "circle center")
         axis = _vector(axis, "circle axis")
@@ -120,7 +124,7 @@ class CartesianTrajectory:
 
         def at(s: float) -> Pose:
             turn = pin.exp3(axis * (s * angle))
-            return center + turn @ (p0 - center), turn @ r0
+            return center + turn @ (p0 - center), (turn @ r0 if turn_orientation else r0)
 
         self._at = at
 

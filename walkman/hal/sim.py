@@ -11,7 +11,9 @@ part (valve rim, steering wheel, door handle), a weld between hand and part
 is switched on at their current relative pose; opening the hand (below 0.4
 rad) releases it.  The door's latch (a joint equality holding the door shut)
 lets go while the handle is turned down past ``LATCH_RELEASE`` and catches
-again when the door is back in its frame.
+again when the door is back in its frame.  The drill runs while a hand that
+holds it squeezes its trigger (closes past ``DRILL_TRIGGER``); its bit's path
+through the drywall is judged by :class:`walkman.hal.drywall.Drywall`.
 
 The pelvis hangs from the scene's support harness (``walkman/model/mjcf.py``)
 in one of three modes: ``locked`` (trolley braked: the robot hangs still, the
@@ -29,15 +31,17 @@ import mujoco
 import numpy as np
 
 from walkman.hal.backend import Backend, Imu, quat_to_rpy
+from walkman.hal.drywall import Drywall
 from walkman.hal.thermal import ThermalModel
 from walkman.model import MJCF_PATH, SCENE_PATH
 from walkman.model.description import Robot, walkman
-from walkman.model.mjcf import GRASPABLE, HANDS, STATIONS
+from walkman.model.mjcf import GRASPABLE, HANDS, STATIONS, WALL_CIRCLE_RADIUS
 
 GRASP_CLOSED = 0.8
 GRASP_OPEN = 0.4
 GRASP_DISTANCE = 0.08  # m: the soft hand closes on a part with large position errors
 LATCH_RELEASE = -0.5   # rad of the door handle (down) that frees the latch
+DRILL_TRIGGER = 1.38   # rad: a hand holding the drill closed past this squeezes its trigger
 PUSH_BODY = "torso"    # where a simulated push lands (a hand on the robot's chest)
 PUSH_TIME = 0.1        # s a push lasts
 MAX_PUSH = 500.0       # N*s: the largest impulse the simulator accepts
@@ -88,6 +92,16 @@ class MujocoPlant:
                 self.grasps[f"{hand}_{part}"] = eq_id
                 self.grasp_sites[f"{hand}_{part}"] = (self.m.site(f"{hand}_hand_grip").id,
                                                       self.m.site(site).id)
+        self.drill_running = False
+        try:
+            self.drill_tip: Optional[int] = self.m.site("drill_tip").id
+        except KeyError:
+            self.drill_tip = None
+        else:
+            mujoco.mj_forward(self.m, self.d)
+            wall = self.m.body("drywall").id
+            self.drywall = Drywall(self.d.site_xpos[self.m.site("wall_circle").id].copy(),
+                                   -self.d.xmat[wall].reshape(3, 3)[:, 0], WALL_CIRCLE_RADIUS)
         self.place(station)
         self.set_harness(harness)
 
@@ -177,6 +191,18 @@ class MujocoPlant:
                 events.append(f"released {key}")
         return events
 
+    def update_drill(self, hand_positions: Dict[str, float]) -> List[str]:
+        """The drill runs while a hand holding it squeezes the trigger; feed the drywall."""
+        if self.drill_tip is None:
+            return []
+        running = any(self.d.eq_active[self.grasps[f"{hand}_drill"]] and
+                      hand_positions[hand] > DRILL_TRIGGER for hand in HANDS)
+        events = []
+        if running != self.drill_running:
+            self.drill_running = running
+            events.append("drill on" if running else "drill off")
+        return events + self.drywall.feed(self.d.site_xpos[self.drill_tip], running)
+
     def _weld_here(self, eq_id: int) -> None:
         """Make the weld hold the two bodies where they are now."""
         body1, body2 = self.m.eq_obj1id[eq_id], self.m.eq_obj2id[eq_id]
@@ -248,8 +274,10 @@ class SimBackend(Backend):
         self._steps += 1
         if self._steps % 10 == 0 and plant.grasps:
             q = self.positions()
-            self.events += plant.update_grasps({"l": q[self._hands[0]], "r": q[self._hands[1]]})
+            hands = {"l": q[self._hands[0]], "r": q[self._hands[1]]}
+            self.events += plant.update_grasps(hands)
             self.events += plant.update_latch()
+            self.events += plant.update_drill(hands)
 
     def positions(self) -> np.ndarray:
         return self.plant.d.qpos[self.plant.qpos_adr].copy()
@@ -273,5 +301,10 @@ class SimBackend(Backend):
                    tuple(self.plant.sensor("imu_gyro")))
 
     def status(self) -> Dict[str, object]:
-        return {"backend": "sim", "time": round(self.time, 3), "grasped": self.plant.grasped(),
-                "harness": self.plant.harness_mode}
+        status = {"backend": "sim", "time": round(self.time, 3),
+                  "grasped": self.plant.grasped(), "harness": self.plant.harness_mode}
+        if self.plant.drill_tip is not None and (self.plant.drill_running or
+                                                 self.plant.drywall.cut_points):
+            status["drill"] = "on" if self.plant.drill_running else "off"
+            status["drywall"] = self.plant.drywall.summary()
+        return status

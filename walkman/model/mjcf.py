@@ -44,21 +44,33 @@ from walkman.model.description import (STANDING_PELVIS_HEIGHT, Geom, Robot, home
 GRASPABLE = (("valve", "valve_wheel", "valve_grip"),
              ("steering_wheel", "steering_wheel", "steering_grip"),
              ("door_handle", "door_handle", "door_handle_grip"),
-             ("plug", "plug", "plug_grip"))
+             ("plug", "plug", "plug_grip"),
+             ("drill", "drill", "drill_grip"))
 HANDS = ("l", "r")
 #: Where the robot can start: station -> (x, y, yaw) of the pelvis in the world.
 STATIONS = {"valve": (0.0, 0.0, 0.0), "car": (0.0, -2.5, 0.0), "door": (0.34, 2.25, 0.0),
-            "door_far": (-0.16, 2.25, 0.0), "yard": (-3.0, 0.0, 0.0), "plug": (0.0, -5.0, 0.0)}
+            "door_far": (-0.16, 2.25, 0.0), "yard": (-3.0, 0.0, 0.0), "plug": (0.0, -5.0, 0.0),
+            "wall": (0.0, -7.5, 0.0)}
 #: The plug station's two sockets (world x, y of each centre; their floor is the table top).
 PLUG_SOCKETS = {"a": (0.62, -4.70), "b": (0.62, -4.88)}
 PLUG_TABLE_TOP = 0.98
+#: The wall station (``drc_wall``): the drill standing on its table (world position of its
+#: grip, the middle of its handle; the bit points along world x), the drywall's face (world
+#: x) and the circle marked on it (world centre, radius): the pilot cuts it out.
+DRILL_GRIP = (0.50, -7.10, 1.06)
+DRILL_TABLE_TOP = 0.98
+WALL_FACE_X = 0.85
+WALL_THICKNESS = 0.015
+WALL_CIRCLE_CENTRE = (WALL_FACE_X, -7.28, 1.24)
+WALL_CIRCLE_RADIUS = 0.08
 #: The command a pilot sends at a station to tell its task module where the part is (its
 #: pose in the pelvis frame, as perception would measure it): one copy of the scene's numbers
 #: for tests and benchmarks.
 PILOT_POSES = {"valve": "valvedatasent 0.66 0.25 0.08 0 0 0 0.15",
                "car": "steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18",
                "door": "doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6",
-               "plug": "plugdatasent 0.62 0.30 0.0 0 0 0 0 -0.18"}
+               "plug": "plugdatasent 0.62 0.30 0.0 0 0 0 0 -0.18",
+               "wall": "walldatasent 0.50 0.40 -0.06 0 0 0 0.85 0.22 0.12 0.08"}
 #: Vertical stiffness (N/m) of the harness spring and its share of the robot's weight when
 #: the feet touch the floor (trolley mode).
 HARNESS_STIFFNESS = 3000.0
@@ -191,7 +203,7 @@ def scene_bodies() -> List[str]:
           <site name="door_handle_grip" pos="0 0.09 0" size="0.015" rgba="1 1 0 0.6"/>
         </body>
       </body>
-    </body>""".splitlines() + plug_bodies()
+    </body>""".splitlines() + plug_bodies() + wall_bodies()
 
 
 #: The plug's body: a 5x5x8 cm block (half sizes) with a handle bar along y on a post.
@@ -242,6 +254,59 @@ def plug_bodies() -> List[str]:
             f'rgba="1 1 0 0.6"/>',
             "    </body>"]
     return out
+
+
+#: The drill, in its own frame (origin at the grip, the middle of the handle; x along the
+#: bit): where the bit's tip is.  A hand that holds the drill by its grip squeezes the
+#: trigger by closing further (walkman/hal/sim.py's ``DRILL_TRIGGER``).
+DRILL_TIP = (0.254, 0.0, 0.07)
+DRILL_FOOT = 0.08          # m from the grip down to the bottom of the battery it stands on
+
+
+def wall_bodies() -> List[str]:
+    """The wall task: a table with the drill standing on it, a drywall panel with a circle."""
+    gx, gy, gz = DRILL_GRIP
+    tx, ty, tz = DRILL_TIP
+    cx, cy, cz = WALL_CIRCLE_CENTRE
+    top, face, half_thick = DRILL_TABLE_TOP, WALL_FACE_X, WALL_THICKNESS / 2
+    return [
+        "    <!-- the wall task: the drill on its table, the drywall with a circle to cut out -->",
+        f'    <body name="drill_table" pos="{gx:g} {gy:g} {top / 2:g}">',
+        f'      <geom name="drill_table_top" type="box" size="0.12 0.15 {top / 2:g}" '
+        f'rgba="0.55 0.45 0.35 1"/>',
+        "    </body>",
+        f'    <body name="drywall" pos="{face + half_thick:g} {cy + 0.1:g} 0.8">',
+        f'      <geom name="drywall_panel" type="box" size="{half_thick:g} 0.4 0.8" '
+        f'rgba="0.92 0.92 0.88 1"/>',
+        # The circle drawn on the panel (no contact): a dark ring on the face.
+        f'      <geom name="wall_circle_ring" type="cylinder" contype="0" conaffinity="0" '
+        f'size="{WALL_CIRCLE_RADIUS + 0.004:g} 0.0005" euler="0 1.5708 0" '
+        f'pos="{-half_thick - 0.001:g} {cy - (cy + 0.1):g} {cz - 0.8:g}" rgba="0.1 0.1 0.1 1"/>',
+        f'      <geom name="wall_circle_inside" type="cylinder" contype="0" conaffinity="0" '
+        f'size="{WALL_CIRCLE_RADIUS - 0.004:g} 0.0005" euler="0 1.5708 0" '
+        f'pos="{-half_thick - 0.0015:g} {cy - (cy + 0.1):g} {cz - 0.8:g}" '
+        f'rgba="0.92 0.92 0.88 1"/>',
+        f'      <site name="wall_circle" pos="{-half_thick:g} {cy - (cy + 0.1):g} {cz - 0.8:g}" '
+        f'size="0.01" rgba="1 0 0 0.6"/>',
+        "    </body>",
+        f'    <body name="drill" pos="{gx:g} {gy:g} {top + DRILL_FOOT + 0.001:g}">',
+        '      <freejoint name="drill"/>',
+        # The drill touches the table and the robot (contype 3); its bit touches nothing:
+        # the drywall's cut is judged from the bit's path (walkman/hal/drywall.py).
+        '      <geom name="drill_handle" type="box" size="0.015 0.02 0.05" mass="0.3" '
+        'friction="0.8" contype="3" conaffinity="3" rgba="0.9 0.5 0.1 1"/>',
+        f'      <geom name="drill_battery" type="box" size="0.035 0.03 0.015" '
+        f'pos="0 0 {-DRILL_FOOT + 0.015:g}" mass="0.4" friction="0.8" contype="3" '
+        f'conaffinity="3" rgba="0.2 0.2 0.2 1"/>',
+        f'      <geom name="drill_motor" type="box" size="0.09 0.025 0.025" '
+        f'pos="0.06 0 {tz:g}" mass="0.5" contype="3" conaffinity="3" rgba="0.9 0.5 0.1 1"/>',
+        f'      <geom name="drill_bit" type="capsule" size="0.004" '
+        f'fromto="0.15 0 {tz:g} {tx - 0.004:g} 0 {tz:g}" mass="0.02" contype="0" '
+        f'conaffinity="0" rgba="0.7 0.7 0.75 1"/>',
+        '      <site name="drill_grip" pos="0 0 0" size="0.015" rgba="1 1 0 0.6"/>',
+        f'      <site name="drill_tip" pos="{tx:g} {ty:g} {tz:g}" size="0.005" '
+        f'rgba="1 0 0 0.8"/>',
+        "    </body>"]
 
 
 def harness_body(robot: Robot) -> List[str]:
@@ -316,10 +381,11 @@ def to_mjcf(robot: Robot, drc: bool = True, timestep: float = 0.001) -> str:
     lines += actuators(robot)
     lines += sensors(robot)
     if drc:
-        # A hand holds the plug by a weld, as it holds every part: its palm must not push
-        # the plug it carries (the fingers have no contact at all).
-        lines += ["  <contact>", *(f'    <exclude body1="{hand}_hand" body2="plug"/>'
-                                  for hand in HANDS), "  </contact>"]
+        # A hand holds the plug and the drill by a weld, as it holds every part: its palm
+        # must not push what it carries (the fingers have no contact at all).
+        lines += ["  <contact>", *(f'    <exclude body1="{hand}_hand" body2="{part}"/>'
+                                  for hand in HANDS for part in ("plug", "drill")),
+                  "  </contact>"]
     lines += equalities(drc)
     lines += keyframe(robot)
     lines.append("</mujoco>")

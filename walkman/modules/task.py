@@ -110,6 +110,10 @@ class TaskModule(ControlThread):
     initial = "idle"
     #: every joint the module commands (and so holds while it runs).
     joints: Sequence[str] = ()
+    #: Correct the compliant joints' sag while a motion runs, not only once it has ended,
+    #: and keep what was learnt from one motion of the same effector to the next: for a
+    #: tool held out whose whole path matters (a drill's cut), not only where it ends.
+    compensate_sag = False
 
     @property
     def commands(self) -> List[str]:
@@ -131,7 +135,7 @@ class TaskModule(ControlThread):
         self.goal: Optional[np.ndarray] = None
         self.goal_rotation = np.eye(3)
         self.correction = np.zeros(3)
-        self.hand_goals: Dict[int, float] = {}
+        self.hand_goals: Dict[int, Tuple[float, float]] = {}   # joint -> (goal, tolerance)
         self.phases: List[Callable[[], None]] = []
         self.waiting_until: Optional[float] = None
         self._said_overdue = False
@@ -215,11 +219,16 @@ class TaskModule(ControlThread):
         return position + rotation @ effector.offset, rotation
 
     def reachable(self, effector: Effector, position: np.ndarray,
-                  rotation: Optional[np.ndarray] = None, what: str = "target") -> np.ndarray:
-        """The posture reaching ``position``; refuses (ValueError) with the miss distance."""
-        result = self.ik.solve(effector.frame, position, rotation, self.robot.sense_position(),
-                               effector.joints, offset=effector.offset, restarts=6,
-                               rest=self.rest)
+                  rotation: Optional[np.ndarray] = None, what: str = "target",
+                  seed: Optional[np.ndarray] = None) -> np.ndarray:
+        """The posture reaching ``position``; refuses (ValueError) with the miss distance.
+
+        ``seed``: go on from this posture as the tracking loop does (no random restarts),
+        to check a path point by point; by default any posture that reaches will do."""
+        result = self.ik.solve(effector.frame, position, rotation,
+                               self.robot.sense_position() if seed is None else seed,
+                               effector.joints, offset=effector.offset,
+                               restarts=6 if seed is None else 0, rest=self.rest)
         if not result.reached:
             self.refuse(f"the {effector.frame} cannot reach the {what} "
                         f"{np.round(position, 3).tolist()} (misses by "
@@ -242,16 +251,22 @@ class TaskModule(ControlThread):
         self.arcing, self.contact = False, contact
 
     def arc(self, effector: Effector, center: np.ndarray, axis: np.ndarray, angle: float,
-            angular_speed: float) -> None:
-        """Turn the effector about ``axis`` through ``center`` by ``angle`` (rad)."""
-        self.trajectory.set_circular(self.pose(effector), center, axis, angle,
-                                     duration_for(angle, angular_speed, 1.0), self.now())
+            angular_speed: float, turn_orientation: bool = True,
+            start: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> None:
+        """Turn the effector about ``axis`` through ``center`` by ``angle`` (rad); with
+        ``turn_orientation`` False its point goes round and its frame keeps its rotation.
+        ``start``: the pose the arc starts from, if not where the effector is (the point the
+        last motion aimed at, when a few millimetres of sag would shrink the circle)."""
+        self.trajectory.set_circular(start or self.pose(effector), center, axis, angle,
+                                     duration_for(angle, angular_speed, 1.0), self.now(),
+                                     turn_orientation=turn_orientation)
         self._begin(effector, self.trajectory.goal()[0], full_pose=True)
         self.arcing, self.contact = True, False
 
     def _begin(self, effector: Effector, goal: np.ndarray, full_pose: bool) -> None:
+        if not (self.compensate_sag and effector is self.effector):
+            self.correction = np.zeros(3)
         self.effector, self.goal, self.full_pose = effector, goal, full_pose
-        self.correction = np.zeros(3)
         self.goal_rotation = self.trajectory.goal()[1]
         self.joint_motion = None
         self._said_overdue = False
@@ -289,8 +304,10 @@ class TaskModule(ControlThread):
         else:
             self.event("action_done")
 
-    def set_hand(self, hand: str, value: float) -> None:
-        self.hand_goals[self.robot.index[hand]] = value
+    def set_hand(self, hand: str, value: float, tolerance: float = HAND_TOLERANCE) -> None:
+        """Close or open a hand to ``value`` (rad): ``hand_done`` once it is within
+        ``tolerance`` (the soft hand stops on what it grasps, so the default is loose)."""
+        self.hand_goals[self.robot.index[hand]] = (value, tolerance)
 
     # -- every tick ---------------------------------------------------------------------------
 
@@ -310,6 +327,9 @@ class TaskModule(ControlThread):
                                    max_iterations=TICK_IK_ITERATIONS)
             moved = self.ik.joints_of(effector.joints)
             self.reference[moved] = result.q[moved]
+            if self.compensate_sag and not self.trajectory.done(now):
+                lag = position - self.pose(effector)[0]
+                self.correction = np.clip(self.correction + SETTLE_GAIN * lag, -0.05, 0.05)
             if self.trajectory.done(now) and self.contact:
                 self.trajectory.reset()
                 self._finished()
@@ -334,9 +354,9 @@ class TaskModule(ControlThread):
             if motion.done(now):
                 self.joint_motion = None
                 self._finished()
-        for hand, goal in list(self.hand_goals.items()):
+        for hand, (goal, tolerance) in list(self.hand_goals.items()):
             self.reference[hand] = goal
-            if abs(self.robot.sense_position()[hand] - goal) < HAND_TOLERANCE:
+            if abs(self.robot.sense_position()[hand] - goal) < tolerance:
                 del self.hand_goals[hand]
                 self.event("hand_done")
 
