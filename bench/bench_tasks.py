@@ -50,12 +50,8 @@ TASKS: Dict[str, Tuple[str, type, List[Step], Callable[[OfflineWorld], str]]] = 
         ("move_to_socket", "over_socket"), ("insert", "inserted"), ("ungrasp", "ungrasped"),
         ("move_away", "moved_away"), ("home", "idle")],
         lambda world: f"plug {100 * plug_off_socket_b(world):.1f} cm from socket b's centre"),
-    "drc_wall": ("wall", drc_wall.Module, [
-        (PILOT_POSES["wall"], "ready"), ("reach", "reached"), ("approach", "approached"),
-        ("grasp", "grasped"), ("lift", "lifted"), ("switch_on", "drill_on"),
-        ("to_wall", "at_wall"), ("push_in", "drilled_in"), ("cut", "cut_done"),
-        ("pull_out", "at_wall"), ("switch_off", "drill_off"), ("put_down", "on_table"),
-        ("ungrasp", "ungrasped"), ("move_away", "moved_away"), ("home", "idle")],
+    "drc_wall": ("wall", drc_wall.Module, [(PILOT_POSES["wall"], "ready"),
+                                           *drc_wall.TASK_STEPS],
         lambda world: f"drywall: {world.backend.plant.drywall.summary()}"),
     "walking": ("yard", walking.Module, [
         ("go_straight 1.0", "idle"), ("turn 0.8", "idle"), ("step_side 0.3", "idle"),

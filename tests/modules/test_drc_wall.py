@@ -9,18 +9,12 @@ import math
 import pytest
 
 from walkman.model.mjcf import DRILL_GRIP, PILOT_POSES
-
-STEPS = (("reach", "reached"), ("approach", "approached"), ("grasp", "grasped"),
-         ("lift", "lifted"), ("switch_on", "drill_on"), ("to_wall", "at_wall"),
-         ("push_in", "drilled_in"), ("cut", "cut_done"), ("pull_out", "at_wall"),
-         ("switch_off", "drill_off"), ("put_down", "on_table"), ("ungrasp", "ungrasped"),
-         ("move_away", "moved_away"))
-
+from walkman.modules.drc_wall import TASK_STEPS
 
 def test_the_drill_cuts_the_circle_and_is_put_back(task_at):
     wall = task_at("wall", "drc_wall")
     wall.command(PILOT_POSES["wall"], "ready")
-    for command, state in STEPS:
+    for command, state in TASK_STEPS[:-1]:
         wall.command(command, state, timeout=60)
         if command == "switch_on":
             wall.hal.wait_for("drill on$", timeout=10)
@@ -36,7 +30,7 @@ def test_the_drill_cuts_the_circle_and_is_put_back(task_at):
 def test_a_push_into_the_wall_before_the_drill_runs_is_refused(task_at):
     wall = task_at("wall", "drc_wall")
     wall.command(PILOT_POSES["wall"], "ready")
-    for command, state in STEPS[:4]:
+    for command, state in TASK_STEPS[:4]:
         wall.command(command, state, timeout=60)
     wall.send("command", "to_wall")                  # the drill is off: not from 'lifted'
     wall.pilot.wait_warning("to_wall", 30)

@@ -244,13 +244,6 @@ def free_body(world, joint: str) -> np.ndarray:
     return np.array(plant.d.qpos[adr:adr + 7])
 
 
-WALL_STEPS = (("reach", "reached"), ("approach", "approached"), ("grasp", "grasped"),
-              ("lift", "lifted"), ("switch_on", "drill_on"), ("to_wall", "at_wall"),
-              ("push_in", "drilled_in"), ("cut", "cut_done"), ("pull_out", "at_wall"),
-              ("switch_off", "drill_off"), ("put_down", "on_table"), ("ungrasp", "ungrasped"),
-              ("move_away", "moved_away"), ("home", "idle"))
-
-
 def test_the_drill_cuts_the_circle_out_of_the_wall_and_goes_back_on_its_table():
     """The wall task on simulated time: the drywall (the simulator's judge) says the circle
     is cut out within 1.5 cm; the drill ran only between switch_on and switch_off, and it
@@ -258,7 +251,7 @@ def test_the_drill_cuts_the_circle_out_of_the_wall_and_goes_back_on_its_table():
     world, module = started("wall", drc_wall.Module, "drc_wall")
     module.do(PILOT_POSES["wall"], "ready", 1)
     drywall = world.backend.plant.drywall
-    for command, state in WALL_STEPS:
+    for command, state in drc_wall.TASK_STEPS:
         module.do(command, state, 40)
         if command == "push_in":
             assert drywall.cut_points > 0 and not drywall.cut_out

@@ -16,7 +16,7 @@ pose fields, and after the test says ``restarted`` (roscore and bridge restarted
 under it) the PI shows the module again, librviz takes the new bridge's cloud,
 the PI sends ``look_at X+0.1`` and draws the robot), ``camera`` (the camera tab in
 the lab, no bridge: frames with a black sky and a cloud without depth there read
-100 %, nothing hatched), ``valve COUNT`` (for bench/bench_valve_topologies.py: the
+100 %, nothing hatched), ``wall`` (the wall task by clicks, start to home), ``valve COUNT`` (for bench/bench_valve_topologies.py: the
 whole valve task COUNT times by clicks, printing ``TIMED run command state click-time
 shown-time`` per step and ``SHOWN time state stamp`` for every status the task widget
 showed, ``stamp`` the gateway's receipt; after each run but the last it waits for the
@@ -154,6 +154,26 @@ def view_pixels(disable: str = "") -> int:
                     + abs(colour.blue() - background.blue()) > 60:
                 count += 1
     return count
+
+
+def wall_task() -> None:
+    """The wall task by clicks: start drc_wall, send the drill's and the circle's pose from
+    the task widget's fields (filled with the scene's values), then every step of the task,
+    the timed ones (push_in, cut) counting down before they leave."""
+    from walkman.modules.drc_wall import TASK_STEPS
+
+    wall = widget("drc_wall")
+    wait(lambda: wall.state is not None, 60, "drc_wall's status")
+    wait_sendable("drc_wall")
+    click(wall.switch_buttons["start"], "drc_wall start", wall)
+    wait(lambda: wall.state == "idle", 30, "drc_wall idle")
+    say("STEP drc_wall started")
+    do("drc_wall", "walldatasent", "ready")
+    for command, state in TASK_STEPS:
+        do("drc_wall", command, state, timeout=90)
+        if command == "cut":
+            window.screenshot(OUT / "wall-cut.png")
+    say("DONE")
 
 
 def first() -> None:
@@ -586,6 +606,6 @@ if __name__ == "__main__":
     wait(lambda: window.ros_up, 60, "the PI's ROS node")
     say(f"UP after {window.ready_after:.2f} s")
     {"first": first, "second": second, "latency": latency, "peer": peer,
-     "camera": camera, "valve": valve_runs,
+     "camera": camera, "valve": valve_runs, "wall": wall_task,
      "link": link_down}[sys.argv[1]]()
     window.close_link()

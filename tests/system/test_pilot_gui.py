@@ -110,6 +110,41 @@ def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
         gateway[-3000:]
 
 
+def test_the_wall_task_by_clicks_cuts_the_circle_in_the_world(tmp_path, display, request):
+    """drc_wall through the PI on the drc topology (the bridge between two name-server
+    pairs): every step clicked, the timed ones counted down; the simulated world -- the
+    HAL's drywall, not the module -- says the circle is cut out."""
+    hal = Component("hal", "robot", (PYTHON, "-m", "walkman.hal.server", "--backend", "sim",
+                                     "--station", "wall"), r"HAL for walkman")
+    wall = Component("drc_wall", "robot", (PYTHON, "-m", "walkman.gym.supervisor",
+                                           "drc_wall"), r"ready for the pilot")
+    topology = Topology("drc", tmp_path / "drc", extra=[hal, wall])
+    del topology.table["rosbag"]
+    out = tmp_path / "screens"
+    out.mkdir()
+    try:
+        topology.start_name_servers()
+        topology.start_all(list(topology.table))
+        topology.wait_ready(180)
+        pi = start_pi(topology.pilot, display, "wall", out)
+        pi.wait_for(r"DONE|FAIL", 600)
+        assert "FAIL" not in pi.output(), pi.output()
+        world = topology.process("hal")
+        cut = world.wait_for(r"drywall: the circle is cut out \(360 degrees, largest miss "
+                             r"([\d.]+) cm\)", 10)
+        assert float(cut.group(1)) < 1.5, cut.group(0)
+        assert world.wait_for(r"released l_drill", 10)
+        # Every command came from the PI, through the gateway and the bridge.
+        gateway = topology.process("gateway").output()
+        assert re.search(r"gateway: sent to /drc_wall/command:i: \(?cut\b", gateway), \
+            gateway[-3000:]
+    finally:
+        shutil.copytree(out, REPO / "out" / "pilot-gui-wall", dirs_exist_ok=True)
+        for pc in topology.unique_pcs():
+            dump_outputs_if_failed(request, pc.processes.values())
+        topology.close()
+
+
 def test_in_the_lab_a_black_sky_and_points_without_depth_are_not_loss(display, tmp_path,
                                                                      request):
     """The lab has no bridge, so no report on what arrived: all of it did.  Before issue 33

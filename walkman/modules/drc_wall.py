@@ -76,6 +76,14 @@ TABLE = grasp_table("walldatasent", {
     "on_table": {"ungrasp": "ungrasping", "lift": "lifting"},
 })
 
+#: The whole task as a pilot steps it once the pose is sent: each command and the state it
+#: ends in (the README's walk-through, the tests and the benchmark all follow it).
+TASK_STEPS = (("reach", "reached"), ("approach", "approached"), ("grasp", "grasped"),
+              ("lift", "lifted"), ("switch_on", "drill_on"), ("to_wall", "at_wall"),
+              ("push_in", "drilled_in"), ("cut", "cut_done"), ("pull_out", "at_wall"),
+              ("switch_off", "drill_off"), ("put_down", "on_table"),
+              ("ungrasp", "ungrasped"), ("move_away", "moved_away"), ("home", "idle"))
+
 
 class Module(GraspTask):
     statuses = task_statuses(TABLE)
