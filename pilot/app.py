@@ -31,6 +31,7 @@ from typing import Any, Dict, List, Optional
 from bridge import config as bridge_config
 from pilot.catalogue import catalogue_of
 from pilot.layouts import DEFAULT_LAYOUTS, Layout, LayoutError, Widget, load_layout
+from pilot.preview import PreviewGate
 from walkman import MODELS_DIR
 
 log = logging.getLogger("pilot.app")
@@ -208,6 +209,8 @@ class PilotWindow(QMainWindow):
         needs_camera = any(w.kind in ("camera", "view3d") for w in layout.widgets())
         self.link = events.PilotLink(name, list(modules), self.events.arrived.emit,
                                      camera=needs_camera)
+        self.preview = PreviewGate(self._state_of, self._show_ghost, self._note)
+        self.ghost: Optional[Any] = None          # the shown preview's placements
         self.timer = QTimer(self)
         self.timer.timeout.connect(self._tick)
         self.timer.start(500)
@@ -276,7 +279,34 @@ class PilotWindow(QMainWindow):
         return self.link.switch(module, word)
 
     def command(self, module: str, name: str, numbers=(), dangerous: bool = False) -> str:
-        return self.link.command(module, name, numbers, dangerous)
+        return self.preview.command(
+            module, name, numbers, dangerous,
+            lambda: self.link.command(module, name, numbers, dangerous))
+
+    def _state_of(self, module: str) -> Optional[str]:
+        return next((w.state for w in self.module_widgets.get(module, [])
+                     if w.state is not None), None)
+
+    def _note(self, text: str) -> None:
+        log.info("pilot: %s", text)
+        if self.log is not None:
+            self.log.note(text)
+
+    def _show_ghost(self, module: str, posture) -> None:
+        """The preview's posture as the 3-D view's translucent second robot."""
+        from walkman.control.kinematics import Kinematics
+
+        if not hasattr(self, "_kinematics"):
+            self._kinematics = Kinematics()
+        self.ghost = self._kinematics.link_placements(posture)
+        self.link.publish_ghost(self.ghost)
+        if self.view3d is not None:
+            self.view3d.set_display_enabled("Preview", True)
+
+    def _hide_ghost(self) -> None:
+        if self.ghost is not None and self.view3d is not None:
+            self.view3d.set_display_enabled("Preview", False)
+        self.ghost = None
 
     def cancel(self, module: str, seq: int = 0) -> str:
         return self.link.cancel(module, seq)
@@ -348,6 +378,11 @@ class PilotWindow(QMainWindow):
                     if pose is not None:
                         self.view3d.add_pose_marker(widget.module, pose, widget.set_pose)
             return
+        if isinstance(event, events.JointsEvent):
+            self.preview.on_joints(event.names, event.position)
+        if isinstance(event, events.CountdownEvent) and event.state != "waiting":
+            self.preview.countdown_over(event.module)
+            self._hide_ghost()                   # sent or cancelled: the preview is over
         module = getattr(event, "module", None)
         # Which widgets show an event, and with which method: the module's own, then the rest.
         method = ROUTES.get(type(event))
@@ -362,6 +397,8 @@ class PilotWindow(QMainWindow):
                 getattr(sink, method)(event)
 
     def _tick(self) -> None:
+        if self.ghost is not None:               # RViz looks the ghost's frames up anew
+            self.link.publish_ghost(self.ghost)
         for widgets in self.module_widgets.values():
             for widget in widgets:
                 widget.tick()

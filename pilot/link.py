@@ -302,6 +302,16 @@ class PilotLink:
                                        sender=self.name))
         return ""
 
+    def publish_ghost(self, placements) -> None:
+        """The preview's posture on ``/tf`` under ``preview/`` (the 3-D view's ghost)."""
+        tf = getattr(self, "_tf", None)
+        if tf is None:
+            return
+        import rospy
+        from nodekit.tf import tf_message
+
+        tf.publish(tf_message(placements, rospy.Time.now(), prefix="preview"))
+
     def cancel(self, module: str, seq: int = 0) -> str:
         """Ask the gateway to take back the module's queued command ``seq`` (0: all of
         them); returns at once, the answer comes as command states (and, if the gateway
@@ -388,6 +398,8 @@ class PilotLink:
         rospy.Subscriber("/pilot/command_states", CommandState, self._on_command_state,
                          queue_size=200)
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=1)
+        from tf2_msgs.msg import TFMessage
+        self._tf = rospy.Publisher("/tf", TFMessage, queue_size=2)
         rospy.Subscriber("/battery", BatteryState, self._on_battery, queue_size=1)
         rospy.Subscriber("/joint_temperatures", JointTemperatures, self._on_temperatures,
                          queue_size=1)

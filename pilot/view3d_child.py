@@ -80,6 +80,12 @@ Visualization Manager:
       Name: Robot
       Enabled: true
       Robot Description: robot_description
+    - Class: rviz/RobotModel
+      Name: Preview
+      Enabled: false
+      Robot Description: robot_description
+      TF Prefix: preview
+      Alpha: 0.35
     - Class: rviz/PointCloud2
       Name: Cloud
       Enabled: true

@@ -24,10 +24,10 @@ import logging
 import sys
 import threading
 import time
-from typing import List, Tuple
 
 import numpy as np
 
+from nodekit.tf import tf_message as build_tf, transform
 from walkman.model import URDF_PATH
 
 log = logging.getLogger("walkman.joint_state")
@@ -36,45 +36,11 @@ log = logging.getLogger("walkman.joint_state")
 OPTICAL_ROTATION = (-0.5, 0.5, -0.5, 0.5)
 
 
-def link_transforms(kinematics, q: np.ndarray) -> List[Tuple[str, np.ndarray, np.ndarray]]:
-    """``(link, position, quaternion xyzw)`` of every body frame, in the pelvis frame."""
-    import pinocchio as pin
-
-    model, data = kinematics.model, kinematics.data
-    pin.framesForwardKinematics(model, data, kinematics.pin_q(q))
-    out = []
-    for frame_id, frame in enumerate(model.frames):
-        if frame.type != pin.FrameType.BODY or frame.name in ("pelvis", "universe"):
-            continue
-        placement = data.oMf[frame_id]
-        quaternion = pin.Quaternion(placement.rotation)
-        out.append((frame.name, placement.translation.copy(),
-                    np.array([quaternion.x, quaternion.y, quaternion.z, quaternion.w])))
-    return out
-
-
 def tf_message(kinematics, q: np.ndarray, now):
     """``/tf``: every link in the pelvis frame, and the camera's optical frame."""
-    from geometry_msgs.msg import TransformStamped
-    from tf2_msgs.msg import TFMessage
-
-    transforms = []
-    for link, position, quaternion in link_transforms(kinematics, q):
-        transform = TransformStamped()
-        transform.header.stamp, transform.header.frame_id = now, "pelvis"
-        transform.child_frame_id = link
-        (transform.transform.translation.x, transform.transform.translation.y,
-         transform.transform.translation.z) = position.tolist()
-        (transform.transform.rotation.x, transform.transform.rotation.y,
-         transform.transform.rotation.z, transform.transform.rotation.w) = quaternion.tolist()
-        transforms.append(transform)
-    optical = TransformStamped()     # the camera's optical frame: z ahead, y down
-    optical.header.stamp, optical.header.frame_id = now, "multisense_frame"
-    optical.child_frame_id = "multisense_optical_frame"
-    (optical.transform.rotation.x, optical.transform.rotation.y,
-     optical.transform.rotation.z, optical.transform.rotation.w) = OPTICAL_ROTATION
-    transforms.append(optical)
-    return TFMessage(transforms)
+    optical = transform("multisense_frame", "multisense_optical_frame", (0, 0, 0),
+                        OPTICAL_ROTATION, now)   # the camera's optical frame: z ahead, y down
+    return build_tf(kinematics.link_placements(q), now, extra=[optical])
 
 
 def publish_slow(publisher, robot, now) -> None:

@@ -170,9 +170,20 @@ def wall_task() -> None:
     say("STEP drc_wall started")
     do("drc_wall", "walldatasent", "ready")
     for command, state in TASK_STEPS:
-        do("drc_wall", command, state, timeout=90)
-        if command == "cut":
-            window.screenshot(OUT / "wall-cut.png")
+        if command not in wall.timed:
+            do("drc_wall", command, state, timeout=90)
+            continue
+        # A dangerous command: while it counts down, the 3-D view shows where it goes.
+        click(wall.buttons[command], f"drc_wall {command}", wall)
+        wait(lambda: window.ghost is not None and window.view3d.displays.get("Preview"), 2.5,
+             f"the preview's ghost of {command}")
+        say(f"STEP preview of {command} shown, worked out in {window.preview.last_ms:.1f} ms")
+        pump(1.0)                                    # librviz draws at 15 Hz
+        window.screenshot(OUT / f"wall-preview-{command}.png")
+        wait(lambda: wall.state == state, 90, f"drc_wall {state} after {command}")
+        if window.ghost is not None or window.view3d.displays.get("Preview"):
+            fail(f"the ghost of {command} is still shown after its countdown")
+        say(f"STEP drc_wall {command} -> {state}, the ghost gone")
     say("DONE")
 
 

@@ -112,8 +112,9 @@ def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
 
 def test_the_wall_task_by_clicks_cuts_the_circle_in_the_world(tmp_path, display, request):
     """drc_wall through the PI on the drc topology (the bridge between two name-server
-    pairs): every step clicked, the timed ones counted down; the simulated world -- the
-    HAL's drywall, not the module -- says the circle is cut out."""
+    pairs): every step clicked, the timed ones counted down with the preview's ghost in
+    the 3-D view; the simulated world -- the HAL's drywall, not the module -- says the
+    circle is cut out."""
     hal = Component("hal", "robot", (PYTHON, "-m", "walkman.hal.server", "--backend", "sim",
                                      "--station", "wall"), r"HAL for walkman")
     wall = Component("drc_wall", "robot", (PYTHON, "-m", "walkman.gym.supervisor",
@@ -129,6 +130,10 @@ def test_the_wall_task_by_clicks_cuts_the_circle_in_the_world(tmp_path, display,
         pi = start_pi(topology.pilot, display, "wall", out)
         pi.wait_for(r"DONE|FAIL", 600)
         assert "FAIL" not in pi.output(), pi.output()
+        for command in ("push_in", "cut"):           # each previewed while it counted down
+            assert re.search(rf"STEP preview of {command} shown, worked out in [\d.]+ ms",
+                             pi.output()), pi.output()
+            assert f"STEP drc_wall {command} -> " in pi.output()
         world = topology.process("hal")
         cut = world.wait_for(r"drywall: the circle is cut out \(360 degrees, largest miss "
                              r"([\d.]+) cm\)", 10)

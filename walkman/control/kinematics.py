@@ -10,7 +10,7 @@ is in the world.  Frames are the URDF links (``torso``,
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Dict, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 import pinocchio as pin
@@ -40,6 +40,20 @@ class Kinematics:
     def pin_q(self, q: Sequence[float]) -> np.ndarray:
         out = np.zeros(self.model.nq)
         out[self.to_pin] = np.asarray(q, dtype=float)
+        return out
+
+    def link_placements(self, q: Sequence[float]) -> List[Tuple[str, np.ndarray, np.ndarray]]:
+        """``(link, position, quaternion xyzw)`` of every body frame but the pelvis, in the
+        pelvis frame: what ``/tf`` carries of a posture (the robot's, or a preview's)."""
+        pin.framesForwardKinematics(self.model, self.data, self.pin_q(q))
+        out = []
+        for frame_id, frame in enumerate(self.model.frames):
+            if frame.type != pin.FrameType.BODY or frame.name in ("pelvis", "universe"):
+                continue
+            placement = self.data.oMf[frame_id]
+            quaternion = pin.Quaternion(placement.rotation)
+            out.append((frame.name, placement.translation.copy(),
+                        np.array([quaternion.x, quaternion.y, quaternion.z, quaternion.w])))
         return out
 
     def pose(self, q: Sequence[float], frame: str) -> Tuple[np.ndarray, np.ndarray]:

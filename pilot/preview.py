@@ -1,0 +1,97 @@
+"""The preview gate: a task's dangerous command is worked out on this PC before it leaves.
+
+Theory of operation
+-------------------
+Every command a widget sends goes through :class:`PreviewGate`.  For a task
+module (a :class:`~walkman.modules.task.TaskModule`) the gate keeps its shadow
+(:class:`walkman.gym.preview.Shadow`, the module's own class and IK) and the
+robot's last measured posture (``/joint_states``, from the bridge).  A
+dangerous command is previewed in the state the module reports: if the shadow
+refuses it, or its motion passes where the IK cannot reach, it is not sent and
+the widget says why; otherwise the preview's posture is shown as a ghost in
+the 3-D view while the gateway counts down, and hidden when the countdown
+ends (sent or cancelled); a second click while it counts down is the pilot's
+cancel and goes out unpreviewed.  Every command sent is then given to the
+shadow at the posture of its sending, so the shadow's notes follow the module's.
+Without a posture yet (no joint state heard) or for other modules the gate
+only passes commands on.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Callable, Dict, Optional, Sequence, Set
+
+import numpy as np
+
+log = logging.getLogger("pilot.preview")
+
+Send = Callable[[], str]
+
+
+class PreviewGate:
+    def __init__(self, state_of: Callable[[str], Optional[str]],
+                 show: Callable[[str, np.ndarray], None], say: Callable[[str], None]) -> None:
+        self.state_of, self.show, self.say = state_of, show, say
+        self.posture: Optional[np.ndarray] = None
+        self._shadows: Dict[str, object] = {}
+        self._order: Optional[Dict[str, int]] = None
+        self.last_ms: Optional[float] = None
+        self.counting: Set[str] = set()        # modules whose timed command counts down
+
+    def on_joints(self, names: Sequence[str], position: Sequence[float]) -> None:
+        from walkman.model.description import walkman
+
+        if self._order is None:
+            self._order = {name: index for index, name in enumerate(walkman().joint_names)}
+        if len(names) != len(self._order) or set(names) != set(self._order):
+            return
+        posture = np.zeros(len(self._order))
+        posture[[self._order[name] for name in names]] = position
+        self.posture = posture
+
+    def _shadow(self, module: str):
+        if module not in self._shadows:
+            self._shadows[module] = None
+            try:
+                from walkman.gym.preview import Shadow
+                from walkman.gym.runner import load_module_class
+                from walkman.modules.task import TaskModule
+
+                cls = load_module_class(module)
+                if isinstance(cls, type) and issubclass(cls, TaskModule):
+                    self._shadows[module] = Shadow(cls, module)
+            except Exception:  # noqa: BLE001 -- a module this PC cannot load has no preview
+                log.warning("pilot: no preview for %s: its class does not load here", module,
+                            exc_info=True)
+        return self._shadows[module]
+
+    def command(self, module: str, name: str, numbers: Sequence[float], dangerous: bool,
+                send: Send) -> str:
+        """Preview (dangerous commands), then ``send()``; '' or why it was not sent."""
+        shadow = self._shadow(module)
+        posture, state = self.posture, self.state_of(module)
+        if shadow is None or posture is None or state is None:
+            return send()
+        text = " ".join([name, *(repr(float(v)) for v in numbers)])
+        if dangerous and module in self.counting:
+            return send()                  # a second click while it counts down: a cancel
+        if dangerous:
+            preview = shadow.preview(text, state, posture)
+            self.last_ms = preview.seconds * 1e3
+            if preview.refused:
+                self.say(f"preview of {module} {name}: refused ({self.last_ms:.0f} ms)")
+                return f"not sent: this PC's preview says {preview.refusal}"
+            self.show(module, preview.posture)
+            self.say(f"preview of {module} {name}: the ghost shows where it goes "
+                     f"({self.last_ms:.0f} ms)")
+        problem = send()
+        if not problem:
+            shadow.follow(text, state, posture)
+            if dangerous:
+                self.counting.add(module)
+        return problem
+
+    def countdown_over(self, module: str) -> None:
+        """The gateway sent or cancelled the module's timed command."""
+        self.counting.discard(module)

@@ -1,0 +1,74 @@
+"""The PI's preview gate: a dangerous command the pilot PC's preview refuses never leaves."""
+
+import pytest
+
+from pilot.preview import PreviewGate
+from tests.walkman.test_preview import Followed
+from walkman.model.description import walkman
+from walkman.model.mjcf import PILOT_POSES
+from walkman.modules import drc_valve
+
+
+@pytest.fixture(scope="module")
+def grasped():
+    """The simulated robot with its hand on the valve, and the commands that got it there."""
+    robot = Followed("valve", drc_valve.Module, "drc_valve")
+    sent = [(PILOT_POSES["valve"], "ready"), ("reach", "reached"), ("approach", "approached"),
+            ("grasp", "grasped")]
+    steps = []
+    for command, state in sent:
+        steps.append((command, robot.module.thread.fsm.state, robot.posture))
+        robot.do(command, state)
+    return robot, steps
+
+
+def gate_at(grasped):
+    """A gate that followed the task's commands as the PI sent them."""
+    robot, steps = grasped
+    shown, said, states = [], [], {"drc_valve": None}
+    gate = PreviewGate(states.get, lambda module, q: shown.append((module, q)), said.append)
+    names = robot.world.backend.joint_names
+    for command, state, posture in steps:
+        states["drc_valve"] = state
+        gate.on_joints(names, posture)
+        name, *numbers = command.split()
+        assert gate.command("drc_valve", name, [float(n) for n in numbers], False,
+                            lambda: "") == ""
+    states["drc_valve"] = "grasped"
+    gate.on_joints(names, robot.posture)
+    return gate, shown, said
+
+
+def test_a_turn_the_arm_cannot_make_is_not_sent(grasped):
+    gate, shown, said = gate_at(grasped)
+    sent = []
+    problem = gate.command("drc_valve", "turn", [4.7], True, lambda: sent.append(1) or "")
+    assert sent == [] and shown == []
+    assert problem.startswith("not sent: this PC's preview says drc_valve: the l_hand cannot "
+                              "reach") and "% of the way" in problem
+    assert said[-1].startswith("preview of drc_valve turn: refused")
+
+
+def test_a_turn_it_can_make_shows_its_ghost_then_goes_and_a_second_click_cancels(grasped):
+    gate, shown, said = gate_at(grasped)
+    sent = []
+    assert gate.command("drc_valve", "turn", [1.5708], True, lambda: sent.append(1) or "") == ""
+    assert sent == [1] and len(shown) == 1 and gate.last_ms is not None
+    assert "the ghost shows where it goes" in said[-1]
+    # the second click while it counts down is the cancel: straight out, no new preview
+    assert gate.command("drc_valve", "turn", [1.5708], True, lambda: sent.append(2) or "") == ""
+    assert sent == [1, 2] and len(shown) == 1
+    gate.countdown_over("drc_valve")
+    gate.command("drc_valve", "turn", [1.5708], True, lambda: "")
+    assert len(shown) == 2
+
+
+def test_without_a_posture_or_for_other_modules_commands_pass_on():
+    gate = PreviewGate(lambda module: "ready", lambda *a: pytest.fail("no ghost"), print)
+    assert gate.command("drc_valve", "turn", [4.7], True, lambda: "sent?") == "sent?"
+    gate.on_joints(["not", "the", "robot"], [0.0, 0.0, 0.0])     # ignored: not the model
+    assert gate.posture is None
+    names = walkman().joint_names
+    gate.on_joints(names, [0.0] * len(names))
+    assert gate.posture is not None
+    assert gate.command("temperature", "set_limit", [70.0], True, lambda: "out") == "out"

@@ -1,0 +1,104 @@
+"""The pilot PC's preview: a shadow of the task module says where a command takes the robot.
+
+The robot here is the simulated one (walkman.gym.offline); the shadow follows the commands
+at the postures they were sent at, and its previews are compared with where the simulated
+robot's hand really ends.
+"""
+
+import numpy as np
+import pytest
+
+from walkman.control.kinematics import Kinematics
+from walkman.gym.offline import OfflineWorld
+from walkman.gym.preview import Shadow
+from walkman.hal.sim import SimBackend
+from walkman.model.mjcf import PILOT_POSES
+from walkman.modules import drc_valve, drc_wall
+from walkman.modules.task import GRIP
+
+KINEMATICS = Kinematics()
+
+
+def grip(q) -> np.ndarray:
+    position, rotation = KINEMATICS.pose(q, "l_hand")
+    return position + rotation @ GRIP
+
+
+class Followed:
+    """A module on the simulated robot and its shadow, given the same commands."""
+
+    def __init__(self, station: str, module_class, name: str) -> None:
+        self.world = OfflineWorld(SimBackend(station=station))
+        self.module = self.world.add(module_class, name)
+        assert self.module.switch("start")
+        self.world.step(0.05)
+        self.shadow = Shadow(module_class, name)
+
+    @property
+    def posture(self) -> np.ndarray:
+        return self.world.backend.positions()
+
+    def do(self, command: str, state: str) -> None:
+        before, posture = self.module.thread.fsm.state, self.posture
+        self.module.do(command, state, 40)
+        self.shadow.follow(command, before, posture)
+
+    def preview(self, command: str):
+        return self.shadow.preview(command, self.module.thread.fsm.state, self.posture)
+
+
+@pytest.fixture(scope="module")
+def valve():
+    followed = Followed("valve", drc_valve.Module, "drc_valve")
+    for command, state in ((PILOT_POSES["valve"], "ready"), ("reach", "reached"),
+                           ("approach", "approached"), ("grasp", "grasped")):
+        followed.do(command, state)
+    return followed
+
+
+def test_a_turn_previewed_ends_where_the_hand_really_ends(valve):
+    preview = valve.preview("turn 1.5708")
+    assert not preview.refused, preview.refusal
+    valve.do("turn 1.5708", "grasped")
+    assert np.linalg.norm(grip(preview.posture) - grip(valve.posture)) < 0.015
+
+
+def test_a_turn_through_where_the_arm_cannot_go_is_refused_and_says_where(valve):
+    """Three quarters of a turn: the hand would pass the bottom of the rim, out of the arm's
+    reach with the grasp's orientation (on the robot such a turn stalls there, 'still
+    trying')."""
+    preview = valve.preview("turn 4.7")
+    assert preview.refused
+    assert "cannot reach" in preview.refusal and "% of the way" in preview.refusal
+
+
+def test_the_module_s_own_refusals_come_back_from_the_preview(valve):
+    assert valve.preview("home").refusal.endswith(
+        "'home' is not accepted in state grasped (accepted: turn, ungrasp)")
+    assert "at most 2 pi" in valve.preview("turn 10").refusal
+
+
+def test_a_preview_changes_nothing_for_the_next_one(valve):
+    noted = (valve.shadow.thread.fsm.state, dict(valve.shadow.thread.target))
+    first = valve.preview("turn 0.5")
+    assert valve.preview("turn 4.7").refused      # given up on the way
+    valve.preview("ungrasp")
+    again = valve.preview("turn 0.5")
+    assert np.allclose(first.posture, again.posture)
+    assert valve.shadow.thread.fsm.state == noted[0]
+    assert valve.shadow.thread.target.keys() == noted[1].keys()
+
+
+def test_the_drill_s_cut_is_previewed_from_where_the_grasp_held_it():
+    """The tip's offset in the hand is noted at the first motion after the grasp: the
+    shadow notes it from the posture of that command, as the module does."""
+    wall = Followed("wall", drc_wall.Module, "drc_wall")
+    wall.do(PILOT_POSES["wall"], "ready")
+    for command, state in drc_wall.TASK_STEPS[:7]:       # up to drilled_in
+        preview = wall.preview(command)
+        assert not preview.refused, (command, preview.refusal)
+        wall.do(command, state)
+        assert np.linalg.norm(grip(preview.posture) - grip(wall.posture)) < 0.015, command
+    cut = wall.preview("cut")
+    assert not cut.refused and cut.seconds < 0.5
+    assert np.linalg.norm(grip(cut.posture) - grip(wall.posture)) < 0.015   # once round

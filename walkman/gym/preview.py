@@ -1,0 +1,205 @@
+"""Where a task command will take the robot, worked out before the command leaves the pilot PC.
+
+Theory of operation
+-------------------
+The pilot PC keeps a *shadow* of a task module: the same class, run by an
+:class:`~walkman.gym.offline.OfflineWorld` whose backend is kinematic (the joints
+are where the robot last measured them and nothing moves by itself), so every
+decision is the module's own code and IK.
+
+* :meth:`Shadow.follow` gives the shadow each command the pilot sent, once the
+  robot's module accepted it, at the posture measured then: the shadow's notes
+  (the part's pose, where the drill was held) are the module's.
+* :meth:`Shadow.preview` takes a command about to be sent and the state the
+  robot's module reports, puts the shadow in that state at the measured
+  posture, and hands it the command as the module would.  A refusal there
+  (a state that does not take it, an unreachable target) is the module's
+  refusal, said before anything leaves.  Otherwise the motion it started is
+  followed to its end: each Cartesian motion is solved by the module's IK at
+  ``PATH_SAMPLES`` points along it, each on from the last one's posture, as the
+  module's loop tracks it (no random restarts); joint motions and hand goals
+  are taken as they are, and chained motions (``then``) one after the other.
+  A point the IK cannot reach within 1 cm refuses the command, saying where.  The shadow is put back as it
+  was afterwards: a preview never changes what a later one computes.
+
+The result is a posture for the whole body: the 3-D view draws it as a ghost
+while the timed button counts down.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass
+from typing import Dict, List, Optional, Sequence, Type
+
+import numpy as np
+
+from walkman.gym.offline import OfflineWorld
+from walkman.hal.backend import Backend, Imu
+from walkman.model.description import walkman
+from walkman.modules.task import ACTION_TOLERANCE, TaskModule
+from yarp_lite.bottle_text import parse
+
+MAX_PHASES = 16          # chained motions followed before the preview gives up
+PATH_SAMPLES = 8         # points of a Cartesian motion solved on the way to its end
+
+
+class KinematicBackend(Backend):
+    """Joints where they are told to be; nothing moves by itself, nothing is sensed."""
+
+    def __init__(self) -> None:
+        super().__init__(walkman())
+        self.posture = self.reference.copy()
+
+    def set_posture(self, q: Sequence[float]) -> None:
+        self.posture = np.asarray(q, dtype=float).copy()
+        self.reference = self.posture.copy()
+
+    def step(self) -> None:
+        self.time += self.dt
+
+    def positions(self) -> np.ndarray:
+        return self.posture.copy()
+
+    def velocities(self) -> np.ndarray:
+        return np.zeros(len(self.joint_names))
+
+    def torques(self) -> np.ndarray:
+        return np.zeros(len(self.joint_names))
+
+    def temperatures(self) -> np.ndarray:
+        return np.full(len(self.joint_names), 25.0)
+
+    def ft(self, sensor: str) -> np.ndarray:
+        return np.zeros(6)
+
+    def imu(self) -> Imu:
+        return Imu((0.0, 0.0, 0.0), (0.0, 0.0, 9.81), (0.0, 0.0, 0.0))
+
+
+@dataclass
+class Preview:
+    """A command's outcome on the pilot PC: the posture it ends in, or why it would be
+    refused; how long working it out took."""
+
+    command: str
+    posture: Optional[np.ndarray]
+    refusal: str
+    seconds: float
+
+    @property
+    def refused(self) -> bool:
+        return self.posture is None
+
+
+class Shadow:
+    """A task module's double on the pilot PC (see the module's docstring)."""
+
+    def __init__(self, module_class: Type[TaskModule], name: str) -> None:
+        self.backend = KinematicBackend()
+        self.world = OfflineWorld(self.backend)
+        self.module = self.world.add(module_class, name)
+        self.name = name
+        if not self.module.switch("start"):
+            raise RuntimeError(f"the shadow of {name} did not start: {self.module.warnings}")
+        self.thread: TaskModule = self.module.thread  # type: ignore[assignment]
+        self.joint_names = list(self.backend.joint_names)
+
+    # -- following the robot ---------------------------------------------------------------
+
+    def follow(self, text: str, state: str, posture: Sequence[float]) -> None:
+        """The robot's module took ``text`` in ``state`` at ``posture``: take it too."""
+        self._start(text, state, posture)
+
+    def _start(self, text: str, state: str, posture: Sequence[float]) -> List[str]:
+        """Hand ``text`` to the shadow in ``state`` at ``posture``; its warnings (refusals)."""
+        self.backend.set_posture(posture)
+        thread = self.thread
+        thread.reference = np.asarray(posture, dtype=float).copy()
+        thread.trajectory.reset()           # the shadow never runs its motions: none is left
+        thread.joint_motion, thread.waiting_until = None, None
+        thread.hand_goals.clear()
+        thread.phases.clear()
+        if state in self.thread.table:
+            self.thread.fsm.state = state
+        said = len(self.module.warnings)
+        bottle = parse(text)
+        if not bottle or not isinstance(bottle[0], str):
+            return [f"'{text}' is not a command"]
+        self.thread.handle(bottle[0], list(bottle[1:]))
+        return list(self.module.warnings[said:])
+
+    # -- previewing -------------------------------------------------------------------------
+
+    def preview(self, text: str, state: str, posture: Sequence[float]) -> Preview:
+        """Where ``text`` sent now would take the robot (or why the module would refuse it)."""
+        began = time.perf_counter()
+        saved = self._snapshot()
+        try:
+            refusals = self._start(text, state, posture)
+            if refusals:
+                return Preview(text, None, refusals[-1], time.perf_counter() - began)
+            end, reason = self._follow_to_end(np.asarray(posture, dtype=float))
+            return Preview(text, end, reason, time.perf_counter() - began)
+        finally:
+            self._restore(saved)
+
+    def _follow_to_end(self, q: np.ndarray):
+        thread = self.thread
+        for _ in range(MAX_PHASES):
+            q = q.copy()
+            if thread.trajectory.active and thread.effector is not None:
+                effector, trajectory = thread.effector, thread.trajectory
+                moved = thread.ik.joints_of(effector.joints)
+                # Along the path as the module's loop tracks it: each point's posture on
+                # from the last one's, no random restarts (a turn that passes where the
+                # hand cannot go would stall there on the robot).
+                for sample in range(1, PATH_SAMPLES + 1):
+                    position, rotation = trajectory.at(
+                        trajectory.t0 + trajectory.duration * sample / PATH_SAMPLES)
+                    result = thread.ik.solve(effector.frame, position,
+                                             rotation if thread.full_pose else None, q,
+                                             effector.joints, offset=effector.offset,
+                                             restarts=0, rest=thread.rest)
+                    if result.position_error > ACTION_TOLERANCE:
+                        where = "at the end" if sample == PATH_SAMPLES else \
+                            f"{100 * sample // PATH_SAMPLES} % of the way"
+                        return None, (f"{self.name}: the {effector.frame} cannot reach "
+                                      f"{np.round(position, 3).tolist()} {where} (misses by "
+                                      f"{result.position_error * 100:.1f} cm)")
+                    q[moved] = result.q[moved]
+                thread.trajectory.reset()
+            elif thread.joint_motion is not None:
+                index, motion = thread.joint_motion
+                q[index] = motion.goal
+                thread.joint_motion = None
+            thread.waiting_until = None
+            for hand, (goal, _) in thread.hand_goals.items():
+                q[hand] = goal
+            thread.hand_goals.clear()
+            if not thread.phases:
+                return q, ""
+            self.backend.set_posture(q)
+            thread.phases.pop(0)()
+        return None, f"{self.name}: more than {MAX_PHASES} chained motions"
+
+    def _snapshot(self) -> Dict[str, object]:
+        """The module's attributes, containers copied (a motion mutates them in place)."""
+        saved = {}
+        for key, value in self.thread.__dict__.items():
+            if isinstance(value, (dict, list)):
+                saved[key] = copy.copy(value)
+            elif isinstance(value, np.ndarray):
+                saved[key] = value.copy()
+            else:
+                saved[key] = value
+        saved["__fsm_state"] = self.thread.fsm.state
+        return saved
+
+    def _restore(self, saved: Dict[str, object]) -> None:
+        state = saved.pop("__fsm_state")
+        self.thread.__dict__.clear()
+        self.thread.__dict__.update(saved)
+        self.thread.fsm.state = state
+        self.thread.trajectory.reset()
