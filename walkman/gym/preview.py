@@ -19,7 +19,9 @@ decision is the module's own code and IK.
   ``PATH_SAMPLES`` points along it, each on from the last one's posture, as the
   module's loop tracks it (no random restarts); joint motions and hand goals
   are taken as they are, and chained motions (``then``) one after the other.
-  A point the IK cannot reach within 1 cm refuses the command, saying where.  The shadow is put back as it
+  A point the IK cannot reach within 1 cm refuses the command, saying where --
+  but for a contact motion (a foot pressing a pedal: its goal lies inside what
+  it pushes), which the module ends with its trajectory wherever it stopped.  The shadow is put back as it
   was afterwards: a preview never changes what a later one computes.
 
 The result is a posture for the whole body: the 3-D view draws it as a ghost
@@ -42,7 +44,11 @@ from walkman.modules.task import ACTION_TOLERANCE, TaskModule
 from yarp_lite.bottle_text import parse
 
 MAX_PHASES = 16          # chained motions followed before the preview gives up
-PATH_SAMPLES = 8         # points of a Cartesian motion solved on the way to its end
+PATH_SAMPLES = 12        # points of a Cartesian motion solved on the way to its end
+#: IK iterations per point: the module's loop gives the stretch between two points many
+#: ticks of 20 (walkman.modules.task), the preview two ticks' worth, so a refusal
+#: costs tens of milliseconds, not the solver's full 200 iterations.
+SAMPLE_ITERATIONS = 40
 
 
 class KinematicBackend(Backend):
@@ -155,20 +161,26 @@ class Shadow:
                 # Along the path as the module's loop tracks it: each point's posture on
                 # from the last one's, no random restarts (a turn that passes where the
                 # hand cannot go would stall there on the robot).
-                for sample in range(1, PATH_SAMPLES + 1):
+                # A contact motion is judged by its end alone: on the way it presses into
+                # what it pushes, where no posture reaches.
+                samples = [PATH_SAMPLES] if thread.contact else range(1, PATH_SAMPLES + 1)
+                for sample in samples:
                     position, rotation = trajectory.at(
                         trajectory.t0 + trajectory.duration * sample / PATH_SAMPLES)
                     result = thread.ik.solve(effector.frame, position,
                                              rotation if thread.full_pose else None, q,
                                              effector.joints, offset=effector.offset,
-                                             restarts=0, rest=thread.rest)
+                                             restarts=0, rest=thread.rest,
+                                             max_iterations=SAMPLE_ITERATIONS)
+                    q[moved] = result.q[moved]
+                    if thread.contact:     # the goal is inside what it pushes (a pedal): the
+                        continue           # module ends with its trajectory, wherever it stopped
                     if result.position_error > ACTION_TOLERANCE:
                         where = "at the end" if sample == PATH_SAMPLES else \
                             f"{100 * sample // PATH_SAMPLES} % of the way"
                         return None, (f"{self.name}: the {effector.frame} cannot reach "
                                       f"{np.round(position, 3).tolist()} {where} (misses by "
                                       f"{result.position_error * 100:.1f} cm)")
-                    q[moved] = result.q[moved]
                 thread.trajectory.reset()
             elif thread.joint_motion is not None:
                 index, motion = thread.joint_motion
