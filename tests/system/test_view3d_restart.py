@@ -43,3 +43,4 @@ def test_a_killed_3d_view_comes_back_and_the_pi_lives_on(make_pc, tmp_path):
     assert first != second
     assert "STEP the PI says: 3-D view restarting" in text
     assert "STEP marker dragged: valve x 0.720" in text
+    assert "STEP ghost drawn:" in text        # the preview's translucent robot, then gone

@@ -10,7 +10,8 @@ librviz's window is embedded and draws, the driver kills the render process with
 SIGKILL and checks, each by waiting for it: the PI says so in the 3-D view's place
 and in its log, its GUI thread never stalls, the view comes back from a new process
 and draws again, and the valve's marker, placed again by the PI, still moves the
-valve's pose fields when dragged.  Prints ``STEP ...``, ``FAIL why`` (exit 1) or
+valve's pose fields when dragged.  Before that, the preview's ghost is shown and
+hidden (a translucent robot on this robot-less PC's view).  Prints ``STEP ...``, ``FAIL why`` (exit 1) or
 ``DONE``; screenshots go to OUTDIR.
 """
 
@@ -128,12 +129,39 @@ class GuiGaps:
         self.last = now
 
 
+def ghost_drawn() -> None:
+    """The preview's ghost is drawn: a translucent robot where there was none (this PC has
+    no robot: nothing else publishes /tf), and gone again once hidden."""
+    import numpy as np
+    import rospy
+
+    from walkman.model import URDF_PATH
+    from walkman.model.description import home_posture, walkman
+
+    rospy.set_param("/robot_description", URDF_PATH.read_text())
+    robot = walkman()
+    posture = home_posture(robot)
+    q = np.array([posture[name] for name in robot.joint_names])
+    empty = 1.0 - background_share()
+    window._show_ghost("drc_valve", q)
+    wait(window.view3d.applied(), 30, "the render process to switch the preview on")
+    wait(lambda: 1.0 - background_share() > empty + 0.01, 30, "the ghost on the screen")
+    shown = 1.0 - background_share()
+    window.screenshot(OUT / "view3d-ghost.png")
+    window._hide_ghost()
+    wait(window.view3d.applied(), 30, "the render process to switch the preview off")
+    wait(lambda: 1.0 - background_share() < shown - 0.005, 30, "the ghost gone")
+    say(f"STEP ghost drawn: {100 * empty:.1f} % of the view not background without it, "
+        f"{100 * shown:.1f} % with it, {100 * (1.0 - background_share()):.1f} % hidden again")
+
+
 def main() -> None:
     view = window.view3d
     wait(lambda: window.ros_up, 60, "the PI's ROS node")
     wait(embedded_and_drawing, 120, "librviz's window embedded and drawing")
     first = view.embedded_pid
     say(f"STEP view embedded: render process {first}, PI {os.getpid()}")
+    ghost_drawn()
     drag_valve(0.61)
     window.screenshot(OUT / "view3d-before-kill.png")
 
