@@ -31,6 +31,7 @@ from typing import Any, Dict, List, Optional
 from bridge import config as bridge_config
 from pilot.catalogue import catalogue_of
 from pilot.layouts import DEFAULT_LAYOUTS, Layout, LayoutError, Widget, load_layout
+from nodekit.scene import TASK_OBJECTS
 from pilot.preview import PreviewGate
 from walkman import MODELS_DIR
 
@@ -283,6 +284,30 @@ class PilotWindow(QMainWindow):
             module, name, numbers, dangerous,
             lambda: self.link.command(module, name, numbers, dangerous))
 
+    def _placed(self, widget, pose) -> None:
+        """The pilot dragged a task's object: its fields follow, and every pilot is told."""
+        widget.set_pose(pose)
+        if widget.module in TASK_OBJECTS:
+            self.link.place(widget.module, TASK_OBJECTS[widget.module], pose[:6])
+
+    def _on_scene(self, event) -> None:
+        """Another pilot placed an object: the marker and the task's fields follow it (our
+        own edits are already shown, and a late echo must not pull a marker being dragged)."""
+        for obj in event.objects:
+            if obj.sender == self.name:
+                continue
+            for widget in self.task_widgets():
+                if widget.module == obj.name:
+                    widget.set_pose(list(obj.pose))
+            if self.view3d is None:
+                continue
+            if obj.name in self.view3d.markers:
+                self.view3d.move_pose_marker(obj.name, list(obj.pose))
+            else:                                   # an object no widget of ours has
+                self.view3d.add_pose_marker(
+                    obj.name, list(obj.pose),
+                    lambda p, o=obj: self.link.place(o.name, o.kind, p[:6]), kind=obj.kind)
+
     def _state_of(self, module: str) -> Optional[str]:
         return next((w.state for w in self.module_widgets.get(module, [])
                      if w.state is not None), None)
@@ -376,7 +401,12 @@ class PilotWindow(QMainWindow):
                 for widget in self.task_widgets():
                     pose = widget.pose()
                     if pose is not None:
-                        self.view3d.add_pose_marker(widget.module, pose, widget.set_pose)
+                        self.view3d.add_pose_marker(
+                            widget.module, pose, lambda p, w=widget: self._placed(w, p),
+                            kind=TASK_OBJECTS.get(widget.module, "disc"))
+            return
+        if isinstance(event, events.SceneEvent):
+            self._on_scene(event)
             return
         if isinstance(event, events.JointsEvent):
             self.preview.on_joints(event.names, event.position)

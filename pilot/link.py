@@ -34,6 +34,8 @@ from typing import Any, Callable, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
+from nodekit.scene import SceneError, SceneObject, checked
+
 log = logging.getLogger("pilot.link")
 
 IMAGE_TOPIC = "/multisense/left/image_color"
@@ -180,6 +182,13 @@ class RosEvent:
     again: bool = False   # the master restarted and our topics are registered again
 
 
+@dataclass(frozen=True)
+class SceneEvent:
+    """The pilots' shared 3-D scene as the gateway holds it (``/pilot/scene``)."""
+
+    objects: Tuple[SceneObject, ...]
+
+
 Post = Callable[[Any], None]
 
 
@@ -302,6 +311,27 @@ class PilotLink:
                                        sender=self.name))
         return ""
 
+    def place(self, name: str, kind: str, pose: Sequence[float], removed: bool = False) -> str:
+        """Tell the gateway where this pilot put an object of the shared scene."""
+        edits = getattr(self, "_scene_edits", None)
+        if edits is None:
+            return "the PI is not connected to the pilot roscore yet"
+        from walkman_msgs.msg import SceneObject as SceneObjectMsg
+
+        edits.publish(SceneObjectMsg(name=name, kind=kind, pose=[float(v) for v in pose],
+                                     sender=self.name, removed=removed))
+        return ""
+
+    def _on_scene(self, msg: Any) -> None:
+        objects = []
+        for item in msg.objects:
+            try:
+                objects.append(checked(item.name, item.kind, list(item.pose), item.sender,
+                                       item.station, item.stamp, bool(item.removed)))
+            except SceneError as exc:
+                log.warning("pilot: a scene object dropped: %s", exc)
+        self.post(SceneEvent(tuple(objects)))
+
     def publish_ghost(self, placements) -> None:
         """The preview's posture on ``/tf`` under ``preview/`` (the 3-D view's ghost)."""
         tf = getattr(self, "_tf", None)
@@ -399,7 +429,10 @@ class PilotLink:
                          queue_size=200)
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=1)
         from tf2_msgs.msg import TFMessage
+        from walkman_msgs.msg import Scene, SceneObject as SceneObjectMsg
         self._tf = rospy.Publisher("/tf", TFMessage, queue_size=2)
+        self._scene_edits = rospy.Publisher("/pilot/scene_edit", SceneObjectMsg, queue_size=20)
+        rospy.Subscriber("/pilot/scene", Scene, self._on_scene, queue_size=5)
         rospy.Subscriber("/battery", BatteryState, self._on_battery, queue_size=1)
         rospy.Subscriber("/joint_temperatures", JointTemperatures, self._on_temperatures,
                          queue_size=1)

@@ -125,20 +125,60 @@ def quaternion_to_rpy(x: float, y: float, z: float, w: float) -> List[float]:
     return [roll, pitch, yaw]
 
 
-def pose_marker(name: str, pose: Sequence[float]):
-    """The orange disc with a move and a rotate ring per axis, at ``pose`` (pelvis frame)."""
-    from visualization_msgs.msg import InteractiveMarker, InteractiveMarkerControl, Marker
+#: Each kind of object as boxes and cylinders in its own frame (the pose the pilot gives the
+#: task: the valve turns about x, the drill's bit points along x...): shape, size (x y z),
+#: offset (x y z), colour (r g b).
+OBJECT_SHAPES = {
+    "disc": [("cylinder", (0.25, 0.25, 0.03), (0, 0, 0), (1.0, 0.55, 0.0))],
+    "valve": [("cylinder", (0.03, 0.30, 0.30), (0, 0, 0), (0.8, 0.1, 0.1)),
+              ("cylinder", (0.12, 0.05, 0.05), (0.06, 0, 0), (0.3, 0.3, 0.3))],
+    "steering_wheel": [("cylinder", (0.36, 0.36, 0.03), (0, 0, 0), (0.1, 0.1, 0.1)),
+                       ("cylinder", (0.04, 0.04, 0.3), (0, 0, -0.15), (0.2, 0.2, 0.2))],
+    "door": [("box", (0.03, 0.12, 0.03), (0, 0.06, 0), (0.8, 0.8, 0.2)),
+             ("box", (0.04, 0.70, 1.8), (0.06, -0.25, 0), (0.7, 0.55, 0.35))],
+    "drill": [("box", (0.03, 0.04, 0.10), (0, 0, 0), (0.9, 0.5, 0.1)),
+              ("box", (0.18, 0.05, 0.05), (0.06, 0, 0.07), (0.9, 0.5, 0.1)),
+              ("cylinder", (0.10, 0.008, 0.008), (0.20, 0, 0.07), (0.7, 0.7, 0.75))],
+    "plug": [("box", (0.05, 0.05, 0.08), (0, 0, -0.10), (0.1, 0.3, 0.8)),
+             ("box", (0.024, 0.06, 0.024), (0, 0, 0), (0.9, 0.9, 0.9))],
+    "footstep": [("box", (0.22, 0.12, 0.02), (0, 0, 0), (0.2, 0.7, 0.3))],
+}
+
+
+def object_markers(kind: str) -> list:
+    """The visualization markers that draw one kind of object (a disc if unknown)."""
+    from visualization_msgs.msg import Marker
+
+    out = []
+    for shape, size, offset, colour in OBJECT_SHAPES.get(kind, OBJECT_SHAPES["disc"]):
+        part = Marker(type=Marker.CYLINDER if shape == "cylinder" else Marker.CUBE)
+        part.scale.x, part.scale.y, part.scale.z = size
+        part.pose.position.x, part.pose.position.y, part.pose.position.z = offset
+        if shape == "cylinder" and size[0] < size[1]:      # a wheel turning about x
+            part.pose.orientation.y = part.pose.orientation.w = math.sqrt(0.5)
+            part.scale.x, part.scale.z = size[1], size[0]
+        elif shape == "cylinder" and size[0] > size[2]:    # a bit along x
+            part.pose.orientation.y = part.pose.orientation.w = math.sqrt(0.5)
+            part.scale.x, part.scale.y, part.scale.z = size[1], size[2], size[0]
+        else:
+            part.pose.orientation.w = 1.0
+        part.color.r, part.color.g, part.color.b = colour
+        part.color.a = 0.8
+        out.append(part)
+    return out
+
+
+def pose_marker(name: str, pose: Sequence[float], kind: str = "disc"):
+    """The object (``kind``) with a move and a rotate ring per axis, at ``pose`` (pelvis
+    frame)."""
+    from visualization_msgs.msg import InteractiveMarker, InteractiveMarkerControl
 
     marker = InteractiveMarker()
     marker.header.frame_id = "pelvis"
     marker.name, marker.description, marker.scale = name, name, 0.3
     marker.pose = ros_pose(pose)
     body = InteractiveMarkerControl(always_visible=True)
-    disc = Marker(type=Marker.CYLINDER)
-    disc.scale.x = disc.scale.y = 0.25
-    disc.scale.z = 0.03
-    disc.color.r, disc.color.g, disc.color.b, disc.color.a = 1.0, 0.55, 0.0, 0.8
-    body.markers.append(disc)
+    body.markers.extend(object_markers(kind))
     marker.controls.append(body)
     half = math.sqrt(0.5)            # a unit quaternion per axis, as RViz wants
     for axis, (x, y, z) in {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1)}.items():
@@ -219,6 +259,7 @@ class RenderChild(QObject):
         self.ros_up = False
         self.decoder = Decoder(Direction.TO_CHILD)
         self.markers: Dict[str, Sequence[float]] = {}   # name -> pose, as the PI last said
+        self.kinds: Dict[str, str] = {}                # name -> how it is drawn
         self.displays: Dict[str, bool] = {}
         self.frame = None
         self.server = None
@@ -275,6 +316,7 @@ class RenderChild(QObject):
             self.send(Pong(message.seq))
         elif isinstance(message, AddMarker):
             self.markers[message.name] = message.pose
+            self.kinds[message.name] = message.kind
             self._show_marker(message.name, insert=True)
         elif isinstance(message, UpdateMarker):
             if message.name in self.markers:
@@ -293,7 +335,7 @@ class RenderChild(QObject):
             return                       # shown when the server is made
         pose = self.markers[name]
         if insert:
-            self.server.insert(pose_marker(name, pose),
+            self.server.insert(pose_marker(name, pose, self.kinds.get(name, "disc")),
                                lambda feedback, n=name: self._dragged(n, feedback))
         else:
             self.server.setPose(name, ros_pose(pose))

@@ -78,10 +78,12 @@ class Go:
 
 @dataclass(frozen=True)
 class AddMarker:
-    """A draggable 6-DOF marker named ``name`` at ``pose`` (replaces one of that name)."""
+    """A draggable 6-DOF marker named ``name`` at ``pose`` (replaces one of that name),
+    drawn as the object it stands for (``kind``: one of :data:`MARKER_KINDS`)."""
 
     name: str
     pose: Pose
+    kind: str = "disc"
 
 
 @dataclass(frozen=True)
@@ -175,6 +177,17 @@ def _pose(value: Any) -> Pose:
     return tuple(float(v) for v in value)  # type: ignore[return-value]
 
 
+#: How a marker is drawn: the shared scene's kinds of object (nodekit.scene.KINDS), or the
+#: plain disc of a pose without an object.
+MARKER_KINDS = ("disc", "valve", "steering_wheel", "door", "drill", "plug", "footstep")
+
+
+def _kind(value: Any) -> str:
+    if value not in MARKER_KINDS:
+        raise ValueError(f"must be one of {', '.join(MARKER_KINDS)}, got {value!r:.40}")
+    return value
+
+
 def _int(value: Any) -> int:
     if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value < 1 << 63:
         raise ValueError(f"must be a whole number 0 <= n < 2**63, got {value!r:.60}")
@@ -203,7 +216,7 @@ def _nodes(value: Any) -> Dict[str, str]:
 #: Each message's fields and their checks, in wire order.
 FIELDS: Dict[Type[Any], Dict[str, Any]] = {
     Go: {"forget": _names},
-    AddMarker: {"name": _name, "pose": _pose}, UpdateMarker: {"name": _name, "pose": _pose},
+    AddMarker: {"name": _name, "pose": _pose, "kind": _kind}, UpdateMarker: {"name": _name, "pose": _pose},
     RemoveMarker: {"name": _name}, EnableDisplay: {"name": _name, "enabled": _bool},
     Ping: {"seq": _int}, WindowReady: {"window": _int, "pid": _int},
     RosNodes: {"node": _name, "librviz": _nodes}, MarkerMoved: {"name": _name, "pose": _pose},

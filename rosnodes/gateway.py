@@ -22,6 +22,8 @@ pilot roscore it offers:
 ``/pilot/command_states``    ``walkman_msgs/CommandState``       out: each command's life
 ``/pilot/stop_all``          ``walkman_msgs/StopAll``            service: hold the robot now
 ``/pilot/release``           ``walkman_msgs/StopAll``            service: the HAL may move again
+``/pilot/scene_edit``        ``walkman_msgs/SceneObject``        in: an object a pilot placed
+``/pilot/scene``             ``walkman_msgs/Scene``              out, latched: the shared scene
 ===========================  ==================================  ===========================
 
 Every command and switch leaves with its lifetime (:mod:`walkman.gym.validity`):
@@ -36,7 +38,8 @@ each, all on the pilot YARP name server) each claim a station number
 same millisecond, so a module never mistakes two pilots' commands for a
 resend; and each republishes what the others sent, with who sent it (the
 ``sender`` of a Command or Switch: a Pilot Interface's name), so every pilot's
-log shows every command.  One roscore has one gateway: a second would forward every topic
+log shows every command; the shared 3-D scene crosses between stations the same way
+(:mod:`rosnodes.scene_keeper`).  One roscore has one gateway: a second would forward every topic
 command again, so it refuses to start.  Statuses are decoded with the module's list of states
 (the ``statuses`` attribute in the bridge configuration, or the module's class).
 """
@@ -61,6 +64,7 @@ from bridge.errors import BridgeProtocolError
 from nodekit.connections import ConnectionKeeper
 from nodekit.logs import configure_logging
 from nodekit.link_watch import LinkState, LinkWatch
+from rosnodes.scene_keeper import SceneKeeper
 from rosnodes.stations import (SequenceNumbers, StationError, claim_station, parse_sent,
                                sent_bottle_fields)
 from rosnodes.timed import CANCELLED, SENT, Countdowns
@@ -226,6 +230,7 @@ class Gateway:
         self.sequence: Optional[SequenceNumbers] = None
         self.sent_out: Optional[Port] = None
         self.sent_in: Optional[Port] = None
+        self.scene: Optional[SceneKeeper] = None
         self._peers: set = set()
         #: set once the station is claimed and the ports are open: ROS waits for it
         self.yarp_open = threading.Event()
@@ -252,6 +257,7 @@ class Gateway:
         self.prefix = f"/pilot_gateway/{self.station}"
         self.sent_in = Port(nameclient=self.nameclient, reader=self._on_peer_sent)
         self.sent_in.open(f"{self.prefix}/sent:i", wait=math.inf)
+        self.scene = SceneKeeper(self.station, self.prefix, self.nameclient)
         for module, statuses in self.modules.items():
             self.links[module] = ModuleLink(module, statuses, self.prefix, self.nameclient,
                                             self.keeper, self._on_status, self._on_warning,
@@ -274,9 +280,11 @@ class Gateway:
                  ", ".join(self.modules))
 
     def _find_peers(self) -> None:
-        """Read every other station's ``sent:o``, found on the name server at once and then
-        every 2 s (a station that waited first missed what the others sent meanwhile)."""
-        pattern = re.compile(r"^/pilot_gateway/(\d+)/sent:o$")
+        """Read every other station's ``sent:o`` and ``scene:o``, found on the name server at
+        once and then every 2 s (a station that waited first missed what the others sent
+        meanwhile)."""
+        pattern = re.compile(r"^/pilot_gateway/(\d+)/(sent|scene):o$")
+        readers = {"sent": self.sent_in, "scene": self.scene.into}
         while True:
             try:
                 names = [c.name for c in self.nameclient.list()]
@@ -286,7 +294,8 @@ class Gateway:
                 found = pattern.match(name)
                 if found and int(found.group(1)) != self.station and name not in self._peers:
                     self._peers.add(name)
-                    self.keeper.want(name, self.sent_in.name, self.sent_in, ours_is_source=False)
+                    reader = readers[found.group(2)]
+                    self.keeper.want(name, reader.name, reader, ours_is_source=False)
             if self._stop.wait(2.0):
                 return
 
@@ -453,6 +462,7 @@ class Gateway:
                 seq, state, data, bottle = link.last_status
                 self._ros[module]["status"].publish(
                     self._status_msg(module, seq, state, str(bottle[1]), data))
+        self.scene.open_ros()
         threading.Thread(target=self._countdown_loop, name="gateway countdowns",
                          daemon=True).start()
         log.info("gateway: ROS topics and services up for %s", ", ".join(self.modules))
@@ -788,6 +798,8 @@ class Gateway:
         for port in (self.sent_in, self.sent_out, self.bridge_in):
             if port is not None:
                 port.close()
+        if self.scene is not None:
+            self.scene.close()
         if self.ros_node is not None:
             self.ros_node.stop()
 

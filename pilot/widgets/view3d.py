@@ -47,6 +47,7 @@ class PoseMarker:
 
     pose: List[float]
     on_move: Callable[[Sequence[float]], None]
+    kind: str = "disc"
 
 
 class View3D(QWidget):
@@ -103,10 +104,11 @@ class View3D(QWidget):
     # -- what the PI asks ------------------------------------------------------------------
 
     def add_pose_marker(self, name: str, start: Sequence[float],
-                        on_move: Callable[[Sequence[float]], None]) -> None:
-        """A draggable 6-DOF marker named ``name``; ``on_move`` gets x y z roll pitch yaw."""
-        self.markers[name] = PoseMarker(list(start), on_move)
-        self._send(AddMarker(name, tuple(start)))
+                        on_move: Callable[[Sequence[float]], None], kind: str = "disc") -> None:
+        """A draggable 6-DOF marker named ``name``, drawn as a ``kind`` of object;
+        ``on_move`` gets x y z roll pitch yaw."""
+        self.markers[name] = PoseMarker(list(start), on_move, kind)
+        self._send(AddMarker(name, tuple(start), kind))
 
     def move_pose_marker(self, name: str, pose: Sequence[float]) -> None:
         """The marker follows a pose typed elsewhere."""
@@ -155,7 +157,7 @@ class View3D(QWidget):
                            f"after it {self.deaths[-1].reason.split(':')[0]}")
             self._down_at = None
         for name, marker in self.markers.items():      # a new child knows nothing yet
-            self._send(AddMarker(name, tuple(marker.pose)))
+            self._send(AddMarker(name, tuple(marker.pose), marker.kind))
         for name, enabled in self.displays.items():
             self._send(EnableDisplay(name, enabled))
 

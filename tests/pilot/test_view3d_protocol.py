@@ -22,7 +22,8 @@ from pilot.view3d_protocol import (MAX_LINE, AddMarker, Decoder, Direction, Enab
                                    WindowReady, decode_line, encode)
 
 POSE = (0.66, 0.25, 0.08, 0.0, -1.0472, math.pi)
-TO_CHILD = [Go(("/pi_view3d_41", "/rviz_17")), Go(), AddMarker("drc_valve", POSE), UpdateMarker("drc_valve", POSE),
+TO_CHILD = [Go(("/pi_view3d_41", "/rviz_17")), Go(), AddMarker("drc_valve", POSE),
+            AddMarker("drc_wall", POSE, "drill"), UpdateMarker("drc_valve", POSE),
             RemoveMarker("drc_door"), EnableDisplay("Cloud", False), Ping(7)]
 TO_PI = [WindowReady(0x400006, 4321), RosNodes("/pi_view3d_4321", {"/rviz_17": "http://h:1/"}),
          RosNodes("/pi_view3d_1"), MarkerMoved("drc_valve", POSE), Pong(7)]
@@ -44,7 +45,7 @@ def test_every_message_round_trips_whole_and_one_byte_at_a_time(direction, messa
 
 def test_the_wire_is_one_json_object_a_line():
     assert encode(AddMarker("drc_valve", (1, 2, 3, 0, 0, 0.5))) == \
-        b'{"type":"add","name":"drc_valve","pose":[1.0,2.0,3.0,0.0,0.0,0.5]}\n'
+        b'{"type":"add","name":"drc_valve","pose":[1.0,2.0,3.0,0.0,0.0,0.5],"kind":"disc"}\n'
     assert json.loads(encode(WindowReady(5, 6))) == {"type": "window", "window": 5, "pid": 6}
 
 
@@ -121,6 +122,7 @@ def test_a_line_over_the_limit_is_refused_before_its_end_arrives():
 
 @pytest.mark.parametrize("message, names", [
     (AddMarker("v", (1, 2, 3, 4, 5, float("nan"))), "add: field 'pose'"),
+    (AddMarker("v", (1, 2, 3, 4, 5, 6), "teapot"), "add: field 'kind' must be one of disc"),
     (UpdateMarker("v", (1, 2, 3)), "update: field 'pose'"),
     (RemoveMarker(""), "remove: field 'name'"),
     (Ping(-1), "ping: field 'seq'"),

@@ -358,24 +358,38 @@ def drag_marker() -> None:
     feedback.pose.position.x, feedback.pose.position.y, feedback.pose.position.z = 0.61, -0.12, 0.05
     feedback.pose.orientation.z = feedback.pose.orientation.w = 0.5 ** 0.5   # yaw pi/2
     fields = valve.fields["valvedatasent"]
+    say(f"STEP dragging the valve from {time.time():.3f}")
     # A drag is a stream of pose updates.  The marker server lives in the render process:
     # if librviz takes it down meanwhile (its own crash, which the PI survives), the PI
     # starts another and the drag goes on once the new one listens -- as a pilot would
     # drag again when the view is back.
-    end = time.monotonic() + 90
+    end, next_update = time.monotonic() + 90, 0.0
     while abs(fields[0].value() - 0.61) >= 1e-3 and time.monotonic() < end:
-        if topic.get_num_connections() > 0:
+        if time.monotonic() >= next_update and topic.get_num_connections() > 0:
             topic.publish(feedback)
-        pump(0.3)
+            next_update = time.monotonic() + 0.3
+        pump(0.02)
     if abs(fields[0].value() - 0.61) >= 1e-3:
         view = window.view3d
         fail(f"the valve's x did not follow the marker (the PI's markers "
              f"{ {n: m.pose for n, m in view.markers.items()} }, render process "
              f"{view.embedded_pid}, its deaths {view.deaths})")
+    followed = time.time()      # the fields follow and the scene edit leaves in one step
     values = [round(f.value(), 3) for f in fields[:6]]
+    say(f"STEP the valve's fields followed at {followed:.3f}")
     if values[:3] != [0.61, -0.12, 0.05] or abs(values[5] - 1.571) > 2e-3:
         fail(f"the valve's pose fields show {values} after the drag")
     say(f"STEP marker dragged: valve pose {values}")
+
+
+def scene_follows() -> None:
+    """The other pilot's drag of the valve, through both gateways: our 3-D view has the
+    valve (drawn as a valve, no task widget of ours owns it) where they put it."""
+    markers = window.view3d.markers
+    wait(lambda: "drc_valve" in markers and abs(markers["drc_valve"].pose[0] - 0.61) < 1e-3,
+         60, "the other pilot's valve in the shared scene")
+    say(f"STEP scene: drc_valve {markers['drc_valve'].kind} at "
+        f"{[round(v, 3) for v in markers['drc_valve'].pose]} shown at {time.time():.3f}")
 
 
 def cloud_connected(uri: str) -> bool:
@@ -409,6 +423,10 @@ def peer() -> None:
     line = others_look_at()
     say(f"STEP saw {line}")
     if window.view3d is None:
+        say("DONE")
+        return
+    if not window.module_widgets.get("drc_valve"):
+        scene_follows()                     # a PI without the valve's task: it sees the scene
         say("DONE")
         return
     drag_marker()

@@ -150,3 +150,45 @@ def test_a_switch_sent_before_the_module_is_connected_waits_for_it(make_pc, conf
     module = start_counter(pc)
     module.wait_for("start -> running", 30)
     assert "is not reachable" not in gateway.output()
+
+
+def test_the_scene_crosses_to_another_pilot_station_even_one_that_came_later(
+        make_pc, config, tmp_path):
+    """Two pilot PCs (a roscore and a gateway each, one pilot YARP name server): an object
+    placed on the first (``rostopic pub`` standing in for a PI) is in the second's latched
+    ``/pilot/scene`` -- the second gateway started after the edit and caught up -- and a
+    drag on the second comes back to the first; a malformed edit is refused by name."""
+    import shutil
+
+    first, second = make_pc("pilot1"), make_pc("pilot2")
+    first.start_name_servers()
+    gateway = [PYTHON, "-m", "rosnodes.gateway", "--config", str(config)]
+    first.start("gateway", gateway).wait_for(r"ROS topics and services up", 60)
+    first.run(["rostopic", "pub", "-1", "/pilot/scene_edit", "walkman_msgs/SceneObject",
+               "{name: drc_valve, kind: valve, pose: [0.66, 0.25, 0.08, 0, 0, 0], "
+               "sender: pi_main}"], timeout=60)
+    first.processes["gateway"].wait_for(r"gateway: scene: drc_valve at 0.660 0.250 0.080 "
+                                        r".*\(from pi_main\)", 30)
+
+    (second.root / "yarp").mkdir(parents=True)
+    for conf in (first.root / "yarp").glob("*.conf"):
+        shutil.copy(conf, second.root / "yarp" / conf.name)
+    second.start_roscore().wait_for(ROSCORE_READY, 60)
+    later = second.start("gateway", gateway)
+    later.wait_for(r"gateway: scene: drc_valve from station 1 \(pi_main\)", 60)
+    echoed = second.run(["rostopic", "echo", "-n", "1", "/pilot/scene"], timeout=60).output()
+    assert "name: \"drc_valve\"" in echoed and "0.66" in echoed and "station: 1" in echoed, \
+        echoed
+
+    second.run(["rostopic", "pub", "-1", "/pilot/scene_edit", "walkman_msgs/SceneObject",
+                "{name: drc_valve, kind: valve, pose: [0.70, 0.25, 0.08, 0, 0, 0], "
+                "sender: pi_perception}"], timeout=60)
+    first.processes["gateway"].wait_for(r"gateway: scene: drc_valve from station 2 "
+                                        r"\(pi_perception\)", 30)
+    echoed = first.run(["rostopic", "echo", "-n", "1", "/pilot/scene"], timeout=60).output()
+    assert "0.7" in echoed and "pi_perception" in echoed, echoed
+
+    first.run(["rostopic", "pub", "-1", "/pilot/scene_edit", "walkman_msgs/SceneObject",
+               "{name: drc_valve, kind: teapot, pose: [0.7, 0.25, 0.08, 0, 0, 0]}"],
+              timeout=60)
+    first.processes["gateway"].wait_for(r"a scene edit refused \(\?\): kind: one of valve", 30)

@@ -191,7 +191,8 @@ def second_pilot_pc(drc, tmp_path, request):
 def test_two_pilot_pcs_see_each_others_commands_and_a_pi_survives_restarts(
         drc, second_pilot_pc, display, tmp_path):
     """Two PIs on two pilot PCs (one gateway each, one pilot YARP name server): each
-    sees the other's command with its sender; a dragged marker sets the valve pose;
+    sees the other's command with its sender; a dragged marker sets the valve pose, and
+    the valve moves in the other PI's 3-D view (the shared scene, through both gateways);
     roscore and the bridge restart under the first PI, which then shows the module,
     sends, and draws the robot again."""
     out = tmp_path / "screens"
@@ -199,23 +200,33 @@ def test_two_pilot_pcs_see_each_others_commands_and_a_pi_survives_restarts(
     try:
         main = start_pi(drc.pilot, display, "peer", out, "pi_status", "1.25", name="pi_main")
         status = start_pi(second_pilot_pc, display, "peer", out, "pi_main", "1.45",
-                          name="pi_status", layout="status-pilot")
+                          name="pi_status", layout="perception-pilot")
         for pi in (main, status):
             pi.wait_for(r"STEP ready|FAIL", 120)
         # each station's gateway reads the other's sent commands (a record sent before that
         # connection exists is not shown: YARP streams keep no history)
         drc.process("gateway").wait_for(r"connected /pilot_gateway/2/sent:o", 30)
         second_pilot_pc.processes["gateway"].wait_for(r"connected /pilot_gateway/1/sent:o", 30)
+        second_pilot_pc.processes["gateway"].wait_for(r"connected /pilot_gateway/1/scene:o", 30)
         for pi in (main, status):
             pi.send("go\n")
+        # the main PI drags the valve (its 3-D view may first restart after a librviz
+        # crash), then the other PI sees it in the shared scene
+        main.wait_for(r"STEP waiting for the restarts|FAIL", 150)
+        assert "FAIL" not in main.output(), main.output()
         status.wait_for(r"DONE|FAIL", 60)
         assert "FAIL" not in status.output(), status.output()
-        main.wait_for(r"STEP waiting for the restarts|FAIL", 60)
-        assert "FAIL" not in main.output(), main.output()
         assert re.search(r"STEP saw .*pi_main \(station 1\) -> /gaze_control/command: "
                          r".*look_at 1.25", status.output()), status.output()
         assert re.search(r"STEP saw .*pi_status \(station 2\) -> /gaze_control/command: "
                          r".*look_at 1.45", main.output()), main.output()
+        # the main pilot's drag of the valve, in the other pilot PC's 3-D view
+        shown = re.search(r"STEP scene: drc_valve valve at \[0.61, -0.12, 0.05, [-\d.]+, "
+                          r"[-\d.]+, 1.571\] shown at ([\d.]+)", status.output())
+        dragged = re.search(r"STEP the valve's fields followed at ([\d.]+)", main.output())
+        assert shown and dragged, status.output()
+        print(f"the drag crossed to the other pilot PC in "
+              f"{float(shown.group(1)) - float(dragged.group(1)):.2f} s")
 
         drc.pilot.kill("roscore")
         drc.pilot.kill("bridge_pilot")
