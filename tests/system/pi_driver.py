@@ -388,8 +388,14 @@ def scene_follows() -> None:
     markers = window.view3d.markers
     wait(lambda: "drc_valve" in markers and abs(markers["drc_valve"].pose[0] - 0.61) < 1e-3,
          60, "the other pilot's valve in the shared scene")
+    shown = time.time()
+    wait(window.view3d.applied(), 30, "the render process to draw the valve")
+    window.raise_()                           # the other PI's window is on the same display
+    window.activateWindow()
+    pump(1.0)                                 # librviz draws at 15 Hz
+    window.screenshot(OUT / f"{window.name}-scene.png")
     say(f"STEP scene: drc_valve {markers['drc_valve'].kind} at "
-        f"{[round(v, 3) for v in markers['drc_valve'].pose]} shown at {time.time():.3f}")
+        f"{[round(v, 3) for v in markers['drc_valve'].pose]} shown at {shown:.3f}")
 
 
 def cloud_connected(uri: str) -> bool:
