@@ -17,8 +17,9 @@ we add beside YARP's protocols:
                   a whole-body client finds every chain without a config;
                   ``[get] stats``; ``[set] harness on|off``; simulation only:
                   ``[set] push IX IY IZ [SECONDS]``, an impulse (N*s, world
-                  frame) on the torso (vocabs hold 4 letters, so longer words
-                  are plain strings)
+                  frame) on the torso, and ``[set] station NAME``, the robot
+                  moved to a task's station (vocabs hold 4 letters, so longer
+                  words are plain strings)
 ``/<robot>/warning:o``      ``SEQ TEXT OWNER HOLDER ACTION`` when two modules command one
                              joint (:mod:`walkman.hal.arbitration`)
 ``/<robot>/<ft>/analog:o``  Fx Fy Fz Tx Ty Tz (N, N*m), like YARP's analogServer

@@ -128,6 +128,7 @@ class HalServer:
         self.nameclient = nameclient or NameClient()
         self.realtime = realtime
         self._harness: Optional[str] = None  # asked over rpc, applied by the physics thread
+        self._station: Optional[str] = None  # likewise
         self.arbiter = JointArbiter(backend.joint_names, config.policy, config.priorities,
                                     config.release_after)
         self._arbiter_lock = threading.Lock()  # commands arrive on many port threads
@@ -306,6 +307,8 @@ class HalServer:
             return Bottle([Vocab("ok")])
         if verb == "set" and what == "push":
             return self._push(request)
+        if verb == "set" and what == "station":
+            return self._station_request(request)
         if verb == "set" and what == "halt" and len(request) == 3 and \
                 str(request[2]) in ("on", "off"):
             on = str(request[2]) == "on"
@@ -319,7 +322,24 @@ class HalServer:
                            else "off"])
         return Bottle([Vocab("fail"), "unknown request; try [get] chains, [get] stats, "
                                       "[set] harness locked|trolley|off, [set] push IX IY IZ, "
-                                      "[set] halt on|off, [get] halt"])
+                                      "[set] station NAME, [set] halt on|off, [get] halt"])
+
+    def _station_request(self, request: Bottle) -> Bottle:
+        """``[set] station NAME``: the simulated robot goes to a task's station (between the
+        DRC's tasks the real one walked or drove; here one session can do them all)."""
+        plant = getattr(self.backend, "plant", None)
+        if plant is None:
+            return Bottle([Vocab("fail"), "this backend has no stations (simulation only)"])
+        name = str(request[2]) if len(request) == 3 else ""
+        if name not in STATIONS:
+            return Bottle([Vocab("fail"), f"station must be one of {', '.join(STATIONS)}, got "
+                                          f"{request.to_text()[:80]!r}"])
+        held = plant.grasped()
+        if held:
+            return Bottle([Vocab("fail"), f"a hand holds {', '.join(held)}: let go first "
+                                          f"(the part would go with the robot)"])
+        self._station = name  # the physics thread moves the robot before its next step
+        return Bottle([Vocab("ok")])
 
     def _push(self, request: Bottle) -> Bottle:
         """``[set] push IX IY IZ [SECONDS]``: a simulated push on the torso (N*s, world)."""
@@ -343,6 +363,11 @@ class HalServer:
         harness, self._harness = self._harness, None
         if harness is not None:
             self.backend.plant.set_harness(harness)
+        station, self._station = self._station, None
+        if station is not None:
+            self.backend.plant.place(station)
+            self.backend.plant.set_harness(self.backend.plant.harness_mode)
+            log.info("HAL: the robot is at station %s (simulation)", station)
         for chain in self.chains.values():
             chain.step(self.backend.dt)
 
