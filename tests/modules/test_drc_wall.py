@@ -14,6 +14,7 @@ from walkman.modules.drc_wall import TASK_STEPS
 from yarp_lite.bottle import Bottle
 from yarp_lite.rpc import RpcClient
 
+
 def test_the_drill_cuts_the_circle_and_is_put_back(task_at):
     wall = task_at("wall", "drc_wall")
     wall.command(PILOT_POSES["wall"], "ready")
