@@ -28,7 +28,7 @@ from typing import List, Optional
 from system import compare
 from system.pc import serve
 from system.session import STEPS
-from system.topology import REPO, Topology, add_link_arguments
+from system.topology import REPO, TASK_MODULES, Topology, add_link_arguments
 
 
 def say(text: str) -> None:
@@ -38,7 +38,8 @@ def say(text: str) -> None:
 def interactive(options: argparse.Namespace) -> int:
     link = compare.open_link(options.loopback, say, prefix="wm", subnet=61)
     root = Path(tempfile.mkdtemp(prefix="walkman-pilot-"))
-    topology = Topology("drc", root, link=link, profile=options.profile, loss=options.loss)
+    topology = Topology("drc", root, link=link, profile=options.profile, loss=options.loss,
+                        tasks=True)
     try:
         where = f"emulated hosts ({options.profile} link)" if link else "loopback"
         say(f"starting the robot PC and the pilot PC on {where}")
@@ -49,7 +50,9 @@ def interactive(options: argparse.Namespace) -> int:
         topology.start_all()
         topology.wait_ready(240)
         env_file = topology.pilot.write_env_file()
+        robot_env = topology.robot.write_env_file()
         enter = f"ip netns exec {link.namespace('pilot')} bash\n    " if link else ""
+        enter_robot = f"ip netns exec {link.namespace('robot')} bash\n    " if link else ""
         print(f"""
 The robot is up. Pilot it from another shell on this machine:
 
@@ -64,6 +67,13 @@ The robot is up. Pilot it from another shell on this machine:
     rostopic hz /joint_states                 # robot state through the bridge
     rosrun rviz rviz  (if installed)          # /multisense/points, /tf
     yarp-lite name list                       # the pilot PC's YARP ports
+    walkman-pilot --layout main-pilot         # the Pilot Interface (with a display)
+
+Every DRC task's module runs on the robot PC ({", ".join(TASK_MODULES)}): start one from
+the PI (or /M/switch), after taking the simulated robot to its station from the robot PC:
+
+    {enter_robot}cd {shlex.quote(str(REPO))} && source {shlex.quote(str(robot_env))}
+    echo "set station wall" | yarp-lite rpc /walkman/rpc:i    # valve car door plug wall yard
 
 Logs of every program: {root}/<pc>/logs/ ; Ctrl-C here stops everything.""", flush=True)
         programs = {name: topology.process(name) for name in topology.table}

@@ -75,7 +75,7 @@ def plan(side: str, options: argparse.Namespace) -> Dict[str, List[str]]:
     """The programs of this PC and their command lines."""
     out = {}
     bag = options.dir / f"{side}-{time.strftime('%Y%m%d-%H%M%S')}.bag"
-    for component in components(kind_of(side)):
+    for component in components(kind_of(side), tasks=not options.no_tasks):
         if side != "lab" and component.pc != side:
             continue
         if component.name in options.skip:
@@ -117,6 +117,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--dir", type=Path, default=None,
                         help=f"logs, name-server state and rosbags (default {DEFAULT_DIR}/<side>)")
     parser.add_argument("--skip", default="", help="programs not to start (comma separated)")
+    parser.add_argument("--no-tasks", action="store_true",
+                        help="not the task modules (drc_valve ... walking) on the robot PC")
     parser.add_argument("--no-gui", action="store_true",
                         help="no Pilot Interface even when a display is present (pilot, lab)")
     parser.add_argument("--layout", default="main-pilot",
@@ -130,7 +132,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     for name in ("yarp_port", "ros_port", "bridge_port", "udp_port"):
         if not 0 < getattr(options, name) < 65536:
             parser.error(f"--{name.replace('_', '-')} must be a port number (1-65535)")
-    known = {c.name for c in components("lab") + components("drc")}
+    known = {c.name for c in components("lab", tasks=True) + components("drc", tasks=True)}
     unknown = options.skip - known
     if unknown:
         parser.error(f"--skip: unknown program(s) {', '.join(sorted(unknown))}; the programs "
@@ -162,7 +164,7 @@ def main(argv: Optional[List[str]] = None) -> int:
             if options.shuffle:
                 time.sleep(random.uniform(0, 2))
         env_file = pc.write_env_file()
-        ready = {c.name: c.ready for c in components(kind_of(options.side))}
+        ready = {c.name: c.ready for c in components(kind_of(options.side), tasks=True)}
         ready["pilot_interface"] = r"window up"
         return serve({name: pc.processes[name] for name in names}, ready, lambda: say(
             f"all up. In another shell: source {env_file} (then rostopic, rosservice, "

@@ -60,8 +60,21 @@ class Component:
         return [arg.replace("{bag}", str(bag)) for arg in self.argv]
 
 
-def components(kind: str, perception_rate: float = 1.0) -> List[Component]:
-    """Every program of a topology besides the name servers."""
+#: The paper's task modules (its bridge XML): on the robot PC for a pilot who does every DRC
+#: task in one session (the scripts and the main job's interactive mode start them; the
+#: tests that do not pilot a task leave them out: six more processes to start).
+TASK_MODULES = ("drc_valve", "drc_drive", "drc_door", "drc_wall", "drc_plug", "walking")
+
+
+def task_components() -> List[Component]:
+    module = (PYTHON, "-m", "walkman.gym.supervisor")
+    return [Component(name, "robot", (*module, name), r"ready for the pilot")
+            for name in TASK_MODULES]
+
+
+def components(kind: str, perception_rate: float = 1.0, tasks: bool = False) -> List[Component]:
+    """Every program of a topology besides the name servers (the task modules too if
+    ``tasks``)."""
     module = (PYTHON, "-m", "walkman.gym.supervisor")
     table = [
         Component("hal", "robot", (PYTHON, "-m", "walkman.hal.server", "--backend", "sim"),
@@ -91,7 +104,7 @@ def components(kind: str, perception_rate: float = 1.0) -> List[Component]:
                                       "/rosout(_agg)?", "--lz4", "--output-name", "{bag}"),
                   r"Recording to|Subscribing to"),
     ]
-    return [c for c in table if kind in c.topologies]
+    return [c for c in table + (task_components() if tasks else []) if kind in c.topologies]
 
 
 def bridge_argv(side: str, config: Path, peer: str, tcp_port: int, udp_port: int,
@@ -264,9 +277,9 @@ class Topology:
     def __init__(self, kind: str, root: Path, link=None, profile: str = "lab",
                  loss: Optional[float] = None, perception_rate: float = 1.0,
                  bridge_config: Path = BRIDGE_CONFIG, extra: Sequence[Component] = (),
-                 extra_env: Optional[Dict[str, str]] = None) -> None:
+                 extra_env: Optional[Dict[str, str]] = None, tasks: bool = False) -> None:
         """``extra`` components join the table (a test's witness module); ``extra_env`` goes
-        into every program's environment."""
+        into every program's environment; ``tasks`` adds the paper's task modules."""
         if kind not in ("lab", "drc"):
             raise ValueError(f"topology must be lab or drc, not {kind!r}")
         self.kind = kind
@@ -274,7 +287,7 @@ class Topology:
         self.link = link
         self.profile, self.loss = profile, loss
         self.bridge_config = bridge_config
-        self.table = {c.name: c for c in [*components(kind, perception_rate), *extra]
+        self.table = {c.name: c for c in [*components(kind, perception_rate, tasks), *extra]
                       if kind in c.topologies}
         env = dict(extra_env or {})
         if kind == "lab":

@@ -8,7 +8,7 @@ import pytest
 
 from harness import dump_outputs_if_failed
 from system.processes import Proc, descendants, wait_until
-from system.topology import REPO
+from system.topology import REPO, TASK_MODULES
 from yarp_lite.freeport import free_port
 
 
@@ -52,6 +52,10 @@ def test_launchers_bring_up_both_pcs_and_a_plain_shell_pilots_the_robot(tmp_path
         robot_log = tmp_path / "robot" / "logs" / "gaze_control.log"
         wait_until(lambda: "gaze_control: start -> running" in robot_log.read_text(), 30,
                    message="gaze_control started on the robot PC")
+        # every task of the paper has its module waiting for the pilot on the robot PC
+        for task in TASK_MODULES:
+            assert "ready for the pilot" in (tmp_path / "robot" / "logs" /
+                                             f"{task}.log").read_text(), task
     finally:
         dump_outputs_if_failed(request, launchers.values())
         family = {side: [proc.popen.pid, *descendants(proc.popen.pid)]
