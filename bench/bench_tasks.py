@@ -25,40 +25,30 @@ from walkman.model.mjcf import PLUG_SOCKETS
 from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 Step = Tuple[str, str]
+#: Each manipulation task: its station, its module, and the module's own steps after the
+#: scene's pose (``TASK_STEPS``); what to read in the scene at the end.
+MANIPULATION = {"drc_valve": ("valve", drc_valve, "valve"), "drc_drive": ("car", drc_drive, "car"),
+                "drc_door": ("door", drc_door, "door"), "drc_plug": ("plug", drc_plug, "plug"),
+                "drc_wall": ("wall", drc_wall, "wall")}
+OUTCOMES: Dict[str, Callable[[OfflineWorld], str]] = {
+    "drc_valve": lambda world: f"valve turned {world.prop('valve'):.3f} rad for 1.571",
+    "drc_drive": lambda world: f"steering at {world.prop('steering'):.3f} rad (net -0.5 asked)",
+    "drc_door": lambda world: f"door open {np.degrees(world.prop('door')):.1f} deg (goal > 30)",
+    "drc_plug": lambda world: f"plug {100 * plug_off_socket_b(world):.1f} cm from socket b's "
+                              f"centre",
+    "drc_wall": lambda world: f"drywall: {world.backend.plant.drywall.summary()}",
+}
 TASKS: Dict[str, Tuple[str, type, List[Step], Callable[[OfflineWorld], str]]] = {
-    "drc_valve": ("valve", drc_valve.Module, [
-        (PILOT_POSES["valve"], "ready"), ("reach", "reached"),
-        ("approach", "approached"), ("grasp", "grasped"), ("turn 1.5708", "grasped"),
-        ("ungrasp", "ungrasped"), ("move_away", "moved_away"), ("home", "idle")],
-        lambda world: f"valve turned {world.prop('valve'):.3f} rad for 1.571"),
-    "drc_drive": ("car", drc_drive.Module, [
-        (PILOT_POSES["car"], "ready"),
-        ("reach", "reached"), ("approach", "approached"), ("grasp", "grasped"),
-        ("drive", "drive"), ("turn_left 0.5", "drive"), ("turn_right 1.0", "drive"),
-        ("rotate_foot", "drive"), ("accelerate 1.5", "drive"), ("move_away_foot", "drive"),
-        ("ungrasp", "ungrasped"), ("move_away_hand", "moved_away_hand")],
-        lambda world: f"steering at {world.prop('steering'):.3f} rad (net -0.5 asked)"),
-    "drc_door": ("door", drc_door.Module, [
-        (PILOT_POSES["door"], "ready"), ("reach", "reached"),
-        ("approach", "approached"), ("grasp", "grasped"), ("turn", "turned"),
-        ("open", "opened"), ("ungrasp", "ungrasped"), ("move_away", "moved_away"),
-        ("home", "idle")],
-        lambda world: f"door open {np.degrees(world.prop('door')):.1f} deg (goal > 30)"),
-    "drc_plug": ("plug", drc_plug.Module, [
-        (PILOT_POSES["plug"], "ready"), ("reach", "reached"),
-        ("approach", "approached"), ("grasp", "grasped"), ("pull", "pulled"),
-        ("move_to_socket", "over_socket"), ("insert", "inserted"), ("ungrasp", "ungrasped"),
-        ("move_away", "moved_away"), ("home", "idle")],
-        lambda world: f"plug {100 * plug_off_socket_b(world):.1f} cm from socket b's centre"),
-    "drc_wall": ("wall", drc_wall.Module, [(PILOT_POSES["wall"], "ready"),
-                                           *drc_wall.TASK_STEPS],
-        lambda world: f"drywall: {world.backend.plant.drywall.summary()}"),
+    name: (station, module.Module, [(PILOT_POSES[pose], "ready"), *module.TASK_STEPS],
+           OUTCOMES[name])
+    for name, (station, module, pose) in MANIPULATION.items()}
+TASKS.update({
     "walking": ("yard", walking.Module, [
         ("go_straight 1.0", "idle"), ("turn 0.8", "idle"), ("step_side 0.3", "idle"),
         ("go_straight -0.5", "idle")],
         lambda world: "base moved x %.3f y %.3f m, yaw %.3f rad from the start" % tuple(
             np.subtract(world.backend.plant.base_pose(), START[0])[[0, 1, 3]])),
-}
+})
 START: List[Tuple[float, ...]] = []
 
 

@@ -45,6 +45,13 @@ TABLE = grasp_table("doordatasent", {
 })
 
 
+#: The whole task as a pilot steps it once the pose is sent: each command and the state it
+#: ends in (the benchmarks and the README's walk-through follow it).
+TASK_STEPS = (("reach", "reached"), ("approach", "approached"), ("grasp", "grasped"),
+              ("turn", "turned"), ("open", "opened"), ("ungrasp", "ungrasped"),
+              ("move_away", "moved_away"), ("home", "idle"))
+
+
 class Module(GraspTask):
     statuses = task_statuses(TABLE)
     status_format = {"*": "door opened {0:.2f} rad"}

@@ -51,6 +51,15 @@ HOLDING_THE_WHEEL = frozenset({"grasped", "drive", "turning_left", "turning_righ
                                "accelerating", "rotating_foot", "moving_away_foot"})
 
 
+#: The whole task as a pilot steps it once the pose is sent: each command and the state it
+#: ends in (the benchmarks and the README's walk-through follow it).
+TASK_STEPS = (("reach", "reached"), ("approach", "approached"), ("grasp", "grasped"),
+              ("drive", "drive"), ("turn_left 0.5", "drive"), ("turn_right 1.0", "drive"),
+              ("rotate_foot", "drive"), ("accelerate 1.5", "drive"),
+              ("move_away_foot", "drive"), ("ungrasp", "ungrasped"),
+              ("move_away_hand", "moved_away_hand"))
+
+
 class Module(GraspTask):
     statuses = task_statuses(DRIVE_TABLE)
     #: The wheel's centre, the angle the pilot asked in all, and the angle the hand holding

@@ -48,6 +48,13 @@ TABLE = grasp_table("plugdatasent", {
 })
 
 
+#: The whole task as a pilot steps it once the pose is sent: each command and the state it
+#: ends in (the benchmarks and the README's walk-through follow it).
+TASK_STEPS = (("reach", "reached"), ("approach", "approached"), ("grasp", "grasped"),
+              ("pull", "pulled"), ("move_to_socket", "over_socket"), ("insert", "inserted"),
+              ("ungrasp", "ungrasped"), ("move_away", "moved_away"), ("home", "idle"))
+
+
 class Module(GraspTask):
     statuses = task_statuses(TABLE)
     status_format = {"*": "plug handle at ({0:.2f}, {1:.2f}, {2:.2f}) m"}

@@ -50,6 +50,13 @@ def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     return pin.rpy.rpyToMatrix(roll, pitch, yaw)
 
 
+#: The whole task as a pilot steps it once the pose is sent: each command and the state it
+#: ends in (the benchmarks and the README's walk-through follow it).
+TASK_STEPS = (("reach", "reached"), ("approach", "approached"), ("grasp", "grasped"),
+              ("turn 1.5708", "grasped"), ("ungrasp", "ungrasped"), ("move_away", "moved_away"),
+              ("home", "idle"))
+
+
 class Module(GraspTask):
     statuses = task_statuses(TABLE)
     status_format = {"*": "valve at ({0:.2f}, {1:.2f}, {2:.2f}) m"}
