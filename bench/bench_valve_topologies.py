@@ -1,8 +1,14 @@
 #!/usr/bin/env python3
-"""The valve task clicked through the Pilot Interface, end to end, on lab, drc and degraded.
+"""A DRC task clicked through the Pilot Interface, end to end, on lab, drc and degraded.
 
-    sudo .venv/bin/python bench/bench_valve_topologies.py [--rounds 3] [--runs 1]
-                                                          [--only lab,drc,degraded]
+    sudo .venv/bin/python bench/bench_valve_topologies.py [--task drc_valve] [--rounds 3]
+                                                          [--runs 1] [--only lab,drc,degraded]
+
+``--task`` is any task module with its station (drc_valve, drc_drive, drc_door, drc_wall,
+drc_plug; the HAL starts at its station, the PI clicks its pose and its ``TASK_STEPS``);
+per run it also counts the bytes each bridge sent per id meanwhile: the task's own
+(commands down, statuses up), the robot state's, all.  The valve is the default and the
+description below.
 
 Each topology starts as a user starts it (:mod:`system.topology`, the component table
 ``walkman-pc`` and the main job use; the HAL at the valve station, gaze_control,
@@ -45,6 +51,8 @@ and skips.
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import os
 import re
 import statistics
@@ -71,20 +79,51 @@ DRIVER = ROOT / "tests" / "system" / "pi_driver.py"
 TOPOLOGIES = ("lab", "drc", "degraded")
 #: The issue's goals: a topology's median run within this factor of lab's.
 GOALS = {"drc": 1.1, "degraded": 1.5}
-VALVE = Component("drc_valve", "robot", (PYTHON, "-m", "walkman.gym.supervisor", "drc_valve"),
-                  r"ready for the pilot")
-#: The valve's task widget without the 3-D view.
-BENCH_LAYOUTS = """
+#: Each task: the station the HAL starts at (walkman.model.mjcf.STATIONS) and the bridge id
+#: its commands and statuses cross on (walkman/models/bridge_drc.xml).
+TASKS = {"drc_valve": ("valve", 2), "drc_drive": ("car", 4), "drc_wall": ("wall", 5),
+         "drc_door": ("door", 6), "drc_plug": ("plug", 11)}
+ROBOT_STATE_ID = 20
+
+
+def task_component(task: str) -> Component:
+    return Component(task, "robot", (PYTHON, "-m", "walkman.gym.supervisor", task),
+                     r"ready for the pilot")
+
+
+def hal_at(station: str) -> Component:
+    return Component("hal", "robot", (PYTHON, "-m", "walkman.hal.server", "--backend", "sim",
+                                      "--station", station), r"HAL for walkman")
+
+
+def bench_layouts(task: str) -> str:
+    """The task's widget without the 3-D view."""
+    return f"""
 [layout valve-bench]
-description = the valve's task widget, status, link and log, no 3-D view (bench_valve_topologies)
-tab Tasks = task:drc_valve
+description = the task's widget, status, link and log, no 3-D view (bench_valve_topologies)
+tab Tasks = task:{task}
 tab Status = status link
 side = log
 """
+
+
+#: What each bridge has sent per id so far (run on the bridge's PC): ``{"tcp": {id: bytes},
+#: "udp": {id: bytes}}`` from the bridge's rpc ``status``.
+BYTES_PROBE = """
+import json, sys
+from bridge.status import from_bottle
+from yarp_lite.bottle import Bottle
+from yarp_lite.rpc import RpcClient
+client = RpcClient("/bench/bytes")
+assert client.connect(sys.argv[1])
+status = from_bottle(client.call(Bottle(["status"]), timeout=20))
+print(json.dumps({"tcp": status["tcp"].get("bytes_by_id", {}),
+                  "udp": status.get("udp", {}).get("bytes_by_id", {})}))
+"""
 TIMED = re.compile(r"^TIMED (\d+) (\S+) (\S+) (\d+\.\d+) (\d+\.\d+)")
 SHOWN = re.compile(r"^SHOWN (\d+\.\d+) (\S+) (\d+\.\d+)")
-GATEWAY_SENT = re.compile(r"^(\d+\.\d+) .*gateway: sent to /drc_valve/command:i: \(?(\w+)")
-MODULE_TOOK = re.compile(r"^(\d+\.\d+) .*drc_valve: command (\S+)")
+GATEWAY_SENT = r"^(\d+\.\d+) .*gateway: sent to /{task}/command:i: \(?(\w+)"
+MODULE_TOOK = r"^(\d+\.\d+) .*{task}: command (\S+)"
 
 
 def say(text: str) -> None:
@@ -99,7 +138,7 @@ class Step:
     state: str
     clicked: float
     shown: float
-    sent: Optional[float] = None       # the gateway wrote it to /drc_valve/command:i
+    sent: Optional[float] = None       # the gateway wrote it to /<task>/command:i
     took: Optional[float] = None       # the module took it from its inbox
     received: Optional[float] = None   # the gateway received the end state
 
@@ -113,6 +152,8 @@ class Result:
     kind: str
     steps: List[Step] = field(default_factory=list)
     turned: List[float] = field(default_factory=list)   # rad the valve turned, per run
+    #: per run: its seconds, and what each bridge sent meanwhile, per channel and id
+    crossed: List[Tuple[float, Dict]] = field(default_factory=list)
     radio: Dict = field(default_factory=dict)
 
     def runs(self) -> List[float]:
@@ -128,12 +169,14 @@ def first_after(times: List[Tuple[float, str]], after: float, word: str,
     return next((at for at, said in times if after <= at < before and said == word), None)
 
 
-def attribute(steps: List[Step], driver: Proc, topology: Topology) -> None:
+def attribute(steps: List[Step], driver: Proc, topology: Topology, task: str) -> None:
     """Fill each step's gateway and module times from the programs' logs."""
-    sent = [(float(m.group(1)), m.group(2)) for m in map(GATEWAY_SENT.search,
+    gateway_sent = re.compile(GATEWAY_SENT.format(task=task))
+    module_took = re.compile(MODULE_TOOK.format(task=task))
+    sent = [(float(m.group(1)), m.group(2)) for m in map(gateway_sent.search,
                                                          topology.process("gateway").lines) if m]
-    took = [(float(m.group(1)), m.group(2)) for m in map(MODULE_TOOK.search,
-                                                         topology.process("drc_valve").lines) if m]
+    took = [(float(m.group(1)), m.group(2)) for m in map(module_took.search,
+                                                         topology.process(task).lines) if m]
     shown = [(float(m.group(1)), m.group(2), float(m.group(3)))
              for m in map(SHOWN.search, driver.lines) if m]
     for index, step in enumerate(steps):
@@ -144,10 +187,33 @@ def attribute(steps: List[Step], driver: Proc, topology: Topology) -> None:
                               if at == step.shown and state == step.state), None)
 
 
-def valve_angle(topology: Topology) -> float:
+def valve_angle(topology: Topology, task: str) -> float:
+    """The valve's angle (the valve task's outcome); nan for the other tasks."""
+    if task != "drc_valve":
+        return float("nan")
     out = topology.robot.run([PYTHON, "-m", "tests.modules.scene", "valve"], timeout=90).output()
     words = out.split()
     return float(words[words.index("valve") + 1])
+
+
+def bytes_sent(topology: Topology) -> Dict[str, Dict[str, Dict[str, int]]]:
+    """Each bridge's bytes sent so far per channel and id (empty in the lab: no bridge)."""
+    if topology.kind == "lab":
+        return {}
+    out = {}
+    for side in ("robot", "pilot"):
+        proc = topology.pcs[side].run([PYTHON, "-c", BYTES_PROBE, f"/bridge/{side}/rpc:i"],
+                                      timeout=60)
+        lines = [line for line in proc.lines if line.startswith("{")]
+        out[side] = json.loads(lines[-1]) if lines else {}
+    return out
+
+
+def bytes_between(before: Dict, after: Dict) -> Dict[str, Dict[str, Dict[str, int]]]:
+    return {side: {channel: {key: value - before.get(side, {}).get(channel, {}).get(key, 0)
+                             for key, value in ids.items()}
+                   for channel, ids in channels.items()}
+            for side, channels in after.items()}
 
 
 def radio_status(link) -> Dict:
@@ -180,7 +246,9 @@ def run_topology(kind: str, root: Path, link, display: str, options, result: Res
     root = root / f"{kind}-{first_run}"
     topology = BenchTopology("lab" if kind == "lab" else "drc", root,
                              link=None if kind == "lab" else link, profile=profile,
-                             extra=[VALVE], extra_env={LOG_TIME_ENV: "1"})
+                             extra=[hal_at(TASKS[options.task][0]),
+                                    task_component(options.task)],
+                             extra_env={LOG_TIME_ENV: "1"})
     topology.udp_rate = options.udp_rate
     for name in options.without:
         topology.table.pop(name, None)
@@ -194,33 +262,38 @@ def run_topology(kind: str, root: Path, link, display: str, options, result: Res
             raise RuntimeError(f"the radio is blacked out at the start: {before}")
         topology.start_all()
         topology.wait_ready(300)
-        angle = valve_angle(topology)
-        say(f"  {kind}: topology up; the PI clicks the valve task {options.runs} times "
+        angle = valve_angle(topology, options.task)
+        say(f"  {kind}: topology up; the PI clicks {options.task} {options.runs} times "
             f"(load {os.getloadavg()[0]:.1f})")
         layouts = root / "bench_layouts.ini"
-        layouts.write_text((MODELS_DIR / "pilot_layouts.ini").read_text() + BENCH_LAYOUTS)
+        layouts.write_text((MODELS_DIR / "pilot_layouts.ini").read_text() +
+                           bench_layouts(options.task))
         topology.pilot.extra_env.update(display_env(display), PI_LAYOUT=options.layout,
                                         PI_LAYOUTS=str(layouts), PI_NAME=f"bench_{kind}")
         out = root / "screens"
         out.mkdir(parents=True, exist_ok=True)
-        driver = topology.pilot.start("pi_valve", [PYTHON, str(DRIVER), "valve", str(out),
-                                                   str(options.runs)], stdin=True)
+        counted_from = bytes_sent(topology)
+        driver = topology.pilot.start("pi_task", [PYTHON, str(DRIVER), "task", str(out),
+                                                  options.task, str(options.runs)], stdin=True)
         for run in range(options.runs):
             driver.wait_for(rf"RUN {run} done|FAIL", 900)
             if "FAIL" in driver.output():
                 raise RuntimeError(f"the PI driver failed on {kind}:\n{driver.output()[-3000:]}")
             done = [s for s in parse_steps(driver) if s.run == run]
-            now = valve_angle(topology)
+            crossed = bytes_between(counted_from, bytes_sent(topology))
+            counted_from = bytes_sent(topology)
+            result.crossed.append((done[-1].shown - done[0].clicked, crossed))
+            now = valve_angle(topology, options.task)
             turned, angle = now - angle, now
             result.turned.append(turned)
-            say(f"    run {first_run + run + 1}: {done[-1].shown - done[0].clicked:.2f} s, "
-                f"valve turned {turned:.3f} rad  ("
-                + ", ".join(f"{s.command} {s.seconds:.2f}" for s in done) + ")")
+            say(f"    run {first_run + run + 1}: {done[-1].shown - done[0].clicked:.2f} s"
+                + ("" if math.isnan(turned) else f", valve turned {turned:.3f} rad")
+                + "  (" + ", ".join(f"{s.command} {s.seconds:.2f}" for s in done) + ")")
             if run + 1 < options.runs:
                 driver.send("next\n")
         driver.wait_for(r"DONE", 30)
         steps = parse_steps(driver)
-        attribute(steps, driver, topology)
+        attribute(steps, driver, topology, options.task)
         for step in steps:
             step.run += first_run
         result.steps += steps
@@ -247,12 +320,13 @@ def median_of(values: List[Optional[float]]) -> float:
     return statistics.median(known) if known else float("nan")
 
 
-def report(results: Dict[str, Result], runs: int) -> None:
+def report(results: Dict[str, Result], runs: int, task: str) -> None:
     lab = results.get("lab")
     lab_median = statistics.median(lab.runs()) if lab else None
-    say(f"\nValve task by the PI, first click to idle shown, s ({runs} runs each)")
+    say(f"\n{task} by the PI, first click to the last step's state shown, s ({runs} runs "
+        f"each)")
     say(f"{'topology':<10} {'median':>7} {'min':>7} {'max':>7} {'x lab':>6}  {'goal':<9} "
-        f"{'':<5} valve turned, each run")
+        f"{'':<5} {'valve turned, each run' if task == 'drc_valve' else ''}")
     for kind, result in results.items():
         times = result.runs()
         median = statistics.median(times)
@@ -263,7 +337,8 @@ def report(results: Dict[str, Result], runs: int) -> None:
         goal_text = f"<= {goal:.1f}x" if goal else "-"
         say(f"{kind:<10} {median:>7.2f} {min(times):>7.2f} {max(times):>7.2f} {ratio:>6.2f}  "
             f"{goal_text:<9} {verdict:<5} "
-            + " ".join(f"{angle:.2f}" for angle in result.turned) + " rad (1.57 asked)")
+            + (" ".join(f"{angle:.2f}" for angle in result.turned) + " rad (1.57 asked)"
+               if task == "drc_valve" else ""))
     say("\nPer step, medians in s: click -> gateway sent | gateway -> module took | "
         "module took -> gateway got the end state | gateway -> PI showed | whole step")
     commands = [s.command for s in next(iter(results.values())).steps if s.run == 0]
@@ -281,6 +356,23 @@ def report(results: Dict[str, Result], runs: int) -> None:
                      statistics.median(s.seconds for s in steps)]
             cells.append(" ".join(f"{p:6.2f}" for p in parts))
         say(f"{command:<14}" + "".join(f"{cell:>38}" for cell in cells))
+    module_id = str(TASKS[task][1])
+    say(f"\nBytes through the bridge per run (the task's id {module_id}: commands pilot -> "
+        f"robot, statuses robot -> pilot; the robot state, id {ROBOT_STATE_ID}, at 10 Hz "
+        f"meanwhile; everything)")
+    for kind, result in results.items():
+        for seconds, crossed in result.crossed:
+            if not crossed:
+                say(f"{kind:<10} {seconds:7.1f} s  (no bridge)")
+                continue
+            down = crossed.get("pilot", {}).get("tcp", {}).get(module_id, 0)
+            up = crossed.get("robot", {}).get("tcp", {}).get(module_id, 0)
+            state = crossed.get("robot", {}).get("tcp", {}).get(str(ROBOT_STATE_ID), 0)
+            total = sum(value for side in crossed.values() for ids in side.values()
+                        for value in ids.values())
+            say(f"{kind:<10} {seconds:7.1f} s  task {down:>7} B down {up:>8} B up "
+                f"({8 * (down + up) / 1000:.1f} kbit)  robot state {state / 1e3:8.1f} kB  "
+                f"all {total / 1e6:7.2f} MB ({8 * total / seconds / 1e3:.0f} kbit/s)")
     for kind, result in results.items():
         if result.radio:
             say(f"radio on {kind}: settings {result.radio['settings']}")
@@ -290,8 +382,10 @@ def report(results: Dict[str, Result], runs: int) -> None:
 
 def main(argv: Optional[List[str]] = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--task", default="drc_valve", choices=sorted(TASKS),
+                        help="the task the PI clicks through (default %(default)s)")
     parser.add_argument("--runs", type=int, default=1,
-                        help="valve tasks per start of a topology (default %(default)s)")
+                        help="tasks per start of a topology (default %(default)s)")
     parser.add_argument("--rounds", type=int, default=3,
                         help="starts of each topology, interleaved lab, drc, degraded, lab... "
                              "(default %(default)s)")
@@ -340,7 +434,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     finally:
         if link is not None:
             link.down()
-    report(results, options.runs * options.rounds)
+    report(results, options.runs * options.rounds, options.task)
     if options.without or options.udp_rate:
         say(f"(without {', '.join(options.without) or 'nothing'}, UDP budget "
             f"{options.udp_rate or 'as started'}: not the topology a user starts)")

@@ -20,7 +20,8 @@ the lab, no bridge: frames with a black sky and a cloud without depth there read
 whole valve task COUNT times by clicks, printing ``TIMED run command state click-time
 shown-time`` per step and ``SHOWN time state stamp`` for every status the task widget
 showed, ``stamp`` the gateway's receipt; after each run but the last it waits for the
-bench to say ``next``).  ``PI_NAME`` and ``PI_LAYOUT`` choose the
+bench to say ``next``), ``task MODULE COUNT`` (the same for any task module, by its
+``TASK_STEPS``).  ``PI_NAME`` and ``PI_LAYOUT`` choose the
 PI's name and layout (``PI_LAYOUTS`` the file of layouts).  Each step prints ``STEP
 name``; failures print ``FAIL why`` and exit 1.  Screenshots go to OUTDIR.
 """
@@ -481,19 +482,21 @@ def latency() -> None:
     say("DONE")
 
 
-#: The valve task a pilot clicks through, and the state each button ends in.
-VALVE_TASK = (("valvedatasent", "ready"), ("reach", "reached"), ("approach", "approached"),
-              ("grasp", "grasped"), ("turn", "grasped"), ("ungrasp", "ungrasped"),
-              ("move_away", "moved_away"), ("home", "idle"))
+def task_runs(module: str, count: int) -> None:
+    """A task COUNT times by its buttons: the pose (the fields' defaults), then the module's
+    ``TASK_STEPS``; each step timed from its click to the widget showing the state it ends
+    in (a timed one through its countdown and the motion it starts)."""
+    from importlib import import_module
 
+    from walkman.gym.runner import load_module_class
 
-def valve_runs() -> None:
-    """The valve task COUNT times, each step timed from its click to the widget showing
-    the state it ends in (the turn: through its countdown and ``turning``)."""
-    count = int(sys.argv[3])
     threading.Thread(target=read_stdin, daemon=True).start()
-    valve = widget("drc_valve")
-    shown = valve.on_status                       # the window routes statuses by this name
+    task = widget(module)
+    dangerous = load_module_class(module).dangerous
+    pose = next(name for name in task.buttons if name.endswith("datasent"))
+    steps = [(pose, "ready")] + [(command.split()[0], state) for command, state in
+                                 import_module(f"walkman.modules.{module}").TASK_STEPS]
+    shown = task.on_status                        # the window routes statuses by this name
     seen = []                                     # (when shown, state), every status
 
     def on_status(event) -> None:
@@ -501,30 +504,39 @@ def valve_runs() -> None:
         seen.append((time.time(), event.state))
         say(f"SHOWN {seen[-1][0]:.6f} {event.state} {event.stamp:.6f}")
 
-    def shown_at(state: str, after: float) -> float:
-        return next(when for when, said in seen if when >= after and said == state)
+    def reached(state: str, before: str, after: float):
+        """When ``state`` was shown after ``after`` -- past a state other than ``before``
+        first when the step ends where it began (the valve's turn: grasped to grasped)."""
+        later = [(when, said) for when, said in seen if when >= after]
+        if state == before:
+            moved = next((i for i, (_, said) in enumerate(later) if said != before), None)
+            later = [] if moved is None else later[moved:]
+        return next((when for when, said in later if said == state), None)
 
-    valve.on_status = on_status
-    wait(lambda: valve.state is not None, 60, "drc_valve's status")
-    wait_sendable("drc_valve")
-    if valve.state != "idle":
-        click(valve.switch_buttons["start"], "drc_valve start", valve)
-        wait(lambda: valve.state == "idle", 60, "drc_valve idle")
+    task.on_status = on_status
+    wait(lambda: task.state is not None, 60, f"{module}'s status")
+    wait_sendable(module)
+    if task.state != "idle":
+        click(task.switch_buttons["start"], f"{module} start", task)
+        wait(lambda: task.state == "idle", 60, f"{module} idle")
     for run in range(count):
-        for command, state in VALVE_TASK:
-            button = valve.buttons[command]
+        for command, state in steps:
+            button = task.buttons[command]
             wait(button.isEnabled, 60, f"{command} enabled")
-            at = time.time()
-            click(button, f"drc_valve {command}", valve)
+            before, at = task.state, time.time()
+            click(button, f"{module} {command}", task)
             since = at
-            if command == "turn":
-                wait(lambda: valve.state == "turning", 60, "turning after the countdown")
-                since = shown_at("turning", at)
-            wait(lambda: valve.state == state, 120, f"drc_valve {state} after {command}")
-            say(f"TIMED {run} {command} {state} {at:.6f} {shown_at(state, since):.6f}")
+            if command in dangerous:              # the motion starts after the countdown
+                wait(lambda: reached(state, "", at) is not None or any(
+                    when >= at and said != before for when, said in seen), 60,
+                    f"{command} started after its countdown")
+                since = next(when for when, said in seen if when >= at and said != before)
+            wait(lambda: reached(state, before, since) is not None, 180,
+                 f"{module} {state} after {command}")
+            say(f"TIMED {run} {command} {state} {at:.6f} {reached(state, before, since):.6f}")
         say(f"RUN {run} done")
         if run + 1 < count:
-            wait_word("next", 300)                # the bench reads the valve's angle
+            wait_word("next", 300)                # the bench reads the scene
     say("DONE")
 
 
@@ -641,6 +653,8 @@ if __name__ == "__main__":
     wait(lambda: window.ros_up, 60, "the PI's ROS node")
     say(f"UP after {window.ready_after:.2f} s")
     {"first": first, "second": second, "latency": latency, "peer": peer,
-     "camera": camera, "valve": valve_runs, "wall": wall_task,
+     "camera": camera, "wall": wall_task,
+     "valve": lambda: task_runs("drc_valve", int(sys.argv[3])),
+     "task": lambda: task_runs(sys.argv[3], int(sys.argv[4])),
      "link": link_down}[sys.argv[1]]()
     window.close_link()
