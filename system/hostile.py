@@ -203,7 +203,10 @@ def bridge_probe(side: str) -> int:
 
 def targets(topology: Topology) -> List[Target]:
     robot, pilot = topology.robot, topology.pilot
-    exists = [PYTHON, "-m", "yarp_lite", "exists"]
+    # A real client as a user's script is one: it waits for the port (yarp-lite wait polls
+    # `exists` until it answers), so a server slowed by a flood on a loaded machine counts as
+    # serving if it answers within 20 s; a hung or dead one does not.
+    exists = [PYTHON, "-m", "yarp_lite", "wait", "--timeout", "20"]
     probe = [PYTHON, "-m", "system.hostile", "probe-bridge"]
     out = [Target("yarp-server", "robot name server", "127.0.0.1", robot.yarp_port, "tcp",
                   "yarp", "robot", (*exists, "/gaze_control/command:i")),
