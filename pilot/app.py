@@ -29,9 +29,9 @@ from pathlib import Path
 from typing import Any, Dict, List, Optional
 
 from bridge import config as bridge_config
+from nodekit.scene import TASK_OBJECTS
 from pilot.catalogue import catalogue_of
 from pilot.layouts import DEFAULT_LAYOUTS, Layout, LayoutError, Widget, load_layout
-from nodekit.scene import TASK_OBJECTS
 from pilot.preview import PreviewGate
 from walkman import MODELS_DIR
 
@@ -212,6 +212,8 @@ class PilotWindow(QMainWindow):
                                      camera=needs_camera)
         self.preview = PreviewGate(self._state_of, self._show_ghost, self._note)
         self.ghost: Optional[Any] = None          # the shown preview's placements
+        self._kinematics: Optional[Any] = None    # for the ghost's links, made when first shown
+        self._edited: set = set()                 # scene objects this window has dragged
         self.timer = QTimer(self)
         self.timer.timeout.connect(self._tick)
         self.timer.start(500)
@@ -288,13 +290,15 @@ class PilotWindow(QMainWindow):
         """The pilot dragged a task's object: its fields follow, and every pilot is told."""
         widget.set_pose(pose)
         if widget.module in TASK_OBJECTS:
+            self._edited.add(widget.module)
             self.link.place(widget.module, TASK_OBJECTS[widget.module], pose[:6])
 
     def _on_scene(self, event) -> None:
-        """Another pilot placed an object: the marker and the task's fields follow it (our
-        own edits are already shown, and a late echo must not pull a marker being dragged)."""
+        """Another pilot placed an object: the marker and the task's fields follow it (what
+        this window dragged is already shown, and a late echo must not pull a marker being
+        dragged; a PI restarted under the same name takes its earlier edits from the scene)."""
         for obj in event.objects:
-            if obj.sender == self.name:
+            if obj.sender == self.name and obj.name in self._edited:
                 continue
             for widget in self.task_widgets():
                 if widget.module == obj.name:
@@ -321,7 +325,7 @@ class PilotWindow(QMainWindow):
         """The preview's posture as the 3-D view's translucent second robot."""
         from walkman.control.kinematics import Kinematics
 
-        if not hasattr(self, "_kinematics"):
+        if self._kinematics is None:
             self._kinematics = Kinematics()
         self.ghost = self._kinematics.link_placements(posture)
         self.link.publish_ghost(self.ghost)
@@ -410,7 +414,8 @@ class PilotWindow(QMainWindow):
             return
         if isinstance(event, events.JointsEvent):
             self.preview.on_joints(event.names, event.position)
-        if isinstance(event, events.CountdownEvent) and event.state != "waiting":
+        if isinstance(event, events.CountdownEvent) and event.state != "waiting" and \
+                event.sender == self.name:
             self.preview.countdown_over(event.module)
             self._hide_ghost()                   # sent or cancelled: the preview is over
         module = getattr(event, "module", None)
