@@ -13,7 +13,7 @@ export WALKMAN_REQUIRE_REFERENCE_DEVICES=1
 export WALKMAN_REQUIRE_ROOT=1
 export WALKMAN_REQUIRE_XVFB=1
 set +e
-.venv/bin/python -m pytest tests -ra "$@"
+.venv/bin/python -m pytest tests -ra --durations=25 "$@"   # the 25 slowest: where the time goes
 status=$?
 set -e
 if [[ $status -eq 5 ]]; then
