@@ -207,7 +207,7 @@ class YarpWorld:
         return self.start([*impl.tool, *args], f"{impl.name} {' '.join(args)}", stdin=stdin,
                           env=env)
 
-    def run_tool(self, impl: Implementation, *args: str, timeout: float = 20.0,
+    def run_tool(self, impl: Implementation, *args: str, timeout: float = 60.0,
                  input_text: Optional[str] = None, env: Optional[Dict[str, str]] = None,
                  cwd: Optional[Path] = None) -> subprocess.CompletedProcess:
         return subprocess.run([*self.wrap, *impl.tool, *args], env=env or self.env,

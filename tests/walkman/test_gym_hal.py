@@ -134,7 +134,7 @@ def test_pilot_moves_the_head_through_yarp_write(lite_world, probe, implementati
         wait_until(lambda: neck(robot)[0] > before[0] + 0.25 and neck(robot)[1] > before[1] + 0.2,
                    5, message=f"head turned left and down from {before} (now {neck(robot)})")
         pilot.send(tool, "switch", "quit")
-        assert module.wait(timeout=30) == 0
+        assert module.wait(timeout=90) == 0   # a loaded 2-core box is slow to quit, not stuck
     finally:
         pilot.close()
 
@@ -186,7 +186,7 @@ def test_stop_and_quit_win_over_a_hanging_or_throwing_module(lite_world, lite):
         pilot.send(lite, "command", "hang")
         module.wait_for("misbehaving: command hang", count=2)  # in the restarted process
         pilot.send(lite, "switch", "quit")
-        assert module.wait(timeout=30) == 0
+        assert module.wait(timeout=90) == 0   # a loaded 2-core box is slow to quit, not stuck
     finally:
         pilot.close()
 
@@ -364,6 +364,6 @@ def test_the_threads_between_sense_and_move_run_with_real_time_priority(lite_wor
         # the module: its control loop and its reader of the robot's state
         assert fifo_priorities(runner[0]).count(PATH_PRIORITY) >= 1, fifo_priorities(runner[0])
         pilot.send(lite, "switch", "quit")
-        assert module.wait(timeout=30) == 0
+        assert module.wait(timeout=90) == 0   # a loaded 2-core box is slow to quit, not stuck
     finally:
         pilot.close()
