@@ -76,18 +76,28 @@ class PreviewGate:
         text = " ".join([name, *(repr(float(v)) for v in numbers)])
         if dangerous and module in self.counting:
             return send()                  # a second click while it counts down: a cancel
-        if dangerous:
-            preview = shadow.preview(text, state, posture)
-            self.last_ms = preview.seconds * 1e3
-            if preview.refused:
-                self.say(f"preview of {module} {name}: refused ({self.last_ms:.0f} ms)")
-                return f"not sent: this PC's preview says {preview.refusal}"
-            self.show(module, preview.posture)
-            self.say(f"preview of {module} {name}: the ghost shows where it goes "
-                     f"({self.last_ms:.0f} ms)")
+        try:
+            if dangerous:
+                preview = shadow.preview(text, state, posture)
+                self.last_ms = preview.seconds * 1e3
+                if preview.refused:
+                    self.say(f"preview of {module} {name}: refused ({self.last_ms:.0f} ms)")
+                    return f"not sent: this PC's preview says {preview.refusal}"
+                if preview.known:
+                    self.show(module, preview.posture)
+                    self.say(f"preview of {module} {name}: the ghost shows where it goes "
+                             f"({self.last_ms:.0f} ms)")
+                else:
+                    self.say(f"no preview of {module} {name}: {preview.refusal}")
+        except Exception:  # noqa: BLE001 -- a preview's bug must not stop the pilot's command
+            log.exception("pilot: the preview of %s %s failed; sent without one", module, text)
         problem = send()
         if not problem:
-            shadow.follow(text, state, posture)
+            # Nor may it kill the PI: an exception in a Qt slot aborts the process.
+            try:
+                shadow.follow(text, state, posture)
+            except Exception:  # noqa: BLE001
+                log.exception("pilot: the shadow of %s could not follow %s", module, text)
             if dangerous:
                 self.counting.add(module)
         return problem

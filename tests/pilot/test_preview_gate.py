@@ -72,3 +72,18 @@ def test_without_a_posture_or_for_other_modules_commands_pass_on():
     gate.on_joints(names, [0.0] * len(names))
     assert gate.posture is not None
     assert gate.command("temperature", "set_limit", [70.0], True, lambda: "out") == "out"
+
+
+def test_a_gate_whose_shadow_is_out_of_step_sends_without_a_preview_and_says_so(grasped):
+    """A PI restarted mid-task (the valve's pose sent by the one before it): its commands go
+    out as they always did, no ghost, no refusal, and the pilot is told why."""
+    robot, _ = grasped
+    shown, said = [], []
+    gate = PreviewGate(lambda module: "reached", lambda module, q: shown.append(q), said.append)
+    gate.on_joints(robot.world.backend.joint_names, robot.posture)
+    sent = []
+    assert gate.command("drc_valve", "approach", [], False, lambda: sent.append(1) or "") == ""
+    assert gate.command("drc_valve", "turn", [1.5708], True, lambda: sent.append(2) or "") == ""
+    assert sent == [1, 2] and shown == []
+    assert said[-1].startswith("no preview of drc_valve turn: this PC has not seen the task's "
+                               "pose")

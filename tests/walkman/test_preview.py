@@ -102,3 +102,19 @@ def test_the_drill_s_cut_is_previewed_from_where_the_grasp_held_it():
     cut = wall.preview("cut")
     assert not cut.refused and cut.seconds < 0.5
     assert np.linalg.norm(grip(cut.posture) - grip(wall.posture)) < 0.015   # once round
+
+
+def test_a_shadow_that_never_saw_the_pose_is_out_of_step_not_wrong_and_not_crashed():
+    """A PI restarted mid-task: its shadow meets ``approach`` in ``reached`` without the
+    valve's pose.  Its previews are unknown (no ghost, no refusal) until a pose comes."""
+    robot = Followed("valve", drc_valve.Module, "drc_valve")
+    robot.module.do(PILOT_POSES["valve"], "ready", 40)
+    robot.module.do("reach", "reached", 40)
+    late = Shadow(drc_valve.Module, "drc_valve")            # started after those two
+    late.follow("approach", "reached", robot.posture)
+    assert not late.in_step
+    preview = late.preview("turn 1.5708", "grasped", robot.posture)
+    assert not preview.known and not preview.refused and preview.posture is None
+    assert "has not seen the task's pose" in preview.refusal
+    late.follow(PILOT_POSES["valve"], "moved_away", robot.posture)   # the pose again
+    assert late.in_step

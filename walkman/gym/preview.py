@@ -25,7 +25,10 @@ decision is the module's own code and IK.
   was afterwards: a preview never changes what a later one computes.
 
 The result is a posture for the whole body: the 3-D view draws it as a ghost
-while the timed button counts down.
+while the timed button counts down.  A shadow that started after the part's
+pose was sent (a PI restarted mid-task) lacks what the module knows: the first
+command that needs it puts the shadow *out of step* and its previews are then
+unknown -- neither a ghost nor a refusal -- until the pilot sends a pose again.
 """
 
 from __future__ import annotations
@@ -93,10 +96,17 @@ class Preview:
     posture: Optional[np.ndarray]
     refusal: str
     seconds: float
+    #: False when the shadow could not work it out (it is out of step with the module, e.g.
+    #: the part's pose was sent before this PC followed): no verdict either way.
+    known: bool = True
 
     @property
     def refused(self) -> bool:
-        return self.posture is None
+        return self.known and self.posture is None
+
+
+class OutOfStep(Exception):
+    """The shadow lacks what the module knows (a command arrived it never saw the pose for)."""
 
 
 class Shadow:
@@ -111,12 +121,21 @@ class Shadow:
             raise RuntimeError(f"the shadow of {name} did not start: {self.module.warnings}")
         self.thread: TaskModule = self.module.thread  # type: ignore[assignment]
         self.joint_names = list(self.backend.joint_names)
+        #: whether the shadow knows what the module knows: from its start, lost when a command
+        #: needs what it never saw (this PC started after the pose was sent), back at a pose
+        self.in_step = True
 
     # -- following the robot ---------------------------------------------------------------
 
     def follow(self, text: str, state: str, posture: Sequence[float]) -> None:
         """The robot's module took ``text`` in ``state`` at ``posture``: take it too."""
-        self._start(text, state, posture)
+        try:
+            refusals = self._start(text, state, posture)
+        except OutOfStep:
+            self.in_step = False
+            return
+        if text.split()[0].endswith("datasent") and not refusals:
+            self.in_step = True
 
     def _start(self, text: str, state: str, posture: Sequence[float]) -> List[str]:
         """Hand ``text`` to the shadow in ``state`` at ``posture``; its warnings (refusals)."""
@@ -133,7 +152,10 @@ class Shadow:
         bottle = parse(text)
         if not bottle or not isinstance(bottle[0], str):
             return [f"'{text}' is not a command"]
-        self.thread.handle(bottle[0], list(bottle[1:]))
+        try:
+            self.thread.handle(bottle[0], list(bottle[1:]))
+        except Exception as exc:  # noqa: BLE001 -- the module's code met a state it never set
+            raise OutOfStep(f"{type(exc).__name__}: {exc}") from exc
         return list(self.module.warnings[said:])
 
     # -- previewing -------------------------------------------------------------------------
@@ -141,6 +163,9 @@ class Shadow:
     def preview(self, text: str, state: str, posture: Sequence[float]) -> Preview:
         """Where ``text`` sent now would take the robot (or why the module would refuse it)."""
         began = time.perf_counter()
+        if not self.in_step:
+            return Preview(text, None, "this PC has not seen the task's pose (send it again "
+                           "for a preview)", 0.0, known=False)
         saved = self._snapshot()
         try:
             refusals = self._start(text, state, posture)
@@ -148,6 +173,9 @@ class Shadow:
                 return Preview(text, None, refusals[-1], time.perf_counter() - began)
             end, reason = self._follow_to_end(np.asarray(posture, dtype=float))
             return Preview(text, end, reason, time.perf_counter() - began)
+        except OutOfStep as exc:
+            return Preview(text, None, f"the preview could not follow the module ({exc})",
+                           time.perf_counter() - began, known=False)
         finally:
             self._restore(saved)
 
