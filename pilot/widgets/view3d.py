@@ -127,11 +127,21 @@ class View3D(QWidget):
 
     def applied(self) -> Callable[[], bool]:
         """A condition that turns true once the render process has applied everything asked
-        of it so far (markers, displays); false while there is none."""
-        if self.supervisor is None or self.embedded_pid is None:
-            return lambda: False
-        supervisor, pid, seq = self.supervisor, self.embedded_pid, self.supervisor.ping()
-        return lambda: supervisor.pid == pid and supervisor.answered_seq >= seq
+        of it so far (markers, displays); false while there is none.  If that process dies
+        meanwhile (librviz's own crash), the next one is asked afresh: it is given every
+        marker and display when it is embedded, so its answer means the same."""
+        asked: Dict[str, Optional[int]] = {"pid": None, "seq": None}
+
+        def check() -> bool:
+            supervisor, pid = self.supervisor, self.embedded_pid
+            if supervisor is None or pid is None or supervisor.pid != pid:
+                return False
+            if asked["pid"] != pid:
+                asked["pid"], asked["seq"] = pid, supervisor.ping()
+                return False
+            return supervisor.answered_seq >= asked["seq"]
+        check()                    # ask the process now running at once
+        return check
 
     def close_view(self) -> None:
         if self.supervisor is not None:

@@ -390,7 +390,7 @@ def scene_follows() -> None:
     wait(lambda: "drc_valve" in markers and abs(markers["drc_valve"].pose[0] - 0.61) < 1e-3,
          60, "the other pilot's valve in the shared scene")
     shown = time.time()
-    wait(window.view3d.applied(), 30, "the render process to draw the valve")
+    wait(window.view3d.applied(), 90, "the render process to draw the valve")
     window.raise_()                           # the other PI's window is on the same display
     window.activateWindow()
     pump(1.0)                                 # librviz draws at 15 Hz
@@ -411,7 +411,10 @@ def cloud_connected(uri: str) -> bool:
     publishers = next((nodes for topic, nodes in master.getSystemState()[0]
                        if topic == CLOUD_TOPIC), [])
     uris = {master.lookupNode(node) for node in publishers}
-    connections = ServerProxy(uri).getBusInfo("/driver")[2]
+    try:
+        connections = ServerProxy(uri).getBusInfo("/driver")[2]
+    except OSError:      # that render process died (librviz's own crash): not connected
+        return False
     return any(c[2] == "i" and c[4] == CLOUD_TOPIC and c[1] in uris for c in connections)
 
 
@@ -447,8 +450,9 @@ def peer() -> None:
     restarted = time.monotonic()
     wait(lambda: gaze.heard_at is not None and gaze.heard_at > restarted, 60,
          "gaze_control's status after the restarts")
-    # librviz (roscpp) takes the cloud from the restarted bridge: registered again for it.
-    wait(lambda: cloud_connected(*librviz.values()), 30,
+    # librviz (roscpp) takes the cloud from the restarted bridge: registered again for it --
+    # the render process's own, or a new one's if librviz crashed meanwhile (the PI lives on).
+    wait(lambda: any(cloud_connected(uri) for uri in window.view3d.ros_nodes.values()), 60,
          "librviz's subscription to the restarted bridge's cloud")
     say("STEP librviz connected to the restarted bridge")
     wait_sendable("gaze_control")           # the gateway subscribes again on the new roscore
