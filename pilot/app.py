@@ -212,6 +212,7 @@ class PilotWindow(QMainWindow):
                                      camera=needs_camera)
         self.preview = PreviewGate(self._state_of, self._show_ghost, self._note)
         self.ghost: Optional[Any] = None          # the shown preview's placements
+        self.ghosts_shown = 0                     # how many previews were shown so far
         self._kinematics: Optional[Any] = None    # for the ghost's links, made when first shown
         self._edited: set = set()                 # scene objects this window has dragged
         self.timer = QTimer(self)
@@ -328,6 +329,7 @@ class PilotWindow(QMainWindow):
         if self._kinematics is None:
             self._kinematics = Kinematics()
         self.ghost = self._kinematics.link_placements(posture)
+        self.ghosts_shown += 1
         self.link.publish_ghost(self.ghost)
         if self.view3d is not None:
             self.view3d.set_display_enabled("Preview", True)

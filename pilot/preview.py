@@ -13,8 +13,8 @@ the 3-D view while the gateway counts down, and hidden when the countdown
 ends (sent or cancelled); a second click while it counts down is the pilot's
 cancel and goes out unpreviewed.  Every command sent is then given to the
 shadow at the posture of its sending, so the shadow's notes follow the module's.
-Without a posture yet (no joint state heard) or for other modules the gate
-only passes commands on.
+For other modules the gate only passes commands on; before the first joint
+state it works from the robot's home posture, where it stands when it starts.
 """
 
 from __future__ import annotations
@@ -70,9 +70,12 @@ class PreviewGate:
                 send: Send) -> str:
         """Preview (dangerous commands), then ``send()``; '' or why it was not sent."""
         shadow = self._shadow(module)
-        posture, state = self.posture, self.state_of(module)
-        if shadow is None or posture is None or state is None:
+        state = self.state_of(module)
+        if shadow is None or state is None:
             return send()
+        # Before the first joint state the robot stands as it started, in its home posture:
+        # the shadow follows from there rather than miss the pose it needs later.
+        posture = self.posture if self.posture is not None else shadow.home
         text = " ".join([name, *(repr(float(v)) for v in numbers)])
         if dangerous and module in self.counting:
             return send()                  # a second click while it counts down: a cancel

@@ -63,9 +63,17 @@ def test_a_turn_it_can_make_shows_its_ghost_then_goes_and_a_second_click_cancels
     assert len(shown) == 2
 
 
-def test_without_a_posture_or_for_other_modules_commands_pass_on():
-    gate = PreviewGate(lambda module: "ready", lambda *a: pytest.fail("no ghost"), print)
-    assert gate.command("drc_valve", "turn", [4.7], True, lambda: "sent?") == "sent?"
+def test_before_any_joint_state_the_pose_is_followed_from_home_and_others_pass_on():
+    """A pilot quicker than the first joint state: the pose still reaches the shadow (from
+    the home posture the robot starts in), so later previews have it; a module without a
+    shadow (not a task) gets its commands as they are."""
+    states = {"drc_valve": "idle", "temperature": "monitoring"}
+    gate = PreviewGate(states.get, lambda *a: pytest.fail("no ghost"), print)
+    name, *numbers = PILOT_POSES["valve"].split()
+    assert gate.command("drc_valve", name, [float(n) for n in numbers], False,
+                        lambda: "") == ""
+    shadow = gate._shadows["drc_valve"]
+    assert gate.posture is None and shadow.in_step and shadow.thread.target is not None
     gate.on_joints(["not", "the", "robot"], [0.0, 0.0, 0.0])     # ignored: not the model
     assert gate.posture is None
     names = walkman().joint_names

@@ -34,6 +34,7 @@ unknown -- neither a ghost nor a refusal -- until the pilot sends a pose again.
 from __future__ import annotations
 
 import copy
+import logging
 import time
 from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence, Type
@@ -46,6 +47,7 @@ from walkman.model.description import walkman
 from walkman.modules.task import ACTION_TOLERANCE, TaskModule
 from yarp_lite.bottle_text import parse
 
+log = logging.getLogger("walkman.preview")
 MAX_PHASES = 16          # chained motions followed before the preview gives up
 PATH_SAMPLES = 12        # points of a Cartesian motion solved on the way to its end
 #: IK iterations per point: the module's loop gives the stretch between two points many
@@ -121,9 +123,11 @@ class Shadow:
             raise RuntimeError(f"the shadow of {name} did not start: {self.module.warnings}")
         self.thread: TaskModule = self.module.thread  # type: ignore[assignment]
         self.joint_names = list(self.backend.joint_names)
+        self.home = self.backend.posture.copy()   # the model's standing posture
         #: whether the shadow knows what the module knows: from its start, lost when a command
         #: needs what it never saw (this PC started after the pose was sent), back at a pose
         self.in_step = True
+        self.out_of_step = ""      # where and why it last fell out of step
 
     # -- following the robot ---------------------------------------------------------------
 
@@ -131,9 +135,16 @@ class Shadow:
         """The robot's module took ``text`` in ``state`` at ``posture``: take it too."""
         try:
             refusals = self._start(text, state, posture)
-        except OutOfStep:
+        except OutOfStep as exc:
+            if self.in_step:
+                self.out_of_step = f"at {text!r} in {state}: {exc}"
+                log.warning("preview of %s: out of step %s; no previews until a pose is sent "
+                            "again", self.name, self.out_of_step)
             self.in_step = False
             return
+        if refusals and self.in_step:
+            log.warning("preview of %s: the shadow refused %r in %s, which the module took "
+                        "(%s)", self.name, text, state, refusals[-1])
         if text.split()[0].endswith("datasent") and not refusals:
             self.in_step = True
 
