@@ -44,7 +44,11 @@ class PreviewGate:
 
         if self._order is None:
             self._order = {name: index for index, name in enumerate(walkman().joint_names)}
-        if len(names) != len(self._order) or set(names) != set(self._order):
+        # Not this robot's whole posture (another model, or a JointState with efforts and no
+        # positions, which ROS allows): ignored; the assignment below would raise and cut the
+        # event's dispatch short (the status widget's torques would never show).
+        if len(names) != len(self._order) or len(position) != len(names) or \
+                set(names) != set(self._order):
             return
         posture = np.zeros(len(self._order))
         posture[[self._order[name] for name in names]] = position

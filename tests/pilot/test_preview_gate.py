@@ -77,6 +77,8 @@ def test_before_any_joint_state_the_pose_is_followed_from_home_and_others_pass_o
     gate.on_joints(["not", "the", "robot"], [0.0, 0.0, 0.0])     # ignored: not the model
     assert gate.posture is None
     names = walkman().joint_names
+    gate.on_joints(names, [])                     # ignored: names without positions (ROS allows)
+    assert gate.posture is None
     gate.on_joints(names, [0.0] * len(names))
     assert gate.posture is not None
     assert gate.command("temperature", "set_limit", [70.0], True, lambda: "out") == "out"
