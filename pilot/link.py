@@ -239,6 +239,8 @@ class PilotLink:
         self._ros = None
         self._keeper = None
         self._status_port = None
+        self._tf = None             # /tf (the preview's ghost), once on the pilot roscore
+        self._scene_edits = None    # /pilot/scene_edit, likewise
         self._lock = threading.Lock()
 
     # -- life ----------------------------------------------------------------------------
@@ -312,14 +314,21 @@ class PilotLink:
         return ""
 
     def place(self, name: str, kind: str, pose: Sequence[float], removed: bool = False) -> str:
-        """Tell the gateway where this pilot put an object of the shared scene."""
-        edits = getattr(self, "_scene_edits", None)
-        if edits is None:
+        """Tell the gateway where this pilot put an object of the shared scene; returns ""
+        or why it did not leave (a marker's drag calls it from a Qt slot: it never raises
+        for ROS's sake)."""
+        if self._scene_edits is None:
             return "the PI is not connected to the pilot roscore yet"
+        import rospy
         from walkman_msgs.msg import SceneObject as SceneObjectMsg
 
-        edits.publish(SceneObjectMsg(name=name, kind=kind, pose=[float(v) for v in pose],
-                                     sender=self.name, removed=removed))
+        try:
+            self._scene_edits.publish(SceneObjectMsg(
+                name=name, kind=kind, pose=[float(v) for v in pose], sender=self.name,
+                removed=removed))
+        except rospy.ROSException as exc:    # shut down, or a closed or unregistered topic
+            log.warning("pilot: %s not placed in the shared scene: %s", name, exc)
+            return f"{name} not placed in the shared scene: {exc}"
         return ""
 
     def _on_scene(self, msg: Any) -> None:
@@ -333,14 +342,17 @@ class PilotLink:
         self.post(SceneEvent(tuple(objects)))
 
     def publish_ghost(self, placements) -> None:
-        """The preview's posture on ``/tf`` under ``preview/`` (the 3-D view's ghost)."""
-        tf = getattr(self, "_tf", None)
-        if tf is None:
+        """The preview's posture on ``/tf`` under ``preview/`` (the 3-D view's ghost); the
+        PI's timer calls it, a Qt slot: a ROS error is logged, never raised."""
+        if self._tf is None:
             return
         import rospy
         from nodekit.tf import tf_message
 
-        tf.publish(tf_message(placements, rospy.Time.now(), prefix="preview"))
+        try:
+            self._tf.publish(tf_message(placements, rospy.Time.now(), prefix="preview"))
+        except rospy.ROSException as exc:    # shut down, or a closed or unregistered topic
+            log.warning("pilot: the preview's ghost not published on /tf: %s", exc)
 
     def cancel(self, module: str, seq: int = 0) -> str:
         """Ask the gateway to take back the module's queued command ``seq`` (0: all of

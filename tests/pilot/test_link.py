@@ -158,3 +158,25 @@ def test_the_bridges_report_becomes_an_event_naming_its_frame():
     assert (event.topic, event.stamp_ns, event.height, event.width, event.fraction,
             event.missing) == (CLOUD_TOPIC, 1700000000 * 10**9 + 7, 60, 80, 0.75,
                                ((0, 0, 40, 30),))
+
+
+class ClosedPublisher(Publisher):
+    """A publisher whose topic is gone (rospy shut down, or unregistered meanwhile)."""
+
+    def publish(self, msg) -> None:
+        import rospy
+
+        raise rospy.ROSException("publish() to a closed topic")
+
+
+def test_a_scene_edit_or_a_ghost_rospy_cannot_publish_is_said_not_raised(caplog):
+    """Both are called from Qt slots (a marker's drag, the PI's timer), where an exception
+    would abort the PI."""
+    link = PilotLink("pi_test", ["gaze_control"], post=lambda event: None)
+    assert "not connected to the pilot roscore" in link.place("drc_valve", "valve", [0] * 6)
+    link.publish_ghost([("l_hand", (0, 0, 0), (0, 0, 0, 1))])        # before: nothing to do
+    link._scene_edits, link._tf = ClosedPublisher(1), ClosedPublisher(1)
+    assert "drc_valve not placed in the shared scene: publish() to a closed topic" in \
+        link.place("drc_valve", "valve", [0.6, 0.2, 0.0, 0.0, 0.0, 0.0])
+    link.publish_ghost([("l_hand", (0, 0, 0), (0, 0, 0, 1))])
+    assert "the preview's ghost not published on /tf" in caplog.text
