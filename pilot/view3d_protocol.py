@@ -42,6 +42,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional, Tuple, Type, Union
 
+from nodekit.scene import KINDS
+
 #: A line longer than this is the peer's error (the longest real one, ``nodes``, is ~200 B).
 MAX_LINE = 64 * 1024
 
@@ -177,9 +179,9 @@ def _pose(value: Any) -> Pose:
     return tuple(float(v) for v in value)  # type: ignore[return-value]
 
 
-#: How a marker is drawn: the shared scene's kinds of object (nodekit.scene.KINDS), or the
-#: plain disc of a pose without an object.
-MARKER_KINDS = ("disc", "valve", "steering_wheel", "door", "drill", "plug", "footstep")
+#: How a marker is drawn: the shared scene's kinds of object, or the plain disc of a pose
+#: without an object.
+MARKER_KINDS = ("disc", *KINDS)
 
 
 def _kind(value: Any) -> str:
@@ -216,7 +218,8 @@ def _nodes(value: Any) -> Dict[str, str]:
 #: Each message's fields and their checks, in wire order.
 FIELDS: Dict[Type[Any], Dict[str, Any]] = {
     Go: {"forget": _names},
-    AddMarker: {"name": _name, "pose": _pose, "kind": _kind}, UpdateMarker: {"name": _name, "pose": _pose},
+    AddMarker: {"name": _name, "pose": _pose, "kind": _kind},
+    UpdateMarker: {"name": _name, "pose": _pose},
     RemoveMarker: {"name": _name}, EnableDisplay: {"name": _name, "enabled": _bool},
     Ping: {"seq": _int}, WindowReady: {"window": _int, "pid": _int},
     RosNodes: {"node": _name, "librviz": _nodes}, MarkerMoved: {"name": _name, "pose": _pose},
