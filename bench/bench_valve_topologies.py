@@ -72,7 +72,7 @@ from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 from nodekit.logs import LOG_TIME_ENV  # noqa: E402
 from system.display import display_env, private_display  # noqa: E402
 from system.processes import Proc  # noqa: E402
-from system.topology import PYTHON, Component, Topology  # noqa: E402
+from system.topology import PYTHON, Component, Topology, task_component  # noqa: E402
 from walkman import MODELS_DIR  # noqa: E402
 
 DRIVER = ROOT / "tests" / "system" / "pi_driver.py"
@@ -84,11 +84,6 @@ GOALS = {"drc": 1.1, "degraded": 1.5}
 TASKS = {"drc_valve": ("valve", 2), "drc_drive": ("car", 4), "drc_wall": ("wall", 5),
          "drc_door": ("door", 6), "drc_plug": ("plug", 11)}
 ROBOT_STATE_ID = 20
-
-
-def task_component(task: str) -> Component:
-    return Component(task, "robot", (PYTHON, "-m", "walkman.gym.supervisor", task),
-                     r"ready for the pilot")
 
 
 def hal_at(station: str) -> Component:

@@ -66,10 +66,14 @@ class Component:
 TASK_MODULES = ("drc_valve", "drc_drive", "drc_door", "drc_wall", "drc_plug", "walking")
 
 
+def task_component(name: str) -> Component:
+    """A task module (``walkman.gym.supervisor NAME``) on the robot PC."""
+    return Component(name, "robot", (PYTHON, "-m", "walkman.gym.supervisor", name),
+                     r"ready for the pilot")
+
+
 def task_components() -> List[Component]:
-    module = (PYTHON, "-m", "walkman.gym.supervisor")
-    return [Component(name, "robot", (*module, name), r"ready for the pilot")
-            for name in TASK_MODULES]
+    return [task_component(name) for name in TASK_MODULES]
 
 
 def components(kind: str, perception_rate: float = 1.0, tasks: bool = False) -> List[Component]:
