@@ -275,8 +275,8 @@ def run_topology(kind: str, root: Path, link, display: str, options, result: Res
             if "FAIL" in driver.output():
                 raise RuntimeError(f"the PI driver failed on {kind}:\n{driver.output()[-3000:]}")
             done = [s for s in parse_steps(driver) if s.run == run]
-            crossed = bytes_between(counted_from, bytes_sent(topology))
-            counted_from = bytes_sent(topology)
+            sent_now = bytes_sent(topology)   # one probe: each byte counts in one run
+            crossed, counted_from = bytes_between(counted_from, sent_now), sent_now
             result.crossed.append((done[-1].shown - done[0].clicked, crossed))
             now = valve_angle(topology, options.task)
             turned, angle = now - angle, now
