@@ -19,9 +19,8 @@ import numpy as np
 
 from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import SimBackend
-from walkman.model.mjcf import PILOT_POSES
+from walkman.model.mjcf import PILOT_POSES, PLUG_SOCKETS
 from walkman.modules import drc_door, drc_drive, drc_plug, drc_valve, drc_wall, walking
-from walkman.model.mjcf import PLUG_SOCKETS
 from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 Step = Tuple[str, str]
