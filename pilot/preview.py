@@ -20,9 +20,12 @@ state it works from the robot's home posture, where it stands when it starts.
 from __future__ import annotations
 
 import logging
-from typing import Callable, Dict, Optional, Sequence, Set
+from typing import TYPE_CHECKING, Callable, Dict, Optional, Sequence, Set
 
 import numpy as np
+
+if TYPE_CHECKING:       # at run time imported by _shadow, inside its guard
+    from walkman.gym.preview import Shadow
 
 log = logging.getLogger("pilot.preview")
 
@@ -34,7 +37,7 @@ class PreviewGate:
                  show: Callable[[str, np.ndarray], None], say: Callable[[str], None]) -> None:
         self.state_of, self.show, self.say = state_of, show, say
         self.posture: Optional[np.ndarray] = None
-        self._shadows: Dict[str, object] = {}
+        self._shadows: Dict[str, Optional[Shadow]] = {}   # None: no preview for that module
         self._order: Optional[Dict[str, int]] = None
         self.last_ms: Optional[float] = None
         self.counting: Set[str] = set()        # modules whose timed command counts down
@@ -54,7 +57,7 @@ class PreviewGate:
         posture[[self._order[name] for name in names]] = position
         self.posture = posture
 
-    def _shadow(self, module: str):
+    def _shadow(self, module: str) -> Optional[Shadow]:
         if module not in self._shadows:
             self._shadows[module] = None
             try:

@@ -37,7 +37,7 @@ import copy
 import logging
 import time
 from dataclasses import dataclass
-from typing import Dict, List, Optional, Sequence, Type
+from typing import Dict, List, Optional, Sequence, Tuple, Type
 
 import numpy as np
 
@@ -190,7 +190,9 @@ class Shadow:
         finally:
             self._restore(saved)
 
-    def _follow_to_end(self, q: np.ndarray):
+    def _follow_to_end(self, q: np.ndarray) -> Tuple[Optional[np.ndarray], str]:
+        """The posture the started motion and the ones chained to it end in, from ``q``; or
+        ``None`` and where the path leaves the IK's reach."""
         thread = self.thread
         for _ in range(MAX_PHASES):
             q = q.copy()
