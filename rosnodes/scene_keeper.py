@@ -25,7 +25,6 @@ from typing import Any
 
 from nodekit.scene import Scene, SceneError, SceneObject, checked, from_bottle, to_bottle
 from yarp_lite.bottle import Bottle
-from yarp_lite.errors import YarpError
 from yarp_lite.port import Port
 
 log = logging.getLogger("walkman.gateway")
@@ -96,10 +95,11 @@ class SceneKeeper:
         return changed
 
     def _write(self, edit: SceneObject) -> None:
-        try:
-            self.out.write(to_bottle(edit))
-        except YarpError as exc:
-            log.warning("gateway: scene edit not written to the other stations: %s", exc)
+        # Port.write never raises for a peer: it drops the output that failed (logging why)
+        # and says so by returning False.
+        if not self.out.write(to_bottle(edit)):
+            log.warning("gateway: scene edit of %s not written to every other station (the "
+                        "output that failed is dropped)", edit.name)
 
     def _on_record(self, bottle: Bottle) -> None:
         try:
