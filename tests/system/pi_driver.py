@@ -537,9 +537,12 @@ def task_runs(module: str, count: int) -> None:
             click(button, f"{module} {command}", task)
             since = at
             if command in dangerous:              # the motion starts after the countdown
-                wait(lambda: reached(state, "", at) is not None or any(
-                    when >= at and said != before for when, said in seen), 60,
-                    f"{command} started after its countdown")
+                # A state other than the one clicked in: the motion's, or already its end.
+                # (Not "its end state shown": for a step that ends where it began -- the
+                # valve's turn, grasped to grasped -- the 2 Hz status of the state it counts
+                # down in is that, and the next() below found no change: StopIteration.)
+                wait(lambda: any(when >= at and said != before for when, said in seen), 60,
+                     f"{command} started after its countdown")
                 since = next(when for when, said in seen if when >= at and said != before)
             wait(lambda: reached(state, before, since) is not None, 180,
                  f"{module} {state} after {command}")
