@@ -26,13 +26,16 @@ import signal
 import sys
 import time
 from pathlib import Path
-from typing import Any, Dict, List, Optional
+from typing import TYPE_CHECKING, Any, Dict, List, Optional, Sequence, Set
 
 from bridge import config as bridge_config
 from nodekit.scene import TASK_OBJECTS
 from pilot.catalogue import catalogue_of
 from pilot.layouts import DEFAULT_LAYOUTS, Layout, LayoutError, Widget, load_layout
 from pilot.preview import PreviewGate
+
+if TYPE_CHECKING:       # at run time imported where the widgets are (Qt first)
+    from pilot.widgets.tasks import TaskWidget
 from walkman import MODELS_DIR
 
 log = logging.getLogger("pilot.app")
@@ -214,7 +217,7 @@ class PilotWindow(QMainWindow):
         self.ghost: Optional[Any] = None          # the shown preview's placements
         self.ghosts_shown = 0                     # how many previews were shown so far
         self._kinematics: Optional[Any] = None    # for the ghost's links, made when first shown
-        self._edited: set = set()                 # scene objects this window has dragged
+        self._edited: Set[str] = set()            # scene objects this window has dragged
         self.timer = QTimer(self)
         self.timer.timeout.connect(self._tick)
         self.timer.start(500)
@@ -287,14 +290,14 @@ class PilotWindow(QMainWindow):
             module, name, numbers, dangerous,
             lambda: self.link.command(module, name, numbers, dangerous))
 
-    def _placed(self, widget, pose) -> None:
+    def _placed(self, widget: TaskWidget, pose: Sequence[float]) -> None:
         """The pilot dragged a task's object: its fields follow, and every pilot is told."""
         widget.set_pose(pose)
         if widget.module in TASK_OBJECTS:
             self._edited.add(widget.module)
             self.link.place(widget.module, TASK_OBJECTS[widget.module], pose[:6])
 
-    def _on_scene(self, event) -> None:
+    def _on_scene(self, event: events.SceneEvent) -> None:
         """Another pilot placed an object: the marker and the task's fields follow it (what
         this window dragged is already shown, and a late echo must not pull a marker being
         dragged; a PI restarted under the same name takes its earlier edits from the scene)."""
@@ -322,7 +325,7 @@ class PilotWindow(QMainWindow):
         if self.log is not None:
             self.log.note(text)
 
-    def _show_ghost(self, module: str, posture) -> None:
+    def _show_ghost(self, module: str, posture: Sequence[float]) -> None:
         """The preview's posture as the 3-D view's translucent second robot."""
         from walkman.control.kinematics import Kinematics
 
