@@ -149,3 +149,12 @@ def test_fuzz_any_bytes_give_messages_or_the_peers_error(data, direction):
             assert again.messages() == [message]
     except RemoteProtocolError:
         pass
+
+
+def test_every_kind_the_wire_takes_is_drawn_as_itself():
+    """The render process draws an unknown kind as the plain disc: a kind of object added
+    to the shared scene (and so to the wire) without a shape would pass unnoticed."""
+    from pilot.view3d_child import OBJECT_SHAPES
+    from pilot.view3d_protocol import MARKER_KINDS
+
+    assert set(OBJECT_SHAPES) == set(MARKER_KINDS)
