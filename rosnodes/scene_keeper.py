@@ -25,6 +25,7 @@ from typing import Any
 
 from nodekit.scene import Scene, SceneError, SceneObject, checked, from_bottle, to_bottle
 from yarp_lite.bottle import Bottle
+from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
 
 log = logging.getLogger("walkman.gateway")
@@ -32,7 +33,10 @@ RESEND_S = 2.0
 
 
 class SceneKeeper:
-    def __init__(self, station: int, prefix: str, nameclient) -> None:
+    """This station's copy of the shared scene, its ``scene:o`` and ``scene:i`` ports (opened
+    here) and, once :meth:`open_ros` ran, its ROS topics (see the module's docstring)."""
+
+    def __init__(self, station: int, prefix: str, nameclient: NameClient) -> None:
         self.station = station
         self.scene = Scene()
         self._lock = threading.Lock()
