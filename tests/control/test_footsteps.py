@@ -2,6 +2,7 @@
 foot, swing paths that land vertically, and halt/resume/cancel (pause, stop, the guard)."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -32,7 +33,7 @@ def play(plan: WalkPlan, until: float, step: float = 0.01):
 @given(st.floats(-2, 2), st.floats(-0.5, 0.5), st.floats(-math.pi, math.pi))
 def test_a_walk_ends_with_the_feet_side_by_side_where_it_was_asked(dx, dy, dyaw):
     plan = WalkPlan(dict(FEET))
-    steps = plan.plan(dx, dy, dyaw, 0.0)
+    steps = plan.plan(dx, dy, dyaw, 0.0)   # the reach check refuses none of its own strides
     limits = Timing().max_stride
     for step in plan.steps:
         assert all(abs(v) <= limit + 1e-9 for v, limit in zip(step.stride, limits))
@@ -116,3 +117,94 @@ def test_cancel_forgets_the_rest_and_a_new_walk_is_refused_while_walking():
     assert plan.centre[0] == pytest.approx(0.0)
     with pytest.raises(ValueError, match="finite"):
         plan.plan(math.nan, 0.0, 0.0, 10.0)
+
+
+# -- uneven ground: steps up and down, footsteps a pilot placed, the legs' reach ----------------
+
+def test_a_step_up_lands_both_feet_on_the_higher_ground_clearing_its_edge():
+    plan = WalkPlan(dict(FEET))
+    assert plan.step_to(0.33, 0.05, 0.0) == 2
+    lead, follow = plan.steps
+    assert (lead.side, follow.side) == ("left", "right")
+    assert (lead.start_z, lead.land_z, follow.start_z, follow.land_z) == (0.0, 0.05, 0.0, 0.05)
+    assert lead.climbs and follow.climbs
+    assert lead.land_at - lead.lift_at == pytest.approx(Timing().swing + Timing().climb)
+    lift = Timing().lift
+    for t in np.linspace(lead.lift_at, lead.land_at, 200):
+        (x, _, _), z = plan.foot("left", t)
+        if 0.0 < x < 0.33:   # travelling: as high as the new ground and the lift above it
+            assert z == pytest.approx(0.05 + lift, abs=1e-9), t
+        assert 0.0 <= z <= 0.05 + lift + 1e-9
+    assert plan.foot("left", lead.land_at)[1] == pytest.approx(0.05)
+    # the pelvis's ground rises half the step with the lead foot, all of it with the other
+    assert plan.ground_level(lead.lift_at) == pytest.approx(0.0)
+    assert plan.ground_level(lead.land_at) == pytest.approx(0.025)
+    play(plan, plan.end_time() + 0.1)
+    assert plan.ground == {"left": 0.05, "right": 0.05}
+    assert plan.feet["left"][0] == pytest.approx(0.33) and plan.feet["right"][0] == \
+        pytest.approx(0.33)
+    assert plan.travelled[0] == pytest.approx(0.33)
+
+
+def test_a_step_down_goes_to_the_lower_ground_and_a_walk_after_it_stays_there():
+    plan = WalkPlan(dict(FEET), ground={"left": 0.05, "right": 0.05})
+    plan.step_to(0.33, -0.05, 0.0)
+    lead = plan.steps[0]
+    (_, _, _), top = plan.foot("left", (lead.lift_at + lead.land_at) / 2)
+    assert top == pytest.approx(0.05 + Timing().lift)   # the heel clears the edge it leaves
+    play(plan, plan.end_time() + 0.1)
+    assert plan.ground == {"left": 0.0, "right": 0.0}
+    plan.plan(0.3, 0.0, 0.0, plan.end_time() + 1)
+    assert all(step.land_z == 0.0 and not step.climbs for step in plan.steps)
+
+
+@pytest.mark.parametrize("forward, height, problem", [
+    (0.33, 0.12, "step 1 of 2 (left foot) cannot be made: 0.12 m above the other foot "
+                 "(at most 0.08)"),
+    (0.33, -0.12, "0.12 m below the other foot"),
+    (0.45, 0.05, "0.45 m ahead of the other foot (at most 0.36)")])
+def test_a_step_the_legs_cannot_make_is_refused_whole_before_a_foot_lifts(forward, height,
+                                                                          problem):
+    plan = WalkPlan(dict(FEET))
+    with pytest.raises(ValueError, match=re.escape(problem)):
+        plan.step_to(forward, height, 0.0)
+    assert not plan.walking and plan.feet == FEET and plan.end_time() == 0.0
+
+
+def test_placed_footsteps_are_played_in_turn_from_the_side_of_the_first():
+    plan = WalkPlan(dict(FEET))
+    assert plan.place([(0.15, -0.11, 0.0, 0.0), (0.30, 0.11, 0.0, 0.05),
+                       (0.30, -0.11, 0.0, 0.05)], 0.0) == 3
+    assert [step.side for step in plan.steps] == ["right", "left", "right"]
+    assert [step.land_z for step in plan.steps] == [0.0, 0.05, 0.05]
+    play(plan, plan.end_time() + 0.1)
+    assert plan.centre == pytest.approx((0.30, 0.0, 0.0))
+    assert plan.travelled == pytest.approx((0.30, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("footsteps, problem", [
+    ([(0.1, 0.11, 0.0, 0.0), (0.1, 0.02, 0.0, 0.0)],
+     "step 2 of 2 (right foot) cannot be made: 0.09 m beside the other foot: the feet "
+     "would touch"),
+    ([(0.1, 0.5, 0.0, 0.0)], "0.61 m beside the other foot (at most 0.34)"),
+    ([(0.0, 0.11, 0.8, 0.0)], "turned 0.80 rad from the other foot (at most 0.45)"),
+    ([(-0.3, 0.11, 0.0, 0.0)], "0.30 m behind the other foot (at most 0.20)"),
+    ([], "no footsteps"), ([(0.1, 0.11, math.inf, 0.0)], "finite")])
+def test_placed_footsteps_out_of_reach_are_refused_saying_which_and_why(footsteps, problem):
+    plan = WalkPlan(dict(FEET))
+    with pytest.raises(ValueError, match=re.escape(problem)):
+        plan.place(footsteps, 0.0)
+    assert not plan.walking
+
+
+def test_halted_half_way_up_the_other_foot_joins_the_one_on_the_step():
+    plan = WalkPlan(dict(FEET))
+    plan.step_to(0.33, 0.05, 0.0)
+    lead = plan.steps[0]
+    t = (lead.lift_at + lead.land_at) / 2
+    play(plan, t)
+    plan.halt(t)
+    play(plan, plan.end_time() + 0.1)
+    assert plan.ground == {"left": 0.05, "right": 0.05}
+    assert plan.feet["right"][0] == pytest.approx(0.33)
+

@@ -18,6 +18,7 @@ from harness import wait_until
 from walkman.gym.offline import OfflineWorld
 from walkman.hal.sim import SimBackend
 from walkman.model.description import STANDING_PELVIS_HEIGHT
+from walkman.model.mjcf import TERRAIN_STEP
 from walkman.modules import walking
 from yarp_lite.bottle import Bottle
 from yarp_lite.rpc import RpcClient
@@ -26,6 +27,7 @@ HANDLE_PIVOT = np.array([0.84, 2.26, 1.15])  # world; models/walkman_drc.xml
 VALVE_CENTRE = np.array([0.66, 0.25, 1.2])   # world
 #: The pelvis walks CROUCH below its standing height; lower than this (m) it has fallen.
 LOWEST_PELVIS = STANDING_PELVIS_HEIGHT - walking.CROUCH - 0.06
+SOLE_ABOVE_FLOOR = 0.0994   # m: a foot body's height standing on the floor (its sole 0.1 below)
 MAX_TILT = 0.1  # rad of the free base: more is not walking upright
 STANDING_PUSH = 25.0   # N*s on the torso, sideways: survived (bench/bench_walking.py: ~45)
 TOPPLING_PUSH = 60.0   # N*s: the robot falls (50 does too), the pilot is warned first: offline, the warning comes 0.19 s after the push at 0.05 rad, the torso passes 0.1 rad 0.4 s later (at 100 N*s it was 0.03 s later: a loaded 2-core CI saw the warning at 0.104 rad)
@@ -161,6 +163,72 @@ def test_bad_walks_are_refused_and_the_robot_holds():
     module.command("turn 1")
     world.step(0.1)
     assert "'turn' is not accepted in state walking" in module.warnings[-1]
+
+
+def walk_through(world, module, command: str, limit: float = 40.0) -> float:
+    """Send ``command``, run until the module is idle again with the base upright every
+    50 ms; returns the smallest ZMP margin the module measured on the way."""
+    module.command(command)
+    world.step(0.1)
+    assert module.state != "idle", module.warnings
+    smallest, start = math.inf, world.time
+    while module.state != "idle":
+        world.step(0.05)
+        assert upright(world.backend), (command, world.time, world.backend.plant.base_pose())
+        assert world.time - start < limit, command
+        if module.thread.margin is not None:
+            smallest = min(smallest, module.thread.margin)
+    world.step(0.5)
+    return smallest
+
+
+def sole_heights(backend) -> Tuple[float, float]:
+    """The world height of each sole's bottom (m): 0 on the floor."""
+    return tuple(float(backend.plant.d.body(f"{side}_foot").xpos[2]) - SOLE_ABOVE_FLOOR
+                 for side in "lr")
+
+
+def test_the_terrain_course_up_the_step_along_it_by_placed_footsteps_and_down():
+    """Issue 32, rough ground: the 5-cm step of station ``terrain`` (models/walkman_drc.xml),
+    walked unsupported with step_up, footsteps the pilot placed, and step_down."""
+    world, module = walker("terrain")
+    backend = world.backend
+    start, end, height = TERRAIN_STEP
+    margins = [walk_through(world, module, "go_straight 0.12")]   # toes 4 cm from the edge
+    margins.append(walk_through(world, module, "step_up 0.05"))
+    assert sole_heights(backend) == pytest.approx((height, height), abs=0.005)
+    margins.append(walk_through(world, module, "footsteps 0.15 0.11 0 0 0.30 -0.11 0 0 "
+                                                "0.30 0.11 0 0"))
+    margins.append(walk_through(world, module, "go_straight 0.18"))
+    assert sole_heights(backend) == pytest.approx((height, height), abs=0.005)
+    margins.append(walk_through(world, module, "step_down 0.05"))
+    world.step(1.0)
+    assert upright(backend) and both_feet_loaded(backend)
+    assert sole_heights(backend) == pytest.approx((0.0, 0.0), abs=0.005)
+    heels = [float(backend.plant.d.body(f"{side}_foot").xpos[0]) + 0.03 - 0.13 for side in "lr"]
+    assert min(heels) > end, heels            # off the platform, on the floor beyond it
+    assert min(margins) > 0.02, margins       # the ZMP never near the feet's edge
+    assert not module.warnings, module.warnings
+    x, y, yaw, margin, torso = module.interfaces.data
+    assert x == pytest.approx(0.12 + 0.33 + 0.30 + 0.18 + 0.33) and margin > 0.03
+
+
+def test_a_step_the_legs_cannot_make_is_refused_with_a_warning_before_a_foot_lifts():
+    world, module = walker("terrain")
+    before = world.backend.positions()
+    for command, warning in (
+            ("step_up 0.12", "step_up refused: step 1 of 2 (left foot) cannot be made: 0.12 m "
+                             "above the other foot (at most 0.08)"),
+            ("step_down 0.05 0.5", "0.50 m ahead of the other foot (at most 0.36)"),
+            ("footsteps 0.1 0.11 0 0 0.1 0.02 0 0", "step 2 of 2 (right foot) cannot be made: "
+                                                     "0.09 m beside the other foot"),
+            ("footsteps 0.1 0.11 0 0 0.2", "footsteps are X Y YAW Z each: 5 numbers"),
+            ("step_up -0.05", "step_up takes a height above 0 m")):
+        module.command(command)
+        world.step(0.3)
+        assert module.state == "idle" and warning in module.warnings[-1], module.warnings
+    assert np.abs(world.backend.positions() - before).max() < 0.01
+    assert both_feet_loaded(world.backend)
 
 
 # -- as processes --------------------------------------------------------------------------

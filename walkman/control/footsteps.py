@@ -25,6 +25,18 @@ Each step is two phases, and the walk ends with a third:
 * after the last step a final shift brings the ZMP between the feet, where it
   stays.
 
+The ground need not be flat: each foot stands at a height (``ground``, m above
+the walk frame's floor).  A step that changes it (:meth:`WalkPlan.step_to`:
+``step_up``/``step_down``; :meth:`WalkPlan.place`: footsteps a pilot placed)
+rises to ``lift`` above the higher of its two grounds before it travels, so the
+toe clears a kerb going up and the heel its edge going down, and comes straight
+down onto the new ground.  :meth:`WalkPlan.ground_level` is the mean of the two
+feet's grounds, the swing foot's taken along its travel: the pelvis rises and
+sinks with it (the pendulum's height above the feet stays constant).  Every
+landing is checked against :class:`Reach` -- how far a foot can go from the
+one that stands -- *before* the first foot lifts: a walk with a step the legs
+cannot make is refused whole, saying which step and why.
+
 :meth:`WalkPlan.zmp` samples that plan at any times (the preview controller of
 :mod:`walkman.control.lipm` looks 1.6 s ahead).  :meth:`WalkPlan.halt` keeps
 the step in the air (it must land) and sets the steps not started aside: the
@@ -44,6 +56,8 @@ import numpy as np
 from walkman.control.trajectory import quintic
 
 Planar = Tuple[float, float, float]  # x, y, yaw
+#: a step to play: the foot, where it lands, the ground's height there, its stride (or None)
+Landing = Tuple[str, Planar, float, Optional[Planar]]
 SIDES = ("left", "right")
 RISE, DESCEND = 0.2, 0.7  # swing phases: up until RISE, travel, down from DESCEND
 
@@ -85,10 +99,29 @@ class Timing:
     first_shift: float = 1.0      # the first weight shift of a walk
     last_shift: float = 0.8       # back between the feet at the end
     lift: float = 0.04            # swing foot clearance
+    #: a step up or down swings this much longer (its foot goes further up and down, and
+    #: lands late on the loaded, springy legs), and the weight shift after it is the slow one
+    climb: float = 0.6
     #: the ZMP stands this far inside the stance foot's centre, towards the other foot: the
     #: CoM then sways less, and compliance (which leans the robot outwards) has room
     inward: float = 0.01
     max_stride: Planar = (0.15, 0.06, 0.25)
+
+
+@dataclass(frozen=True)
+class Reach:
+    """Where a landing sole's centre may be in the standing sole's frame (m, rad): the
+    legs' reach with the knees bent as walking bends them, found with the simulated robot
+    (``tests/modules/test_walking.py``: a 5 cm step up at 0.33 m walks, 0.12 m is
+    refused).  ``width`` bounds the distance across (the feet are 0.14 m wide, and
+    ``cross`` is the least that keeps them from touching)."""
+
+    ahead: float = 0.36
+    behind: float = 0.20
+    cross: float = 0.12
+    width: float = 0.34
+    turn: float = 0.45
+    height: float = 0.08
 
 
 @dataclass(frozen=True)
@@ -100,6 +133,18 @@ class Step:
     shift_at: float               # double support begins: the ZMP moves to the stance foot
     lift_at: float                # single support begins
     land_at: float                # single support ends
+    start_z: float = 0.0          # the ground's height under it when it lifts off (m)
+    land_z: float = 0.0           # and where it lands
+
+    @property
+    def climbs(self) -> bool:
+        """The step goes up or down (more than 5 mm)."""
+        return abs(self.land_z - self.start_z) > 0.005
+
+    def travel(self, t: float) -> float:
+        """How far along (0..1) its way the foot is at ``t``."""
+        phase = min(max((t - self.lift_at) / (self.land_at - self.lift_at), 0.0), 1.0)
+        return quintic((phase - RISE) / (DESCEND - RISE))
 
 
 @dataclass
@@ -111,6 +156,9 @@ class WalkPlan:
     steps: List[Step] = field(default_factory=list)
     set_aside: List[Step] = field(default_factory=list)
     travelled: Planar = (0.0, 0.0, 0.0)
+    #: each sole's ground height (m above the walk frame's floor)
+    ground: Dict[str, float] = field(default_factory=lambda: {side: 0.0 for side in SIDES})
+    reach: Reach = field(default_factory=Reach)
     #: ZMP knots (t, x, y): linear between them, constant before the first and after the last
     _knots: List[Tuple[float, float, float]] = field(default_factory=list)
 
@@ -150,19 +198,38 @@ class WalkPlan:
 
     def foot(self, side: str, t: float) -> Tuple[Planar, float]:
         """A foot's planar pose and its sole's height above the floor at ``t``."""
+        step = self._in_air(side, t)
+        if step is None:
+            return self.feet[side], self.ground[side]
+        phase = min((t - step.lift_at) / (step.land_at - step.lift_at), 1.0)
+        travel = step.travel(t)
+        a, b = step.start, step.land
+        turn = math.atan2(math.sin(b[2] - a[2]), math.cos(b[2] - a[2]))
+        pose = (a[0] + travel * (b[0] - a[0]), a[1] + travel * (b[1] - a[1]),
+                a[2] + travel * turn)
+        top = max(step.start_z, step.land_z) + self.timing.lift
+        if phase < DESCEND:   # up from where it stood, then along at the top
+            height = step.start_z + (top - step.start_z) * quintic(phase / RISE)
+        else:                 # straight down onto where it lands
+            height = top + (step.land_z - top) * quintic((phase - DESCEND) / (1.0 - DESCEND))
+        return pose, height
+
+    def ground_level(self, t: float) -> float:
+        """The mean of the feet's grounds at ``t``, a swing foot's taken along its travel:
+        the height the pelvis keeps its crouch above."""
+        level = 0.0
+        for side in SIDES:
+            step = self._in_air(side, t)
+            level += self.ground[side] if step is None else \
+                step.start_z + step.travel(t) * (step.land_z - step.start_z)
+        return level / len(SIDES)
+
+    def _in_air(self, side: str, t: float) -> Optional[Step]:
+        """The step of ``side`` under way at ``t`` (lifted, not yet landed for the plan)."""
         for step in self.steps:
-            if step.side != side or t < step.lift_at:
-                continue
-            phase = min((t - step.lift_at) / (step.land_at - step.lift_at), 1.0)
-            travel = quintic((phase - RISE) / (DESCEND - RISE))
-            a, b = step.start, step.land
-            turn = math.atan2(math.sin(b[2] - a[2]), math.cos(b[2] - a[2]))
-            pose = (a[0] + travel * (b[0] - a[0]), a[1] + travel * (b[1] - a[1]),
-                    a[2] + travel * turn)
-            height = quintic(phase / RISE) if phase < DESCEND else \
-                1.0 - quintic((phase - DESCEND) / (1.0 - DESCEND))
-            return pose, self.timing.lift * height
-        return self.feet[side], 0.0
+            if step.side == side and t >= step.lift_at:
+                return step
+        return None
 
     def swinging(self, t: float) -> Optional[str]:
         """The foot in the air at ``t`` (None in double support)."""
@@ -195,21 +262,92 @@ class WalkPlan:
         strides = max(1, max(math.ceil(abs(v) / limit - 1e-9)
                              for v, limit in zip((dx, dy, dyaw), limits)))
         stride = (dx / strides, dy / strides, dyaw / strides)
-        left, right = self.feet["left"], self.feet["right"]
-        centre = midpoint(left, right)
+        centre = self.centre
         side = "left" if (dy > 0 or (dy == 0 and dyaw >= 0)) else "right"
-        feet = dict(self.feet)
-        steps: List[Step] = []
+        landings: List[Landing] = []
         for index in range(strides + 1):
-            moves = stride if index < strides else (0.0, 0.0, 0.0)
             if index < strides:
                 centre = compose(centre, stride)
-            land = self.nominal(centre, side)
-            steps.append(Step(side, feet[side], land, moves, 0.0, 0.0, 0.0))
-            feet[side] = land
+            # level ground: each foot lands as high as the one that stands
+            landings.append((side, self.nominal(centre, side), self.ground[other(side)],
+                             stride if index < strides else (0.0, 0.0, 0.0)))
             side = other(side)
+        return self._play(landings, t)
+
+    def step_to(self, forward: float, height: float, t: float) -> int:
+        """Onto ground ``height`` higher (lower if negative) ``forward`` ahead: the left
+        foot lands there, the right one beside it (``step_up``/``step_down``)."""
+        if not all(math.isfinite(v) for v in (forward, height)):
+            raise ValueError("the step must be finite numbers")
+        ahead = compose(self.centre, (forward, 0.0, 0.0))
+        level = max(self.ground.values()) if height >= 0 else min(self.ground.values())
+        return self._play([(side, self.nominal(ahead, side), level + height, None)
+                           for side in SIDES], t)
+
+    def place(self, footsteps: List[Tuple[float, float, float, float]], t: float) -> int:
+        """Play footsteps a pilot placed: each ``(x, y, yaw, z)`` of a sole's centre in the
+        robot's centre frame (between the feet, on the ground under them), the feet taking
+        turns, the first the one on the side of the first footstep."""
+        if not footsteps:
+            raise ValueError("no footsteps")
+        if not all(math.isfinite(v) for footstep in footsteps for v in footstep):
+            raise ValueError("the footsteps must be finite numbers")
+        centre, level = self.centre, self.ground_level(t)
+        side = "left" if footsteps[0][1] >= 0 else "right"
+        landings = []
+        for x, y, yaw, z in footsteps:
+            landings.append((side, compose(centre, (x, y, yaw)), level + z, None))
+            side = other(side)
+        return self._play(landings, t)
+
+    def _play(self, landings: List[Landing], t: float) -> int:
+        """Check every landing against :attr:`reach` from the foot that will stand, then
+        schedule them all; returns the number of steps.  A landing's stride (the odometry
+        it stands for) is, if not given, how far it moves the point between the feet."""
+        if self.steps:
+            raise ValueError("already walking: wait for the walk to end")
+        feet, ground = dict(self.feet), dict(self.ground)
+        steps: List[Step] = []
+        for number, (side, land, land_z, stride) in enumerate(landings, 1):
+            problem = self.unreachable(side, land, land_z, feet[other(side)],
+                                       ground[other(side)])
+            if problem:
+                raise ValueError(f"step {number} of {len(landings)} ({side} foot) cannot "
+                                 f"be made: {problem}")
+            before, start = midpoint(feet["left"], feet["right"]), feet[side]
+            feet[side] = land
+            if stride is None:
+                stride = compose(inverse(before), midpoint(feet["left"], feet["right"]))
+            steps.append(Step(side, start, land, stride, 0.0, 0.0, 0.0, ground[side], land_z))
+            ground[side] = land_z
+        self.set_aside = []
         self._schedule(steps, t)
         return len(steps)
+
+    def unreachable(self, side: str, land: Planar, land_z: float, stance: Planar,
+                    stance_z: float) -> str:
+        """Why the ``side`` sole cannot land at ``land`` (height ``land_z``) from the other
+        one standing at ``stance`` -- '' if it can."""
+        reach = self.reach
+        x, y, yaw = compose(inverse(stance), land)
+        across = y if side == "left" else -y
+        turn = math.atan2(math.sin(yaw), math.cos(yaw))
+        rise = land_z - stance_z
+        if x > reach.ahead:
+            return f"{x:.2f} m ahead of the other foot (at most {reach.ahead:.2f})"
+        if x < -reach.behind:
+            return f"{-x:.2f} m behind the other foot (at most {reach.behind:.2f})"
+        if across < reach.cross:
+            return (f"{across:.2f} m beside the other foot: the feet would touch "
+                    f"(at least {reach.cross:.2f})")
+        if across > reach.width:
+            return f"{across:.2f} m beside the other foot (at most {reach.width:.2f})"
+        if abs(turn) > reach.turn:
+            return f"turned {turn:.2f} rad from the other foot (at most {reach.turn:.2f})"
+        if abs(rise) > reach.height:
+            return (f"{abs(rise):.2f} m {'above' if rise > 0 else 'below'} the other foot "
+                    f"(at most {reach.height:.2f})")
+        return ""
 
     def _schedule(self, steps: List[Step], t: float, from_standing: bool = True) -> None:
         """Give ``steps`` their times from ``t`` on and rebuild the ZMP plan (the first
@@ -221,18 +359,21 @@ class WalkPlan:
         for step in self.steps:   # a step in the air lands first
             feet[step.side] = step.land
         now = max(t, self.steps[-1].land_at if self.steps else t)
-        timed = []
+        timed: List[Step] = []
         for index, step in enumerate(steps):
-            shift = timing.first_shift if index == 0 and from_standing else timing.shift
+            after_climb = bool(timed) and timed[-1].climbs
+            shift = timing.first_shift if (index == 0 and from_standing) or after_climb \
+                else timing.shift
+            swing = timing.swing + (timing.climb if step.climbs else 0.0)
             stance = compose(feet[other(step.side)],
                              (0.0, timing.inward if step.side == "left" else -timing.inward,
                               0.0))
             timed.append(replace(step, shift_at=now, lift_at=now + shift,
-                                 land_at=now + shift + timing.swing))
+                                 land_at=now + shift + swing))
             knots += [(now + shift, stance[0], stance[1]),
-                      (now + shift + timing.swing, stance[0], stance[1])]
+                      (now + shift + swing, stance[0], stance[1])]
             feet[step.side] = step.land
-            now += shift + timing.swing
+            now += shift + swing
         centre = midpoint(feet["left"], feet["right"])
         knots.append((now + timing.last_shift, centre[0], centre[1]))
         self.steps += timed
@@ -246,6 +387,7 @@ class WalkPlan:
         while self.steps and t >= self.steps[0].land_at:
             step = self.steps.pop(0)
             self.feet = {**self.feet, step.side: step.land}
+            self.ground = {**self.ground, step.side: step.land_z}
             self.travelled = compose(self.travelled, step.stride)
             landed.append(step)
         return landed
@@ -260,16 +402,18 @@ class WalkPlan:
         rest = [step for step in self.steps if step.lift_at > t]
         if not rest:
             return
-        feet = dict(self.feet)
+        feet, ground = dict(self.feet), dict(self.ground)
         for step in flying:
-            feet[step.side] = step.land
+            feet[step.side], ground[step.side] = step.land, step.land_z
         side = rest[0].side
         beside = self.beside(feet[other(side)], side)
         apart = math.hypot(beside[0] - feet[side][0], beside[1] - feet[side][1]) > 0.01 or \
-            abs(beside[2] - feet[side][2]) > 0.02
+            abs(beside[2] - feet[side][2]) > 0.02 or abs(ground["left"] - ground["right"]) > 0.005
         # Once its weight shift has begun, the next step is taken (in place if the feet
-        # are together): turning the CoM back at once would be the same jolt.
-        closing = [replace(rest[0], start=feet[side], land=beside, stride=(0.0, 0.0, 0.0))] \
+        # are together): turning the CoM back at once would be the same jolt.  Halfway up
+        # (or down) a step, the closing step joins the foot already there.
+        closing = [replace(rest[0], start=feet[side], land=beside, stride=(0.0, 0.0, 0.0),
+                           start_z=ground[side], land_z=ground[other(side)])] \
             if apart or rest[0].shift_at <= t else []
         self.set_aside = rest + self.set_aside
         self.steps = flying
@@ -300,7 +444,8 @@ class WalkPlan:
         if not steps:
             return 0
         # The first step set aside may have been planned from a foot that landed since.
-        steps[0] = replace(steps[0], start=self.feet[steps[0].side])
+        steps[0] = replace(steps[0], start=self.feet[steps[0].side],
+                           start_z=self.ground[steps[0].side])
         self._schedule(steps, t)
         return len(steps)
 

@@ -27,14 +27,19 @@ The scene (``drc=True``) adds what the DRC modules act on, all articulated:
 * grasp welds between each hand and each graspable part, off until the HAL
   closes a hand next to the part (see ``walkman/hal/sim.py``).
 
+* the rough-ground course (station ``terrain``): a 5-cm step across the way,
+  a 10-degree ramp in the lane to the right, debris blocks in the lane to the left.
+
 Stations (:data:`STATIONS`) are where the robot starts: in front of the
-valve, at the driving rig, before the door.
+valve, at the driving rig, before the door, at the plug's table and the
+drywall, before the rough ground.
 * grasp welds between each hand and each graspable part, off until the HAL
   closes a hand next to the part (see ``walkman/hal/sim.py``).
 """
 
 from __future__ import annotations
 
+import math
 from typing import List
 
 from walkman.model.description import (STANDING_PELVIS_HEIGHT, Geom, Robot, home_posture,
@@ -50,7 +55,7 @@ HANDS = ("l", "r")
 #: Where the robot can start: station -> (x, y, yaw) of the pelvis in the world.
 STATIONS = {"valve": (0.0, 0.0, 0.0), "car": (0.0, -2.5, 0.0), "door": (0.34, 2.25, 0.0),
             "door_far": (-0.16, 2.25, 0.0), "yard": (-3.0, 0.0, 0.0), "plug": (0.0, -5.0, 0.0),
-            "wall": (0.0, -7.5, 0.0)}
+            "wall": (0.0, -7.5, 0.0), "terrain": (-6.0, 0.0, 0.0)}
 #: The plug station's two sockets (world x, y of each centre; their floor is the table top).
 PLUG_SOCKETS = {"a": (0.62, -4.70), "b": (0.62, -4.88)}
 PLUG_TABLE_TOP = 0.98
@@ -71,6 +76,15 @@ PILOT_POSES = {"valve": "valvedatasent 0.66 0.25 0.08 0 0 0 0.15",
                "door": "doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6",
                "plug": "plugdatasent 0.62 0.30 0.0 0 0 0 0 -0.18",
                "wall": "walldatasent 0.50 0.40 -0.06 0 0 0 0.85 0.22 0.12 0.08"}
+#: The rough-ground course (station ``terrain``, issue 32): a platform a 5-cm step up from
+#: the floor across the robot's way (world x where it begins and ends, its height), a 10-degree
+#: ramp in the lane to the robot's right (world y of that lane, x where it leaves the floor,
+#: its length up, its slope) and debris blocks in the lane to its left (world x, y, yaw and
+#: half sizes of each).
+TERRAIN_STEP = (-5.68, -4.88, 0.05)
+TERRAIN_RAMP = (-1.2, -5.6, 0.6, 0.1745)
+TERRAIN_DEBRIS = ((-5.55, 1.15, 0.3, 0.05, 0.03, 0.02), (-5.30, 1.30, -0.6, 0.08, 0.02, 0.015),
+                  (-5.05, 1.05, 1.1, 0.04, 0.04, 0.03), (-4.80, 1.25, 0.2, 0.10, 0.015, 0.01))
 #: Vertical stiffness (N/m) of the harness spring and its share of the robot's weight when
 #: the feet touch the floor (trolley mode).
 HARNESS_STIFFNESS = 3000.0
@@ -203,7 +217,7 @@ def scene_bodies() -> List[str]:
           <site name="door_handle_grip" pos="0 0.09 0" size="0.015" rgba="1 1 0 0.6"/>
         </body>
       </body>
-    </body>""".splitlines() + plug_bodies() + wall_bodies()
+    </body>""".splitlines() + plug_bodies() + wall_bodies() + terrain_bodies()
 
 
 #: The plug's body: a 5x5x8 cm block (half sizes) with a handle bar along y on a post.
@@ -307,6 +321,30 @@ def wall_bodies() -> List[str]:
         f'      <site name="drill_tip" pos="{tx:g} {ty:g} {tz:g}" size="0.005" '
         f'rgba="1 0 0 0.8"/>',
         "    </body>"]
+
+
+def terrain_bodies() -> List[str]:
+    """The rough-ground course: the step, the ramp, the debris (static: the world's)."""
+    start, end, height = TERRAIN_STEP
+    lane, foot, length, slope = TERRAIN_RAMP
+    rise = length * math.sin(slope)
+    grey = 'rgba="0.55 0.5 0.45 1"'
+    out = ["    <!-- rough ground: a step across the way, a ramp to the right, debris left -->",
+           f'    <geom name="terrain_step" type="box" size="{(end - start) / 2:g} 0.5 '
+           f'{height / 2:g}" pos="{(start + end) / 2:g} 0 {height / 2:g}" {grey}/>',
+           # the ramp: a slab tilted about y, its top edge on the floor at ``foot``; a
+           # landing as high as the ramp's top behind it
+           f'    <geom name="terrain_ramp" type="box" size="{length / 2:g} 0.5 0.02" '
+           f'pos="{foot + length / 2 * math.cos(slope) + 0.02 * math.sin(slope):.5g} {lane:g} '
+           f'{length / 2 * math.sin(slope) - 0.02 * math.cos(slope):.5g}" '
+           f'euler="0 {-slope:.5g} 0" {grey}/>',
+           f'    <geom name="terrain_landing" type="box" size="0.4 0.5 {rise / 2:.5g}" '
+           f'pos="{foot + length * math.cos(slope) + 0.4:.5g} {lane:g} {rise / 2:.5g}" {grey}/>']
+    for index, (x, y, yaw, hx, hy, hz) in enumerate(TERRAIN_DEBRIS):
+        out.append(f'    <geom name="terrain_debris{index}" type="box" size="{hx:g} {hy:g} '
+                   f'{hz:g}" pos="{x:g} {y:g} {hz:g}" euler="0 0 {yaw:g}" '
+                   f'rgba="0.45 0.35 0.25 1"/>')
+    return out
 
 
 def harness_body(robot: Robot) -> List[str]:

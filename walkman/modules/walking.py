@@ -84,20 +84,32 @@ ANKLE_AIM = (0.08, 0.04)               # m: the most a foot's desired CoP is off
 ANKLE_AFTER = 1.0
 
 TABLE = {
-    "idle": {"go_straight": "walking", "turn": "turning", "step_side": "side_stepping"},
+    "idle": {"go_straight": "walking", "turn": "turning", "step_side": "side_stepping",
+             "step_up": "stepping_up", "step_down": "stepping_down",
+             "footsteps": "walking"},
     "walking": {"action_done": "idle"},
     "turning": {"action_done": "idle"},
     "side_stepping": {"action_done": "idle"},
+    "stepping_up": {"action_done": "idle"},
+    "stepping_down": {"action_done": "idle"},
 }
+#: ``step_up``/``step_down``'s default reach ahead (m): the left sole's centre lands this far
+#: ahead, its heel 0.20 m ahead of where the toes were -- the pilot walks the toes up to
+#: the edge (within 0.15 m) first.
+STEP_FORWARD = 0.33
 
 
 class Module(TaskModule):
     statuses = task_statuses(TABLE)
     table = TABLE
     arguments = {"go_straight": (1, 1, "DISTANCE m"), "turn": (1, 1, "ANGLE rad"),
-                 "step_side": (1, 1, "DISTANCE m, left positive")}
+                 "step_side": (1, 1, "DISTANCE m, left positive"),
+                 "step_up": (1, 2, f"HEIGHT m [FORWARD m, default {STEP_FORWARD}]"),
+                 "step_down": (1, 2, f"HEIGHT m [FORWARD m, default {STEP_FORWARD}]"),
+                 "footsteps": (4, 40, "X Y YAW Z of each sole, robot frame, m and rad")}
     # Rotating on the spot nearly toppled Walk-Man at the DRC: every step counts down.
-    dangerous = frozenset({"go_straight", "turn", "step_side"})
+    dangerous = frozenset({"go_straight", "turn", "step_side", "step_up", "step_down",
+                           "footsteps"})
     # Walking blind is the riskiest thing the robot can do, and standing paused the safest:
     # both feet down, balanced by run_paused.  A dropout under 5 s does not interrupt a walk;
     # a longer blackout (the DRC Finals' lasted up to 30 s) ends it within a step, and the
@@ -157,9 +169,12 @@ class Module(TaskModule):
 
     # -- commands ----------------------------------------------------------------------
 
+    def _walk_start(self) -> float:
+        """Asked while the knees still bend, a walk starts when they are done."""
+        return max(self.now(), self.height[2] + CROUCH_TIME)
+
     def _walk(self, dx: float, dy: float, dyaw: float) -> None:
-        # asked while the knees still bend: the walk starts when they are done
-        self.plan.plan(dx, dy, dyaw, max(self.now(), self.height[2] + CROUCH_TIME))
+        self.plan.plan(dx, dy, dyaw, self._walk_start())
 
     def _start_go_straight(self, distance: float) -> None:
         if not 0.01 <= abs(distance) <= 5.0:
@@ -175,6 +190,29 @@ class Module(TaskModule):
         if not 0.01 <= abs(distance) <= 1.0:
             raise ValueError(f"step_side takes 0.01..1 m (positive: left), got {distance}")
         self._walk(0.0, distance, 0.0)
+
+    def _start_step_up(self, height: float, forward: float = STEP_FORWARD) -> None:
+        if not 0.0 < height:
+            raise ValueError(f"step_up takes a height above 0 m (step_down goes down), "
+                             f"got {height}")
+        self._step(forward, height)
+
+    def _start_step_down(self, height: float, forward: float = STEP_FORWARD) -> None:
+        if not 0.0 < height:
+            raise ValueError(f"step_down takes a height above 0 m, got {height}")
+        self._step(forward, -height)
+
+    def _step(self, forward: float, height: float) -> None:
+        if not 0.05 <= forward:
+            raise ValueError(f"a step up or down goes at least 0.05 m forward, got {forward}")
+        self.plan.step_to(forward, height, self._walk_start())
+
+    def _start_footsteps(self, *values: float) -> None:
+        if len(values) % 4:
+            raise ValueError(f"footsteps are X Y YAW Z each: {len(values)} numbers is not "
+                             f"a multiple of 4")
+        self.plan.place([tuple(values[i:i + 4]) for i in range(0, len(values), 4)],
+                        self._walk_start())
 
     # -- every tick ----------------------------------------------------------------------
 
@@ -242,7 +280,8 @@ class Module(TaskModule):
         roll, pitch = self.attitude.update(dt, *self.roll_pitch)
         self.guard_check(now, tilt)
         start, end, t0 = self.height
-        pelvis_z = start + (end - start) * quintic((now - t0) / CROUCH_TIME)
+        pelvis_z = start + (end - start) * quintic((now - t0) / CROUCH_TIME) + \
+            plan.ground_level(now)   # up and down steps with the feet
         rotation = rotation_rpy(roll, pitch, yaw)
         # The CoM of the posture as it is: the legs as commanded, the rest as measured --
         # but held while paused: another module's hand then works in a pelvis frame that
