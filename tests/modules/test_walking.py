@@ -188,6 +188,19 @@ def sole_heights(backend) -> Tuple[float, float]:
                  for side in "lr")
 
 
+def soles_in_pelvis_frame(backend) -> Tuple[np.ndarray, np.ndarray]:
+    """(x, y, yaw, z) of each sole's centre in the pelvis frame, as a pilot measures them."""
+    d = backend.plant.d
+    pelvis, turn = d.body("pelvis").xpos, d.body("pelvis").xmat.reshape(3, 3)
+    soles = []
+    for side in "lr":
+        rotation = d.body(f"{side}_foot").xmat.reshape(3, 3)
+        x, y, z = turn.T @ (d.body(f"{side}_foot").xpos + rotation @ walking.SOLE - pelvis)
+        heading = turn.T @ rotation[:, 0]
+        soles.append(np.array([x, y, math.atan2(heading[1], heading[0]), z]))
+    return soles[0], soles[1]
+
+
 def test_the_terrain_course_up_the_step_along_it_by_placed_footsteps_and_down():
     """Issue 32, rough ground: the 5-cm step of station ``terrain`` (models/walkman_drc.xml),
     walked unsupported with step_up, footsteps the pilot placed, and step_down."""
@@ -197,8 +210,12 @@ def test_the_terrain_course_up_the_step_along_it_by_placed_footsteps_and_down():
     margins = [walk_through(world, module, "go_straight 0.12")]   # toes 4 cm from the edge
     margins.append(walk_through(world, module, "step_up 0.05"))
     assert sole_heights(backend) == pytest.approx((height, height), abs=0.005)
-    margins.append(walk_through(world, module, "footsteps 0.15 0.11 0 0 0.30 -0.11 0 0 "
-                                                "0.30 0.11 0 0"))
+    # footsteps as a pilot places them: sole poses in the pelvis frame, from where the
+    # soles are now -- the left one 0.15 m ahead, then the right one 0.30, the left beside it
+    left, right = soles_in_pelvis_frame(backend)
+    steps = [left + (0.15, 0, 0, 0), right + (0.30, 0, 0, 0), left + (0.30, 0, 0, 0)]
+    margins.append(walk_through(world, module, "footsteps " + " ".join(
+        f"{v:.4f}" for step in steps for v in step)))
     margins.append(walk_through(world, module, "go_straight 0.18"))
     assert sole_heights(backend) == pytest.approx((height, height), abs=0.005)
     margins.append(walk_through(world, module, "step_down 0.05"))
@@ -210,18 +227,20 @@ def test_the_terrain_course_up_the_step_along_it_by_placed_footsteps_and_down():
     assert min(margins) > 0.02, margins       # the ZMP never near the feet's edge
     assert not module.warnings, module.warnings
     x, y, yaw, margin, torso = module.interfaces.data
-    assert x == pytest.approx(0.12 + 0.33 + 0.30 + 0.18 + 0.33) and margin > 0.03
+    assert x == pytest.approx(0.12 + 0.33 + 0.30 + 0.18 + 0.33, abs=0.02) and margin > 0.03
 
 
 def test_a_step_the_legs_cannot_make_is_refused_with_a_warning_before_a_foot_lifts():
     world, module = walker("terrain")
     before = world.backend.positions()
+    left, _ = soles_in_pelvis_frame(world.backend)
+    touching = [left + (0.1, 0, 0, 0), left + (0.1, -0.09, 0, 0)]
     for command, warning in (
             ("step_up 0.12", "step_up refused: step 1 of 2 (left foot) cannot be made: 0.12 m "
                              "above the other foot (at most 0.08)"),
             ("step_down 0.05 0.5", "0.50 m ahead of the other foot (at most 0.36)"),
-            ("footsteps 0.1 0.11 0 0 0.1 0.02 0 0", "step 2 of 2 (right foot) cannot be made: "
-                                                     "0.09 m beside the other foot"),
+            ("footsteps " + " ".join(f"{v:.4f}" for step in touching for v in step),
+             "step 2 of 2 (right foot) cannot be made: 0.09 m beside the other foot"),
             ("footsteps 0.1 0.11 0 0 0.2", "footsteps are X Y YAW Z each: 5 numbers"),
             ("step_up -0.05", "step_up takes a height above 0 m")):
         module.command(command)

@@ -286,17 +286,17 @@ class WalkPlan:
 
     def place(self, footsteps: List[Tuple[float, float, float, float]], t: float) -> int:
         """Play footsteps a pilot placed: each ``(x, y, yaw, z)`` of a sole's centre in the
-        robot's centre frame (between the feet, on the ground under them), the feet taking
-        turns, the first the one on the side of the first footstep."""
+        walk frame, the feet taking turns, the first the one on the side of the first
+        footstep (left of the line between the feet or right)."""
         if not footsteps:
             raise ValueError("no footsteps")
         if not all(math.isfinite(v) for footstep in footsteps for v in footstep):
             raise ValueError("the footsteps must be finite numbers")
-        centre, level = self.centre, self.ground_level(t)
-        side = "left" if footsteps[0][1] >= 0 else "right"
-        landings = []
+        first = compose(inverse(self.centre), footsteps[0][:3])
+        side = "left" if first[1] >= 0 else "right"
+        landings: List[Landing] = []
         for x, y, yaw, z in footsteps:
-            landings.append((side, compose(centre, (x, y, yaw)), level + z, None))
+            landings.append((side, (x, y, yaw), z, None))
             side = other(side)
         return self._play(landings, t)
 

@@ -59,7 +59,7 @@ import numpy as np
 from walkman.control.balance import (AnkleCompliance, AttitudeLoop, BalanceGuard, Sole,
                                      combined_zmp, foot_zmp, rotation_rpy, support_margin,
                                      to_local)
-from walkman.control.footsteps import SIDES, Planar, WalkPlan
+from walkman.control.footsteps import SIDES, Planar, WalkPlan, compose
 from walkman.control.lipm import PreviewAxis, preview_gains
 from walkman.control.trajectory import quintic
 from walkman.gym.link_loss import LinkLoss
@@ -106,7 +106,8 @@ class Module(TaskModule):
                  "step_side": (1, 1, "DISTANCE m, left positive"),
                  "step_up": (1, 2, f"HEIGHT m [FORWARD m, default {STEP_FORWARD}]"),
                  "step_down": (1, 2, f"HEIGHT m [FORWARD m, default {STEP_FORWARD}]"),
-                 "footsteps": (4, 40, "X Y YAW Z of each sole, robot frame, m and rad")}
+                 "footsteps": (4, 40, "X Y YAW Z of each sole's centre, pelvis frame, "
+                                      "m and rad")}
     # Rotating on the spot nearly toppled Walk-Man at the DRC: every step counts down.
     dangerous = frozenset({"go_straight", "turn", "step_side", "step_up", "step_down",
                            "footsteps"})
@@ -133,6 +134,7 @@ class Module(TaskModule):
         crouched = -float((self.sole(home_q, "left") + self.sole(home_q, "right"))[2]) / 2 - CROUCH
         self.height = (standing, crouched, self.now())
         self.pelvis_xy = -middle[:2]
+        self.pelvis_z, self.pelvis_yaw = standing, 0.0   # walk frame, as last commanded
         self.leg_index = {side: self.ik.joints_of(joints) for side, joints in LEGS.items()}
         waist = [self.robot.index[name] for name in WAIST]
         self.reference[waist] = 0.0  # upright
@@ -211,8 +213,14 @@ class Module(TaskModule):
         if len(values) % 4:
             raise ValueError(f"footsteps are X Y YAW Z each: {len(values)} numbers is not "
                              f"a multiple of 4")
-        self.plan.place([tuple(values[i:i + 4]) for i in range(0, len(values), 4)],
-                        self._walk_start())
+        # The pelvis frame as the walk last commanded it (upright, heading as the feet):
+        # where a pilot or perception measures the footsteps from.
+        pelvis = (float(self.pelvis_xy[0]), float(self.pelvis_xy[1]), self.pelvis_yaw)
+        footsteps = []
+        for index in range(0, len(values), 4):
+            x, y, yaw, z = values[index:index + 4]
+            footsteps.append((*compose(pelvis, (x, y, yaw)), self.pelvis_z + z))
+        self.plan.place(footsteps, self._walk_start())
 
     # -- every tick ----------------------------------------------------------------------
 
@@ -293,6 +301,7 @@ class Module(TaskModule):
         offset = rotation @ self.kinematics.com(self.posture)
         self.pelvis_xy = com_ref - offset[:2]
         pelvis = np.array([self.pelvis_xy[0], self.pelvis_xy[1], pelvis_z])
+        self.pelvis_z, self.pelvis_yaw = float(pelvis_z), float(yaw)
         tilts = self.comply(dt, now, planar, paused)
         for side, index in self.leg_index.items():
             (x, y, foot_yaw), height = feet[side]
