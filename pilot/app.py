@@ -419,10 +419,12 @@ class PilotWindow(QMainWindow):
             return
         if isinstance(event, events.JointsEvent):
             self.preview.on_joints(event.names, event.position)
-        if isinstance(event, events.CountdownEvent) and event.state != "waiting" and \
-                event.sender == self.name:
-            self.preview.countdown_over(event.module)
-            self._hide_ghost()                   # sent or cancelled: the preview is over
+        if isinstance(event, events.CountdownEvent) and event.sender == self.name:
+            if event.state == "waiting":
+                self.preview.countdown_left(event.module, event.remaining)
+            else:
+                self.preview.countdown_over(event.module)
+                self._hide_ghost()               # sent or cancelled: the preview is over
         module = getattr(event, "module", None)
         # Which widgets show an event, and with which method: the module's own, then the rest.
         method = ROUTES.get(type(event))

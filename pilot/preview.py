@@ -20,7 +20,8 @@ state it works from the robot's home posture, where it stands when it starts.
 from __future__ import annotations
 
 import logging
-from typing import TYPE_CHECKING, Callable, Dict, Optional, Sequence, Set
+import time
+from typing import TYPE_CHECKING, Callable, Dict, Optional, Sequence
 
 import numpy as np
 
@@ -30,17 +31,23 @@ if TYPE_CHECKING:       # at run time imported by _shadow, inside its guard
 log = logging.getLogger("pilot.preview")
 
 Send = Callable[[], str]
+#: s a countdown is believed without news: the gateway says how much is left every 0.5 s;
+#: a countdown whose end this PC never heard (the link dropped it) is over after this long
+#: silence, and the next dangerous click is previewed again, not taken for a cancel
+COUNTDOWN_SILENCE = 3.0
 
 
 class PreviewGate:
     def __init__(self, state_of: Callable[[str], Optional[str]],
-                 show: Callable[[str, np.ndarray], None], say: Callable[[str], None]) -> None:
-        self.state_of, self.show, self.say = state_of, show, say
+                 show: Callable[[str, np.ndarray], None], say: Callable[[str], None],
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.state_of, self.show, self.say, self.clock = state_of, show, say, clock
         self.posture: Optional[np.ndarray] = None
         self._shadows: Dict[str, Optional[Shadow]] = {}   # None: no preview for that module
         self._order: Optional[Dict[str, int]] = None
         self.last_ms: Optional[float] = None
-        self.counting: Set[str] = set()        # modules whose timed command counts down
+        #: modules whose timed command counts down -> until when that is believed
+        self._counting: Dict[str, float] = {}
 
     def on_joints(self, names: Sequence[str], position: Sequence[float]) -> None:
         from walkman.model.description import walkman
@@ -84,7 +91,7 @@ class PreviewGate:
         # the shadow follows from there rather than miss the pose it needs later.
         posture = self.posture if self.posture is not None else shadow.home
         text = " ".join([name, *(repr(float(v)) for v in numbers)])
-        if dangerous and module in self.counting:
+        if dangerous and self.counting(module):
             return send()                  # a second click while it counts down: a cancel
         try:
             if dangerous:
@@ -109,9 +116,18 @@ class PreviewGate:
             except Exception:  # noqa: BLE001
                 log.exception("pilot: the shadow of %s could not follow %s", module, text)
             if dangerous:
-                self.counting.add(module)
+                self._counting[module] = self.clock() + COUNTDOWN_SILENCE
         return problem
+
+    def counting(self, module: str) -> bool:
+        """The module's timed command from this PC counts down (as far as we know)."""
+        return self._counting.get(module, -float("inf")) > self.clock()
+
+    def countdown_left(self, module: str, remaining: float) -> None:
+        """The gateway says the countdown goes on: believed until it should have ended."""
+        if module in self._counting:
+            self._counting[module] = self.clock() + remaining + COUNTDOWN_SILENCE
 
     def countdown_over(self, module: str) -> None:
         """The gateway sent or cancelled the module's timed command."""
-        self.counting.discard(module)
+        self._counting.pop(module, None)

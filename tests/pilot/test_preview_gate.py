@@ -2,7 +2,7 @@
 
 import pytest
 
-from pilot.preview import PreviewGate
+from pilot.preview import COUNTDOWN_SILENCE, PreviewGate
 from tests.walkman.test_preview import Followed
 from walkman.model.description import walkman
 from walkman.model.mjcf import PILOT_POSES
@@ -61,6 +61,23 @@ def test_a_turn_it_can_make_shows_its_ghost_then_goes_and_a_second_click_cancels
     gate.countdown_over("drc_valve")
     gate.command("drc_valve", "turn", [1.5708], True, lambda: "")
     assert len(shown) == 2
+
+
+def test_a_countdown_whose_end_never_came_is_over_after_its_silence(grasped):
+    """The link dropped the gateway's 'sent': the next click is a new command, previewed."""
+    gate, shown, said = gate_at(grasped)
+    now = [100.0]
+    gate.clock = lambda: now[0]
+    assert gate.command("drc_valve", "turn", [1.5708], True, lambda: "") == ""
+    assert gate.counting("drc_valve") and len(shown) == 1
+    now[0] += 2.0
+    gate.countdown_left("drc_valve", 2.5)       # the gateway: 2.5 s to go
+    now[0] += 2.5 + COUNTDOWN_SILENCE - 0.1
+    assert gate.counting("drc_valve")            # still believed: within its end and silence
+    now[0] += 0.2                                # ... and then no word for too long
+    assert not gate.counting("drc_valve")
+    gate.command("drc_valve", "turn", [1.5708], True, lambda: "")
+    assert len(shown) == 2                       # previewed: not taken for a cancel
 
 
 def test_before_any_joint_state_the_pose_is_followed_from_home_and_others_pass_on():
