@@ -5,9 +5,12 @@ The same modules run as processes over YARP in test_drc_*.py; these are the fast
 deterministic checks of what the modules decide.
 """
 
+import math
+
 import numpy as np
 import pytest
 
+from walkman.control.trajectory import CartesianTrajectory, quintic
 from walkman.gym.offline import OfflineWorld
 from walkman.hal.sim import SimBackend
 from walkman.model.mjcf import PILOT_POSES
@@ -262,6 +265,37 @@ def test_the_drill_cuts_the_circle_out_of_the_wall_and_goes_back_on_its_table():
     pose = free_body(world, "drill")
     assert pose[:3] == pytest.approx(DRILL_GRIP, abs=0.01)
     assert 1.0 - 2.0 * (pose[4] ** 2 + pose[5] ** 2) > np.cos(np.radians(5))   # upright
+
+
+def test_the_circle_is_checked_going_round_the_way_the_cut_goes():
+    """walldatasent checks the circle point by point, each on from the last one's posture:
+    only the cut's own direction says whether the cut will get round (found in review: the
+    check went the other way)."""
+    world, module = started("wall", drc_wall.Module, "drc_wall")
+    checked = []
+    reachable = module.thread.reachable
+
+    def spy(effector, position, *args, **kwargs):
+        if kwargs.get("what", "").startswith("circle at"):
+            checked.append(np.array(position))
+        return reachable(effector, position, *args, **kwargs)
+
+    module.thread.reachable = spy
+    module.do(PILOT_POSES["wall"], "ready", 1)
+    target = module.thread.target
+    centre = target["centre"] + drc_wall.DEPTH * drc_wall.INTO_WALL
+    cut = CartesianTrajectory()          # as _start_cut sets it
+    cut.set_circular((target["in"], target["rotation"]), centre, drc_wall.INTO_WALL,
+                     2 * math.pi, 1.0)
+    times = np.linspace(0.0, 1.0, 2001)
+    path = np.array([cut.at(t)[0] for t in times])
+    assert len(checked) == drc_wall.CHECKED_ANGLES
+    for index, point in enumerate(checked, 1):
+        # the cut passes each checked point when it has gone that far round
+        nearest = int(np.argmin(np.linalg.norm(path - point, axis=1)))
+        assert np.linalg.norm(path[nearest] - point) < 0.002
+        assert quintic(times[nearest]) == pytest.approx(index / drc_wall.CHECKED_ANGLES,
+                                                        abs=0.01), index
 
 
 def test_a_circle_the_arm_cannot_cut_is_refused_and_nothing_moves():

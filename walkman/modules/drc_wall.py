@@ -135,7 +135,7 @@ class Module(GraspTask):
             self.reachable(tool, target[point], hand_rotation, what=f"tip's {point} point")
         # The circle as the cut tracks it: on from each point's posture to the next's.
         posture = self.reachable(tool, target["in"], hand_rotation, what="tip's in point")
-        right = -np.cross(INTO_WALL, UP)
+        right = np.cross(INTO_WALL, UP)   # -y: the robot's right, where the cut goes first
         for index in range(1, CHECKED_ANGLES + 1):
             angle = 2 * math.pi * index / CHECKED_ANGLES
             point = centre + DEPTH * INTO_WALL + radius * (math.cos(angle) * UP +
