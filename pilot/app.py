@@ -22,11 +22,12 @@ import argparse
 import faulthandler
 import logging
 import os
+import math
 import signal
 import sys
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Dict, List, Optional, Sequence, Set
+from typing import TYPE_CHECKING, Any, Dict, List, Optional, Sequence, Set, Tuple
 
 from bridge import config as bridge_config
 from nodekit.scene import TASK_OBJECTS
@@ -304,17 +305,59 @@ class PilotWindow(QMainWindow):
         for obj in event.objects:
             if obj.sender == self.name and obj.name in self._edited:
                 continue
-            for widget in self.task_widgets():
-                if widget.module == obj.name:
-                    widget.set_pose(list(obj.pose))
-            if self.view3d is None:
-                continue
-            if obj.name in self.view3d.markers:
-                self.view3d.move_pose_marker(obj.name, list(obj.pose))
-            else:                                   # an object no widget of ours has
-                self.view3d.add_pose_marker(
-                    obj.name, list(obj.pose),
-                    lambda p, o=obj: self.link.place(o.name, o.kind, p[:6]), kind=obj.kind)
+            self._show_object(obj.name, obj.kind, None if obj.removed else list(obj.pose))
+
+    def place(self, name: str, kind: str, pose: Sequence[float], removed: bool = False,
+              dragged: bool = False) -> str:
+        """This pilot put (or took away) an object of the shared scene: shown here at once
+        (a ``dragged`` marker is already where the pilot holds it), every pilot told; '' or
+        why it did not leave."""
+        self._edited.add(name)
+        self._show_object(name, kind, None if removed else list(pose[:6]), marker=not dragged)
+        return self.link.place(name, kind, pose[:6], removed)
+
+    def _show_object(self, name: str, kind: str, pose: Optional[List[float]],
+                     marker: bool = True) -> None:
+        """An object's marker, and the widgets that take its pose, follow it (None: gone)."""
+        for widget in self.task_widgets():
+            if widget.module == name and pose is not None:
+                widget.set_pose(pose)
+            if kind == "footstep" and hasattr(widget, "footstep_moved"):
+                widget.footstep_moved(name, pose)
+        if self.view3d is None or not marker:
+            return
+        if pose is None:
+            self.view3d.remove_pose_marker(name)
+        elif name in self.view3d.markers:
+            self.view3d.move_pose_marker(name, pose)
+        else:                                       # an object no widget of ours has
+            self.view3d.add_pose_marker(name, pose,
+                                        lambda p, n=name, k=kind: self._dragged(n, k, p),
+                                        kind=kind)
+
+    def _dragged(self, name: str, kind: str, pose: Sequence[float]) -> None:
+        """A marker of the shared scene dragged here (a Qt slot: never raises)."""
+        problem = self.place(name, kind, pose, dragged=True)
+        if problem:
+            self._note(problem)
+
+    def soles(self) -> Optional[Dict[str, Tuple[float, float, float, float]]]:
+        """Each sole's centre (x, y, yaw, z) in the pelvis frame from the robot's last joint
+        state -- where a new footstep is placed from -- or None before the first one."""
+        if self.preview.posture is None:
+            return None
+        from walkman.control.kinematics import Kinematics
+        from walkman.modules.walking import FRAMES, SOLE
+
+        if self._kinematics is None:
+            self._kinematics = Kinematics()
+        out = {}
+        for side, frame in FRAMES.items():
+            position, rotation = self._kinematics.pose(self.preview.posture, frame)
+            x, y, z = position + rotation @ SOLE
+            out[side] = (float(x), float(y), math.atan2(rotation[1, 0], rotation[0, 0]),
+                         float(z))
+        return out
 
     def _state_of(self, module: str) -> Optional[str]:
         return next((w.state for w in self.module_widgets.get(module, [])

@@ -40,6 +40,8 @@ class CommandSpec:
                  if w.strip("[]").isupper() or w.strip("[]").replace("_", "").isupper()]
         if len(words) >= self.most:
             return words[:self.most]
+        if words and len(words) == self.fewest:    # a group that repeats (``footsteps``):
+            return words                           # the fields hold one
         return [f"#{i + 1}" for i in range(self.most)]
 
     def check(self, numbers: Sequence[float]) -> Optional[str]:

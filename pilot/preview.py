@@ -100,10 +100,13 @@ class PreviewGate:
                 if preview.refused:
                     self.say(f"preview of {module} {name}: refused ({self.last_ms:.0f} ms)")
                     return f"not sent: this PC's preview says {preview.refusal}"
-                if preview.known:
+                if preview.known and preview.moves:
                     self.show(module, preview.posture)
                     self.say(f"preview of {module} {name}: the ghost shows where it goes "
                              f"({self.last_ms:.0f} ms)")
+                elif preview.known:
+                    self.say(f"preview of {module} {name}: accepted on this PC, no arm "
+                             f"motion to show ({self.last_ms:.0f} ms)")
                 else:
                     self.say(f"no preview of {module} {name}: {preview.refusal}")
         except Exception:  # noqa: BLE001 -- a preview's bug must not stop the pilot's command

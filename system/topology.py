@@ -66,6 +66,12 @@ class Component:
 TASK_MODULES = ("drc_valve", "drc_drive", "drc_door", "drc_wall", "drc_plug", "walking")
 
 
+def hal_component(*arguments: str) -> Component:
+    """The simulated robot's HAL on the robot PC (``arguments``: e.g. ``--station wall``)."""
+    return Component("hal", "robot", (PYTHON, "-m", "walkman.hal.server", "--backend", "sim",
+                                      *arguments), r"HAL for walkman")
+
+
 def task_component(name: str) -> Component:
     """A task module (``walkman.gym.supervisor NAME``) on the robot PC."""
     return Component(name, "robot", (PYTHON, "-m", "walkman.gym.supervisor", name),
@@ -81,8 +87,7 @@ def components(kind: str, perception_rate: float = 1.0, tasks: bool = False) -> 
     ``tasks``)."""
     module = (PYTHON, "-m", "walkman.gym.supervisor")
     table = [
-        Component("hal", "robot", (PYTHON, "-m", "walkman.hal.server", "--backend", "sim"),
-                  r"HAL for walkman"),
+        hal_component(),
         Component("gaze_control", "robot", (*module, "gaze_control"), r"ready for the pilot"),
         Component("temperature", "robot", (*module, "temperature"), r"ready for the pilot"),
         # A 40x30 cloud (every 8th pixel) and a 320x240 image per frame: about 0.3 Mbit/s

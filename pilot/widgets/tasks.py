@@ -24,6 +24,7 @@ measures (the module's status), shown beside it; the throttle is
 
 from __future__ import annotations
 
+import logging
 import math
 from typing import Dict, List, Optional, Sequence
 
@@ -39,6 +40,8 @@ from pilot.widgets.timed_button import TimedButton
 from walkman.gym.lifecycle import State, lifecycle_of_status
 from walkman.model.mjcf import PILOT_POSES
 
+log = logging.getLogger("pilot.tasks")
+
 
 def _pose(text: str) -> List[float]:
     return [float(v) for v in text.split()[1:]]
@@ -53,7 +56,8 @@ STARTING_VALUES: Dict[str, Dict[str, List[float]]] = {
                   "turn_right": [0.3], "accelerate": [1.0, 1.0]},
     "drc_plug": {"plugdatasent": _pose(PILOT_POSES["plug"])},
     "drc_wall": {"walldatasent": _pose(PILOT_POSES["wall"])},
-    "walking": {"go_straight": [0.5], "turn": [0.3], "step_side": [0.1]},
+    "walking": {"go_straight": [0.5], "turn": [0.3], "step_side": [0.1],
+                "step_up": [0.05, 0.33], "step_down": [0.05, 0.33]},
     "gaze_control": {"look_at": [1.0, 0.2, 0.1], "set_time": [1.5]},
 }
 #: Modules that have a task widget; the others get the Generic Widget alone.
@@ -65,6 +69,9 @@ def pose_command(name: str) -> bool:
 
 
 class TaskWidget(GenericWidget):
+    #: commands whose numbers the widget gathers itself (no fields of their own)
+    gathered: frozenset = frozenset()
+
     def __init__(self, catalogue: Catalogue, sender, advanced=lambda: False,
                  parent: Optional[QWidget] = None) -> None:
         self.buttons: Dict[str, QPushButton] = {}
@@ -87,8 +94,9 @@ class TaskWidget(GenericWidget):
             grid.addWidget(button, row, 0)
             values = starting.get(name, [])
             fields = []
-            for column, label in enumerate(spec.fields[:len(values)] if spec.fewest == 0
-                                           else spec.fields):
+            labels = [] if name in self.gathered else \
+                spec.fields[:len(values)] if spec.fewest == 0 else spec.fields
+            for column, label in enumerate(labels):
                 field = number_field()
                 field.setObjectName(f"{name}_{label}")
                 field.setToolTip(f"{label} ({spec.usage})")
@@ -108,7 +116,11 @@ class TaskWidget(GenericWidget):
         self.refresh()
 
     def do(self, name: str) -> bool:
-        return self.send(name, [f.value() for f in self.fields.get(name, [])])
+        return self.send(name, self.numbers(name))
+
+    def numbers(self, name: str) -> List[float]:
+        """What ``name`` is sent with: its fields' values."""
+        return [f.value() for f in self.fields.get(name, [])]
 
     def set_pose(self, pose: Sequence[float]) -> None:
         """The marker moved: the pose command's first fields follow (x y z roll pitch yaw)."""
@@ -203,8 +215,136 @@ class DriveWidget(TaskWidget):
             self.steer_button.setEnabled(turns is not None and turns.isEnabled())
 
 
+class WalkingWidget(TaskWidget):
+    """walking's widget: footsteps the pilots place in the shared 3-D scene.
+
+    "add footstep" puts one more footstep in the scene (the first 0.15 m ahead of the left
+    sole, each next one on the other side, a stride ahead of that foot's last), every
+    pilot sees it and may drag it; ``footsteps`` sends them all in order as sole poses in
+    the pelvis frame -- the walking module refuses, before a foot lifts, any it cannot make.
+    """
+
+    gathered = frozenset({"footsteps"})
+    #: m: the first footstep ahead of the sole, and a foot's stride from its last footstep
+    FIRST_AHEAD, STRIDE = 0.15, 0.30
+
+    def __init__(self, catalogue: Catalogue, sender, advanced=lambda: False,
+                 parent: Optional[QWidget] = None) -> None:
+        self.footsteps: Dict[str, List[float]] = {}    # name -> x y z roll pitch yaw (pelvis)
+        super().__init__(catalogue, sender, advanced, parent)
+        row = QWidget()
+        line = QHBoxLayout(row)
+        line.setContentsMargins(0, 0, 0, 0)
+        self.add_button = QPushButton("add footstep")
+        self.add_button.setObjectName("add_footstep")
+        self.add_button.setToolTip("one more footstep in the 3-D view, for every pilot: drag "
+                                   "it where the foot should go, then send footsteps")
+        self.add_button.clicked.connect(self.add_footstep)
+        self.clear_button = QPushButton("clear footsteps")
+        self.clear_button.setObjectName("clear_footsteps")
+        self.clear_button.clicked.connect(self.clear_footsteps)
+        self.footsteps_label = QLabel()
+        self.footsteps_label.setObjectName("footsteps_placed")
+        line.addWidget(self.add_button)
+        line.addWidget(self.clear_button)
+        line.addWidget(self.footsteps_label, 1)
+        self.task_area.addWidget(row)
+        self._show_count()
+        self.refresh()
+
+    def ordered(self) -> List[str]:
+        """The footsteps' names in the order the feet take them (``footstep_N`` by N)."""
+        return sorted(self.footsteps, key=footstep_number)
+
+    def numbers(self, name: str) -> List[float]:
+        if name != "footsteps":
+            return super().numbers(name)
+        # X Y YAW Z of each sole, the order the module takes them in
+        return [v for step in self.ordered() for v in (self.footsteps[step][0],
+                                                        self.footsteps[step][1],
+                                                        self.footsteps[step][5],
+                                                        self.footsteps[step][2])]
+
+    def do(self, name: str) -> bool:
+        if name == "footsteps" and not self.footsteps:
+            self.show_problem("no footsteps placed: add footstep, drag each where the foot "
+                              "goes in the 3-D view, then send footsteps")
+            return False
+        return super().do(name)
+
+    def next_footstep(self) -> Optional[List[float]]:
+        """Where the next footstep goes, or None while the feet's posture is unknown."""
+        names = self.ordered()
+        if not names:
+            soles = self.sender_.soles()
+            if soles is None:
+                return None
+            x, y, yaw, z = soles["left"]
+            return [x + self.FIRST_AHEAD * math.cos(yaw), y + self.FIRST_AHEAD * math.sin(yaw),
+                    z, 0.0, 0.0, yaw]
+        last = self.footsteps[names[-1]]
+        side_of_last = "left" if len(names) % 2 else "right"
+        if len(names) >= 2:
+            base = self.footsteps[names[-2]]          # this foot's last footstep
+            yaw = base[5]
+            return [base[0] + self.STRIDE * math.cos(yaw), base[1] + self.STRIDE * math.sin(yaw),
+                    base[2], 0.0, 0.0, yaw]
+        soles = self.sender_.soles()
+        if soles is None:
+            return None
+        other = soles["right" if side_of_last == "left" else "left"]
+        yaw = last[5]
+        return [other[0] + self.STRIDE * math.cos(yaw), other[1] + self.STRIDE * math.sin(yaw),
+                last[2], 0.0, 0.0, yaw]
+
+    def add_footstep(self) -> None:
+        """(A Qt slot: PyQt5 aborts the PI on an exception here -- none gets out.)"""
+        try:
+            self._add_footstep()
+        except Exception as exc:  # noqa: BLE001
+            log.exception("pilot: adding a footstep failed")
+            self.show_problem(f"no footstep added: {exc}")
+
+    def _add_footstep(self) -> None:
+        pose = self.next_footstep()
+        if pose is None:
+            self.show_problem("the feet's posture is not known yet (no joint state from the "
+                              "robot): a footstep is placed from where they are")
+            return
+        number = 1 + max((footstep_number(name) for name in self.footsteps), default=0)
+        name = f"footstep_{number}"
+        self.footstep_moved(name, pose)
+        problem = self.sender_.place(name, "footstep", pose)
+        if problem:
+            self.show_problem(problem)
+
+    def clear_footsteps(self) -> None:
+        for name in self.ordered():
+            pose = self.footsteps.pop(name)
+            self.sender_.place(name, "footstep", pose, removed=True)
+        self._show_count()
+
+    def footstep_moved(self, name: str, pose: Optional[Sequence[float]]) -> None:
+        """A footstep placed, dragged (here or by another pilot), or removed (None)."""
+        if pose is None:
+            self.footsteps.pop(name, None)
+        else:
+            self.footsteps[name] = [float(v) for v in pose[:6]]
+        self._show_count()
+
+    def _show_count(self) -> None:
+        count = len(self.footsteps)
+        self.footsteps_label.setText(f"{count} footstep{'s' if count != 1 else ''} placed")
+
+
+def footstep_number(name: str) -> int:
+    """N of ``footstep_N`` (0 for another name: first)."""
+    tail = name.rsplit("_", 1)[-1]
+    return int(tail) if tail.isdigit() else 0
+
+
 #: Task widgets with more than the buttons: the others are :class:`TaskWidget` s.
-SPECIAL_TASK_WIDGETS = {"drc_drive": DriveWidget}
+SPECIAL_TASK_WIDGETS = {"drc_drive": DriveWidget, "walking": WalkingWidget}
 
 
 def task_widget_class(module: str) -> type:

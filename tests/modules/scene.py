@@ -65,11 +65,13 @@ class World:
 
 
 def main(joints: List[str]) -> None:
-    """Print ``base_x X base_yaw YAW`` then ``JOINT VALUE`` for each joint asked."""
+    """Print ``base_x X base_yaw YAW``, ``base_z Z tilt T`` (m, rad) then ``JOINT VALUE``
+    for each joint asked."""
     world = World("/probe/world:i")
     try:
-        x, _, _, yaw = world.base()
+        x, _, z, yaw = world.base()
         print("base_x", x, "base_yaw", yaw)
+        print("base_z", z, "tilt", world.tilt())
         for joint in joints:
             print(joint, world.prop(joint))
     finally:

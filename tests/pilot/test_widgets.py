@@ -7,6 +7,7 @@ hatching of lost tiles, the link widget's figures, the status tab.
 
 from __future__ import annotations
 
+import math
 import time
 from typing import List, Tuple
 
@@ -443,6 +444,10 @@ def test_a_status_reads_with_names_and_units_not_raw_numbers(qt):
     assert shown("temperature", "monitoring", 26, 300, 27, 315) == \
         f"monitoring  {names[26]} 30.0 C, {names[27]} 31.5 C"
     assert shown("drc_valve", "idle", 0.66, 0.25, 0.08) == "idle  valve at (0.66, 0.25, 0.08) m"
+    assert shown("walking", "idle", 0.45, 0, 0, 0.121, 0.002) == (
+        "idle  walked 0.45 m ahead, 0.00 m left, turned 0\u00b0; ZMP 12.1 cm inside the feet, "
+        "torso 0.1\u00b0 off vertical")
+    assert "no foot on the floor" in shown("walking", "walking", 0.1, 0, 0, math.nan, 0.01)
     # Numbers of another shape than declared are shown as they came, never dropped.
     assert shown("temperature", "monitoring", 26, 300, 99) == "monitoring  26 300 99"
     assert shown("gaze_control", "tracking", 0.5) == "tracking  0.5"
@@ -488,6 +493,77 @@ def test_the_drive_widget_steers_to_the_sliders_angle_from_the_measured_one(qt):
     assert [f.objectName() for f in widget.fields["accelerate"]] == \
         ["accelerate_SECONDS", "accelerate_AMOUNT"]
     assert [f.value() for f in widget.fields["accelerate"]] == [1.0, 1.0]
+
+
+class Scene(Recorder):
+    """The window's side of footsteps: where the soles are, and the scene edits it tells."""
+
+    def __init__(self, soles=None) -> None:
+        super().__init__()
+        self.placed: List[Tuple] = []
+        self._soles = soles
+
+    def soles(self):
+        return self._soles
+
+    def place(self, name, kind, pose, removed=False) -> str:
+        self.placed.append((name, kind, [round(v, 3) for v in pose], removed))
+        return ""
+
+
+def test_the_walking_widget_places_footsteps_and_sends_them_in_order(qt):
+    """Issue 32, rough ground: footsteps a pilot places in the shared scene (the first a bit
+    ahead of the left sole, then a stride per foot), dragged by any pilot, sent in their
+    order as X Y YAW Z of each sole in the pelvis frame."""
+    from python_qt_binding.QtCore import Qt
+    from python_qt_binding.QtTest import QTest
+
+    from pilot.catalogue import catalogue_of
+    from pilot.widgets.tasks import WalkingWidget, task_widget_class
+
+    assert task_widget_class("walking") is WalkingWidget
+    window = Scene()
+    widget = WalkingWidget(catalogue_of("walking"), window, advanced=lambda: True)
+    assert "footsteps" in widget.buttons and widget.fields["footsteps"] == []  # no 40 fields
+    assert [f.value() for f in widget.fields["step_up"]] == [0.05, 0.33]
+    QTest.mouseClick(widget.add_button, Qt.LeftButton)       # no joint state yet
+    assert window.placed == [] and "not known yet" in warnings(widget)[0]
+    assert not widget.do("footsteps") and "no footsteps placed" in warnings(widget)[0]
+    window._soles = {"left": (0.0, 0.11, 0.0, -1.03), "right": (0.0, -0.11, 0.0, -1.03)}
+    for _ in range(3):
+        QTest.mouseClick(widget.add_button, Qt.LeftButton)
+    assert window.placed == [
+        ("footstep_1", "footstep", [0.15, 0.11, -1.03, 0.0, 0.0, 0.0], False),
+        ("footstep_2", "footstep", [0.30, -0.11, -1.03, 0.0, 0.0, 0.0], False),
+        ("footstep_3", "footstep", [0.45, 0.11, -1.03, 0.0, 0.0, 0.0], False)]
+    assert widget.footsteps_label.text() == "3 footsteps placed"
+    # another pilot drags the second one up a 5-cm step; a tenth comes after the ninth
+    widget.footstep_moved("footstep_2", [0.33, -0.11, -0.98, 0.0, 0.0, 0.1])
+    widget.footstep_moved("footstep_10", [0.5, -0.11, -0.98, 0.0, 0.0, 0.0])
+    widget.footstep_moved("footstep_9", [0.5, 0.11, -0.98, 0.0, 0.0, 0.0])
+    assert widget.ordered() == ["footstep_1", "footstep_2", "footstep_3", "footstep_9",
+                                "footstep_10"]
+    widget.footstep_moved("footstep_9", None)                 # removed by its pilot
+    widget.footstep_moved("footstep_10", None)
+    assert widget.do("footsteps")
+    module, name, numbers, dangerous = window.sent[-1]
+    assert (module, name, dangerous) == ("walking", "footsteps", True)
+    assert numbers == pytest.approx([0.15, 0.11, 0.0, -1.03, 0.33, -0.11, 0.1, -0.98,
+                                     0.45, 0.11, 0.0, -1.03])
+    QTest.mouseClick(widget.clear_button, Qt.LeftButton)
+    assert [p[0] for p in window.placed[-3:]] == ["footstep_1", "footstep_2", "footstep_3"]
+    assert all(p[3] for p in window.placed[-3:]) and widget.footsteps == {}
+    assert widget.footsteps_label.text() == "0 footsteps placed"
+
+
+def test_the_generic_entry_of_a_repeated_group_holds_one_group():
+    """``footsteps`` takes 4 to 40 numbers, X Y YAW Z each: the Generic Widget's entry has
+    four fields (one footstep), not forty."""
+    from pilot.catalogue import catalogue_of
+
+    spec = catalogue_of("walking").commands["footsteps"]
+    assert spec.fields == ["X", "Y", "YAW", "Z"] and spec.check([0.1] * 4) is None
+    assert "takes 4 to 40 numbers" in spec.check([0.1] * 3)
 
 
 def test_the_battery_bar_and_the_log_say_the_charge_and_each_level_once(qt):

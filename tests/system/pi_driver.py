@@ -16,7 +16,8 @@ pose fields, and after the test says ``restarted`` (roscore and bridge restarted
 under it) the PI shows the module again, librviz takes the new bridge's cloud,
 the PI sends ``look_at X+0.1`` and draws the robot), ``camera`` (the camera tab in
 the lab, no bridge: frames with a black sky and a cloud without depth there read
-100 %, nothing hatched), ``wall`` (the wall task by clicks, start to home), ``valve COUNT`` (for bench/bench_valve_topologies.py: the
+100 %, nothing hatched), ``wall`` (the wall task by clicks, start to home), ``terrain`` (the rough-ground
+course by walking's clicks and two footsteps placed and dragged in the 3-D view), ``valve COUNT`` (for bench/bench_valve_topologies.py: the
 whole valve task COUNT times by clicks, printing ``TIMED run command state click-time
 shown-time`` per step and ``SHOWN time state stamp`` for every status the task widget
 showed, ``stamp`` the gateway's receipt; after each run but the last it waits for the
@@ -349,44 +350,106 @@ def send_look_at(gaze, x: float) -> None:
     click(gaze.send_button, f"send look_at {x:.3f}", gaze)
 
 
-def drag_marker() -> None:
-    """What RViz sends while the pilot drags the valve's marker: the fields follow."""
+def drag(marker: str, position, yaw: float, followed, what: str) -> None:
+    """What RViz sends while the pilot drags ``marker`` to ``position`` turned ``yaw`` (pelvis
+    frame): pose updates to the PI's marker server until ``followed()`` says the PI took it."""
+    import math
+
     import rospy
     from visualization_msgs.msg import InteractiveMarkerFeedback
 
-    valve = widget("drc_valve")
     topic = rospy.Publisher(f"{window.view3d.markers_topic}/feedback", InteractiveMarkerFeedback,
                             queue_size=5)
     wait(lambda: topic.get_num_connections() > 0, 15, "the marker server's feedback subscriber")
-    feedback = InteractiveMarkerFeedback(client_id="/rviz/Markers", marker_name="drc_valve",
+    feedback = InteractiveMarkerFeedback(client_id="/rviz/Markers", marker_name=marker,
                                          control_name="move_x",
                                          event_type=InteractiveMarkerFeedback.POSE_UPDATE)
     feedback.header.frame_id = "pelvis"
-    feedback.pose.position.x, feedback.pose.position.y, feedback.pose.position.z = 0.61, -0.12, 0.05
-    feedback.pose.orientation.z = feedback.pose.orientation.w = 0.5 ** 0.5   # yaw pi/2
-    fields = valve.fields["valvedatasent"]
-    say(f"STEP dragging the valve from {time.time():.3f}")
+    (feedback.pose.position.x, feedback.pose.position.y,
+     feedback.pose.position.z) = position
+    feedback.pose.orientation.z, feedback.pose.orientation.w = math.sin(yaw / 2), \
+        math.cos(yaw / 2)
+    say(f"STEP dragging {what} from {time.time():.3f}")
     # A drag is a stream of pose updates.  The marker server lives in the render process:
     # if librviz takes it down meanwhile (its own crash, which the PI survives), the PI
     # starts another and the drag goes on once the new one listens -- as a pilot would
     # drag again when the view is back.
     end, next_update = time.monotonic() + 90, 0.0
-    while abs(fields[0].value() - 0.61) >= 1e-3 and time.monotonic() < end:
+    while not followed() and time.monotonic() < end:
         if time.monotonic() >= next_update and topic.get_num_connections() > 0:
             topic.publish(feedback)
             next_update = time.monotonic() + 0.3
         pump(0.02)
-    if abs(fields[0].value() - 0.61) >= 1e-3:
+    if not followed():
         view = window.view3d
-        fail(f"the valve's x did not follow the marker (the PI's markers "
+        fail(f"{what} did not follow the marker (the PI's markers "
              f"{ {n: m.pose for n, m in view.markers.items()} }, render process "
              f"{view.embedded_pid}, its deaths {view.deaths})")
+
+
+def drag_marker() -> None:
+    """What RViz sends while the pilot drags the valve's marker: the fields follow."""
+    import math
+
+    valve = widget("drc_valve")
+    fields = valve.fields["valvedatasent"]
+    drag("drc_valve", (0.61, -0.12, 0.05), math.pi / 2,
+         lambda: abs(fields[0].value() - 0.61) < 1e-3, "the valve")
     followed = time.time()      # the fields follow and the scene edit leaves in one step
     values = [round(f.value(), 3) for f in fields[:6]]
     say(f"STEP the valve's fields followed at {followed:.3f}")
     if values[:3] != [0.61, -0.12, 0.05] or abs(values[5] - 1.571) > 2e-3:
         fail(f"the valve's pose fields show {values} after the drag")
     say(f"STEP marker dragged: valve pose {values}")
+
+
+def walk(command: str, fields=()) -> None:
+    """A walking command by clicks: its fields typed, the timed button counted down, then
+    the walk until the module is idle again (the robot standing)."""
+    walking = widget("walking")
+    for field, value in zip(walking.fields.get(command, []), fields):
+        field.setValue(value)
+    click(walking.buttons[command], f"walking {command}", walking)
+    wait(lambda: walking.state not in ("idle", None), 60, f"walking to start {command}")
+    wait(lambda: walking.state == "idle", 120, f"walking idle after {command}")
+    shown = [walking.warnings.item(i).text() for i in range(walking.warnings.count())]
+    if any("balance" in text for text in shown):    # the guard tripped: the walk was cut
+        fail(f"walking {command}: {shown}")
+    say(f"STEP walking {command} {' '.join(map(str, fields))} done".replace("  ", " "))
+
+
+def terrain() -> None:
+    """The rough-ground course by clicks (issue 32): start walking, go to the step, step up,
+    two footsteps placed in the 3-D view (the second dragged beside the first), on to the
+    far edge, step down."""
+    walking = widget("walking")
+    wait(lambda: walking.state is not None, 60, "walking's status")
+    wait_sendable("walking")
+    click(walking.switch_buttons["start"], "walking start", walking)
+    wait(lambda: walking.state == "idle", 30, "walking idle")
+    pump(2.0)                                      # the knees bend (CROUCH_TIME 1.5 s)
+    say("STEP walking started")
+    walk("go_straight", [0.12])
+    walk("step_up", [0.05, 0.33])
+    wait(lambda: window.soles() is not None, 30, "the robot's joint state")
+    for _ in range(2):
+        click(walking.add_button, "add footstep", walking)
+    if walking.ordered() != ["footstep_1", "footstep_2"] or \
+            not {"footstep_1", "footstep_2"} <= set(window.view3d.markers):
+        fail(f"footsteps {walking.footsteps}, markers {list(window.view3d.markers)}")
+    first, second = walking.footsteps["footstep_1"], walking.footsteps["footstep_2"]
+    say(f"STEP footsteps placed {first[:3]} {second[:3]}")
+    # the second one (right foot, a stride ahead) dragged back beside the first: the feet
+    # end side by side
+    beside = (first[0], second[1], second[2])
+    drag("footstep_2", beside, second[5],
+         lambda: abs(walking.footsteps["footstep_2"][0] - first[0]) < 1e-3, "footstep_2")
+    pump(1.0)
+    window.screenshot(OUT / "terrain-footsteps.png")
+    walk("footsteps")
+    walk("go_straight", [0.33])
+    walk("step_down", [0.05, 0.33])
+    say("DONE")
 
 
 def scene_follows() -> None:
@@ -666,7 +729,7 @@ if __name__ == "__main__":
     wait(lambda: window.ros_up, 60, "the PI's ROS node")
     say(f"UP after {window.ready_after:.2f} s")
     {"first": first, "second": second, "latency": latency, "peer": peer,
-     "camera": camera, "wall": wall_task,
+     "camera": camera, "wall": wall_task, "terrain": terrain,
      "valve": lambda: task_runs("drc_valve", int(sys.argv[3])),
      "task": lambda: task_runs(sys.argv[3], int(sys.argv[4])),
      "link": link_down}[sys.argv[1]]()

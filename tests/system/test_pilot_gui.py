@@ -13,6 +13,7 @@ The valve is read in the MuJoCo scene.  Screenshots are kept in the test's folde
 
 from __future__ import annotations
 
+import contextlib
 import math
 import re
 import shutil
@@ -23,7 +24,10 @@ import pytest
 
 from system.display import display_env, private_display
 from system.processes import ROSCORE_READY, Proc
-from system.topology import REPO, Component, Pc, Topology
+from system.topology import REPO, Pc, Topology, hal_component, task_component
+from walkman.model.description import STANDING_PELVIS_HEIGHT
+from walkman.model.mjcf import TERRAIN_STEP
+from walkman.modules.walking import CROUCH
 from tests.system.conftest import dump_outputs_if_failed
 
 PYTHON = sys.executable
@@ -40,8 +44,7 @@ def display():
 
 @pytest.fixture
 def drc(tmp_path, request):
-    valve = Component("drc_valve", "robot", (PYTHON, "-m", "walkman.gym.supervisor",
-                                             "drc_valve"), r"ready for the pilot")
+    valve = task_component("drc_valve")
     topology = Topology("drc", tmp_path / "drc", extra=[valve])
     topology.start_name_servers()
     topology.start_all([n for n in topology.table if n != "rosbag"])
@@ -110,16 +113,12 @@ def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
         gateway[-3000:]
 
 
-def test_the_wall_task_by_clicks_cuts_the_circle_in_the_world(tmp_path, display, request):
-    """drc_wall through the PI on the drc topology (the bridge between two name-server
-    pairs): every step clicked, the timed ones counted down with the preview's ghost in
-    the 3-D view; the simulated world -- the HAL's drywall, not the module -- says the
-    circle is cut out."""
-    hal = Component("hal", "robot", (PYTHON, "-m", "walkman.hal.server", "--backend", "sim",
-                                     "--station", "wall"), r"HAL for walkman")
-    wall = Component("drc_wall", "robot", (PYTHON, "-m", "walkman.gym.supervisor",
-                                           "drc_wall"), r"ready for the pilot")
-    topology = Topology("drc", tmp_path / "drc", extra=[hal, wall])
+@contextlib.contextmanager
+def clicked_on_drc(tmp_path, display, request, module: str, phase: str, *hal: str):
+    """A task clicked through a PI (driver phase ``phase``) on the drc topology with the
+    HAL started with ``hal``: yields the topology and the PI's process once it said DONE."""
+    topology = Topology("drc", tmp_path / "drc",
+                        extra=[hal_component(*hal), task_component(module)])
     del topology.table["rosbag"]
     out = tmp_path / "screens"
     out.mkdir()
@@ -127,9 +126,24 @@ def test_the_wall_task_by_clicks_cuts_the_circle_in_the_world(tmp_path, display,
         topology.start_name_servers()
         topology.start_all(list(topology.table))
         topology.wait_ready(180)
-        pi = start_pi(topology.pilot, display, "wall", out)
+        pi = start_pi(topology.pilot, display, phase, out)
         pi.wait_for(r"DONE|FAIL", 600)
         assert "FAIL" not in pi.output(), pi.output()
+        yield topology, pi
+    finally:
+        shutil.copytree(out, REPO / "out" / f"pilot-gui-{phase}", dirs_exist_ok=True)
+        for pc in topology.unique_pcs():
+            dump_outputs_if_failed(request, pc.processes.values())
+        topology.close()
+
+
+def test_the_wall_task_by_clicks_cuts_the_circle_in_the_world(tmp_path, display, request):
+    """drc_wall through the PI on the drc topology (the bridge between two name-server
+    pairs): every step clicked, the timed ones counted down with the preview's ghost in
+    the 3-D view; the simulated world -- the HAL's drywall, not the module -- says the
+    circle is cut out."""
+    with clicked_on_drc(tmp_path, display, request, "drc_wall", "wall",
+                        "--station", "wall") as (topology, pi):
         for command in ("push_in", "cut"):           # each previewed while it counted down
             assert re.search(rf"STEP preview of {command} shown, worked out in [\d.]+ ms",
                              pi.output()), pi.output()
@@ -143,11 +157,30 @@ def test_the_wall_task_by_clicks_cuts_the_circle_in_the_world(tmp_path, display,
         gateway = topology.process("gateway").output()
         assert re.search(r"gateway: sent to /drc_wall/command:i: \(?cut\b", gateway), \
             gateway[-3000:]
-    finally:
-        shutil.copytree(out, REPO / "out" / "pilot-gui-wall", dirs_exist_ok=True)
-        for pc in topology.unique_pcs():
-            dump_outputs_if_failed(request, pc.processes.values())
-        topology.close()
+
+
+def test_the_terrain_course_by_clicks_with_footsteps_placed_in_the_3d_view(tmp_path, display,
+                                                                         request):
+    """Issue 32, rough ground, through the PI on the drc topology with the harness off:
+    walking's clicks take the robot up the 5-cm step, along it on two footsteps placed in
+    the 3-D view (one dragged there), and down the far side; the simulated world says the
+    robot stands on the floor past the step."""
+    with clicked_on_drc(tmp_path, display, request, "walking", "terrain",
+                        "--station", "terrain", "--harness", "off") as (topology, pi):
+        for step in ("go_straight 0.12", "step_up 0.05 0.33", "footsteps", "go_straight 0.33",
+                     "step_down 0.05 0.33"):
+            assert f"STEP walking {step} done" in pi.output(), pi.output()
+        out = topology.robot.run([PYTHON, "-m", "tests.modules.scene"], timeout=60).output()
+        base = re.search(r"base_x (\S+) base_yaw (\S+)\s+base_z (\S+) tilt (\S+)", out)
+        assert base, out
+        x, yaw, z, tilt = map(float, base.groups())
+        step_end = TERRAIN_STEP[1]
+        assert x > step_end + 0.1, out                  # the pelvis past the far edge
+        assert abs(z - (STANDING_PELVIS_HEIGHT - CROUCH)) < 0.04, out   # on the floor, up
+        assert tilt < 0.1 and abs(yaw) < 0.1, out
+        gateway = topology.process("gateway").output()
+        assert re.search(r"gateway: sent to /walking/command:i: \(?footsteps\b", gateway), \
+            gateway[-3000:]
 
 
 def test_in_the_lab_a_black_sky_and_points_without_depth_are_not_loss(display, tmp_path,

@@ -58,7 +58,7 @@ def valve():
 
 def test_a_turn_previewed_ends_where_the_hand_really_ends(valve):
     preview = valve.preview("turn 1.5708")
-    assert not preview.refused, preview.refusal
+    assert not preview.refused and preview.moves, preview.refusal
     valve.do("turn 1.5708", "grasped")
     assert np.linalg.norm(grip(preview.posture) - grip(valve.posture)) < 0.015
 
@@ -118,3 +118,45 @@ def test_a_shadow_that_never_saw_the_pose_is_out_of_step_not_wrong_and_not_crash
     assert "has not seen the task's pose" in preview.refusal
     late.follow(PILOT_POSES["valve"], "moved_away", robot.posture)   # the pose again
     assert late.in_step
+
+
+def test_a_walk_s_shadow_refuses_what_the_module_refuses_and_nothing_more():
+    """walking on the rough ground: a walk the shadow followed is over for it (the next one
+    is not 'already walking'); a step too high is refused on the pilot PC with the module's
+    own words; footsteps measured from the soles (pelvis frame) are judged as the module
+    judges them, though the shadow never walked (issue 32)."""
+    from tests.modules.test_walking import soles_in_pelvis_frame, walker, walk_through
+    from walkman.modules import walking
+
+    world, module = walker("terrain")
+    shadow = Shadow(walking.Module, "walking")
+
+    def do(command: str) -> None:
+        before, posture = module.thread.fsm.state, world.backend.positions()
+        walk_through(world, module, command)
+        shadow.follow(command, before, posture)
+
+    def preview(command: str):
+        return shadow.preview(command, module.thread.fsm.state, world.backend.positions())
+
+    do("go_straight 0.12")
+    step_up = preview("step_up 0.05")
+    assert not step_up.refused and not step_up.moves, step_up.refusal   # no ghost for a walk
+    too_high = preview("step_up 0.12")
+    assert too_high.refused and too_high.refusal.endswith(
+        "step_up refused: step 1 of 2 (left foot) cannot be made: 0.12 m above the other foot "
+        "(at most 0.08)")
+    do("step_up 0.05")
+    left, right = soles_in_pelvis_frame(world.backend)
+
+    def footsteps(*steps) -> str:
+        return "footsteps " + " ".join(f"{v:.4f}" for step in steps for v in step)
+
+    level = footsteps(left + (0.15, 0, 0, 0), right + (0.15, 0, 0, 0))
+    high = footsteps(left + (0.15, 0, 0, 0.10), right + (0.15, 0, 0, 0))
+    assert not preview(level).refused, preview(level).refusal
+    assert preview(high).refused and "0.10 m above the other foot" in preview(high).refusal
+    module.command(high)                 # the module on the robot says the same
+    world.step(0.2)
+    assert module.state == "idle" and "0.10 m above the other foot" in module.warnings[-1]
+    do(level)

@@ -101,6 +101,9 @@ class Preview:
     #: False when the shadow could not work it out (it is out of step with the module, e.g.
     #: the part's pose was sent before this PC followed): no verdict either way.
     known: bool = True
+    #: False when the command starts no motion the shadow can follow (a walk: its steps are
+    #: balance, not IK): the posture is where the robot is, nothing to show as a ghost.
+    moves: bool = True
 
     @property
     def refused(self) -> bool:
@@ -153,10 +156,7 @@ class Shadow:
         self.backend.set_posture(posture)
         thread = self.thread
         thread.reference = np.asarray(posture, dtype=float).copy()
-        thread.trajectory.reset()           # the shadow never runs its motions: none is left
-        thread.joint_motion, thread.waiting_until = None, None
-        thread.hand_goals.clear()
-        thread.phases.clear()
+        thread.forget_motions()             # the shadow never runs its motions: none is left
         if state in self.thread.table:
             self.thread.fsm.state = state
         said = len(self.module.warnings)
@@ -182,13 +182,20 @@ class Shadow:
             refusals = self._start(text, state, posture)
             if refusals:
                 return Preview(text, None, refusals[-1], time.perf_counter() - began)
+            moves = self._moves()
             end, reason = self._follow_to_end(np.asarray(posture, dtype=float))
-            return Preview(text, end, reason, time.perf_counter() - began)
+            return Preview(text, end, reason, time.perf_counter() - began, moves=moves)
         except OutOfStep as exc:
             return Preview(text, None, f"the preview could not follow the module ({exc})",
                            time.perf_counter() - began, known=False)
         finally:
             self._restore(saved)
+
+    def _moves(self) -> bool:
+        """The command just handed to the shadow started a motion it can follow."""
+        thread = self.thread
+        return bool((thread.trajectory.active and thread.effector is not None)
+                    or thread.joint_motion is not None or thread.hand_goals or thread.phases)
 
     def _follow_to_end(self, q: np.ndarray) -> Tuple[Optional[np.ndarray], str]:
         """The posture the started motion and the ones chained to it end in, from ``q``; or

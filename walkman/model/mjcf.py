@@ -83,6 +83,9 @@ PILOT_POSES = {"valve": "valvedatasent 0.66 0.25 0.08 0 0 0 0.15",
 #: half sizes of each).
 TERRAIN_STEP = (-5.68, -4.88, 0.05)
 TERRAIN_RAMP = (-1.2, -5.6, 0.6, 0.1745)
+#: The walking commands that take the robot from station ``terrain`` over the step: to the
+#: kerb (toes 4 cm from it), up, along to the far edge, down (bench/bench_walking.py).
+TERRAIN_COURSE = ("go_straight 0.12", "step_up 0.05", "go_straight 0.48", "step_down 0.05")
 TERRAIN_DEBRIS = ((-5.55, 1.15, 0.3, 0.05, 0.03, 0.02), (-5.30, 1.30, -0.6, 0.08, 0.02, 0.015),
                   (-5.05, 1.05, 1.1, 0.04, 0.04, 0.03), (-4.80, 1.25, 0.2, 0.10, 0.015, 0.01))
 #: Vertical stiffness (N/m) of the harness spring and its share of the robot's weight when

@@ -271,6 +271,15 @@ class TaskModule(ControlThread):
         self.joint_motion = None
         self._said_overdue = False
 
+    def forget_motions(self) -> None:
+        """Drop every motion under way and to come: the preview's shadow
+        (:mod:`walkman.gym.preview`), told where the robot is and in which state, never runs
+        its motions, so none may be left over for the next command it is handed."""
+        self.trajectory.reset()
+        self.joint_motion, self.waiting_until = None, None
+        self.hand_goals.clear()
+        self.phases.clear()
+
     def joints_to(self, names: Sequence[str], goal: Sequence[float], speed: float,
                   minimum: float = 1.0) -> None:
         """Move ``names`` to ``goal`` (rad) in joint space, quintic in time."""

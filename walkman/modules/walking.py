@@ -52,14 +52,14 @@ then sees ``paused``).
 from __future__ import annotations
 
 import math
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from walkman.control.balance import (AnkleCompliance, AttitudeLoop, BalanceGuard, Sole,
                                      combined_zmp, foot_zmp, rotation_rpy, support_margin,
                                      to_local)
-from walkman.control.footsteps import SIDES, Planar, WalkPlan, compose
+from walkman.control.footsteps import SIDES, Planar, WalkPlan, compose, inverse
 from walkman.control.lipm import PreviewAxis, preview_gains
 from walkman.control.trajectory import quintic
 from walkman.gym.link_loss import LinkLoss
@@ -118,6 +118,17 @@ class Module(TaskModule):
     link_loss = LinkLoss.pause(after=5.0)
     joints = LEGS["left"] + LEGS["right"] + WAIST
 
+    @classmethod
+    def describe_status(cls, state: str, values: Sequence[float]) -> str:
+        """The odometry and the balance figures (:meth:`status_data`) as a pilot reads them."""
+        if len(values) != 5:
+            return super().describe_status(state, values)
+        x, y, yaw, margin, tilt = values
+        balance = "no foot on the floor" if math.isnan(margin) else \
+            f"ZMP {margin * 100:.1f} cm inside the feet"
+        return (f"walked {x:.2f} m ahead, {y:.2f} m left, turned {math.degrees(yaw):.0f}\u00b0; "
+                f"{balance}, torso {math.degrees(tilt):.1f}\u00b0 off vertical")
+
     def setup(self) -> None:
         q = self.robot.sense_position()
         soles = {side: self.sole(q, side) for side in SIDES}
@@ -134,7 +145,6 @@ class Module(TaskModule):
         crouched = -float((self.sole(home_q, "left") + self.sole(home_q, "right"))[2]) / 2 - CROUCH
         self.height = (standing, crouched, self.now())
         self.pelvis_xy = -middle[:2]
-        self.pelvis_z, self.pelvis_yaw = standing, 0.0   # walk frame, as last commanded
         self.leg_index = {side: self.ik.joints_of(joints) for side, joints in LEGS.items()}
         waist = [self.robot.index[name] for name in WAIST]
         self.reference[waist] = 0.0  # upright
@@ -213,14 +223,30 @@ class Module(TaskModule):
         if len(values) % 4:
             raise ValueError(f"footsteps are X Y YAW Z each: {len(values)} numbers is not "
                              f"a multiple of 4")
-        # The pelvis frame as the walk last commanded it (upright, heading as the feet):
-        # where a pilot or perception measures the footsteps from.
-        pelvis = (float(self.pelvis_xy[0]), float(self.pelvis_xy[1]), self.pelvis_yaw)
+        pelvis, height = self.pelvis_in_walk_frame()
         footsteps = []
         for index in range(0, len(values), 4):
             x, y, yaw, z = values[index:index + 4]
-            footsteps.append((*compose(pelvis, (x, y, yaw)), self.pelvis_z + z))
+            footsteps.append((*compose(pelvis, (x, y, yaw)), height + z))
         self.plan.place(footsteps, self._walk_start())
+
+    def pelvis_in_walk_frame(self) -> Tuple[Planar, float]:
+        """The pelvis's planar pose and height in the walk frame, from where the soles are in
+        each (the legs as commanded, the pelvis taken upright): where a pilot or perception
+        measures footsteps from.  From the posture, not the walk's own state, so the
+        preview's shadow (walkman.gym.preview), given the measured posture, agrees."""
+        soles = {side: self.kinematics.pose(self.reference, FRAMES[side]) for side in SIDES}
+        points = [position + rotation @ SOLE for position, rotation in soles.values()]
+        middle = (points[0] + points[1]) / 2
+        headings = [math.atan2(rotation[1, 0], rotation[0, 0]) for _, rotation in soles.values()]
+        yaw = math.atan2(sum(math.sin(h) for h in headings), sum(math.cos(h) for h in headings))
+        centre_in_pelvis = (float(middle[0]), float(middle[1]), yaw)
+        pelvis = compose(self.plan.centre, inverse(centre_in_pelvis))
+        return pelvis, sum(self.plan.ground.values()) / len(SIDES) - float(middle[2])
+
+    def forget_motions(self) -> None:
+        super().forget_motions()
+        self.plan.steps, self.plan.set_aside = [], []
 
     # -- every tick ----------------------------------------------------------------------
 
@@ -301,7 +327,6 @@ class Module(TaskModule):
         offset = rotation @ self.kinematics.com(self.posture)
         self.pelvis_xy = com_ref - offset[:2]
         pelvis = np.array([self.pelvis_xy[0], self.pelvis_xy[1], pelvis_z])
-        self.pelvis_z, self.pelvis_yaw = float(pelvis_z), float(yaw)
         tilts = self.comply(dt, now, planar, paused)
         for side, index in self.leg_index.items():
             (x, y, foot_yaw), height = feet[side]
