@@ -31,8 +31,7 @@ BUDGET_MS = 50.0
 
 
 def grip(kinematics: Kinematics, q) -> np.ndarray:
-    position, rotation = kinematics.pose(q, "l_hand")
-    return position + rotation @ GRIP
+    return kinematics.point(q, "l_hand", GRIP)
 
 
 def timed(shadow: Shadow, command: str, state: str, posture, repeat: int):

@@ -22,7 +22,6 @@ import argparse
 import faulthandler
 import logging
 import os
-import math
 import signal
 import sys
 import time
@@ -347,17 +346,11 @@ class PilotWindow(QMainWindow):
         if self.preview.posture is None:
             return None
         from walkman.control.kinematics import Kinematics
-        from walkman.modules.walking import FRAMES, SOLE
+        from walkman.modules.walking import sole_poses
 
         if self._kinematics is None:
             self._kinematics = Kinematics()
-        out = {}
-        for side, frame in FRAMES.items():
-            position, rotation = self._kinematics.pose(self.preview.posture, frame)
-            x, y, z = position + rotation @ SOLE
-            out[side] = (float(x), float(y), math.atan2(rotation[1, 0], rotation[0, 0]),
-                         float(z))
-        return out
+        return sole_poses(self._kinematics, self.preview.posture)
 
     def _state_of(self, module: str) -> Optional[str]:
         return next((w.state for w in self.module_widgets.get(module, [])

@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 
-from nodekit.tf import tf_message as build_tf, transform
+from nodekit import tf
 from walkman.model import URDF_PATH
 
 log = logging.getLogger("walkman.joint_state")
@@ -36,11 +36,11 @@ log = logging.getLogger("walkman.joint_state")
 OPTICAL_ROTATION = (-0.5, 0.5, -0.5, 0.5)
 
 
-def tf_message(kinematics, q: np.ndarray, now):
+def robot_tf(kinematics, q: np.ndarray, now):
     """``/tf``: every link in the pelvis frame, and the camera's optical frame."""
-    optical = transform("multisense_frame", "multisense_optical_frame", (0, 0, 0),
-                        OPTICAL_ROTATION, now)   # the camera's optical frame: z ahead, y down
-    return build_tf(kinematics.link_placements(q), now, extra=[optical])
+    optical = tf.transform("multisense_frame", "multisense_optical_frame", (0, 0, 0),
+                           OPTICAL_ROTATION, now)   # the camera's optical frame: z ahead, y down
+    return tf.tf_message(kinematics.link_placements(q), now, extra=[optical])
 
 
 def publish_slow(publisher, robot, now) -> None:
@@ -179,7 +179,7 @@ def main(argv=None) -> int:
         publishers["joints"].publish(msg)
         tick += 1
         if "tf" in publishers and tick % tf_every == 0:
-            publishers["tf"].publish(tf_message(kinematics, q, now))
+            publishers["tf"].publish(robot_tf(kinematics, q, now))
     if battery is not None:
         battery[1].stop()
         battery[0].close()

@@ -46,7 +46,8 @@ class SceneKeeper:
         self.into = Port(nameclient=nameclient, reader=self._on_record)
         self.into.open(f"{prefix}/scene:i", wait=math.inf)
         self._stop = threading.Event()
-        threading.Thread(target=self._resend, name="gateway scene", daemon=True).start()
+        self._resender = threading.Thread(target=self._resend, name="gateway scene", daemon=True)
+        self._resender.start()
 
     # -- ROS ---------------------------------------------------------------------------------
 
@@ -124,7 +125,11 @@ class SceneKeeper:
                 self._write(record)
 
     def close(self) -> None:
+        """Stop rewriting the scene, then close the ports (a write on a closing port would
+        only be logged, but the resend loop is done before they go)."""
         self._stop.set()
+        if self._resender is not threading.current_thread():
+            self._resender.join(timeout=5.0)
         for port in (self.out, self.into):
             port.close()
 

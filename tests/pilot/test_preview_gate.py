@@ -3,7 +3,7 @@
 import pytest
 
 from pilot.preview import COUNTDOWN_SILENCE, PreviewGate
-from tests.walkman.test_preview import Followed
+from tests.walkman.followed import Followed
 from walkman.model.description import walkman
 from walkman.model.mjcf import PILOT_POSES
 from walkman.modules import drc_valve

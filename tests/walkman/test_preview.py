@@ -8,10 +8,9 @@ robot's hand really ends.
 import numpy as np
 import pytest
 
+from tests.walkman.followed import Followed
 from walkman.control.kinematics import Kinematics
-from walkman.gym.offline import OfflineWorld
 from walkman.gym.preview import Shadow
-from walkman.hal.sim import SimBackend
 from walkman.model.mjcf import PILOT_POSES
 from walkman.modules import drc_valve, drc_wall
 from walkman.modules.task import GRIP
@@ -20,31 +19,7 @@ KINEMATICS = Kinematics()
 
 
 def grip(q) -> np.ndarray:
-    position, rotation = KINEMATICS.pose(q, "l_hand")
-    return position + rotation @ GRIP
-
-
-class Followed:
-    """A module on the simulated robot and its shadow, given the same commands."""
-
-    def __init__(self, station: str, module_class, name: str) -> None:
-        self.world = OfflineWorld(SimBackend(station=station))
-        self.module = self.world.add(module_class, name)
-        assert self.module.switch("start")
-        self.world.step(0.05)
-        self.shadow = Shadow(module_class, name)
-
-    @property
-    def posture(self) -> np.ndarray:
-        return self.world.backend.positions()
-
-    def do(self, command: str, state: str) -> None:
-        before, posture = self.module.thread.fsm.state, self.posture
-        self.module.do(command, state, 40)
-        self.shadow.follow(command, before, posture)
-
-    def preview(self, command: str):
-        return self.shadow.preview(command, self.module.thread.fsm.state, self.posture)
+    return KINEMATICS.point(q, "l_hand", GRIP)
 
 
 @pytest.fixture(scope="module")

@@ -62,6 +62,11 @@ class Kinematics:
         placement = self.data.oMf[self.frame_id(frame)]
         return placement.translation.copy(), placement.rotation.copy()
 
+    def point(self, q: Sequence[float], frame: str, offset: Sequence[float]) -> np.ndarray:
+        """Where a point fixed in ``frame`` (``offset`` in that frame) is, pelvis frame."""
+        position, rotation = self.pose(q, frame)
+        return position + rotation @ np.asarray(offset, dtype=float)
+
     def jacobian(self, q: Sequence[float], frame: str) -> np.ndarray:
         """6 x 33 Jacobian (linear; angular) in the pelvis-aligned frame, whole-body columns."""
         pq = self.pin_q(q)

@@ -148,7 +148,8 @@ class Shadow:
         if refusals and self.in_step:
             log.warning("preview of %s: the shadow refused %r in %s, which the module took "
                         "(%s)", self.name, text, state, refusals[-1])
-        if text.split()[0].endswith("datasent") and not refusals:
+        words = text.split()
+        if words and words[0].endswith("datasent") and not refusals:
             self.in_step = True
 
     def _start(self, text: str, state: str, posture: Sequence[float]) -> List[str]:

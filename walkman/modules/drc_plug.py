@@ -105,5 +105,4 @@ class Module(GraspTask):
     def _start_move_away(self) -> None:
         # Back along the approach axis from wherever the plug was left, then nothing else:
         # ``home`` takes the arm down.
-        position, _ = self.pose(self.hand)
-        self.line_to(self.hand, position - REACH_GAP * self.target["forward"], self.speed)
+        self.back_away(REACH_GAP)

@@ -49,7 +49,7 @@ REACH_GAP = 0.165        # m behind the handle when reached
 LIFT = 0.12              # m the drill rises off its table
 STANDOFF = 0.03          # m between the tip and the wall before it goes in
 DEPTH = 0.02             # m the tip goes past the wall's face: through a 1.5 cm panel
-HAND_TRIGGER = 1.45      # rad: the hand closed on the trigger (the simulator's runs past 1.38)
+HAND_TRIGGER = 1.45      # rad: the hand closed on the trigger, past the simulator's DRILL_TRIGGER
 TRIGGER_TOLERANCE = 0.03
 CUT_SPEED = 1.0          # rad/s, peak angular speed round the circle
 CHECKED_ANGLES = 24      # points of the circle checked reachable at walldatasent
@@ -206,6 +206,5 @@ class Module(GraspTask):
         self.then(lambda: self._tip_to(held, self.speed / 2))
 
     def _start_move_away(self) -> None:
-        position, _ = self.pose(self.hand)
-        self.line_to(self.hand, position - REACH_GAP * self.target["forward"], self.speed)
+        self.back_away(REACH_GAP)
 

@@ -455,5 +455,11 @@ class GraspTask(TaskModule):
     def _start_ungrasp(self) -> None:
         self.set_hand(LEFT_HAND, HAND_OPEN)
 
+    def back_away(self, gap: float) -> None:
+        """The open hand straight back ``gap`` m along the target's ``forward`` axis, from
+        wherever it let the part go."""
+        position, _ = self.pose(self.hand)
+        self.line_to(self.hand, position - gap * self.target["forward"], self.speed)
+
     def _start_home(self) -> None:
         self.home(LEFT_ARM + WAIST)

@@ -99,6 +99,17 @@ TABLE = {
 STEP_FORWARD = 0.33
 
 
+def sole_poses(kinematics, q: np.ndarray) -> Dict[str, Tuple[float, float, float, float]]:
+    """Each sole's centre ``(x, y, yaw, z)`` in the pelvis frame at posture ``q``: where the
+    feet are for footsteps (this module, and the PI placing a first footstep)."""
+    out = {}
+    for side, frame in FRAMES.items():
+        position, rotation = kinematics.pose(q, frame)
+        x, y, z = position + rotation @ SOLE
+        out[side] = (float(x), float(y), math.atan2(rotation[1, 0], rotation[0, 0]), float(z))
+    return out
+
+
 class Module(TaskModule):
     statuses = task_statuses(TABLE)
     table = TABLE
@@ -170,8 +181,7 @@ class Module(TaskModule):
         self.last_tick = self.last_report = self.now()
 
     def sole(self, q: np.ndarray, side: str) -> np.ndarray:
-        position, rotation = self.kinematics.pose(q, FRAMES[side])
-        return position + rotation @ SOLE
+        return self.kinematics.point(q, FRAMES[side], SOLE)
 
     def status_data(self) -> List[float]:
         """Odometry (x, y m, yaw rad) and balance: the ZMP's margin (m; nan with no foot
@@ -235,14 +245,11 @@ class Module(TaskModule):
         each (the legs as commanded, the pelvis taken upright): where a pilot or perception
         measures footsteps from.  From the posture, not the walk's own state, so the
         preview's shadow (walkman.gym.preview), given the measured posture, agrees."""
-        soles = {side: self.kinematics.pose(self.reference, FRAMES[side]) for side in SIDES}
-        points = [position + rotation @ SOLE for position, rotation in soles.values()]
-        middle = (points[0] + points[1]) / 2
-        headings = [math.atan2(rotation[1, 0], rotation[0, 0]) for _, rotation in soles.values()]
-        yaw = math.atan2(sum(math.sin(h) for h in headings), sum(math.cos(h) for h in headings))
-        centre_in_pelvis = (float(middle[0]), float(middle[1]), yaw)
-        pelvis = compose(self.plan.centre, inverse(centre_in_pelvis))
-        return pelvis, sum(self.plan.ground.values()) / len(SIDES) - float(middle[2])
+        soles = sole_poses(self.kinematics, self.reference)
+        (lx, ly, lyaw, lz), (rx, ry, ryaw, rz) = soles["left"], soles["right"]
+        yaw = lyaw + math.atan2(math.sin(ryaw - lyaw), math.cos(ryaw - lyaw)) / 2
+        pelvis = compose(self.plan.centre, inverse(((lx + rx) / 2, (ly + ry) / 2, yaw)))
+        return pelvis, sum(self.plan.ground.values()) / len(SIDES) - (lz + rz) / 2
 
     def forget_motions(self) -> None:
         super().forget_motions()
