@@ -336,7 +336,11 @@ class PilotWindow(QMainWindow):
 
     def _dragged(self, name: str, kind: str, pose: Sequence[float]) -> None:
         """A marker of the shared scene dragged here (a Qt slot: never raises)."""
-        problem = self.place(name, kind, pose, dragged=True)
+        try:
+            problem = self.place(name, kind, pose, dragged=True)
+        except Exception as exc:  # noqa: BLE001 -- PyQt aborts the process on a slot's exception
+            log.exception("pilot: %s dragged, not placed", name)
+            problem = f"{name} not placed: {exc}"
         if problem:
             self._note(problem)
 

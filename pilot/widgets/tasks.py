@@ -319,9 +319,16 @@ class WalkingWidget(TaskWidget):
             self.show_problem(problem)
 
     def clear_footsteps(self) -> None:
-        for name in self.ordered():
-            pose = self.footsteps.pop(name)
-            self.sender_.place(name, "footstep", pose, removed=True)
+        """(A Qt slot: nothing gets out.)"""
+        try:
+            for name in self.ordered():
+                pose = self.footsteps.pop(name)
+                problem = self.sender_.place(name, "footstep", pose, removed=True)
+                if problem:
+                    self.show_problem(problem)
+        except Exception as exc:  # noqa: BLE001
+            log.exception("pilot: clearing the footsteps failed")
+            self.show_problem(f"footsteps not all cleared: {exc}")
         self._show_count()
 
     def footstep_moved(self, name: str, pose: Optional[Sequence[float]]) -> None:

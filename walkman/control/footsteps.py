@@ -111,10 +111,12 @@ class Timing:
 @dataclass(frozen=True)
 class Reach:
     """Where a landing sole's centre may be in the standing sole's frame (m, rad): the
-    legs' reach with the knees bent as walking bends them, found with the simulated robot
-    (``tests/modules/test_walking.py``: a 5 cm step up at 0.33 m walks, 0.12 m is
-    refused).  ``width`` bounds the distance across (the feet are 0.14 m wide, and
-    ``cross`` is the least that keeps them from touching)."""
+    legs' reach with the knees bent as walking bends them.  Tried on the simulated robot:
+    every stride the planner makes, and a 5-cm step up and down 0.33 m ahead (the ZMP at
+    least 3.3 cm inside the feet, ``bench/bench_walking.py``); ``height`` leaves 3 cm of
+    margin over that, what is higher is untried and refused.  ``width`` bounds the
+    distance across (the feet are 0.14 m wide; ``cross`` is the least the planner's turns
+    come to, the soles' edges then 2 cm apart at their closest)."""
 
     ahead: float = 0.36
     behind: float = 0.20

@@ -28,6 +28,12 @@ own module:
   runs at 500 Hz on a port per chain and reaches a loaded module late (a
   100 ms lag there topples the robot); the F/T and IMU ports stay fresh.
 
+The ground may have steps (issue 32's rough ground): ``step_up H`` and
+``step_down H`` land both feet on ground H higher or lower, ``footsteps`` plays
+sole poses the pilot placed (pelvis frame, converted to the walk frame from
+where the soles are); the plan checks every landing against the legs' reach
+before a foot lifts, and the pelvis rises and sinks with the feet's ground.
+
 On start the knees bend (the pelvis sinks ``CROUCH``) so that steps are within
 reach and the pendulum's height is constant while walking.  The pilot's
 ``pause`` ends the walk soon with both feet down, side by side (a foot in the
@@ -94,8 +100,8 @@ TABLE = {
     "stepping_down": {"action_done": "idle"},
 }
 #: ``step_up``/``step_down``'s default reach ahead (m): the left sole's centre lands this far
-#: ahead, its heel 0.20 m ahead of where the toes were -- the pilot walks the toes up to
-#: the edge (within 0.15 m) first.
+#: ahead, its heel 7 cm ahead of where the toes were -- the pilot first walks the toes up to
+#: the kerb (within 4 cm: the heel then lands 3 cm past it).
 STEP_FORWARD = 0.33
 
 
