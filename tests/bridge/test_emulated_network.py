@@ -25,7 +25,8 @@ from bridge.radio_model import MAX_FRAME, QUEUE_MIN_FRAMES
 from bridge_harness import HERE, PYTHON, TwoPCs
 from harness import Proc, wait_until
 from system.processes import WaitTimeout
-from pilot_side import bridge_status, executed, send, switch, wait_nothing_in_flight
+from pilot_side import (bridge_status, executed, send, switch, wait_nothing_in_flight,
+                        wait_shown)
 
 pytestmark = pytest.mark.requires("root")
 
@@ -270,6 +271,10 @@ def test_gym_module_and_perception_over_a_drc_link(pcs, lite, link):
     pcs.wait_linked(60)
     probe = pcs.pilot.python(str(HERE / "cloud_probe.py"), name="probe")
     probe.wait_for("probe ready", 30)
+    # The reader's source must exist when it starts (as with YARP's own ``yarp read``): the
+    # pilot bridge shows the module's ports a moment after the link is up (a fresh-clone
+    # run read too early: "could not find source port /counter/status:o").
+    wait_shown(pcs, lite)
     status = pcs.pilot.world.tool(lite, "read", "/test/status", "/counter/status:o")
     switch(pcs, lite, "start", 2)
     sender = send(pcs, 1, 20, interval=0.1)
