@@ -10,25 +10,30 @@ torso tilted, the smallest margin of the measured ZMP to the edge of the feet, a
 wall time of one control tick against the 2 ms budget of a 500 Hz loop.  Then the largest
 push (N*s on the torso, over 0.1 s) survived standing, in 5 N*s steps, each way; and
 sideways in mid-walk.  Survived: upright (tilt < 0.1 rad, pelvis not sunk) 4 s after.
-The rough-ground course (station ``terrain``, ``TERRAIN_COURSE``): up a 5-cm step, along
-it, down: each command's time and smallest ZMP margin, the course's speed.
+The rough-ground courses (tests/modules/walker.py): up a 5-cm step, along it and down
+(station ``terrain``); onto a 10-degree ramp, up it and onto its top (station ``ramp``):
+each command's time and smallest ZMP margin, each course's speed.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
+from pathlib import Path
 from typing import List, Optional, Tuple
 
 import numpy as np
 
 from bench_tasks import timed_ticks
 from host import say_machine  # noqa: E402  (bench/ is the script's folder)
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ beside bench/
+from tests.modules.walker import ramp_course, terrain_course, walker  # noqa: E402
 from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import SimBackend
 from walkman.model.description import STANDING_PELVIS_HEIGHT
-from walkman.model.mjcf import TERRAIN_COURSE
 from walkman.modules import walking
 
 COMMANDS = [("go_straight 1.0", 0, 1.0), ("go_straight -0.5", 0, -0.5), ("turn 0.8", 3, 0.8),
@@ -81,28 +86,28 @@ def walk(command: str, axis: int, amount: float) -> Tuple[str, List[float]]:
     return row, costs
 
 
-def terrain_course() -> List[str]:
-    """The rough-ground course (station ``terrain``: up a 5-cm step, along, down): per
-    command its time and smallest ZMP margin, then the whole course's speed."""
-    world, module, _ = standing("terrain")
-    start, began, rows, smallest, fell = world.backend.plant.base_pose()[0], world.time, [], \
-        math.inf, False
-    for command in TERRAIN_COURSE:
-        at, margins = world.time, []
-        module.command(command)
-        world.step(0.1)
-        while module.state != "idle" and world.time - at < 60:
-            world.step(0.01)
-            if module.thread.margin is not None:
-                margins.append(module.thread.margin)
-            fell = fell or not upright(world)
-        smallest = min([smallest] + margins)
-        rows.append(f"  {command:18s} {world.time - at:5.1f} s  smallest ZMP margin "
-                    f"{min(margins) * 100:4.1f} cm{'  ' + module.warnings[-1] if module.warnings else ''}")
-    distance = world.backend.plant.base_pose()[0] - start
-    rows.append(f"terrain course: {distance:.2f} m in {world.time - began:.1f} s "
-                f"({distance / (world.time - began):.3f} m/s), smallest ZMP margin "
-                f"{smallest * 100:.1f} cm, {'FELL' if fell else 'standing at the end'}")
+def rough_ground() -> List[str]:
+    """The rough-ground courses (tests/modules/walker.py): the 5-cm step of station
+    ``terrain`` and the 10-degree ramp of station ``ramp``: per command its time and
+    smallest ZMP margin, then each course's speed."""
+    rows = []
+    for station, course in (("terrain", terrain_course), ("ramp", ramp_course)):
+        world, module = walker(station)
+        start = world.backend.plant.base_pose()[0]
+        try:
+            legs = course(world, module)
+        except AssertionError as exc:      # the base not upright: fell
+            rows.append(f"{station} course: FELL ({str(exc)[:120]})")
+            continue
+        for command, margin, seconds in legs:
+            rows.append(f"  {command[:18]:18s} {seconds:5.1f} s  smallest ZMP margin "
+                        f"{margin * 100:4.1f} cm")
+        distance = world.backend.plant.base_pose()[0] - start
+        seconds = sum(leg[2] for leg in legs)
+        rows.append(f"{station} course: {distance:.2f} m in {seconds:.1f} s "
+                    f"({distance / seconds:.3f} m/s), smallest ZMP margin "
+                    f"{min(leg[1] for leg in legs) * 100:.1f} cm, standing at the end"
+                    f"{'; ' + module.warnings[-1] if module.warnings else ''}")
     return rows
 
 
@@ -147,7 +152,7 @@ def main() -> int:
     ms = np.array(ticks) * 1e3
     print(f"control tick: median {np.median(ms):.2f} ms, p99 {np.percentile(ms, 99):.2f} ms, "
           f"max {ms.max():.2f} ms (budget 2 ms at 500 Hz; the module runs at 100 Hz)")
-    for row in terrain_course():
+    for row in rough_ground():
         print(row, flush=True)
     if not options.quick:
         started = time.perf_counter()

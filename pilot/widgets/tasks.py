@@ -259,11 +259,8 @@ class WalkingWidget(TaskWidget):
     def numbers(self, name: str) -> List[float]:
         if name != "footsteps":
             return super().numbers(name)
-        # X Y YAW Z of each sole, the order the module takes them in
-        return [v for step in self.ordered() for v in (self.footsteps[step][0],
-                                                        self.footsteps[step][1],
-                                                        self.footsteps[step][5],
-                                                        self.footsteps[step][2])]
+        # X Y Z ROLL PITCH YAW of each sole, in the order the feet take them
+        return [v for step in self.ordered() for v in self.footsteps[step][:6]]
 
     def do(self, name: str) -> bool:
         if name == "footsteps" and not self.footsteps:
@@ -275,27 +272,17 @@ class WalkingWidget(TaskWidget):
     def next_footstep(self) -> Optional[List[float]]:
         """Where the next footstep goes, or None while the feet's posture is unknown."""
         names = self.ordered()
-        if not names:
-            soles = self.sender_.soles()
-            if soles is None:
-                return None
-            x, y, yaw, z = soles["left"]
-            return [x + self.FIRST_AHEAD * math.cos(yaw), y + self.FIRST_AHEAD * math.sin(yaw),
-                    z, 0.0, 0.0, yaw]
-        last = self.footsteps[names[-1]]
-        side_of_last = "left" if len(names) % 2 else "right"
-        if len(names) >= 2:
-            base = self.footsteps[names[-2]]          # this foot's last footstep
-            yaw = base[5]
-            return [base[0] + self.STRIDE * math.cos(yaw), base[1] + self.STRIDE * math.sin(yaw),
-                    base[2], 0.0, 0.0, yaw]
+        from walkman.modules.walking import sole_ahead   # pinocchio: not at the PI's start
+
+        # at the height and pitch of what it comes from: the pilot drags it onto what is there
+        if len(names) >= 2:               # a stride ahead of this foot's last footstep
+            return list(sole_ahead(self.footsteps[names[-2]], self.STRIDE))
         soles = self.sender_.soles()
         if soles is None:
             return None
-        other = soles["right" if side_of_last == "left" else "left"]
-        yaw = last[5]
-        return [other[0] + self.STRIDE * math.cos(yaw), other[1] + self.STRIDE * math.sin(yaw),
-                last[2], 0.0, 0.0, yaw]
+        if not names:                     # the left foot first, a bit ahead of its sole
+            return list(sole_ahead(soles["left"], self.FIRST_AHEAD))
+        return list(sole_ahead(soles["right"], self.STRIDE))   # then the right, a stride on
 
     def add_footstep(self) -> None:
         """(A Qt slot: PyQt5 aborts the PI on an exception here -- none gets out.)"""

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from walkman.control.footsteps import Timing, WalkPlan, compose, inverse
+from walkman.control.footsteps import Ground, Timing, WalkPlan, compose, inverse
 
 FEET = {"left": (0.0, 0.11, 0.0), "right": (0.0, -0.11, 0.0)}
 planar = st.tuples(st.floats(-3, 3), st.floats(-3, 3), st.floats(-math.pi, math.pi))
@@ -140,20 +140,20 @@ def test_a_step_up_lands_both_feet_on_the_higher_ground_clearing_its_edge():
     assert plan.ground_level(lead.lift_at) == pytest.approx(0.0)
     assert plan.ground_level(lead.land_at) == pytest.approx(0.025)
     play(plan, plan.end_time() + 0.1)
-    assert plan.ground == {"left": 0.05, "right": 0.05}
+    assert plan.heights == {"left": 0.05, "right": 0.05}
     assert plan.feet["left"][0] == pytest.approx(0.33) and plan.feet["right"][0] == \
         pytest.approx(0.33)
     assert plan.travelled[0] == pytest.approx(0.33)
 
 
 def test_a_step_down_goes_to_the_lower_ground_and_a_walk_after_it_stays_there():
-    plan = WalkPlan(dict(FEET), ground={"left": 0.05, "right": 0.05})
+    plan = WalkPlan(dict(FEET), ground={"left": Ground(0.05), "right": Ground(0.05)})
     plan.step_to(0.33, -0.05, 0.0)
     lead = plan.steps[0]
     (_, _, _), top = plan.foot("left", (lead.lift_at + lead.land_at) / 2)
     assert top == pytest.approx(0.05 + Timing().lift)   # the heel clears the edge it leaves
     play(plan, plan.end_time() + 0.1)
-    assert plan.ground == {"left": 0.0, "right": 0.0}
+    assert plan.heights == {"left": 0.0, "right": 0.0}
     plan.plan(0.3, 0.0, 0.0, plan.end_time() + 1)
     assert all(step.land_z == 0.0 and not step.climbs for step in plan.steps)
 
@@ -173,8 +173,8 @@ def test_a_step_the_legs_cannot_make_is_refused_whole_before_a_foot_lifts(forwar
 
 def test_placed_footsteps_are_played_in_turn_from_the_side_of_the_first():
     plan = WalkPlan(dict(FEET))
-    assert plan.place([(0.15, -0.11, 0.0, 0.0), (0.30, 0.11, 0.0, 0.05),
-                       (0.30, -0.11, 0.0, 0.05)], 0.0) == 3
+    assert plan.place([(0.15, -0.11, 0.0, 0.0, 0.0), (0.30, 0.11, 0.0, 0.05, 0.0),
+                       (0.30, -0.11, 0.0, 0.05, 0.0)], 0.0) == 3
     assert [step.side for step in plan.steps] == ["right", "left", "right"]
     assert [step.land_z for step in plan.steps] == [0.0, 0.05, 0.05]
     play(plan, plan.end_time() + 0.1)
@@ -183,13 +183,14 @@ def test_placed_footsteps_are_played_in_turn_from_the_side_of_the_first():
 
 
 @pytest.mark.parametrize("footsteps, problem", [
-    ([(0.1, 0.11, 0.0, 0.0), (0.1, 0.02, 0.0, 0.0)],
+    ([(0.1, 0.11, 0.0, 0.0, 0.0), (0.1, 0.02, 0.0, 0.0, 0.0)],
      "step 2 of 2 (right foot) cannot be made: 0.09 m beside the other foot: the feet "
      "would touch"),
-    ([(0.1, 0.5, 0.0, 0.0)], "0.61 m beside the other foot (at most 0.34)"),
-    ([(0.0, 0.11, 0.8, 0.0)], "turned 0.80 rad from the other foot (at most 0.45)"),
-    ([(-0.3, 0.11, 0.0, 0.0)], "0.30 m behind the other foot (at most 0.20)"),
-    ([], "no footsteps"), ([(0.1, 0.11, math.inf, 0.0)], "finite")])
+    ([(0.1, 0.5, 0.0, 0.0, 0.0)], "0.61 m beside the other foot (at most 0.34)"),
+    ([(0.0, 0.11, 0.8, 0.0, 0.0)], "turned 0.80 rad from the other foot (at most 0.45)"),
+    ([(-0.3, 0.11, 0.0, 0.0, 0.0)], "0.30 m behind the other foot (at most 0.20)"),
+    ([(0.15, 0.11, 0.0, 0.03, -0.3)], "on ground pitched 0.30 rad (at most 0.20)"),
+    ([], "no footsteps"), ([(0.1, 0.11, math.inf, 0.0, 0.0)], "finite")])
 def test_placed_footsteps_out_of_reach_are_refused_saying_which_and_why(footsteps, problem):
     plan = WalkPlan(dict(FEET))
     with pytest.raises(ValueError, match=re.escape(problem)):
@@ -205,6 +206,31 @@ def test_halted_half_way_up_the_other_foot_joins_the_one_on_the_step():
     play(plan, t)
     plan.halt(t)
     play(plan, plan.end_time() + 0.1)
-    assert plan.ground == {"left": 0.05, "right": 0.05}
+    assert plan.heights == {"left": 0.05, "right": 0.05}
     assert plan.feet["right"][0] == pytest.approx(0.33)
 
+
+
+def test_a_walk_on_a_ramp_goes_on_up_its_slope_and_turns_each_sole_to_it():
+    """Standing on a 10-degree ramp (pitch -0.1745: rising ahead), go_straight lands each foot
+    where the ramp continues, pitched like it; a foot turns to the new pitch on its way."""
+    slope = -math.radians(10)
+    plan = WalkPlan(dict(FEET), ground={"left": Ground(0.0, slope), "right": Ground(0.0, slope)})
+    plan.plan(0.3, 0.0, 0.0, 0.0)
+    for step in plan.steps:
+        assert step.land_ground.z == pytest.approx(step.land[0] * math.tan(-slope))
+        assert step.land_ground.pitch == slope
+    play(plan, plan.end_time() + 0.1)
+    assert plan.heights["left"] == pytest.approx(0.3 * math.tan(-slope))
+    # onto a level landing at the ramp's top: the sole turns flat while it travels
+    top = plan.heights["left"]
+    plan.place([(0.45, 0.11, 0.0, top + 0.01, 0.0), (0.45, -0.11, 0.0, top + 0.01, 0.0)],
+               plan.end_time() + 1)
+    step = plan.steps[0]
+    assert plan.foot_pitch("left", step.lift_at) == pytest.approx(slope)
+    assert slope < plan.foot_pitch("left", (step.lift_at + step.land_at) / 2) < 0.0
+    assert plan.foot_pitch("left", step.land_at) == 0.0
+    # a footstep that would need a steeper change of pitch than the ankle takes is refused
+    plan = WalkPlan(dict(FEET), ground={"left": Ground(0.0, slope), "right": Ground(0.0, slope)})
+    with pytest.raises(ValueError, match="pitched 0.37 rad from the other foot"):
+        plan.place([(0.15, 0.11, 0.0, 0.03, -slope * 1.1)], 0.0)

@@ -15,45 +15,18 @@ import numpy as np
 import pytest
 
 from harness import wait_until
-from walkman.gym.offline import OfflineWorld
-from walkman.hal.sim import SimBackend
-from walkman.model.description import STANDING_PELVIS_HEIGHT
-from walkman.model.mjcf import TERRAIN_STEP
+from tests.modules.walker import (LOWEST_PELVIS, MAX_TILT, both_feet_loaded, footsteps, ramp_course,
+                                  sole_heights, soles_in_pelvis_frame, terrain_course, tilt,
+                                  upright, walk_through, walker)
+from walkman.model.mjcf import TERRAIN_RAMP, TERRAIN_STEP
 from walkman.modules import walking
 from yarp_lite.bottle import Bottle
 from yarp_lite.rpc import RpcClient
 
 HANDLE_PIVOT = np.array([0.84, 2.26, 1.15])  # world; models/walkman_drc.xml
 VALVE_CENTRE = np.array([0.66, 0.25, 1.2])   # world
-#: The pelvis walks CROUCH below its standing height; lower than this (m) it has fallen.
-LOWEST_PELVIS = STANDING_PELVIS_HEIGHT - walking.CROUCH - 0.06
-SOLE_ABOVE_FLOOR = 0.0994   # m: a foot body's height standing on the floor (its sole 0.1 below)
-MAX_TILT = 0.1  # rad of the free base: more is not walking upright
 STANDING_PUSH = 25.0   # N*s on the torso, sideways: survived (bench/bench_walking.py: ~45)
 TOPPLING_PUSH = 60.0   # N*s: the robot falls (50 does too), the pilot is warned first: offline, the warning comes 0.19 s after the push at 0.05 rad, the torso passes 0.1 rad 0.4 s later (at 100 N*s it was 0.03 s later: a loaded 2-core CI saw the warning at 0.104 rad)
-
-
-def walker(station: str = "yard"):
-    backend = SimBackend(station=station, harness="off")
-    world = OfflineWorld(backend)
-    world.step(0.5)
-    module = world.add(walking.Module, "walking")
-    module.switch("start")
-    world.step(walking.CROUCH_TIME + 0.5)
-    return world, module
-
-
-def tilt(backend) -> float:
-    roll, pitch, _ = backend.imu().rpy
-    return math.hypot(roll, pitch)
-
-
-def upright(backend) -> bool:
-    return tilt(backend) < MAX_TILT and backend.plant.base_pose()[2] > LOWEST_PELVIS
-
-
-def both_feet_loaded(backend) -> bool:
-    return all(backend.ft(sensor)[2] < -100 for sensor in ("l_leg_ft", "r_leg_ft"))
 
 
 @pytest.mark.parametrize("command, axis, amount", [
@@ -165,42 +138,6 @@ def test_bad_walks_are_refused_and_the_robot_holds():
     assert "'turn' is not accepted in state walking" in module.warnings[-1]
 
 
-def walk_through(world, module, command: str, limit: float = 40.0) -> float:
-    """Send ``command``, run until the module is idle again with the base upright every
-    50 ms; returns the smallest ZMP margin the module measured on the way."""
-    module.command(command)
-    world.step(0.1)
-    assert module.state != "idle", module.warnings
-    smallest, start = math.inf, world.time
-    while module.state != "idle":
-        world.step(0.05)
-        assert upright(world.backend), (command, world.time, world.backend.plant.base_pose())
-        assert world.time - start < limit, command
-        if module.thread.margin is not None:
-            smallest = min(smallest, module.thread.margin)
-    world.step(0.5)
-    return smallest
-
-
-def sole_heights(backend) -> Tuple[float, float]:
-    """The world height of each sole's bottom (m): 0 on the floor."""
-    return tuple(float(backend.plant.d.body(f"{side}_foot").xpos[2]) - SOLE_ABOVE_FLOOR
-                 for side in "lr")
-
-
-def soles_in_pelvis_frame(backend) -> Tuple[np.ndarray, np.ndarray]:
-    """(x, y, yaw, z) of each sole's centre in the pelvis frame, as a pilot measures them."""
-    d = backend.plant.d
-    pelvis, turn = d.body("pelvis").xpos, d.body("pelvis").xmat.reshape(3, 3)
-    soles = []
-    for side in "lr":
-        rotation = d.body(f"{side}_foot").xmat.reshape(3, 3)
-        x, y, z = turn.T @ (d.body(f"{side}_foot").xpos + rotation @ walking.SOLE - pelvis)
-        heading = turn.T @ rotation[:, 0]
-        soles.append(np.array([x, y, math.atan2(heading[1], heading[0]), z]))
-    return soles[0], soles[1]
-
-
 def test_the_terrain_course_up_the_step_along_it_by_placed_footsteps_and_down():
     """Issue 32, rough ground: the 5-cm step of station ``terrain`` (models/walkman_drc.xml),
     walked unsupported with step_up, footsteps the pilot placed, and step_down."""
@@ -213,9 +150,9 @@ def test_the_terrain_course_up_the_step_along_it_by_placed_footsteps_and_down():
     # footsteps as a pilot places them: sole poses in the pelvis frame, from where the
     # soles are now -- the left one 0.15 m ahead, then the right one 0.30, the left beside it
     left, right = soles_in_pelvis_frame(backend)
-    steps = [left + (0.15, 0, 0, 0), right + (0.30, 0, 0, 0), left + (0.30, 0, 0, 0)]
-    margins.append(walk_through(world, module, "footsteps " + " ".join(
-        f"{v:.4f}" for step in steps for v in step)))
+    steps = [left + (0.15, 0, 0, 0, 0, 0), right + (0.30, 0, 0, 0, 0, 0),
+             left + (0.30, 0, 0, 0, 0, 0)]
+    margins.append(walk_through(world, module, footsteps(*steps)))
     margins.append(walk_through(world, module, "go_straight 0.18"))
     assert sole_heights(backend) == pytest.approx((height, height), abs=0.005)
     margins.append(walk_through(world, module, "step_down 0.05"))
@@ -230,18 +167,38 @@ def test_the_terrain_course_up_the_step_along_it_by_placed_footsteps_and_down():
     assert x == pytest.approx(0.12 + 0.33 + 0.30 + 0.18 + 0.33, abs=0.02) and margin > 0.03
 
 
+def test_up_the_ramp_on_footsteps_pitched_like_it_then_onto_its_top():
+    """Issue 32, rough ground: the 10-degree ramp of station ``ramp``, unsupported: two
+    footsteps onto it (pitched like it), go_straight goes on up its slope, two footsteps
+    onto the level landing at its top; the ZMP stays inside the feet all the way."""
+    world, module = walker("ramp")
+    _, _, length, slope = TERRAIN_RAMP
+    margins = ramp_course(world, module)
+    world.step(1.0)
+    backend = world.backend
+    assert upright(backend) and both_feet_loaded(backend)
+    assert sole_heights(backend) == pytest.approx([length * math.sin(slope)] * 2, abs=0.005)
+    pitches = [sole[4] for sole in soles_in_pelvis_frame(backend)]
+    assert pitches == pytest.approx([0.0, 0.0], abs=0.03)      # flat on the landing
+    assert min(margin for _, margin, _ in margins) > 0.02, margins
+    assert not module.warnings, module.warnings
+
+
 def test_a_step_the_legs_cannot_make_is_refused_with_a_warning_before_a_foot_lifts():
     world, module = walker("terrain")
     before = world.backend.positions()
     left, _ = soles_in_pelvis_frame(world.backend)
-    touching = [left + (0.1, 0, 0, 0), left + (0.1, -0.09, 0, 0)]
+    touching = [left + (0.1, 0, 0, 0, 0, 0), left + (0.1, -0.09, 0, 0, 0, 0)]
     for command, warning in (
             ("step_up 0.12", "step_up refused: step 1 of 2 (left foot) cannot be made: 0.12 m "
                              "above the other foot (at most 0.08)"),
             ("step_down 0.05 0.5", "0.50 m ahead of the other foot (at most 0.36)"),
             ("footsteps " + " ".join(f"{v:.4f}" for step in touching for v in step),
              "step 2 of 2 (right foot) cannot be made: 0.09 m beside the other foot"),
-            ("footsteps 0.1 0.11 0 0 0.2", "footsteps are X Y YAW Z each: 5 numbers"),
+            ("footsteps 0.1 0.11 -1.0 0 0 0 0.2", "footsteps are X Y Z ROLL PITCH YAW each: "
+                                                  "7 numbers"),
+            ("footsteps " + " ".join(f"{v:.4f}" for v in left + (0.1, 0, 0, 0.3, 0, 0)),
+             "footstep 1: a sole lands level across (roll within 0.05 rad), got roll 0.3"),
             ("step_up -0.05", "step_up takes a height above 0 m")):
         module.command(command)
         world.step(0.3)

@@ -529,7 +529,8 @@ def test_the_walking_widget_places_footsteps_and_sends_them_in_order(qt):
     QTest.mouseClick(widget.add_button, Qt.LeftButton)       # no joint state yet
     assert window.placed == [] and "not known yet" in warnings(widget)[0]
     assert not widget.do("footsteps") and "no footsteps placed" in warnings(widget)[0]
-    window._soles = {"left": (0.0, 0.11, 0.0, -1.03), "right": (0.0, -0.11, 0.0, -1.03)}
+    window._soles = {"left": (0.0, 0.11, -1.03, 0.0, 0.0, 0.0),
+                     "right": (0.0, -0.11, -1.03, 0.0, 0.0, 0.0)}
     for _ in range(3):
         QTest.mouseClick(widget.add_button, Qt.LeftButton)
     assert window.placed == [
@@ -548,8 +549,8 @@ def test_the_walking_widget_places_footsteps_and_sends_them_in_order(qt):
     assert widget.do("footsteps")
     module, name, numbers, dangerous = window.sent[-1]
     assert (module, name, dangerous) == ("walking", "footsteps", True)
-    assert numbers == pytest.approx([0.15, 0.11, 0.0, -1.03, 0.33, -0.11, 0.1, -0.98,
-                                     0.45, 0.11, 0.0, -1.03])
+    assert numbers == pytest.approx([0.15, 0.11, -1.03, 0, 0, 0, 0.33, -0.11, -0.98, 0, 0, 0.1,
+                                     0.45, 0.11, -1.03, 0, 0, 0])
     QTest.mouseClick(widget.clear_button, Qt.LeftButton)
     assert [p[0] for p in window.placed[-3:]] == ["footstep_1", "footstep_2", "footstep_3"]
     assert all(p[3] for p in window.placed[-3:]) and widget.footsteps == {}
@@ -557,13 +558,13 @@ def test_the_walking_widget_places_footsteps_and_sends_them_in_order(qt):
 
 
 def test_the_generic_entry_of_a_repeated_group_holds_one_group():
-    """``footsteps`` takes 4 to 40 numbers, X Y YAW Z each: the Generic Widget's entry has
-    four fields (one footstep), not forty."""
+    """``footsteps`` takes 6 to 60 numbers, a pose per sole: the Generic Widget's entry has
+    six fields (one footstep), not sixty."""
     from pilot.catalogue import catalogue_of
 
     spec = catalogue_of("walking").commands["footsteps"]
-    assert spec.fields == ["X", "Y", "YAW", "Z"] and spec.check([0.1] * 4) is None
-    assert "takes 4 to 40 numbers" in spec.check([0.1] * 3)
+    assert spec.fields == ["X", "Y", "Z", "ROLL", "PITCH", "YAW"]
+    assert spec.check([0.1] * 6) is None and "takes 6 to 60 numbers" in spec.check([0.1] * 3)
 
 
 def test_the_battery_bar_and_the_log_say_the_charge_and_each_level_once(qt):

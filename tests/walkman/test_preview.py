@@ -100,7 +100,7 @@ def test_a_walk_s_shadow_refuses_what_the_module_refuses_and_nothing_more():
     is not 'already walking'); a step too high is refused on the pilot PC with the module's
     own words; footsteps measured from the soles (pelvis frame) are judged as the module
     judges them, though the shadow never walked (issue 32)."""
-    from tests.modules.test_walking import soles_in_pelvis_frame, walker, walk_through
+    from tests.modules.walker import footsteps, soles_in_pelvis_frame, walk_through, walker
     from walkman.modules import walking
 
     world, module = walker("terrain")
@@ -124,11 +124,8 @@ def test_a_walk_s_shadow_refuses_what_the_module_refuses_and_nothing_more():
     do("step_up 0.05")
     left, right = soles_in_pelvis_frame(world.backend)
 
-    def footsteps(*steps) -> str:
-        return "footsteps " + " ".join(f"{v:.4f}" for step in steps for v in step)
-
-    level = footsteps(left + (0.15, 0, 0, 0), right + (0.15, 0, 0, 0))
-    high = footsteps(left + (0.15, 0, 0, 0.10), right + (0.15, 0, 0, 0))
+    level = footsteps(left + (0.15, 0, 0, 0, 0, 0), right + (0.15, 0, 0, 0, 0, 0))
+    high = footsteps(left + (0.15, 0, 0.10, 0, 0, 0), right + (0.15, 0, 0, 0, 0, 0))
     assert not preview(level).refused, preview(level).refusal
     assert preview(high).refused and "0.10 m above the other foot" in preview(high).refusal
     module.command(high)                 # the module on the robot says the same

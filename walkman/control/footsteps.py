@@ -25,8 +25,10 @@ Each step is two phases, and the walk ends with a third:
 * after the last step a final shift brings the ZMP between the feet, where it
   stays.
 
-The ground need not be flat: each foot stands at a height (``ground``, m above
-the walk frame's floor).  A step that changes it (:meth:`WalkPlan.step_to`:
+The ground need not be flat: each foot stands on a :class:`Ground` -- its
+height above the walk frame's floor and its pitch (a ramp).  A walk on a ramp
+goes on up (or down) its slope: each foot lands where the ground under the one
+that stands would be, continued ahead.  A step that changes it (:meth:`WalkPlan.step_to`:
 ``step_up``/``step_down``; :meth:`WalkPlan.place`: footsteps a pilot placed)
 rises to ``lift`` above the higher of its two grounds before it travels, so the
 toe clears a kerb going up and the heel its edge going down, and comes straight
@@ -56,8 +58,24 @@ import numpy as np
 from walkman.control.trajectory import quintic
 
 Planar = Tuple[float, float, float]  # x, y, yaw
-#: a step to play: the foot, where it lands, the ground's height there, its stride (or None)
-Landing = Tuple[str, Planar, float, Optional[Planar]]
+
+
+@dataclass(frozen=True)
+class Ground:
+    """The ground under a sole: its height (m above the walk frame's floor) and its pitch
+    (rad, the sole's pitch standing on it: negative where it rises ahead, a ramp up)."""
+
+    z: float = 0.0
+    pitch: float = 0.0
+
+    def ahead(self, distance: float) -> "Ground":
+        """The same slope ``distance`` m further along it (horizontally)."""
+        return Ground(self.z - distance * math.tan(self.pitch), self.pitch)
+
+
+FLAT = Ground()
+#: a step to play: the foot, where it lands, the ground there, its stride (or None)
+Landing = Tuple[str, Planar, Ground, Optional[Planar]]
 SIDES = ("left", "right")
 RISE, DESCEND = 0.2, 0.7  # swing phases: up until RISE, travel, down from DESCEND
 
@@ -124,6 +142,9 @@ class Reach:
     width: float = 0.34
     turn: float = 0.45
     height: float = 0.08
+    #: rad: the steepest ground a sole stands on, and the most a step changes its pitch (a
+    #: 10-degree ramp is 0.175)
+    pitch: float = 0.2
 
 
 @dataclass(frozen=True)
@@ -135,13 +156,28 @@ class Step:
     shift_at: float               # double support begins: the ZMP moves to the stance foot
     lift_at: float                # single support begins
     land_at: float                # single support ends
-    start_z: float = 0.0          # the ground's height under it when it lifts off (m)
-    land_z: float = 0.0           # and where it lands
+    start_ground: Ground = FLAT   # the ground under it when it lifts off
+    land_ground: Ground = FLAT    # and where it lands
+
+    @property
+    def start_z(self) -> float:
+        return self.start_ground.z
+
+    @property
+    def land_z(self) -> float:
+        return self.land_ground.z
 
     @property
     def climbs(self) -> bool:
-        """The step goes up or down (more than 5 mm)."""
-        return abs(self.land_z - self.start_z) > 0.005
+        """The step goes up or down (more than 5 mm), or onto ground pitched otherwise."""
+        return abs(self.land_z - self.start_z) > 0.005 or \
+            abs(self.land_ground.pitch - self.start_ground.pitch) > 0.05
+
+    def pitch(self, t: float) -> float:
+        """The sole's pitch at ``t``: turned from the old ground's to the new one's on the
+        way (before it comes down)."""
+        a, b = self.start_ground.pitch, self.land_ground.pitch
+        return a + self.travel(t) * (b - a)
 
     def travel(self, t: float) -> float:
         """How far along (0..1) its way the foot is at ``t``."""
@@ -158,8 +194,8 @@ class WalkPlan:
     steps: List[Step] = field(default_factory=list)
     set_aside: List[Step] = field(default_factory=list)
     travelled: Planar = (0.0, 0.0, 0.0)
-    #: each sole's ground height (m above the walk frame's floor)
-    ground: Dict[str, float] = field(default_factory=lambda: {side: 0.0 for side in SIDES})
+    #: the ground under each sole
+    ground: Dict[str, Ground] = field(default_factory=lambda: {side: FLAT for side in SIDES})
     reach: Reach = field(default_factory=Reach)
     #: ZMP knots (t, x, y): linear between them, constant before the first and after the last
     _knots: List[Tuple[float, float, float]] = field(default_factory=list)
@@ -202,7 +238,7 @@ class WalkPlan:
         """A foot's planar pose and its sole's height above the floor at ``t``."""
         step = self._in_air(side, t)
         if step is None:
-            return self.feet[side], self.ground[side]
+            return self.feet[side], self.ground[side].z
         phase = min((t - step.lift_at) / (step.land_at - step.lift_at), 1.0)
         travel = step.travel(t)
         a, b = step.start, step.land
@@ -216,13 +252,23 @@ class WalkPlan:
             height = top + (step.land_z - top) * quintic((phase - DESCEND) / (1.0 - DESCEND))
         return pose, height
 
+    def foot_pitch(self, side: str, t: float) -> float:
+        """The sole's pitch at ``t`` (the ground's where it stands)."""
+        step = self._in_air(side, t)
+        return self.ground[side].pitch if step is None else step.pitch(t)
+
+    @property
+    def heights(self) -> Dict[str, float]:
+        """Each sole's ground height (m)."""
+        return {side: ground.z for side, ground in self.ground.items()}
+
     def ground_level(self, t: float) -> float:
         """The mean of the feet's grounds at ``t``, a swing foot's taken along its travel:
         the height the pelvis keeps its crouch above."""
         level = 0.0
         for side in SIDES:
             step = self._in_air(side, t)
-            level += self.ground[side] if step is None else \
+            level += self.ground[side].z if step is None else \
                 step.start_z + step.travel(t) * (step.land_z - step.start_z)
         return level / len(SIDES)
 
@@ -270,8 +316,7 @@ class WalkPlan:
         for index in range(strides + 1):
             if index < strides:
                 centre = compose(centre, stride)
-            # level ground: each foot lands as high as the one that stands
-            landings.append((side, self.nominal(centre, side), self.ground[other(side)],
+            landings.append((side, self.nominal(centre, side), None,
                              stride if index < strides else (0.0, 0.0, 0.0)))
             side = other(side)
         return self._play(landings, t)
@@ -282,13 +327,15 @@ class WalkPlan:
         if not all(math.isfinite(v) for v in (forward, height)):
             raise ValueError("the step must be finite numbers")
         ahead = compose(self.centre, (forward, 0.0, 0.0))
-        level = max(self.ground.values()) if height >= 0 else min(self.ground.values())
-        return self._play([(side, self.nominal(ahead, side), level + height, None)
+        heights = self.heights.values()
+        level = max(heights) if height >= 0 else min(heights)
+        return self._play([(side, self.nominal(ahead, side), Ground(level + height), None)
                            for side in SIDES], t)
 
-    def place(self, footsteps: List[Tuple[float, float, float, float]], t: float) -> int:
-        """Play footsteps a pilot placed: each ``(x, y, yaw, z)`` of a sole's centre in the
-        walk frame, the feet taking turns, the first the one on the side of the first
+    def place(self, footsteps: List[Tuple[float, float, float, float, float]],
+              t: float) -> int:
+        """Play footsteps a pilot placed: each ``(x, y, yaw, z, pitch)`` of a sole's centre
+        in the walk frame, the feet taking turns, the first the one on the side of the first
         footstep (left of the line between the feet or right)."""
         if not footsteps:
             raise ValueError("no footsteps")
@@ -297,22 +344,27 @@ class WalkPlan:
         first = compose(inverse(self.centre), footsteps[0][:3])
         side = "left" if first[1] >= 0 else "right"
         landings: List[Landing] = []
-        for x, y, yaw, z in footsteps:
-            landings.append((side, (x, y, yaw), z, None))
+        for x, y, yaw, z, pitch in footsteps:
+            landings.append((side, (x, y, yaw), Ground(z, pitch), None))
             side = other(side)
         return self._play(landings, t)
 
     def _play(self, landings: List[Landing], t: float) -> int:
         """Check every landing against :attr:`reach` from the foot that will stand, then
-        schedule them all; returns the number of steps.  A landing's stride (the odometry
-        it stands for) is, if not given, how far it moves the point between the feet."""
+        schedule them all; returns the number of steps.  A landing's ground is, if not
+        given, the standing foot's continued to where it lands (level ground stays level,
+        a ramp goes on); its stride (the odometry it stands for), if not given, how far it
+        moves the point between the feet."""
         if self.steps:
             raise ValueError("already walking: wait for the walk to end")
         feet, ground = dict(self.feet), dict(self.ground)
         steps: List[Step] = []
-        for number, (side, land, land_z, stride) in enumerate(landings, 1):
-            problem = self.unreachable(side, land, land_z, feet[other(side)],
-                                       ground[other(side)])
+        for number, (side, land, land_ground, stride) in enumerate(landings, 1):
+            stance = feet[other(side)]
+            if land_ground is None:
+                ahead = compose(inverse(stance), land)[0]
+                land_ground = ground[other(side)].ahead(ahead)
+            problem = self.unreachable(side, land, land_ground, stance, ground[other(side)])
             if problem:
                 raise ValueError(f"step {number} of {len(landings)} ({side} foot) cannot "
                                  f"be made: {problem}")
@@ -320,21 +372,22 @@ class WalkPlan:
             feet[side] = land
             if stride is None:
                 stride = compose(inverse(before), midpoint(feet["left"], feet["right"]))
-            steps.append(Step(side, start, land, stride, 0.0, 0.0, 0.0, ground[side], land_z))
-            ground[side] = land_z
+            steps.append(Step(side, start, land, stride, 0.0, 0.0, 0.0, ground[side],
+                              land_ground))
+            ground[side] = land_ground
         self.set_aside = []
         self._schedule(steps, t)
         return len(steps)
 
-    def unreachable(self, side: str, land: Planar, land_z: float, stance: Planar,
-                    stance_z: float) -> str:
-        """Why the ``side`` sole cannot land at ``land`` (height ``land_z``) from the other
+    def unreachable(self, side: str, land: Planar, land_ground: Ground, stance: Planar,
+                    stance_ground: Ground) -> str:
+        """Why the ``side`` sole cannot land at ``land`` (on ``land_ground``) from the other
         one standing at ``stance`` -- '' if it can."""
         reach = self.reach
         x, y, yaw = compose(inverse(stance), land)
         across = y if side == "left" else -y
         turn = math.atan2(math.sin(yaw), math.cos(yaw))
-        rise = land_z - stance_z
+        rise = land_ground.z - stance_ground.ahead(x).z   # over what the slope gives
         if x > reach.ahead:
             return f"{x:.2f} m ahead of the other foot (at most {reach.ahead:.2f})"
         if x < -reach.behind:
@@ -349,6 +402,12 @@ class WalkPlan:
         if abs(rise) > reach.height:
             return (f"{abs(rise):.2f} m {'above' if rise > 0 else 'below'} the other foot "
                     f"(at most {reach.height:.2f})")
+        if abs(land_ground.pitch) > reach.pitch:
+            return (f"on ground pitched {abs(land_ground.pitch):.2f} rad (at most "
+                    f"{reach.pitch:.2f})")
+        if abs(land_ground.pitch - stance_ground.pitch) > reach.pitch:
+            return (f"pitched {abs(land_ground.pitch - stance_ground.pitch):.2f} rad from the "
+                    f"other foot (at most {reach.pitch:.2f})")
         return ""
 
     def _schedule(self, steps: List[Step], t: float, from_standing: bool = True) -> None:
@@ -389,7 +448,7 @@ class WalkPlan:
         while self.steps and t >= self.steps[0].land_at:
             step = self.steps.pop(0)
             self.feet = {**self.feet, step.side: step.land}
-            self.ground = {**self.ground, step.side: step.land_z}
+            self.ground = {**self.ground, step.side: step.land_ground}
             self.travelled = compose(self.travelled, step.stride)
             landed.append(step)
         return landed
@@ -406,16 +465,18 @@ class WalkPlan:
             return
         feet, ground = dict(self.feet), dict(self.ground)
         for step in flying:
-            feet[step.side], ground[step.side] = step.land, step.land_z
+            feet[step.side], ground[step.side] = step.land, step.land_ground
         side = rest[0].side
         beside = self.beside(feet[other(side)], side)
         apart = math.hypot(beside[0] - feet[side][0], beside[1] - feet[side][1]) > 0.01 or \
-            abs(beside[2] - feet[side][2]) > 0.02 or abs(ground["left"] - ground["right"]) > 0.005
+            abs(beside[2] - feet[side][2]) > 0.02 or \
+            abs(ground["left"].z - ground["right"].z) > 0.005 or \
+            abs(ground["left"].pitch - ground["right"].pitch) > 0.01
         # Once its weight shift has begun, the next step is taken (in place if the feet
         # are together): turning the CoM back at once would be the same jolt.  Halfway up
         # (or down) a step, the closing step joins the foot already there.
         closing = [replace(rest[0], start=feet[side], land=beside, stride=(0.0, 0.0, 0.0),
-                           start_z=ground[side], land_z=ground[other(side)])] \
+                           start_ground=ground[side], land_ground=ground[other(side)])] \
             if apart or rest[0].shift_at <= t else []
         self.set_aside = rest + self.set_aside
         self.steps = flying
@@ -447,7 +508,7 @@ class WalkPlan:
             return 0
         # The first step set aside may have been planned from a foot that landed since.
         steps[0] = replace(steps[0], start=self.feet[steps[0].side],
-                           start_z=self.ground[steps[0].side])
+                           start_ground=self.ground[steps[0].side])
         self._schedule(steps, t)
         return len(steps)
 

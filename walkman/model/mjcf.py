@@ -28,7 +28,8 @@ The scene (``drc=True``) adds what the DRC modules act on, all articulated:
   closes a hand next to the part (see ``walkman/hal/sim.py``).
 
 * the rough-ground course (station ``terrain``): a 5-cm step across the way,
-  a 10-degree ramp in the lane to the right, debris blocks in the lane to the left.
+  a 10-degree ramp up to a level landing in the lane to the right (station
+  ``ramp`` stands before it), debris blocks in the lane to the left.
 
 Stations (:data:`STATIONS`) are where the robot starts: in front of the
 valve, at the driving rig, before the door, at the plug's table and the
@@ -55,7 +56,8 @@ HANDS = ("l", "r")
 #: Where the robot can start: station -> (x, y, yaw) of the pelvis in the world.
 STATIONS = {"valve": (0.0, 0.0, 0.0), "car": (0.0, -2.5, 0.0), "door": (0.34, 2.25, 0.0),
             "door_far": (-0.16, 2.25, 0.0), "yard": (-3.0, 0.0, 0.0), "plug": (0.0, -5.0, 0.0),
-            "wall": (0.0, -7.5, 0.0), "terrain": (-6.0, 0.0, 0.0)}
+            "wall": (0.0, -7.5, 0.0), "terrain": (-6.0, 0.0, 0.0),
+            "ramp": (-6.0, -1.2, 0.0)}
 #: The plug station's two sockets (world x, y of each centre; their floor is the table top).
 PLUG_SOCKETS = {"a": (0.62, -4.70), "b": (0.62, -4.88)}
 PLUG_TABLE_TOP = 0.98
@@ -79,7 +81,7 @@ PILOT_POSES = {"valve": "valvedatasent 0.66 0.25 0.08 0 0 0 0.15",
 #: The rough-ground course (station ``terrain``, issue 32): a platform a 5-cm step up from
 #: the floor across the robot's way (world x where it begins and ends, its height), a 10-degree
 #: ramp in the lane to the robot's right (world y of that lane, x where it leaves the floor,
-#: its length up, its slope) and debris blocks in the lane to its left (world x, y, yaw and
+#: its length up, its slope; station ``ramp`` stands before it) and debris blocks in the lane to its left (world x, y, yaw and
 #: half sizes of each).
 TERRAIN_STEP = (-5.68, -4.88, 0.05)
 TERRAIN_RAMP = (-1.2, -5.6, 0.6, 0.1745)

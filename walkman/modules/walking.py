@@ -28,11 +28,13 @@ own module:
   runs at 500 Hz on a port per chain and reaches a loaded module late (a
   100 ms lag there topples the robot); the F/T and IMU ports stay fresh.
 
-The ground may have steps (issue 32's rough ground): ``step_up H`` and
-``step_down H`` land both feet on ground H higher or lower, ``footsteps`` plays
-sole poses the pilot placed (pelvis frame, converted to the walk frame from
-where the soles are); the plan checks every landing against the legs' reach
-before a foot lifts, and the pelvis rises and sinks with the feet's ground.
+The ground may have steps and ramps (issue 32's rough ground): ``step_up H``
+and ``step_down H`` land both feet on ground H higher or lower, ``footsteps``
+plays sole poses the pilot placed (pelvis frame, converted to the walk frame
+from where the soles are; a footstep's pitch is the ground's), and a walk goes
+on as the ground under the standing foot goes (up a ramp's slope); the plan
+checks every landing against the legs' reach before a foot lifts, each sole is
+pitched like its ground, and the pelvis rises and sinks with the feet's ground.
 
 On start the knees bend (the pelvis sinks ``CROUCH``) so that steps are within
 reach and the pendulum's height is constant while walking.  The pilot's
@@ -103,17 +105,33 @@ TABLE = {
 #: ahead, its heel 7 cm ahead of where the toes were -- the pilot first walks the toes up to
 #: the kerb (within 4 cm: the heel then lands 3 cm past it).
 STEP_FORWARD = 0.33
+#: rad: the most a footstep's sole may roll (the plan pitches soles, never rolls them)
+MAX_SOLE_ROLL = 0.05
 
 
-def sole_poses(kinematics, q: np.ndarray) -> Dict[str, Tuple[float, float, float, float]]:
-    """Each sole's centre ``(x, y, yaw, z)`` in the pelvis frame at posture ``q``: where the
-    feet are for footsteps (this module, and the PI placing a first footstep)."""
+Pose = Tuple[float, float, float, float, float, float]   # x y z roll pitch yaw
+
+
+def sole_poses(kinematics, q: np.ndarray) -> Dict[str, Pose]:
+    """Each sole's centre as a pose ``(x, y, z, roll, pitch, yaw)`` in the pelvis frame at
+    posture ``q``: where the feet are for footsteps (this module, and the PI placing a first
+    footstep)."""
     out = {}
     for side, frame in FRAMES.items():
-        position, rotation = kinematics.pose(q, frame)
-        x, y, z = position + rotation @ SOLE
-        out[side] = (float(x), float(y), math.atan2(rotation[1, 0], rotation[0, 0]), float(z))
+        position, r = kinematics.pose(q, frame)
+        x, y, z = position + r @ SOLE
+        out[side] = (float(x), float(y), float(z), math.atan2(r[2, 1], r[2, 2]),
+                     -math.asin(max(-1.0, min(1.0, r[2, 0]))), math.atan2(r[1, 0], r[0, 0]))
     return out
+
+
+def sole_ahead(sole: Sequence[float], distance: float, rise: float = 0.0,
+               pitch: Optional[float] = None) -> Pose:
+    """A footstep ``distance`` m along the heading of ``sole`` (a pose, pelvis frame), ``rise``
+    m higher, pitched ``pitch`` (the sole's own if None), level across."""
+    x, y, z, _, own_pitch, yaw = (float(v) for v in sole[:6])
+    return (x + distance * math.cos(yaw), y + distance * math.sin(yaw), z + rise, 0.0,
+            own_pitch if pitch is None else pitch, yaw)
 
 
 class Module(TaskModule):
@@ -123,8 +141,8 @@ class Module(TaskModule):
                  "step_side": (1, 1, "DISTANCE m, left positive"),
                  "step_up": (1, 2, f"HEIGHT m [FORWARD m, default {STEP_FORWARD}]"),
                  "step_down": (1, 2, f"HEIGHT m [FORWARD m, default {STEP_FORWARD}]"),
-                 "footsteps": (4, 40, "X Y YAW Z of each sole's centre, pelvis frame, "
-                                      "m and rad")}
+                 "footsteps": (6, 60, "X Y Z ROLL PITCH YAW of each sole's centre, "
+                                      "pelvis frame, m and rad")}
     # Rotating on the spot nearly toppled Walk-Man at the DRC: every step counts down.
     dangerous = frozenset({"go_straight", "turn", "step_side", "step_up", "step_down",
                            "footsteps"})
@@ -236,14 +254,18 @@ class Module(TaskModule):
         self.plan.step_to(forward, height, self._walk_start())
 
     def _start_footsteps(self, *values: float) -> None:
-        if len(values) % 4:
-            raise ValueError(f"footsteps are X Y YAW Z each: {len(values)} numbers is not "
-                             f"a multiple of 4")
+        if len(values) % 6:
+            raise ValueError(f"footsteps are X Y Z ROLL PITCH YAW each: {len(values)} numbers "
+                             f"is not a multiple of 6")
         pelvis, height = self.pelvis_in_walk_frame()
         footsteps = []
-        for index in range(0, len(values), 4):
-            x, y, yaw, z = values[index:index + 4]
-            footsteps.append((*compose(pelvis, (x, y, yaw)), height + z))
+        for index in range(0, len(values), 6):
+            x, y, z, roll, pitch, yaw = values[index:index + 6]
+            if abs(roll) > MAX_SOLE_ROLL:
+                raise ValueError(f"footstep {index // 6 + 1}: a sole lands level across "
+                                 f"(roll within {MAX_SOLE_ROLL} rad), got roll {roll}")
+            # the pelvis stands upright: a pitch in its frame is the ground's
+            footsteps.append((*compose(pelvis, (x, y, yaw)), height + z, pitch))
         self.plan.place(footsteps, self._walk_start())
 
     def pelvis_in_walk_frame(self) -> Tuple[Planar, float]:
@@ -252,10 +274,10 @@ class Module(TaskModule):
         measures footsteps from.  From the posture, not the walk's own state, so the
         preview's shadow (walkman.gym.preview), given the measured posture, agrees."""
         soles = sole_poses(self.kinematics, self.reference)
-        (lx, ly, lyaw, lz), (rx, ry, ryaw, rz) = soles["left"], soles["right"]
+        (lx, ly, lz, _, _, lyaw), (rx, ry, rz, _, _, ryaw) = soles["left"], soles["right"]
         yaw = lyaw + math.atan2(math.sin(ryaw - lyaw), math.cos(ryaw - lyaw)) / 2
         pelvis = compose(self.plan.centre, inverse(((lx + rx) / 2, (ly + ry) / 2, yaw)))
-        return pelvis, sum(self.plan.ground.values()) / len(SIDES) - (lz + rz) / 2
+        return pelvis, sum(self.plan.heights.values()) / len(SIDES) - (lz + rz) / 2
 
     def forget_motions(self) -> None:
         super().forget_motions()
@@ -345,8 +367,10 @@ class Module(TaskModule):
             (x, y, foot_yaw), height = feet[side]
             target = rotation.T @ (np.array([x, y, height]) - pelvis)
             foot_roll, foot_pitch = tilts[side]
+            ground_pitch = plan.foot_pitch(side, now)      # a ramp's, 0 on level ground
             result = self.ik.solve(FRAMES[side], target,
-                                   rotation.T @ rotation_rpy(foot_roll, foot_pitch, foot_yaw),
+                                   rotation.T @ rotation_rpy(foot_roll, foot_pitch + ground_pitch,
+                                                             foot_yaw),
                                    self.reference, LEGS[side], offset=SOLE, restarts=0,
                                    max_iterations=TICK_IK_ITERATIONS)
             self.reference[index] = result.q[index]

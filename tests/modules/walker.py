@@ -1,0 +1,129 @@
+"""The walking module offline on the simulated robot, the harness off: a robot standing at a
+station, walks run to their end with the base checked upright, the soles as a pilot measures
+them, and the rough-ground courses (tests/modules/test_walking.py, tests/walkman/test_preview.py,
+bench/bench_walking.py)."""
+
+from __future__ import annotations
+
+import math
+from typing import List, Sequence, Tuple
+
+import numpy as np
+
+from walkman.gym.offline import OfflineModule, OfflineWorld
+from walkman.hal.sim import SimBackend
+from walkman.model.description import STANDING_PELVIS_HEIGHT
+from walkman.model.mjcf import TERRAIN_COURSE, TERRAIN_RAMP
+from walkman.modules import walking
+
+#: The pelvis walks CROUCH below its standing height; lower than this (m) it has fallen.
+LOWEST_PELVIS = STANDING_PELVIS_HEIGHT - walking.CROUCH - 0.06
+SOLE_ABOVE_FLOOR = 0.0994   # m: a foot body's height standing on the floor (its sole 0.1 below)
+MAX_TILT = 0.1  # rad of the free base: more is not walking upright
+
+
+def walker(station: str = "yard") -> Tuple[OfflineWorld, OfflineModule]:
+    backend = SimBackend(station=station, harness="off")
+    world = OfflineWorld(backend)
+    world.step(0.5)
+    module = world.add(walking.Module, "walking")
+    module.switch("start")
+    world.step(walking.CROUCH_TIME + 0.5)
+    return world, module
+
+
+def tilt(backend) -> float:
+    roll, pitch, _ = backend.imu().rpy
+    return math.hypot(roll, pitch)
+
+
+def upright(backend) -> bool:
+    return tilt(backend) < MAX_TILT and backend.plant.base_pose()[2] > LOWEST_PELVIS
+
+
+def both_feet_loaded(backend) -> bool:
+    return all(backend.ft(sensor)[2] < -100 for sensor in ("l_leg_ft", "r_leg_ft"))
+
+
+def walk_through(world, module, command: str, limit: float = 40.0) -> float:
+    """Send ``command``, run until the module is idle again with the base upright every
+    50 ms; returns the smallest ZMP margin the module measured on the way."""
+    module.command(command)
+    world.step(0.1)
+    assert module.state != "idle", module.warnings
+    smallest, start = math.inf, world.time
+    while module.state != "idle":
+        world.step(0.05)
+        assert upright(world.backend), (command, world.time, world.backend.plant.base_pose())
+        assert world.time - start < limit, command
+        if module.thread.margin is not None:
+            smallest = min(smallest, module.thread.margin)
+    world.step(0.5)
+    return smallest
+
+
+def sole_heights(backend) -> Tuple[float, float]:
+    """The world height of each sole's bottom (m): 0 on the floor."""
+    return tuple(float(backend.plant.d.body(f"{side}_foot").xpos[2]) - SOLE_ABOVE_FLOOR
+                 for side in "lr")
+
+
+def soles_in_pelvis_frame(backend) -> Tuple[np.ndarray, np.ndarray]:
+    """Each sole's centre as a pose (x, y, z, roll, pitch, yaw) in the pelvis frame, as a
+    pilot measures it (from the world, the simulator's truth)."""
+    d = backend.plant.d
+    pelvis, turn = d.body("pelvis").xpos, d.body("pelvis").xmat.reshape(3, 3)
+    soles = []
+    for side in "lr":
+        rotation = d.body(f"{side}_foot").xmat.reshape(3, 3)
+        x, y, z = turn.T @ (d.body(f"{side}_foot").xpos + rotation @ walking.SOLE - pelvis)
+        r = turn.T @ rotation
+        soles.append(np.array([x, y, z, math.atan2(r[2, 1], r[2, 2]), -math.asin(r[2, 0]),
+                               math.atan2(r[1, 0], r[0, 0])]))
+    return soles[0], soles[1]
+
+
+def footsteps(*soles: Sequence[float]) -> str:
+    """The ``footsteps`` command for these sole poses (pelvis frame)."""
+    return "footsteps " + " ".join(f"{v:.4f}" for sole in soles for v in sole)
+
+
+Leg = Tuple[str, float, float]   # a course's command, its smallest ZMP margin (m), seconds
+
+
+def timed_walk(world, module, command: str) -> Leg:
+    """:func:`walk_through` with its simulated time."""
+    began = world.time
+    margin = walk_through(world, module, command)
+    return command, margin, world.time - began
+
+
+def terrain_course(world, module) -> List[Leg]:
+    """Station ``terrain``: to the kerb, up the 5-cm step, along, down (TERRAIN_COURSE)."""
+    return [timed_walk(world, module, command) for command in TERRAIN_COURSE]
+
+
+def ramp_course(world, module) -> List[Leg]:
+    """Station ``ramp``: to the ramp's foot, onto the 10-degree ramp by two footsteps placed
+    on it (pitched like it), up it, onto the level landing at its top by two more; each
+    command timed, with its smallest ZMP margin.  The footsteps are placed as a pilot would from
+    what perception shows: the ramp's surface under each sole, measured in the world."""
+    _, foot, length, slope = TERRAIN_RAMP
+    top = length * math.sin(slope)
+
+    def surface(x: float) -> float:
+        return min(max(x - foot, 0.0) * math.tan(slope), top)
+
+    def onto(forward: float, pitch: float) -> str:
+        soles = soles_in_pelvis_frame(world.backend)
+        heights = sole_heights(world.backend)
+        x = float(world.backend.plant.d.body("l_foot").xpos[0]) + walking.SOLE[0] + forward
+        return footsteps(*(walking.sole_ahead(sole, forward, surface(x) - height, pitch)
+                           for sole, height in zip(soles, heights)))
+
+    done = []
+    for command in ("go_straight 0.20", lambda: onto(0.33, -slope), "go_straight 0.36",
+                    lambda: onto(0.33, 0.0)):
+        leg = timed_walk(world, module, command if isinstance(command, str) else command())
+        done.append((leg[0] if isinstance(command, str) else "footsteps", *leg[1:]))
+    return done
