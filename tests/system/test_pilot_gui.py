@@ -114,10 +114,11 @@ def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
 
 
 @contextlib.contextmanager
-def clicked_on_drc(tmp_path, display, request, module: str, phase: str, *hal: str):
-    """A task clicked through a PI (driver phase ``phase``) on the drc topology with the
-    HAL started with ``hal``: yields the topology and the PI's process once it said DONE."""
-    topology = Topology("drc", tmp_path / "drc",
+def clicked_on_drc(tmp_path, display, request, link, module: str, phase: str, *hal: str):
+    """A task clicked through a PI (driver phase ``phase``) on the drc topology, its two PCs
+    on the emulated hosts over the DRC link (1 Mbit/s, 50 ms, 5 % loss), the HAL started
+    with ``hal``: yields the topology and the PI's process once it said DONE."""
+    topology = Topology("drc", tmp_path / "drc", link=link, profile="drc",
                         extra=[hal_component(*hal), task_component(module)])
     del topology.table["rosbag"]
     out = tmp_path / "screens"
@@ -137,12 +138,14 @@ def clicked_on_drc(tmp_path, display, request, module: str, phase: str, *hal: st
         topology.close()
 
 
-def test_the_wall_task_by_clicks_cuts_the_circle_in_the_world(tmp_path, display, request):
+@pytest.mark.requires("root")
+def test_the_wall_task_by_clicks_cuts_the_circle_in_the_world(tmp_path, display, request,
+                                                             emulated_link):
     """drc_wall through the PI on the drc topology (the bridge between two name-server
-    pairs): every step clicked, the timed ones counted down with the preview's ghost in
+    pairs, over the emulated DRC link): every step clicked, the timed ones counted down with the preview's ghost in
     the 3-D view; the simulated world -- the HAL's drywall, not the module -- says the
     circle is cut out."""
-    with clicked_on_drc(tmp_path, display, request, "drc_wall", "wall",
+    with clicked_on_drc(tmp_path, display, request, emulated_link, "drc_wall", "wall",
                         "--station", "wall") as (topology, pi):
         for command in ("push_in", "cut"):           # each previewed while it counted down
             assert re.search(rf"STEP preview of {command} shown, worked out in [\d.]+ ms",
@@ -159,13 +162,15 @@ def test_the_wall_task_by_clicks_cuts_the_circle_in_the_world(tmp_path, display,
             gateway[-3000:]
 
 
+@pytest.mark.requires("root")
 def test_the_terrain_course_by_clicks_with_footsteps_placed_in_the_3d_view(tmp_path, display,
-                                                                         request):
-    """Issue 32, rough ground, through the PI on the drc topology with the harness off:
+                                                                         request, emulated_link):
+    """Issue 32, rough ground, through the PI on the drc topology (over the emulated DRC
+    link) with the harness off:
     walking's clicks take the robot up the 5-cm step, along it on two footsteps placed in
     the 3-D view (one dragged there), and down the far side; the simulated world says the
     robot stands on the floor past the step."""
-    with clicked_on_drc(tmp_path, display, request, "walking", "terrain",
+    with clicked_on_drc(tmp_path, display, request, emulated_link, "walking", "terrain",
                         "--station", "terrain", "--harness", "off") as (topology, pi):
         for step in ("go_straight 0.12", "step_up 0.05 0.33", "footsteps", "go_straight 0.33",
                      "step_down 0.05 0.33"):
