@@ -29,6 +29,7 @@ from system import compare
 from system.pc import serve
 from system.session import STEPS
 from system.topology import REPO, TASK_MODULES, Topology, add_link_arguments
+from walkman.model.mjcf import STATIONS
 
 
 def say(text: str) -> None:
@@ -73,7 +74,8 @@ Every DRC task's module runs on the robot PC ({", ".join(TASK_MODULES)}): start 
 the PI (or /M/switch), after taking the simulated robot to its station from the robot PC:
 
     {enter_robot}cd {shlex.quote(str(REPO))} && source {shlex.quote(str(robot_env))}
-    echo "set station wall" | yarp-lite rpc /walkman/rpc:i    # valve car door plug wall yard
+    echo "set station wall" | yarp-lite rpc /walkman/rpc:i    # {" ".join(STATIONS)}
+    echo "set harness off" | yarp-lite rpc /walkman/rpc:i     # walking: on its own feet
 
 Logs of every program: {root}/<pc>/logs/ ; Ctrl-C here stops everything.""", flush=True)
         programs = {name: topology.process(name) for name in topology.table}
