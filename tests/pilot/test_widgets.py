@@ -514,7 +514,7 @@ class Scene(Recorder):
 def test_the_walking_widget_places_footsteps_and_sends_them_in_order(qt):
     """Issue 32, rough ground: footsteps a pilot places in the shared scene (the first a bit
     ahead of the left sole, then a stride per foot), dragged by any pilot, sent in their
-    order as X Y YAW Z of each sole in the pelvis frame."""
+    order as a pose (X Y Z ROLL PITCH YAW) of each sole in the pelvis frame."""
     from python_qt_binding.QtCore import Qt
     from python_qt_binding.QtTest import QTest
 
