@@ -30,15 +30,14 @@ from bench_tasks import timed_ticks
 from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ beside bench/
-from tests.modules.walker import ramp_course, terrain_course, walker  # noqa: E402
+from tests.modules.walker import (ramp_course, terrain_course, tilt,  # noqa: E402
+                                  upright, walker)
 from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import SimBackend
-from walkman.model.description import STANDING_PELVIS_HEIGHT
 from walkman.modules import walking
 
 COMMANDS = [("go_straight 1.0", 0, 1.0), ("go_straight -0.5", 0, -0.5), ("turn 0.8", 3, 0.8),
             ("turn -1.5", 3, -1.5), ("step_side 0.3", 1, 0.3), ("step_side -0.3", 1, -0.3)]
-LOWEST = STANDING_PELVIS_HEIGHT - walking.CROUCH - 0.06
 
 
 def standing(station: str = "yard") -> Tuple[OfflineWorld, OfflineModule, List[float]]:
@@ -51,15 +50,6 @@ def standing(station: str = "yard") -> Tuple[OfflineWorld, OfflineModule, List[f
     return world, module, costs
 
 
-def tilt(world: OfflineWorld) -> float:
-    roll, pitch, _ = world.backend.imu().rpy
-    return math.hypot(roll, pitch)
-
-
-def upright(world: OfflineWorld) -> bool:
-    return tilt(world) < 0.1 and world.backend.plant.base_pose()[2] > LOWEST
-
-
 def walk(command: str, axis: int, amount: float) -> Tuple[str, List[float]]:
     world, module, costs = standing()
     costs.clear()
@@ -70,10 +60,10 @@ def walk(command: str, axis: int, amount: float) -> Tuple[str, List[float]]:
     world.step(0.1)
     while module.state != "idle" and world.time - began < 60:
         world.step(0.01)
-        most_tilted = max(most_tilted, tilt(world))
+        most_tilted = max(most_tilted, tilt(world.backend))
         if module.thread.margin is not None:
             margins.append(module.thread.margin)
-        fell = fell or not upright(world)
+        fell = fell or not upright(world.backend)
     seconds = world.time - began
     moved = np.array(world.backend.plant.base_pose()) - before
     unit = "rad" if axis == 3 else "m"
@@ -119,7 +109,7 @@ def survives(impulse: Tuple[float, float, float], while_walking: bool) -> bool:
     world.backend.push(impulse)
     for _ in range(40):
         world.step(0.1)
-        if not upright(world):
+        if not upright(world.backend):
             return False
     return True
 

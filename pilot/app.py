@@ -292,10 +292,10 @@ class PilotWindow(QMainWindow):
 
     def _placed(self, widget: TaskWidget, pose: Sequence[float]) -> None:
         """The pilot dragged a task's object: its fields follow, and every pilot is told."""
-        widget.set_pose(pose)
         if widget.module in TASK_OBJECTS:
-            self._edited.add(widget.module)
-            self.link.place(widget.module, TASK_OBJECTS[widget.module], pose[:6])
+            self._dragged(widget.module, TASK_OBJECTS[widget.module], pose)
+        else:
+            widget.set_pose(pose)
 
     def _on_scene(self, event: events.SceneEvent) -> None:
         """Another pilot placed an object: the marker and the task's fields follow it (what
