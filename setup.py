@@ -21,7 +21,7 @@ setup(
     extras_require={
         "sim": ["mujoco", "pin"],
         "bridge": ["lxml", "opencv-python-headless"],
-        "test": ["pytest", "hypothesis"],
+        "test": ["pytest", "pytest-xdist", "hypothesis"],
     },
     entry_points={
         "console_scripts": [

@@ -42,14 +42,14 @@ if [[ ! -x $VENV/bin/python ]]; then
   /usr/bin/python3 -m venv --system-site-packages "$VENV"
 fi
 
-PY_PACKAGES=(numpy mujoco pin lxml opencv-python-headless pytest hypothesis matplotlib atheris)
+PY_PACKAGES=(numpy mujoco pin lxml opencv-python-headless pytest pytest-xdist hypothesis matplotlib atheris)
 stamp=$VENV/.walkman-installed
 want="$(sha256sum setup.py | cut -d' ' -f1) ${PY_PACKAGES[*]}"
 if [[ ! -f $stamp || "$(cat "$stamp")" != "$want" ]]; then
   say "installing Python packages into .venv: ${PY_PACKAGES[*]} and this project"
   "$VENV/bin/pip" install -q --disable-pip-version-check "${PY_PACKAGES[@]}" 2>&1 | grep -v "^WARNING: Location" || true
   "$VENV/bin/pip" install -q --disable-pip-version-check -e "$ROOT" 2>&1 | grep -v "^WARNING: Location" || true
-  "$VENV/bin/python" -c "import numpy, mujoco, pinocchio, lxml, cv2, pytest, hypothesis, rospy, yarp_lite, PyQt5.QtTest, rviz" \
+  "$VENV/bin/python" -c "import numpy, mujoco, pinocchio, lxml, cv2, pytest, xdist, hypothesis, rospy, yarp_lite, PyQt5.QtTest, rviz" \
     || { echo "[bootstrap] the virtual environment is incomplete" >&2; exit 1; }
   echo "$want" > "$stamp"
 else
