@@ -234,3 +234,41 @@ def test_a_walk_on_a_ramp_goes_on_up_its_slope_and_turns_each_sole_to_it():
     plan = WalkPlan(dict(FEET), ground={"left": Ground(0.0, slope), "right": Ground(0.0, slope)})
     with pytest.raises(ValueError, match="pitched 0.37 rad from the other foot"):
         plan.place([(0.15, 0.11, 0.0, 0.03, -slope * 1.1)], 0.0)
+
+
+def test_the_weight_waits_on_the_standing_foot_after_a_landing_on_other_ground():
+    """A step onto other ground (a kerb, a ramp's foot) is checked on landing
+    (walkman/control/foothold.py): the ZMP stays on the standing foot for ``Timing.probe``
+    after it lands; a step up a ramp's slope lands where the ground goes on, and is not."""
+    plan = WalkPlan(dict(FEET))
+    plan.step_to(0.33, 0.05, 0.0)
+    lead, follow = plan.steps
+    assert lead.crosses_edge and follow.crosses_edge
+    wait = Timing().probe
+    assert wait > 0 and follow.shift_at == pytest.approx(lead.land_at + wait)
+    zmp_at = lambda t: (float(plan.zmp(np.array([t]))[0][0]), float(plan.zmp(np.array([t]))[1][0]))
+    assert zmp_at(lead.land_at + wait) == pytest.approx(zmp_at(lead.land_at))
+    unchecked = WalkPlan(dict(FEET), Timing(probe=0.0))
+    unchecked.step_to(0.33, 0.05, 0.0)
+    assert unchecked.steps[1].shift_at == pytest.approx(unchecked.steps[0].land_at)
+    slope = -math.radians(10)
+    ramp = WalkPlan(dict(FEET), ground={"left": Ground(0.0, slope), "right": Ground(0.0, slope)})
+    ramp.plan(0.3, 0.0, 0.0, 0.0)
+    assert all(step.climbs and not step.crosses_edge for step in ramp.steps)
+
+
+def test_retreat_puts_the_foot_back_where_it_lifted_from_and_drops_the_rest():
+    plan = WalkPlan(dict(FEET))
+    plan.step_to(0.33, 0.05, 0.0)
+    lead = plan.steps[0]
+    t = lead.land_at + 0.2
+    play(plan, t)
+    assert plan.heights["left"] == 0.05 and plan.feet["left"][0] == pytest.approx(0.33)
+    assert plan.retreat(lead, t) == 1
+    back = plan.steps[0]
+    assert (back.side, back.start_z, back.land_z) == ("left", 0.05, 0.0)
+    assert back.lift_at > t          # the weight shifts back onto the standing foot first
+    assert not plan.set_aside
+    play(plan, plan.end_time() + 0.1)
+    assert plan.feet == FEET and plan.heights == {"left": 0.0, "right": 0.0}
+    assert plan.travelled == pytest.approx((0.0, 0.0, 0.0), abs=1e-9)

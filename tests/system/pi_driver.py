@@ -413,7 +413,8 @@ def walk(command: str, fields=()) -> None:
     wait(lambda: walking.state not in ("idle", None), 60, f"walking to start {command}")
     wait(lambda: walking.state == "idle", 120, f"walking idle after {command}")
     shown = [walking.warnings.item(i).text() for i in range(walking.warnings.count())]
-    if any("balance" in text for text in shown):    # the guard tripped: the walk was cut
+    # the guard tripped (the walk was cut) or a landing was put back (walking.foothold)
+    if any("balance" in text or "foothold" in text for text in shown):
         fail(f"walking {command}: {shown}")
     say(f"STEP walking {command} {' '.join(map(str, fields))} done".replace("  ", " "))
 

@@ -37,7 +37,11 @@ feet's grounds, the swing foot's taken along its travel: the pelvis rises and
 sinks with it (the pendulum's height above the feet stays constant).  Every
 landing is checked against :class:`Reach` -- how far a foot can go from the
 one that stands -- *before* the first foot lifts: a walk with a step the legs
-cannot make is refused whole, saying which step and why.
+cannot make is refused whole, saying which step and why.  A step that
+changes the ground lands heel or toes first and the weight waits on the other
+foot for ``Timing.probe`` while the walking module checks from the first touch
+that the sole bears there (:mod:`walkman.control.foothold`); :meth:`WalkPlan.retreat`
+puts a foot whose sole does not bear back where it was.
 
 :meth:`WalkPlan.zmp` samples that plan at any times (the preview controller of
 :mod:`walkman.control.lipm` looks 1.6 s ahead).  :meth:`WalkPlan.halt` keeps
@@ -55,6 +59,7 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
+from walkman.control.foothold import WAIT as PROBE_WAIT
 from walkman.control.trajectory import quintic
 
 Planar = Tuple[float, float, float]  # x, y, yaw
@@ -120,6 +125,10 @@ class Timing:
     #: a step up or down swings this much longer (its foot goes further up and down, and
     #: lands late on the loaded, springy legs), and the weight shift after it is the slow one
     climb: float = 0.6
+    #: s the weight waits on the standing foot after a step that climbs lands on one end of
+    #: its sole, while the walking module checks that the sole bears there
+    #: (:mod:`walkman.control.foothold`); 0: lands flat, unchecked
+    probe: float = PROBE_WAIT
     #: the ZMP stands this far inside the stance foot's centre, towards the other foot: the
     #: CoM then sways less, and compliance (which leans the robot outwards) has room
     inward: float = 0.01
@@ -172,6 +181,16 @@ class Step:
         """The step goes up or down (more than 5 mm), or onto ground pitched otherwise."""
         return abs(self.land_z - self.start_z) > 0.005 or \
             abs(self.land_ground.pitch - self.start_ground.pitch) > 0.05
+
+    @property
+    def crosses_edge(self) -> bool:
+        """The step lands on other ground than the one it left, continued (a kerb's edge,
+        a ramp's foot or top; not a step up a ramp's slope): where the sole lands is checked
+        (:mod:`walkman.control.foothold`)."""
+        ahead = compose(inverse(self.start), self.land)[0]
+        continued = self.start_ground.ahead(ahead)
+        return abs(self.land_z - continued.z) > 0.005 or \
+            abs(self.land_ground.pitch - continued.pitch) > 0.05
 
     def pitch(self, t: float) -> float:
         """The sole's pitch at ``t``: turned from the old ground's to the new one's on the
@@ -279,12 +298,17 @@ class WalkPlan:
                 return step
         return None
 
-    def swinging(self, t: float) -> Optional[str]:
-        """The foot in the air at ``t`` (None in double support)."""
+    def in_air(self, t: float) -> Optional[Step]:
+        """The step whose foot is in the air at ``t`` (None in double support)."""
         for step in self.steps:
             if step.lift_at <= t < step.land_at:
-                return step.side
+                return step
         return None
+
+    def swinging(self, t: float) -> Optional[str]:
+        """The foot in the air at ``t`` (None in double support)."""
+        step = self.in_air(t)
+        return None if step is None else step.side
 
     # -- planning ----------------------------------------------------------------------
 
@@ -435,6 +459,10 @@ class WalkPlan:
                       (now + shift + swing, stance[0], stance[1])]
             feet[step.side] = step.land
             now += shift + swing
+            if step.crosses_edge and timing.probe > 0:
+                # the weight waits on the standing foot while the landed sole is checked
+                now += timing.probe
+                knots.append((now, stance[0], stance[1]))
         centre = midpoint(feet["left"], feet["right"])
         knots.append((now + timing.last_shift, centre[0], centre[1]))
         self.steps += timed
@@ -511,6 +539,18 @@ class WalkPlan:
                            start_ground=self.ground[steps[0].side])
         self._schedule(steps, t)
         return len(steps)
+
+    def retreat(self, step: Step, t: float) -> int:
+        """``step`` landed where its sole does not bear: drop the rest of the walk and put
+        the foot back where it lifted from (from ``t``, the weight still on the other foot);
+        returns the number of steps (1)."""
+        self.steps, self.set_aside = [], []
+        feet = {**self.feet, step.side: step.start}
+        stride = compose(inverse(self.centre), midpoint(feet["left"], feet["right"]))
+        # where the foot stood a moment ago: no reach to check
+        self._schedule([Step(step.side, self.feet[step.side], step.start, stride, 0.0, 0.0,
+                             0.0, self.ground[step.side], step.start_ground)], t)
+        return 1
 
     def cancel(self, t: float) -> None:
         """Halt and forget the rest of the walk."""
