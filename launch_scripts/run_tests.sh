@@ -12,8 +12,15 @@ export WALKMAN_REQUIRE_REFERENCE=1
 export WALKMAN_REQUIRE_REFERENCE_DEVICES=1
 export WALKMAN_REQUIRE_ROOT=1
 export WALKMAN_REQUIRE_XVFB=1
+# One pytest worker per core (WALKMAN_TEST_WORKERS=1: one test at a time): every test takes
+# its ports from the machine-wide registry (yarp_lite/freeport.py) and names its network
+# namespaces after its process, so tests run side by side; each waits for what it needs, never
+# for a time, so a busy neighbour slows it but does not fail it.
+workers=${WALKMAN_TEST_WORKERS:-$(nproc)}
+parallel=()
+if [[ $workers -gt 1 ]]; then parallel=(-n "$workers" --dist worksteal); fi
 set +e
-.venv/bin/python -m pytest tests -ra --durations=25 "$@"   # the 25 slowest: where the time goes
+.venv/bin/python -m pytest tests -ra --durations=25 "${parallel[@]}" "$@"   # the 25 slowest: where the time goes
 status=$?
 set -e
 if [[ $status -eq 5 ]]; then

@@ -237,24 +237,29 @@ def test_a_walk_on_a_ramp_goes_on_up_its_slope_and_turns_each_sole_to_it():
 
 
 def test_the_weight_waits_on_the_standing_foot_after_a_landing_on_other_ground():
-    """A step onto other ground (a kerb, a ramp's foot) is checked on landing
-    (walkman/control/foothold.py): the ZMP stays on the standing foot for ``Timing.probe``
-    after it lands; a step up a ramp's slope lands where the ground goes on, and is not."""
+    """A step onto higher ground (a kerb, a ramp) is checked on landing
+    (walkman/control/foothold.py): the ZMP stays on the standing foot for
+    ``Timing.foothold_wait`` after it lands; a step up a ramp's slope lands where the ground
+    goes on, and a step down lands lower: neither is."""
     plan = WalkPlan(dict(FEET))
     plan.step_to(0.33, 0.05, 0.0)
     lead, follow = plan.steps
-    assert lead.crosses_edge and follow.crosses_edge
-    wait = Timing().probe
+    assert lead.checked_on_landing and follow.checked_on_landing
+    wait = Timing().foothold_wait
     assert wait > 0 and follow.shift_at == pytest.approx(lead.land_at + wait)
     zmp_at = lambda t: (float(plan.zmp(np.array([t]))[0][0]), float(plan.zmp(np.array([t]))[1][0]))
     assert zmp_at(lead.land_at + wait) == pytest.approx(zmp_at(lead.land_at))
-    unchecked = WalkPlan(dict(FEET), Timing(probe=0.0))
+    unchecked = WalkPlan(dict(FEET), Timing(foothold_wait=0.0))
     unchecked.step_to(0.33, 0.05, 0.0)
     assert unchecked.steps[1].shift_at == pytest.approx(unchecked.steps[0].land_at)
     slope = -math.radians(10)
     ramp = WalkPlan(dict(FEET), ground={"left": Ground(0.0, slope), "right": Ground(0.0, slope)})
     ramp.plan(0.3, 0.0, 0.0, 0.0)
-    assert all(step.climbs and not step.crosses_edge for step in ramp.steps)
+    assert all(step.climbs and not step.checked_on_landing for step in ramp.steps)
+    down = WalkPlan(dict(FEET), ground={"left": Ground(0.05), "right": Ground(0.05)})
+    down.step_to(0.33, -0.05, 0.0)
+    assert not any(step.checked_on_landing for step in down.steps)
+    assert down.steps[1].shift_at == pytest.approx(down.steps[0].land_at)
 
 
 def test_retreat_puts_the_foot_back_where_it_lifted_from_and_drops_the_rest():

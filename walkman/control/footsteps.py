@@ -37,11 +37,11 @@ feet's grounds, the swing foot's taken along its travel: the pelvis rises and
 sinks with it (the pendulum's height above the feet stays constant).  Every
 landing is checked against :class:`Reach` -- how far a foot can go from the
 one that stands -- *before* the first foot lifts: a walk with a step the legs
-cannot make is refused whole, saying which step and why.  A step that
-changes the ground lands heel or toes first and the weight waits on the other
-foot for ``Timing.probe`` while the walking module checks from the first touch
-that the sole bears there (:mod:`walkman.control.foothold`); :meth:`WalkPlan.retreat`
-puts a foot whose sole does not bear back where it was.
+cannot make is refused whole, saying which step and why.  A step onto
+higher ground lands heel first and the weight waits on the other foot for
+``Timing.foothold_wait`` while the walking module checks from the first touch that the
+heel bears (:mod:`walkman.control.foothold`); :meth:`WalkPlan.retreat` puts a foot
+whose heel does not bear back where it was.
 
 :meth:`WalkPlan.zmp` samples that plan at any times (the preview controller of
 :mod:`walkman.control.lipm` looks 1.6 s ahead).  :meth:`WalkPlan.halt` keeps
@@ -59,7 +59,7 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from walkman.control.foothold import WAIT as PROBE_WAIT
+from walkman.control.foothold import WAIT as FOOTHOLD_WAIT
 from walkman.control.trajectory import quintic
 
 Planar = Tuple[float, float, float]  # x, y, yaw
@@ -125,10 +125,10 @@ class Timing:
     #: a step up or down swings this much longer (its foot goes further up and down, and
     #: lands late on the loaded, springy legs), and the weight shift after it is the slow one
     climb: float = 0.6
-    #: s the weight waits on the standing foot after a step that climbs lands on one end of
-    #: its sole, while the walking module checks that the sole bears there
+    #: s the weight waits on the standing foot after a step onto higher ground lands heel
+    #: first, while the walking module checks that the heel bears
     #: (:mod:`walkman.control.foothold`); 0: lands flat, unchecked
-    probe: float = PROBE_WAIT
+    foothold_wait: float = FOOTHOLD_WAIT
     #: the ZMP stands this far inside the stance foot's centre, towards the other foot: the
     #: CoM then sways less, and compliance (which leans the robot outwards) has room
     inward: float = 0.01
@@ -183,14 +183,15 @@ class Step:
             abs(self.land_ground.pitch - self.start_ground.pitch) > 0.05
 
     @property
-    def crosses_edge(self) -> bool:
-        """The step lands on other ground than the one it left, continued (a kerb's edge,
-        a ramp's foot or top; not a step up a ramp's slope): where the sole lands is checked
-        (:mod:`walkman.control.foothold`)."""
+    def checked_on_landing(self) -> bool:
+        """The step lands on other ground than the one it left, continued, and not lower:
+        onto a kerb, onto a ramp or its top (not a step up a ramp's slope, nor a step down):
+        it lands heel first and the sole is checked (:mod:`walkman.control.foothold`)."""
         ahead = compose(inverse(self.start), self.land)[0]
         continued = self.start_ground.ahead(ahead)
-        return abs(self.land_z - continued.z) > 0.005 or \
-            abs(self.land_ground.pitch - continued.pitch) > 0.05
+        rise = self.land_z - continued.z
+        return rise > 0.005 or (rise > -0.005 and
+                                abs(self.land_ground.pitch - continued.pitch) > 0.05)
 
     def pitch(self, t: float) -> float:
         """The sole's pitch at ``t``: turned from the old ground's to the new one's on the
@@ -459,9 +460,9 @@ class WalkPlan:
                       (now + shift + swing, stance[0], stance[1])]
             feet[step.side] = step.land
             now += shift + swing
-            if step.crosses_edge and timing.probe > 0:
+            if step.checked_on_landing and timing.foothold_wait > 0:
                 # the weight waits on the standing foot while the landed sole is checked
-                now += timing.probe
+                now += timing.foothold_wait
                 knots.append((now, stance[0], stance[1]))
         centre = midpoint(feet["left"], feet["right"])
         knots.append((now + timing.last_shift, centre[0], centre[1]))

@@ -35,11 +35,11 @@ from where the soles are; a footstep's pitch is the ground's), and a walk goes
 on as the ground under the standing foot goes (up a ramp's slope); the plan
 checks every landing against the legs' reach before a foot lifts, each sole is
 pitched like its ground, and the pelvis rises and sinks with the feet's ground.
-The module cannot see a kerb's edge: a sole landing on other ground comes down
-heel first going up (toes first going down) and the first touch says whether
-it bears there (:mod:`walkman.control.foothold`); if not -- a ``step_up`` sent
-from too far lands the heel over the lower floor -- the pilot is warned and the
-foot goes back where it lifted from before the weight goes onto it.
+The module cannot see a kerb's edge: a sole landing on higher ground comes
+down heel first and the first touch says whether the heel bears
+(:mod:`walkman.control.foothold`); if not -- a ``step_up`` sent from too far
+lands the heel over the lower floor -- the pilot is warned and the foot goes
+back where it lifted from before the weight goes onto it.
 
 On start the knees bend (the pelvis sinks ``CROUCH``) so that steps are within
 reach and the pendulum's height is constant while walking.  The pilot's
@@ -72,7 +72,7 @@ import numpy as np
 from walkman.control.balance import (AnkleCompliance, AttitudeLoop, BalanceGuard, Sole,
                                      combined_zmp, foot_zmp, rotation_rpy, support_margin,
                                      to_local)
-from walkman.control.foothold import FootholdProbe
+from walkman.control.foothold import FootholdCheck
 from walkman.control.footsteps import SIDES, Planar, Step, WalkPlan, compose, inverse
 from walkman.control.lipm import PreviewAxis, preview_gains
 from walkman.control.trajectory import quintic
@@ -199,8 +199,8 @@ class Module(TaskModule):
         self.ankles = {side: AnkleCompliance() for side in SIDES}
         self.sole_shape = Sole()
         self.halted_for_pause = False
-        self.probe: Optional[FootholdProbe] = None   # a sole landing on one end, checked
-        self.probed_step: Optional[Step] = None      # and its step
+        self.foothold: Optional[FootholdCheck] = None   # a sole landing heel first
+        self.foothold_step: Optional[Step] = None    # and its step
         self.legs = np.concatenate(list(self.leg_index.values()))
         self.stiffness = np.array([self.kinematics.robot.joint(self.robot.joint_names[i]).stiffness
                                    for i in self.legs])
@@ -338,16 +338,15 @@ class Module(TaskModule):
         dt = min(max(now - self.last_tick, 0.0), 0.05)
         self.last_tick = now
         plan = self.plan
-        if self.pause_requested and not self.halted_for_pause and self.probe is None:
+        if self.pause_requested and not self.halted_for_pause and self.foothold is None:
             plan.halt(now)          # (after a landing's verdict: it may put the foot back)
             self.halted_for_pause = True
         landed = plan.update(now)
         flying = plan.in_air(now)
-        if flying is not None and flying.crosses_edge and plan.timing.probe and \
-                flying is not self.probed_step:     # it will land on one end of its sole
-            self.probe = FootholdProbe.for_step(flying.side, flying.land_at,
-                                                flying.land_z - flying.start_z, self.sole_shape)
-            self.probed_step = flying
+        if flying is not None and flying.checked_on_landing and plan.timing.foothold_wait and \
+                flying is not self.foothold_step:     # it will land heel first
+            self.foothold = FootholdCheck(flying.side, flying.land_at, self.sole_shape)
+            self.foothold_step = flying
         if (landed or now - self.last_report >= REPORT_PERIOD) and not paused:
             self.report()  # odometry once per step, balance twice a second
             self.last_report = now
@@ -381,11 +380,11 @@ class Module(TaskModule):
         for side, index in self.leg_index.items():
             (x, y, foot_yaw), height = feet[side]
             ground_pitch = plan.foot_pitch(side, now)      # a ramp's, 0 on level ground
-            if self.probe is not None and self.probe.side == side:   # landing on one end
-                forward, up = self.probe.shift(now, ground_pitch)
+            if self.foothold is not None and self.foothold.side == side:   # landing heel first
+                forward, up = self.foothold.shift(now, ground_pitch)
                 x, y = x + forward * math.cos(foot_yaw), y + forward * math.sin(foot_yaw)
                 height += up
-                ground_pitch += self.probe.tilt(now)
+                ground_pitch += self.foothold.tilt(now)
             target = rotation.T @ (np.array([x, y, height]) - pelvis)
             foot_roll, foot_pitch = tilts[side]
             result = self.ik.solve(FRAMES[side], target,
@@ -396,22 +395,22 @@ class Module(TaskModule):
             self.reference[index] = result.q[index]
 
     def check_foothold(self, now: float) -> None:
-        """Sample the sole landing on one end; at the verdict, if it does not bear there,
+        """Sample the sole landing heel first; at the verdict, if the heel does not bear,
         say so and put the foot back where it lifted from (the rest of the walk dropped)."""
-        probe = self.probe
-        if probe is None:
+        check = self.foothold
+        if check is None:
             return
-        wrench = self.wrenches.get(probe.side)
-        probe.sample(now, None if wrench is None else foot_zmp(wrench, self.sole_shape))
-        problem = probe.decide(now)
-        if probe.bears is False and self.plan.swinging(now) == probe.side:
-            probe.release(now)      # put back: it turns flat in the air
-        if probe.done(now):
-            self.probe = None
+        wrench = self.wrenches.get(check.side)
+        check.sample(now, None if wrench is None else foot_zmp(wrench, self.sole_shape))
+        problem = check.decide(now)
+        if check.bears is False and self.plan.swinging(now) == check.side:
+            check.release(now)      # put back: it turns flat in the air
+        if check.done(now):
+            self.foothold = None
         if problem:
             self.warn(f"foothold: {problem}; putting the foot back where it was, the rest "
                       f"of the walk dropped (walk closer and step again)")
-            self.plan.retreat(self.probed_step, now)
+            self.plan.retreat(self.foothold_step, now)
 
     def comply(self, dt: float, now: float, planar: Dict[str, Planar],
                paused: bool = False) -> Dict[str, np.ndarray]:
@@ -425,9 +424,9 @@ class Module(TaskModule):
         tilts = {}
         for side in SIDES:
             wrench = self.wrenches.get(side)
-            probed = self.probe is not None and self.probe.side == side
+            landing = self.foothold is not None and self.foothold.side == side
             measured = foot_zmp(wrench, self.sole_shape) if stepping and wrench is not None \
-                and side != swinging and not probed else None
+                and side != swinging and not landing else None
             desired = (0.0, 0.0)
             if swinging is not None and side != swinging:
                 local = to_local(planar[side], zmp)
