@@ -205,31 +205,9 @@ class Shadow:
         for _ in range(MAX_PHASES):
             q = q.copy()
             if thread.trajectory.active and thread.effector is not None:
-                effector, trajectory = thread.effector, thread.trajectory
-                moved = thread.ik.joints_of(effector.joints)
-                # Along the path as the module's loop tracks it: each point's posture on
-                # from the last one's, no random restarts (a turn that passes where the
-                # hand cannot go would stall there on the robot).
-                # A contact motion is judged by its end alone: on the way it presses into
-                # what it pushes, where no posture reaches.
-                samples = [PATH_SAMPLES] if thread.contact else range(1, PATH_SAMPLES + 1)
-                for sample in samples:
-                    position, rotation = trajectory.at(
-                        trajectory.t0 + trajectory.duration * sample / PATH_SAMPLES)
-                    result = thread.ik.solve(effector.frame, position,
-                                             rotation if thread.full_pose else None, q,
-                                             effector.joints, offset=effector.offset,
-                                             restarts=0, rest=thread.rest,
-                                             max_iterations=SAMPLE_ITERATIONS)
-                    q[moved] = result.q[moved]
-                    if thread.contact:     # the goal is inside what it pushes (a pedal): the
-                        continue           # module ends with its trajectory, wherever it stopped
-                    if result.position_error > ACTION_TOLERANCE:
-                        where = "at the end" if sample == PATH_SAMPLES else \
-                            f"{100 * sample // PATH_SAMPLES} % of the way"
-                        return None, (f"{self.name}: the {effector.frame} cannot reach "
-                                      f"{np.round(position, 3).tolist()} {where} (misses by "
-                                      f"{result.position_error * 100:.1f} cm)")
+                reason = self._follow_path(q)
+                if reason:
+                    return None, reason
                 thread.trajectory.reset()
             elif thread.joint_motion is not None:
                 index, motion = thread.joint_motion
@@ -244,6 +222,33 @@ class Shadow:
             self.backend.set_posture(q)
             thread.phases.pop(0)()
         return None, f"{self.name}: more than {MAX_PHASES} chained motions"
+
+    def _follow_path(self, q: np.ndarray) -> str:
+        """Move ``q`` (in place) along the effector's trajectory as the module's loop tracks
+        it: each point's posture on from the last one's, no random restarts (a turn that passes
+        where the hand cannot go would stall there on the robot).  A contact motion is judged
+        by its end alone: on the way it presses into what it pushes (a pedal), where no
+        posture reaches, and the module ends with its trajectory wherever it stopped.
+        Returns where the path leaves the IK's reach, or ''."""
+        thread = self.thread
+        effector, trajectory = thread.effector, thread.trajectory
+        moved = thread.ik.joints_of(effector.joints)
+        samples = [PATH_SAMPLES] if thread.contact else range(1, PATH_SAMPLES + 1)
+        for sample in samples:
+            position, rotation = trajectory.at(
+                trajectory.t0 + trajectory.duration * sample / PATH_SAMPLES)
+            result = thread.ik.solve(effector.frame, position,
+                                     rotation if thread.full_pose else None, q,
+                                     effector.joints, offset=effector.offset, restarts=0,
+                                     rest=thread.rest, max_iterations=SAMPLE_ITERATIONS)
+            q[moved] = result.q[moved]
+            if not thread.contact and result.position_error > ACTION_TOLERANCE:
+                where = "at the end" if sample == PATH_SAMPLES else \
+                    f"{100 * sample // PATH_SAMPLES} % of the way"
+                return (f"{self.name}: the {effector.frame} cannot reach "
+                        f"{np.round(position, 3).tolist()} {where} (misses by "
+                        f"{result.position_error * 100:.1f} cm)")
+        return ""
 
     def _snapshot(self) -> Dict[str, object]:
         """The module's attributes, containers copied (a motion mutates them in place)."""

@@ -290,6 +290,7 @@ class Module(TaskModule):
     def forget_motions(self) -> None:
         super().forget_motions()
         self.plan.steps, self.plan.set_aside = [], []
+        self.foothold = self.foothold_step = None
 
     # -- every tick ----------------------------------------------------------------------
 
