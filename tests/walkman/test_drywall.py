@@ -41,10 +41,14 @@ def test_a_running_drill_taken_once_round_cuts_the_circle_out():
 
 
 def test_the_angle_is_clockwise_as_the_robot_sees_the_wall():
-    wall = panel()
-    wall.feed(on_circle(90), True)       # the robot's right of the centre
-    assert wall.sectors[90] and wall.cut_degrees == 1
-    assert on_circle(90)[1] < CENTRE[1]
+    """Points placed by hand, not by :func:`on_circle`: the top of the circle is 0 degrees,
+    the robot's right of the centre (-y: the robot looks along +x) 90."""
+    centre = np.array(CENTRE)
+    for point, sector in ((centre + [0.02, 0.0, RADIUS], 0), (centre + [0.02, -RADIUS, 0.0], 90),
+                          (centre + [0.02, RADIUS, 0.0], 270)):
+        wall = panel()
+        wall.feed(point, True)
+        assert wall.cut_degrees == 1 and wall.sectors[sector], (point, sector)
 
 
 def test_a_stopped_drill_cuts_nothing_and_says_so_once():
