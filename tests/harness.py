@@ -224,10 +224,15 @@ class YarpWorld:
 def dump_outputs_if_failed(request, processes) -> None:
     """Show what the child processes printed when the test failed (their logs explain it).
 
-    Needs the ``report_call`` attribute set by ``pytest_runtest_makereport`` in conftest.
+    From a fixture's teardown the test's report says (``report_call``, set by
+    ``pytest_runtest_makereport`` in conftest); from a ``finally`` inside the test (a context
+    manager of its own), the failure is the exception on its way out -- the report does not
+    exist yet.
     """
     report = getattr(request.node, "report_call", None)
-    if report is None or not report.failed:
+    failing = sys.exc_info()[0]
+    if not (report is not None and report.failed) and \
+            (failing is None or issubclass(failing, GeneratorExit)):
         return
     for proc in processes:
         tail = "\n".join(proc.output().splitlines()[-40:])
