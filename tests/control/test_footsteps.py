@@ -244,7 +244,7 @@ def test_the_weight_waits_on_the_standing_foot_after_a_landing_on_other_ground()
     plan = WalkPlan(dict(FEET))
     plan.step_to(0.33, 0.05, 0.0)
     lead, follow = plan.steps
-    assert lead.checked_on_landing and follow.checked_on_landing
+    assert lead.checked_on_landing and not follow.checked_on_landing   # it lands beside it
     wait = Timing().foothold_wait
     assert wait > 0 and follow.shift_at == pytest.approx(lead.land_at + wait)
     zmp_at = lambda t: (float(plan.zmp(np.array([t]))[0][0]), float(plan.zmp(np.array([t]))[1][0]))
@@ -260,6 +260,10 @@ def test_the_weight_waits_on_the_standing_foot_after_a_landing_on_other_ground()
     down.step_to(0.33, -0.05, 0.0)
     assert not any(step.checked_on_landing for step in down.steps)
     assert down.steps[1].shift_at == pytest.approx(down.steps[0].land_at)
+    # footsteps placed one by one are each checked
+    placed = WalkPlan(dict(FEET))
+    placed.place([(0.33, 0.11, 0.0, 0.05, 0.0), (0.33, -0.11, 0.0, 0.05, 0.0)], 0.0)
+    assert all(step.checked_on_landing for step in placed.steps)
 
 
 def test_retreat_puts_the_foot_back_where_it_lifted_from_and_drops_the_rest():

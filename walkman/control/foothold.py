@@ -17,7 +17,8 @@ over an edge the heel meets nothing and the sole touches down on the edge, its
 centre of pressure there.
 
 So a step onto higher ground, or onto a slope
-(:attr:`walkman.control.footsteps.Step.checked_on_landing`), lands heel first: the
+(:attr:`walkman.control.footsteps.Step.checked_on_landing`; of ``step_up``'s two, the
+leading one: the other lands beside it, as far past a kerb across the walk), lands heel first: the
 sole turns over the last :data:`TURN` seconds of its descent, about its heel
 (which comes down where the plan puts the sole), and stays turned until the
 verdict.  The verdict is taken from the first :data:`TOUCH` seconds of weight

@@ -167,6 +167,8 @@ class Step:
     land_at: float                # single support ends
     start_ground: Ground = FLAT   # the ground under it when it lifts off
     land_ground: Ground = FLAT    # and where it lands
+    #: its landing on higher ground is checked (False: it lands beside a sole that was)
+    check: bool = True
 
     @property
     def start_z(self) -> float:
@@ -187,6 +189,8 @@ class Step:
         """The step lands on other ground than the one it left, continued, and not lower:
         onto a kerb, onto a ramp or its top (not a step up a ramp's slope, nor a step down):
         it lands heel first and the sole is checked (:mod:`walkman.control.foothold`)."""
+        if not self.check:
+            return False
         ahead = compose(inverse(self.start), self.land)[0]
         continued = self.start_ground.ahead(ahead)
         rise = self.land_z - continued.z
@@ -354,8 +358,11 @@ class WalkPlan:
         ahead = compose(self.centre, (forward, 0.0, 0.0))
         heights = self.heights.values()
         level = max(heights) if height >= 0 else min(heights)
+        # The kerb runs across the walk: the right sole lands beside the left one, as far past
+        # its edge, and only the left one's landing is checked (checking both cost the step
+        # a centimetre of ZMP margin: the weight's second wait, tried)
         return self._play([(side, self.nominal(ahead, side), Ground(level + height), None)
-                           for side in SIDES], t)
+                           for side in SIDES], t, check_first_only=True)
 
     def place(self, footsteps: List[Tuple[float, float, float, float, float]],
               t: float) -> int:
@@ -374,12 +381,13 @@ class WalkPlan:
             side = other(side)
         return self._play(landings, t)
 
-    def _play(self, landings: List[Landing], t: float) -> int:
+    def _play(self, landings: List[Landing], t: float, check_first_only: bool = False) -> int:
         """Check every landing against :attr:`reach` from the foot that will stand, then
         schedule them all; returns the number of steps.  A landing's ground is, if not
         given, the standing foot's continued to where it lands (level ground stays level,
         a ramp goes on); its stride (the odometry it stands for), if not given, how far it
-        moves the point between the feet."""
+        moves the point between the feet.  ``check_first_only``: the landings after the first
+        go beside it, and only its landing is checked (:attr:`Step.check`)."""
         if self.steps:
             raise ValueError("already walking: wait for the walk to end")
         feet, ground = dict(self.feet), dict(self.ground)
@@ -398,7 +406,7 @@ class WalkPlan:
             if stride is None:
                 stride = compose(inverse(before), midpoint(feet["left"], feet["right"]))
             steps.append(Step(side, start, land, stride, 0.0, 0.0, 0.0, ground[side],
-                              land_ground))
+                              land_ground, check=number == 1 or not check_first_only))
             ground[side] = land_ground
         self.set_aside = []
         self._schedule(steps, t)
