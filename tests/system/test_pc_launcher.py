@@ -32,7 +32,8 @@ def test_launchers_bring_up_both_pcs_and_a_plain_shell_pilots_the_robot(tmp_path
         for side, other in (("robot", "pilot"), ("pilot", "robot")):
             launchers[side] = Proc(
                 [str(REPO / "launch_scripts" / f"{side}_pc.sh"), "--peer", "127.0.0.1",
-                 "--yarp-port", str(free_port()), "--ros-port", str(free_port()),
+                 # a run, as every name server gets: it hands out the numbers after its own
+                 "--yarp-port", str(free_port(span=400)), "--ros-port", str(free_port()),
                  "--bridge-port", str(bridge), "--udp-port", str(udp[side]),
                  "--peer-udp-port", str(udp[other]), "--dir", str(tmp_path / side),
                  "--key", str(tmp_path / "bridge.key"), "--shuffle"], dict(os.environ),
