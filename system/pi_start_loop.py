@@ -165,8 +165,10 @@ def stop_pi(pi: Proc, figures: Figures, where: str) -> None:
         figures.stop_failures.append(f"{where}: did not exit within 30 s of SIGTERM")
         pi.kill()
         return
-    if code != 0:
-        figures.stop_failures.append(f"{where}: exited {code} when stopped")
+    if code != 0:   # its last lines say why (one in 500 exited 1: the cause was not kept)
+        tail = "\n    ".join(pi.output().splitlines()[-15:])
+        figures.stop_failures.append(f"{where}: exited {code} when stopped; its last lines:\n"
+                                     f"    {tail}")
     deadline = time.monotonic() + 10
     while children and any(alive(p) for p in children) and time.monotonic() < deadline:
         time.sleep(0.1)
