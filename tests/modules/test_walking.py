@@ -245,17 +245,8 @@ def test_a_metre_with_a_pause_on_the_way_as_processes(task_at):
     walk.pilot.wait_state("paused", 10)
     assert scene.tilt() < MAX_TILT
     walk.send("switch", "resume")
-    lowest, most_tilted = math.inf, 0.0
-
-    def walked() -> bool:
-        nonlocal lowest, most_tilted
-        lowest = min(lowest, scene.base()[2])
-        most_tilted = max(most_tilted, scene.tilt())
-        return walk.pilot.state() == "idle"
-
-    wait_until(walked, 40, interval=0.1, message="the rest of the walk")
+    idle_upright(walk, 40, "the rest of the walk")
     assert scene.base()[0] - start[0] >= 0.9
-    assert lowest > LOWEST_PELVIS and most_tilted < MAX_TILT, (lowest, most_tilted)
     walk.send("switch", "stop")      # the HAL holds the legs as walking commanded them
     walk.pilot.wait_state("stopped", 10)
     height = scene.base()[2]
@@ -269,26 +260,30 @@ def test_a_step_up_sent_too_far_from_the_kerb_is_put_back_as_processes(task_at):
     ``step_up 0.05`` straight from station terrain.  The pilot is told the heel found no
     ground, the foot goes back, the robot stands; walked up to the kerb, the step is made."""
     walk = task_at("terrain", "walking", "--harness", "off")
-    scene = walk.scene
-    lowest, most_tilted = math.inf, 0.0
-
-    def done() -> bool:
-        nonlocal lowest, most_tilted
-        lowest = min(lowest, scene.base()[2])
-        most_tilted = max(most_tilted, scene.tilt())
-        return walk.pilot.state() == "idle"
-
     walk.command("step_up 0.05", "stepping_up", 10)
     walk.pilot.wait_warning("its heel is over an edge; putting the foot back", 30)
-    wait_until(done, 30, interval=0.1, message="the foot put back")
-    assert lowest > LOWEST_PELVIS and most_tilted < MAX_TILT, (lowest, most_tilted)
-    standing = scene.base()[2]
+    idle_upright(walk, 30, "the foot put back")
+    standing = walk.scene.base()[2]
     walk.command("go_straight 0.12", "walking", 10)
     walk.pilot.wait_state("idle", 30)
     walk.command("step_up 0.05", "stepping_up", 10)
-    wait_until(done, 40, interval=0.1, message="up the step")
-    assert lowest > LOWEST_PELVIS and most_tilted < MAX_TILT, (lowest, most_tilted)
-    assert scene.base()[2] - standing == pytest.approx(TERRAIN_STEP[2], abs=0.01)   # on it
+    idle_upright(walk, 40, "up the step")
+    assert walk.scene.base()[2] - standing == pytest.approx(TERRAIN_STEP[2], abs=0.01)  # on it
+
+
+def idle_upright(walk, timeout: float, what: str) -> None:
+    """Until the module is idle, the pelvis (the world's truth) never below walking height
+    nor tilted past MAX_TILT on the way."""
+    lowest, most_tilted = math.inf, 0.0
+
+    def idle() -> bool:
+        nonlocal lowest, most_tilted
+        lowest = min(lowest, walk.scene.base()[2])
+        most_tilted = max(most_tilted, walk.scene.tilt())
+        return walk.pilot.state() == "idle"
+
+    wait_until(idle, timeout, interval=0.1, message=what)
+    assert lowest > LOWEST_PELVIS and most_tilted < MAX_TILT, (what, lowest, most_tilted)
 
 
 def push(impulse: Tuple[float, float, float]) -> str:
