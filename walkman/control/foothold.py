@@ -94,7 +94,7 @@ class FootholdCheck:
     def tilt(self, t: float) -> float:
         """The pitch (rad, rpy: negative turns the toes up) added to the sole at ``t``."""
         into = quintic((t - (self.landing - TURN)) / TURN)
-        flat_from = self._released_at if self.bears is False else self._decided_at
+        flat_from = self._turns_flat_at
         if flat_from is not None:
             into = min(into, quintic((flat_from + TURN - t) / TURN))
         return -TILT * into
@@ -140,8 +140,14 @@ class FootholdCheck:
 
     def done(self, t: float) -> bool:
         """Decided, and the sole flat again."""
-        flat_from = self._released_at if self.bears is False else self._decided_at
+        flat_from = self._turns_flat_at
         return flat_from is not None and t >= flat_from + TURN
+
+    @property
+    def _turns_flat_at(self) -> Optional[float]:
+        """When the sole starts turning flat: at the verdict if it bears, once released if
+        not; None before."""
+        return self._released_at if self.bears is False else self._decided_at
 
     def verdict(self) -> str:
         """'' if the sole bears at its heel; else why not, as a pilot reads it."""
