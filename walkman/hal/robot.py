@@ -269,9 +269,9 @@ class Robot(WholeBody):
         #: chain's slice of it: worked out once, not for every state.
         self._whole_joints = [self.joint_names[i] for indices in self.chains.values()
                               for i in indices]
-        ends = np.cumsum([len(indices) for indices in self.chains.values()])
-        self._whole_slices = [(chain, slice(end - len(indices), end))
-                              for (chain, indices), end in zip(self.chains.items(), ends)]
+        # The whole-robot state lists the chains' joints one chain after the other.
+        self._whole_links = list(self._links.values())
+        self._whole_indices = [i for link in self._whole_links for i in link.indices]
         log.info("%s: reading the robot's state %s", self.owner,
                  f"whole from {whole}" if whole else f"chain by chain ({len(self.chains)})")
         if whole is not None:  # after the links: its first state may come at once
@@ -403,7 +403,9 @@ class Robot(WholeBody):
             log.warning("%s: bad state from the HAL on %s: %s", self.owner, chain, exc)
             return
         self.clock.observe(state.time)
-        self._store(chain, state.seq, state.q, state.qdot, state.tau, state.temperature)
+        link = self._links[chain]
+        self._store((link,), link.indices, state.seq, state.q, state.qdot, state.tau,
+                    state.temperature)
 
     def _on_whole_state_si(self, bottle: Bottle) -> None:
         self._reader_priority()
@@ -415,9 +417,8 @@ class Robot(WholeBody):
                             "%s", self.owner, self._bad_whole.count, exc)
             return
         self.clock.observe(state.time)
-        for chain, part in self._whole_slices:
-            self._store(chain, state.seq, state.q[part], state.qdot[part], state.tau[part],
-                        state.temperature[part])
+        self._store(self._whole_links, self._whole_indices, state.seq, state.q, state.qdot,
+                    state.tau, state.temperature)
 
     def _on_state_ext(self, chain: str, indices: List[int], bottle: Bottle,
                       envelope: str = "") -> None:
@@ -433,25 +434,29 @@ class Robot(WholeBody):
         # Timed by arrival: a YARP device's stamp need not move (fakeMotionControl's is 0).
         self.clock.observe(time.monotonic())
         zeros = [0.0] * len(indices)
-        self._store(chain, stamp.count if stamp else 0, np.radians(data.position),
+        self._store((self._links[chain],), indices, stamp.count if stamp else 0,
+                    np.radians(data.position),
                     np.radians(data.velocity) if data.velocity else zeros,
                     data.torque or zeros, None, data.control_modes)
 
-    def _store(self, chain: str, seq: int, q: Sequence[float], qdot: Sequence[float],
-               tau: Sequence[float], temperature: Optional[Sequence[float]],
+    def _store(self, links: Sequence[_ChainLink], indices: List[int], seq: int,
+               q: Sequence[float], qdot: Sequence[float], tau: Sequence[float],
+               temperature: Optional[Sequence[float]],
                modes: Optional[Sequence[str]] = None) -> None:
-        link = self._links[chain]
-        indices = link.indices
+        """The state of ``links`` (their joints at ``indices``, in order), arrived now;
+        ``modes`` (one chain's) when the state says them.  A whole-robot state is stored
+        in one go: at 500 Hz in every module, chain by chain cost a third of its reading."""
         now = time.monotonic()
         with self._lock:
-            # A robot back from silence, or restarted (its count went back), may have booted
-            # our joints in another mode; so may anyone who changed their modes.
-            lost = [k for k in link.direct if modes is not None and modes[k] != "posd"]
-            if now - link.seen_at > STALE_AFTER or seq < link.seq or lost:
-                link.direct.difference_update(lost if lost else set(link.direct))
-                if link.wanted - link.direct:
-                    self._mode_wanted.set()
-            link.seen_at, link.seq = now, seq
+            for link in links:
+                # A robot back from silence, or restarted (its count went back), may have
+                # booted our joints in another mode; so may anyone who changed their modes.
+                lost = [k for k in link.direct if modes[k] != "posd"] if modes is not None else []
+                if now - link.seen_at > STALE_AFTER or seq < link.seq or lost:
+                    link.direct.difference_update(lost if lost else set(link.direct))
+                    if link.wanted - link.direct:
+                        self._mode_wanted.set()
+                link.seen_at, link.seq = now, seq
             self._q[indices] = q
             self._qdot[indices] = qdot
             self._tau[indices] = tau
@@ -460,9 +465,10 @@ class Robot(WholeBody):
             self._seen[indices] = True
             self.last_seq = seq
             self._updated = now
-            if all(other.seen_at > self.newest_round for other in self._links.values()):
-                if now - self.newest_round < STALE_AFTER:
-                    self._round_spacings.append(now - self.newest_round)
+            newest = self.newest_round
+            if all(other.seen_at > newest for other in self._links.values()):
+                if now - newest < STALE_AFTER:
+                    self._round_spacings.append(now - newest)
                     self._round_steps.append(seq - self._round_seq)
                 self.newest_round, self._round_seq = now, seq
                 self._round.notify_all()
