@@ -84,3 +84,31 @@ def test_a_circle_cut_within_the_tolerance_is_cut_out(radial_error, depth):
         wall.feed(on_circle(step / 2, RADIUS + radial_error, depth), True)
     assert wall.cut_out
     assert wall.largest_miss == pytest.approx(abs(radial_error), abs=1e-9)
+
+
+def test_the_bit_cuts_along_its_path_between_two_samples():
+    """A tip sampled every 5 degrees (a module catching up after a stall moves it that fast)
+    still cut every degree it passed: the simulator samples it, the drill cuts continuously."""
+    wall = panel()
+    said = []
+    for angle in range(0, 365, 5):
+        said += wall.feed(on_circle(angle), True)
+    assert wall.cut_out and said[-1].startswith("drywall: the circle is cut out")
+    assert wall.largest_miss == pytest.approx(0.0, abs=1e-9)   # the samples', not the chords'
+
+
+def test_a_jump_across_the_panel_cuts_only_where_it_crosses_the_circle():
+    wall = panel()
+    wall.feed(on_circle(0), True)
+    wall.feed(on_circle(180), True)                     # straight through the centre
+    assert [k for k, cut in enumerate(wall.sectors) if cut] == [0, 180]
+
+
+def test_nothing_is_cut_between_samples_with_the_drill_off_or_the_bit_out():
+    wall = panel()
+    wall.feed(on_circle(0.5), True)                     # mid-sector: no rounding to judge
+    wall.feed(on_circle(10.5), False)                   # the drill stopped on the way
+    wall.feed(on_circle(20.5), True)
+    wall.feed(on_circle(30.5, depth=-0.01), True)       # out of the panel
+    wall.feed(on_circle(40.5), True)
+    assert [k for k, cut in enumerate(wall.sectors) if cut] == [0, 20, 40]
