@@ -265,13 +265,11 @@ class Robot(WholeBody):
                 state.open(f"{self.owner}/robot/{chain}/state:i")
                 self._ports.append(state)
                 self._persist(names["state_ext" if self.standard else "state_si"], state.name)
-        #: The joints of a whole-robot state, in its order (the grouping's), and each
-        #: chain's slice of it: worked out once, not for every state.
-        self._whole_joints = [self.joint_names[i] for indices in self.chains.values()
-                              for i in indices]
-        # The whole-robot state lists the chains' joints one chain after the other.
+        #: A whole-robot state lists the chains' joints one chain after the other (the
+        #: grouping's order): their indices and names, worked out once, not for every state.
         self._whole_links = list(self._links.values())
         self._whole_indices = [i for link in self._whole_links for i in link.indices]
+        self._whole_joints = [self.joint_names[i] for i in self._whole_indices]
         log.info("%s: reading the robot's state %s", self.owner,
                  f"whole from {whole}" if whole else f"chain by chain ({len(self.chains)})")
         if whole is not None:  # after the links: its first state may come at once
