@@ -9,12 +9,27 @@ port threads, made real-time on their first message.  Where that is not permitte
 ``WALKMAN_NO_RT=1`` opts out.  A real-time thread never busy-polls its sockets
 (:func:`yarp_lite.stream.no_spin_in_this_thread`): it would keep the loops it feeds off
 the CPU.
+
+Every other thread of such a process runs real-time too (:func:`make_process_realtime`,
+called before the first thread starts: threads inherit their creator's class).  A Python
+thread holds the interpreter lock while it runs; a normal-priority one (an rpc handler, a
+status writer) preempted by any busy process of the machine keeps it, and the 1 kHz
+physics or a control loop waits for the lock until the scheduler comes back to that
+thread: HAL steps of 35-94 ms were measured beside two busy loops, and a robot walking as
+processes fell short or tripped its guard (issue 31).  A module's other threads run at
+``BACKGROUND_PRIORITY``, below its loop; the HAL's at ``HAL_BACKGROUND_PRIORITY``, above
+every module's loop: the robot's threads are never preempted by a module's, so a lock one
+of them holds comes back at once.  A module's lifecycle hooks (``custom_init`` loading a
+model for seconds) run in its control thread at ``BACKGROUND_PRIORITY``
+(:func:`at_priority`): only the periodic loop is above the rest of the machine.
 """
 
 from __future__ import annotations
 
 import os
 import threading
+from contextlib import contextmanager
+from typing import Iterator
 
 from yarp_lite import stream
 
@@ -26,6 +41,10 @@ SWITCH_INTERVAL = 0.0002
 HAL_PRIORITY = 60
 PATH_PRIORITY = 55
 CONTROL_PRIORITY = 50
+#: Every other thread of the HAL (port servers, rpc handlers): above the modules' loops.
+HAL_BACKGROUND_PRIORITY = 52
+#: Every other thread of a module (port servers, writers) and its lifecycle hooks.
+BACKGROUND_PRIORITY = 10
 
 _this_thread = threading.local()
 
@@ -40,6 +59,31 @@ def make_realtime(priority: int) -> bool:
         return False
     stream.no_spin_in_this_thread()
     return True
+
+
+def make_process_realtime(priority: int = BACKGROUND_PRIORITY) -> bool:
+    """Run the calling thread, and so every thread it starts later, at ``priority``, and let
+    no thread of the process busy-poll; False where not permitted.  Call it first thing in
+    ``main``: threads started before keep their class."""
+    if not make_realtime(priority):
+        return False
+    stream.no_spin_in_this_process()
+    return True
+
+
+@contextmanager
+def at_priority(priority: int, realtime: bool) -> Iterator[None]:
+    """Within the block the calling real-time thread runs at ``priority``, then back at the
+    priority it had (``realtime`` False: the thread is not real-time, nothing changes)."""
+    if not realtime:
+        yield
+        return
+    before = os.sched_getparam(0).sched_priority
+    make_realtime(priority)
+    try:
+        yield
+    finally:
+        make_realtime(before)
 
 
 def make_realtime_once(priority: int) -> None:

@@ -45,6 +45,13 @@ def no_spin_in_this_thread() -> None:
     _this_thread.no_spin = True
 
 
+def no_spin_in_this_process() -> None:
+    """:func:`no_spin_in_this_thread` for every thread (a process whose threads are all
+    real-time)."""
+    global SPIN_SECONDS
+    SPIN_SECONDS = 0.0
+
+
 class Stream:
     """Interface shared by the socket and datagram streams."""
 

@@ -9,7 +9,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from walkman.control.balance import Sole
-from walkman.control.foothold import (LATEST, REACH, TILT, TOUCH, TURN, FootholdCheck)
+from walkman.control.foothold import (LATEST, REACH, SEEK_AFTER, SEEK_DEPTH, SEEK_SPEED, TILT,
+                                      TOUCH, TURN, FootholdCheck)
 
 LANDING = 10.0
 HEEL = -Sole().half_length
@@ -35,7 +36,8 @@ def test_the_sole_turns_before_the_landing_and_stays_turned_until_the_verdict():
 
 @given(st.floats(-0.2, 0.2), st.floats(0.0, 1.0))
 def test_the_heel_stays_where_the_plan_puts_the_sole(ground_pitch, into):
-    """Turned about its heel, the sole's centre moves so that the heel does not."""
+    """Turned about its heel, the sole's centre moves so that the heel does not (but for
+    the depth it reaches down for the ground, straight down)."""
     check = FootholdCheck("left", LANDING)
     t = LANDING - TURN + into * (TURN + LATEST)
     forward, up = check.shift(t, ground_pitch)
@@ -45,8 +47,27 @@ def test_the_heel_stays_where_the_plan_puts_the_sole(ground_pitch, into):
     def end_point(centre_x, centre_z, p):    # rpy pitch p turns +x towards -z
         return centre_x + along * math.cos(p), centre_z - along * math.sin(p)
 
-    assert end_point(forward, up, pitch) == pytest.approx(end_point(0.0, 0.0, ground_pitch),
-                                                          abs=1e-9)
+    assert end_point(forward, up, pitch) == pytest.approx(
+        end_point(0.0, -check.reach(t), ground_pitch), abs=1e-9)
+
+
+def test_a_sole_not_touching_reaches_down_for_the_ground_and_holds_where_it_touched():
+    check = FootholdCheck("left", LANDING)
+    assert check.reach(LANDING + SEEK_AFTER) == 0.0
+    assert check.reach(LANDING + SEEK_AFTER + 0.1) == pytest.approx(0.1 * SEEK_SPEED)
+    assert check.reach(LANDING + 10.0) == pytest.approx(SEEK_DEPTH)   # no deeper
+    touch(check, HEEL, start=LANDING + SEEK_AFTER + 0.1)               # found it
+    assert check.reach(LANDING + SEEK_AFTER + 0.3) == pytest.approx(0.1 * SEEK_SPEED)
+    decided = LANDING + SEEK_AFTER + 0.1 + TOUCH
+    assert check.decide(decided) == ""
+    assert check.reach(decided + TURN / 2) == pytest.approx(0.05 * SEEK_SPEED)  # turning flat
+    assert check.reach(decided + TURN) == 0.0
+
+
+def test_a_sole_that_touches_in_time_never_reaches_down():
+    check = FootholdCheck("left", LANDING)
+    touch(check, HEEL, start=LANDING + SEEK_AFTER - 0.05)
+    assert check.reach(LANDING + 1.0) == 0.0
 
 
 def test_a_heel_that_bears_passes_one_over_an_edge_is_named_with_where_it_bore():

@@ -5,6 +5,7 @@ from __future__ import annotations
 import socket
 import threading
 import time
+from typing import Callable
 
 import pytest
 
@@ -165,30 +166,43 @@ class _CountingSocket:
 
 
 
-@pytest.mark.skipif(not stream.SPIN_SECONDS, reason="YARP_LITE_SPIN_US=0: no busy-poll at all")
-def test_a_thread_told_not_to_spin_sleeps_in_recv_at_once():
+def polls_of_a_read_that_waits(before: Callable[[], None] = lambda: None) -> int:
+    """How often a reader (in a new thread that first calls ``before``) polls its socket
+    for a byte that comes 50 ms after one answered at once."""
     left, right = socket.socketpair()
-    polls = {}
+    polls = []
 
-    def read_twice(name: str, spin: bool) -> None:
+    def read_twice() -> None:
+        before()
         reader = SocketStream(left)
         counting = _CountingSocket(left)
         reader.sock = counting  # type: ignore[assignment]
-        if not spin:
-            stream.no_spin_in_this_thread()
         right.sendall(b"a")
         reader._fill()          # answered at once (a poll, for a spinning thread)...
         reader._last_wait = 0.0  # ...so the next read would poll first (however loaded the
         threading.Timer(0.05, right.sendall, (b"b",)).start()  # machine was just now)
         reader._fill()          # for up to SPIN_SECONDS before sleeping in recv
-        polls[name] = counting.polls
+        polls.append(counting.polls)
 
     try:
-        for name, spin in (("spinning", True), ("real-time", False)):
-            thread = threading.Thread(target=read_twice, args=(name, spin))
-            thread.start()
-            thread.join(5)
-        assert polls["spinning"] >= 2 and polls["real-time"] == 0, polls
+        thread = threading.Thread(target=read_twice)
+        thread.start()
+        thread.join(5)
+        return polls[0]
     finally:
         left.close()
         right.close()
+
+
+@pytest.mark.skipif(not stream.SPIN_SECONDS, reason="YARP_LITE_SPIN_US=0: no busy-poll at all")
+def test_a_thread_told_not_to_spin_sleeps_in_recv_at_once():
+    assert polls_of_a_read_that_waits() >= 2
+    assert polls_of_a_read_that_waits(stream.no_spin_in_this_thread) == 0
+    assert polls_of_a_read_that_waits() >= 2     # other threads still do
+
+
+def test_a_process_told_not_to_spin_never_polls_in_any_thread(monkeypatch):
+    monkeypatch.setattr(stream, "SPIN_SECONDS", 150e-6)  # put back after the test
+    assert polls_of_a_read_that_waits() >= 2
+    stream.no_spin_in_this_process()
+    assert polls_of_a_read_that_waits() == 0

@@ -348,9 +348,12 @@ def fifo_priorities(pid: int) -> List[int]:
 @pytest.mark.requires("root")
 def test_the_threads_between_sense_and_move_run_with_real_time_priority(lite_world, lite):
     """The loops, and the threads that hand a state to the module and its command back to
-    the HAL: a port thread at normal priority made the sense -> move p99 2.6-3.2 ms."""
+    the HAL: a port thread at normal priority made the sense -> move p99 2.6-3.2 ms.  The
+    other threads (ports, rpc handlers) run real-time below them: preempted while holding
+    the interpreter lock, they kept the physics waiting 35-94 ms on a busy machine."""
     from system.processes import descendants
-    from walkman.realtime import CONTROL_PRIORITY, HAL_PRIORITY, PATH_PRIORITY
+    from walkman.realtime import (BACKGROUND_PRIORITY, CONTROL_PRIORITY,
+                                  HAL_BACKGROUND_PRIORITY, HAL_PRIORITY, PATH_PRIORITY)
 
     hal, module, pilot = gaze_tracking(lite_world, lite, "1.0 0.4 0.1")  # streaming commands
     try:
@@ -363,6 +366,11 @@ def test_the_threads_between_sense_and_move_run_with_real_time_priority(lite_wor
         assert HAL_PRIORITY in fifo_priorities(hal.popen.pid)
         # the module: its control loop and its reader of the robot's state
         assert fifo_priorities(runner[0]).count(PATH_PRIORITY) >= 1, fifo_priorities(runner[0])
+        # each port has its server thread at least; the HAL's above every module's loop
+        for pid, background in ((hal.popen.pid, HAL_BACKGROUND_PRIORITY),
+                                (runner[0], BACKGROUND_PRIORITY)):
+            assert fifo_priorities(pid).count(background) >= 5, fifo_priorities(pid)
+        assert HAL_BACKGROUND_PRIORITY > CONTROL_PRIORITY > BACKGROUND_PRIORITY
         pilot.send(lite, "switch", "quit")
         assert module.wait(timeout=90) == 0   # a loaded 2-core box is slow to quit, not stuck
     finally:

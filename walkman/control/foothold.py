@@ -25,7 +25,14 @@ verdict.  The verdict is taken from the first :data:`TOUCH` seconds of weight
 on the sole (the foot touches down late on the springy legs): their centre of
 pressure, weighted by the load, must come within :data:`REACH` of the heel's
 end, else the heel does not bear; a sole that has carried no weight
-:data:`LATEST` seconds after the plan's landing found no ground.  A sole that
+:data:`LATEST` seconds after the plan's landing found no ground.  A sole not touching
+:data:`SEEK_AFTER` after its landing reaches on down for the ground (:data:`SEEK_SPEED`, at
+most :data:`SEEK_DEPTH`), as a foot feels for a stair in the dark: a heel over the edge is
+aimed at the kerb's height, the sole above the edge a few mm higher (toes up), and without
+the reach it touched only when the legs' springs happened to sag that far -- 0.28 s after
+the landing on a quiet machine, after :data:`LATEST` under load (then "no ground", and the
+weight 50 ms from heading onto the new foot: the guard tripped).  The depth reached at the
+touch is held, and given back as the sole turns flat.  A sole that
 bears then turns flat; one that does not stays turned
 (:meth:`FootholdCheck.release`) while the walking module puts the foot back
 where it lifted from: the weight waits on the standing foot for :data:`WAIT`
@@ -69,6 +76,12 @@ TOUCH = 0.04
 LATEST = 0.35
 #: m: the heel bears if the centre of pressure comes this close to the heel's end
 REACH = 0.03
+#: s after the plan's landing a sole still not touching starts reaching down: soles on firm
+#: ground touched by then, or within a few mm (0.06-0.19 s measured, up steps and a ramp)
+SEEK_AFTER = 0.12
+#: m/s, m: how fast and how far below the plan's landing it reaches
+SEEK_SPEED = 0.04
+SEEK_DEPTH = 0.015
 #: s the weight waits on the standing foot after the landing: the verdict must be in before
 #: the CoM heads for the new foot (the preview controller moves it ahead of the ZMP), or
 #: there is no way back (tried: waiting 0.3 s the robot fell stepping back, 0.4 s and 0.5 s
@@ -109,12 +122,22 @@ class FootholdCheck:
     def shift(self, t: float, ground_pitch: float = 0.0) -> Tuple[float, float]:
         """How far (forward along the foot's heading, up; m) the sole's centre moves at ``t``
         so that it turns about its heel, which comes down where the plan puts the sole --
-        turned about its centre, the heel would strike 5 mm early."""
+        turned about its centre, the heel would strike 5 mm early -- less the depth it
+        reaches down for the ground (:meth:`reach`)."""
         tilt = self.tilt(t)
         heel = -self.sole.half_length
         dx, dz = heel - heel * math.cos(tilt), heel * math.sin(tilt)   # in the sole's frame
         return (dx * math.cos(ground_pitch) + dz * math.sin(ground_pitch),
-                -dx * math.sin(ground_pitch) + dz * math.cos(ground_pitch))
+                -dx * math.sin(ground_pitch) + dz * math.cos(ground_pitch) - self.reach(t))
+
+    def reach(self, t: float) -> float:
+        """m the sole is below the plan's landing at ``t``, feeling for the ground: from
+        :data:`SEEK_AFTER` untouched, down at :data:`SEEK_SPEED` to :data:`SEEK_DEPTH`, held
+        from the touch (or the verdict), given back as the sole turns flat."""
+        until = self._touched if self._touched is not None else self._decided_at
+        seeking = (t if until is None else min(t, until)) - self.landing - SEEK_AFTER
+        depth = min(max(seeking, 0.0) * SEEK_SPEED, SEEK_DEPTH)
+        return depth * self.tilt(t) / -TILT
 
     def sample(self, t: float, pressure: Optional[Tuple[float, float, float]]) -> None:
         """The sole's measured (px, py, fz) at ``t`` -- from
@@ -148,6 +171,11 @@ class FootholdCheck:
         """When the sole starts turning flat: at the verdict if it bears, once released if
         not; None before."""
         return self._released_at if self.bears is False else self._decided_at
+
+    @property
+    def touched_after(self) -> Optional[float]:
+        """s from the plan's landing to the sole's first touch (< 0: early); None untouched."""
+        return None if self._touched is None else self._touched - self.landing
 
     def verdict(self) -> str:
         """'' if the sole bears at its heel; else why not, as a pilot reads it."""

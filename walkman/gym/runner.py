@@ -60,7 +60,8 @@ from walkman.gym.lifecycle import State, Switch
 from walkman.gym.thread import ControlThread, GenericThread
 from walkman.gym.transitions import Lifecycle, Outcome
 from walkman.hal.protocol import HalProtocolError, HalUsageError
-from walkman.realtime import CONTROL_PRIORITY, SWITCH_INTERVAL, make_realtime
+from walkman.realtime import (BACKGROUND_PRIORITY, CONTROL_PRIORITY, SWITCH_INTERVAL,
+                              at_priority, make_process_realtime, make_realtime)
 from yarp_lite.errors import NetworkError
 from yarp_lite.nameclient import NameClient
 
@@ -121,7 +122,8 @@ class ControlLoop(threading.Thread):
             hook, self.request = self.request, None
         if hook is None:
             return
-        result = self.runner.lifecycle.perform(hook)
+        with at_priority(BACKGROUND_PRIORITY, self.realtime):  # not above the robot's threads
+            result = self.runner.lifecycle.perform(hook)     # while a model loads
         with self.cond:
             self.done = result
             self.cond.notify_all()
@@ -515,6 +517,7 @@ def load_config(options: argparse.Namespace) -> Dict[str, Any]:
 def run_module(argv: Optional[List[str]] = None) -> int:
     options = parse_args(argv)
     sys.setswitchinterval(SWITCH_INTERVAL)
+    make_process_realtime()     # no thread holding the interpreter lock preempted (realtime.py)
     logging.basicConfig(level=logging.DEBUG if options.verbose else logging.INFO,
                         format=f"{time_prefix()}[%(levelname)s] %(message)s", stream=sys.stderr)
     try:

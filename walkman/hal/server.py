@@ -51,7 +51,8 @@ from walkman.inifile import IniError
 from walkman.hal.controlboard import ControlBoardError, JointData, Stamp
 from walkman.hal.protocol import ChainState
 from walkman.model.mjcf import STATIONS
-from walkman.realtime import (HAL_PRIORITY, PATH_PRIORITY, SWITCH_INTERVAL, make_realtime,
+from walkman.realtime import (HAL_BACKGROUND_PRIORITY, HAL_PRIORITY, PATH_PRIORITY,
+                               SWITCH_INTERVAL, make_process_realtime, make_realtime,
                                make_realtime_once)
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.bursts import Burst
@@ -554,6 +555,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     options = parser.parse_args(argv)
 
     sys.setswitchinterval(SWITCH_INTERVAL)  # keep the physics thread on time
+    make_process_realtime(HAL_BACKGROUND_PRIORITY)  # ... and its other threads off its lock
     logging.basicConfig(level=logging.DEBUG if options.verbose else logging.INFO,
                         format="[%(levelname)s] %(message)s", stream=sys.stderr)
     try:

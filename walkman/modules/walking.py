@@ -64,6 +64,7 @@ then sees ``paused``).
 
 from __future__ import annotations
 
+import logging
 import math
 from typing import Dict, List, Optional, Sequence, Tuple
 
@@ -79,6 +80,8 @@ from walkman.control.trajectory import quintic
 from walkman.gym.link_loss import LinkLoss
 from walkman.model.description import home_posture
 from walkman.modules.task import TaskModule, task_statuses
+
+log = logging.getLogger(__name__)
 
 LEGS = {"left": ["LHipLat", "LHipYaw", "LHipSag", "LKneeSag", "LAnkSag", "LAnkLat"],
         "right": ["RHipLat", "RHipYaw", "RHipSag", "RKneeSag", "RAnkSag", "RAnkLat"]}
@@ -404,6 +407,12 @@ class Module(TaskModule):
         wrench = self.wrenches.get(check.side)
         check.sample(now, None if wrench is None else foot_zmp(wrench, self.sole_shape))
         problem = check.decide(now)
+        if problem is not None:
+            touched = check.touched_after
+            log.info("%s: foothold: the %s sole %s; %s", self.name, check.side,
+                     "never touched" if touched is None else
+                     f"touched {touched:+.3f} s from its landing",
+                     problem or "its heel bears")
         if check.bears is False and self.plan.swinging(now) == check.side:
             check.release(now)      # put back: it turns flat in the air
         if check.done(now):
