@@ -35,6 +35,7 @@ from bridge.errors import BridgeUsageError
 from bridge.journal import default_state_dir
 from bridge.link import LinkKey, generate_key_file
 from nodekit.logs import configure_logging
+from walkman.realtime import BRIDGE_PRIORITY, make_process_realtime
 
 DEFAULT_TCP_PORT = 10150
 DEFAULT_UDP_PORT = 10151
@@ -174,6 +175,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         return 1
     # Only now: a refused start must leave the process's logging as it found it.
     configure_logging(f"bridge {options.side}", options.verbose)
+    make_process_realtime(BRIDGE_PRIORITY)   # before the first thread (walkman.realtime)
     if not key.keyed:
         logging.getLogger("bridge").warning(
             "running WITHOUT authentication (--no-auth): anyone on the link can command "

@@ -62,6 +62,20 @@ def usage(pid: int) -> Optional[Tuple[int, int]]:
         return None
 
 
+def fifo_priorities(pid: int) -> List[int]:
+    """The SCHED_FIFO priorities of a process's threads, read from /proc (policy 1)."""
+    found = []
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:  # the thread ended meanwhile
+            continue
+        rt_priority, policy = int(fields[37]), int(fields[38])  # stat fields 40 and 41
+        if policy == os.SCHED_FIFO:
+            found.append(rt_priority)
+    return sorted(found)
+
+
 class WaitTimeout(AssertionError):
     """Something awaited did not happen in time; the text says what and shows the output."""
 

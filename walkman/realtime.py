@@ -21,7 +21,10 @@ processes fell short or tripped its guard (issue 31).  A module's other threads 
 every module's loop: the robot's threads are never preempted by a module's, so a lock one
 of them holds comes back at once.  A module's lifecycle hooks (``custom_init`` loading a
 model for seconds) run in its control thread at ``BACKGROUND_PRIORITY``
-(:func:`at_priority`): only the periodic loop is above the rest of the machine.
+(:func:`at_priority`): only the periodic loop is above the rest of the machine.  A
+bridge's threads run at ``BRIDGE_PRIORITY``, below all of those: on a robot PC loaded by
+other programs (two busy loops and a PI rendering the 3-D view, in a test) the link to the
+pilot went silent for 2-4 s at a time and the modules' link-loss policies paused them.
 """
 
 from __future__ import annotations
@@ -45,6 +48,9 @@ CONTROL_PRIORITY = 50
 HAL_BACKGROUND_PRIORITY = 52
 #: Every other thread of a module (port servers, writers) and its lifecycle hooks.
 BACKGROUND_PRIORITY = 10
+#: Every thread of a bridge (walkman-bridge): the pilot's link and its watchdogs (a module
+#: pauses after 5 s without it) above every normal process, below the robot's threads.
+BRIDGE_PRIORITY = 5
 
 _this_thread = threading.local()
 

@@ -24,9 +24,10 @@ from bridge.emulation import EmulatedLink, EmulationError
 from bridge.radio_model import MAX_FRAME, QUEUE_MIN_FRAMES
 from bridge_harness import HERE, PYTHON, TwoPCs
 from harness import Proc, wait_until
-from system.processes import WaitTimeout
+from system.processes import WaitTimeout, fifo_priorities
 from pilot_side import (bridge_status, executed, send, switch, wait_nothing_in_flight,
                         wait_shown)
+from walkman.realtime import BRIDGE_PRIORITY
 
 pytestmark = pytest.mark.requires("root")
 
@@ -269,6 +270,9 @@ def test_gym_module_and_perception_over_a_drc_link(pcs, lite, link):
     pcs.start_bridge(pcs.robot, "--udp-rate", "600k")
     pcs.start_bridge(pcs.pilot, "--udp-rate", "300k")
     pcs.wait_linked(60)
+    for side in (pcs.robot, pcs.pilot):  # the link's watchdogs above every normal process
+        threads = fifo_priorities(side.bridge.popen.pid)
+        assert len(threads) >= 5 and set(threads) == {BRIDGE_PRIORITY}, threads
     probe = pcs.pilot.python(str(HERE / "cloud_probe.py"), name="probe")
     probe.wait_for("probe ready", 30)
     # The reader's source must exist when it starts (as with YARP's own ``yarp read``): the

@@ -328,30 +328,13 @@ def test_the_robot_says_when_each_state_round_arrives(lite_world, config, period
             robot.close()
 
 
-def fifo_priorities(pid: int) -> List[int]:
-    """The SCHED_FIFO priorities of a process's threads, read from /proc (policy 1)."""
-    import os
-    from pathlib import Path
-
-    found = []
-    for task in Path(f"/proc/{pid}/task").iterdir():
-        try:
-            fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
-        except OSError:  # the thread ended meanwhile
-            continue
-        rt_priority, policy = int(fields[37]), int(fields[38])  # stat fields 40 and 41
-        if policy == os.SCHED_FIFO:
-            found.append(rt_priority)
-    return sorted(found)
-
-
 @pytest.mark.requires("root")
 def test_the_threads_between_sense_and_move_run_with_real_time_priority(lite_world, lite):
     """The loops, and the threads that hand a state to the module and its command back to
     the HAL: a port thread at normal priority made the sense -> move p99 2.6-3.2 ms.  The
     other threads (ports, rpc handlers) run real-time below them: preempted while holding
     the interpreter lock, they kept the physics waiting 35-94 ms on a busy machine."""
-    from system.processes import descendants
+    from system.processes import descendants, fifo_priorities
     from walkman.realtime import (BACKGROUND_PRIORITY, CONTROL_PRIORITY,
                                   HAL_BACKGROUND_PRIORITY, HAL_PRIORITY, PATH_PRIORITY)
 
