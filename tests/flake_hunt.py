@@ -91,6 +91,21 @@ KNOWN: Tuple[Known, ...] = (
     Known("tests/system/test_hostile_peers.py::"
           "test_every_program_keeps_serving_under_hostile_peers",
           "a flood locked a real rosservice call out (01ba698)"),
+    Known("tests/system/test_pilot_gui.py::"
+          "test_the_wall_task_by_clicks_cuts_the_circle_in_the_world",
+          "a whole cut judged 340 of 360 degrees: the bit sampled, not swept (fc15; 0bc5197)"),
+    Known("tests/modules/test_walking.py::test_the_door_sequence_unsupported_as_processes",
+          "the walk short, the guard tripped beside another robot (fc15, fc16): threads at normal "
+          "priority held the interpreter lock (44348b6); real-time throttling with two "
+          "multi-module robots (open)"),
+    Known("tests/modules/test_walking.py::test_turns_side_steps_and_a_push_standing_as_processes",
+          "tilt 0.122 rad after the push beside another robot (fc16; 44348b6)"),
+    Known("tests/modules/test_walking.py::"
+          "test_a_step_up_sent_too_far_from_the_kerb_is_put_back_as_processes",
+          "no heel warning in 30 s: the sole touched after 0.35 s, 'no ground' (fc15; 44348b6)"),
+    Known("tests/system/test_pilot_gui.py::"
+          "test_the_terrain_course_by_clicks_with_footsteps_placed_in_the_3d_view",
+          "the bridges silent 2-4 s beside two burners, walking paused (fc19; d9a24ba)"),
 )
 
 
