@@ -37,6 +37,7 @@ import time
 from typing import Dict, List, Optional
 
 from bridge.radio_model import RadioChannel, RadioSettings, RadioSettingsError
+from walkman.realtime import realtime_refused
 
 ETH_P_ALL = 0x0003
 SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)
@@ -206,17 +207,6 @@ def _gone() -> int:
     return 0
 
 
-def make_realtime() -> Optional[str]:
-    """SCHED_FIFO for this process; None when granted, else why not."""
-    if os.environ.get("WALKMAN_NO_RT"):
-        return "WALKMAN_NO_RT is set"
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(STAGE_PRIORITY))
-    except OSError as exc:
-        return str(exc)
-    return None
-
-
 def main(argv: Optional[List[str]] = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--robot", required=True, help="the interface toward the robot")
@@ -224,7 +214,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--bridge", required=True, help="the bridge that joins them when ideal")
     parser.add_argument("--control", required=True, help="the control socket's path")
     options = parser.parse_args(argv)
-    refused = make_realtime()
+    refused = realtime_refused(STAGE_PRIORITY)
     if refused:
         print(f"radio stage: normal priority ({refused})", flush=True)
     stage = Stage({"robot": options.robot, "pilot": options.pilot}, options.bridge,

@@ -32,7 +32,7 @@ from __future__ import annotations
 import os
 import threading
 from contextlib import contextmanager
-from typing import Iterator
+from typing import Iterator, Optional
 
 from yarp_lite import stream
 
@@ -55,16 +55,24 @@ BRIDGE_PRIORITY = 5
 _this_thread = threading.local()
 
 
-def make_realtime(priority: int) -> bool:
-    """Give the calling thread SCHED_FIFO ``priority``; False where not permitted."""
-    if os.environ.get("WALKMAN_NO_RT") or not hasattr(os, "sched_setscheduler"):
-        return False
+def realtime_refused(priority: int) -> Optional[str]:
+    """Give the calling thread SCHED_FIFO ``priority``: None when granted, else why not
+    (for a process that says so in its log)."""
+    if os.environ.get("WALKMAN_NO_RT"):
+        return "WALKMAN_NO_RT is set"
+    if not hasattr(os, "sched_setscheduler"):
+        return "this system has no sched_setscheduler"
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except (PermissionError, OSError):
-        return False
+    except OSError as exc:
+        return str(exc)
     stream.no_spin_in_this_thread()
-    return True
+    return None
+
+
+def make_realtime(priority: int) -> bool:
+    """Give the calling thread SCHED_FIFO ``priority``; False where not permitted."""
+    return realtime_refused(priority) is None
 
 
 def make_process_realtime(priority: int = BACKGROUND_PRIORITY) -> bool:

@@ -64,11 +64,23 @@ class World:
         self.port.close()
 
 
-def main(joints: List[str]) -> None:
+def follow(world: World, joint: str) -> None:
+    """Print ``following JOINT`` once subscribed, then ``JOINT VALUE`` for every world
+    message, until killed: a test that waits for a passing motion (the throttle pressed for
+    a few seconds) watches it happen instead of sampling it with probes slower than it."""
+    print("following", joint, flush=True)
+    while True:
+        print(joint, world.prop(joint), flush=True)
+
+
+def main(args: List[str]) -> None:
     """Print ``base_x X base_yaw YAW``, ``base_z Z tilt T`` (m, rad) then ``JOINT VALUE``
-    for each joint asked."""
+    for each joint asked; ``--follow JOINT``: that joint's every value (:func:`follow`)."""
     world = World("/probe/world:i")
     try:
+        if args[:1] == ["--follow"] and len(args) == 2:
+            follow(world, args[1])
+        joints = args
         x, _, z, yaw = world.base()
         print("base_x", x, "base_yaw", yaw)
         print("base_z", z, "tilt", world.tilt())
