@@ -7,7 +7,9 @@ refused.  As processes (HAL, module, pilot over YARP): a metre walked with a pau
 a turn and a side step, pushes through the HAL's rpc port (one survived, one toppling that is
 warned about first), the paper's door sequence and the valve turned, standing unsupported."""
 
+import logging
 import math
+import re
 import time
 from typing import Tuple
 
@@ -104,7 +106,8 @@ def test_a_push_while_standing_is_survived():
     assert module.interfaces.data[3] > 0.02  # settled: the ZMP back inside
 
 
-def test_a_toppling_push_is_warned_about_before_the_robot_falls():
+def test_a_toppling_push_is_warned_about_before_the_robot_falls(caplog):
+    caplog.set_level(logging.WARNING, logger="walkman.modules.walking")
     world, module = walker()
     backend = world.backend
     backend.push((0.0, TOPPLING_PUSH, 0.0))
@@ -118,6 +121,9 @@ def test_a_toppling_push_is_warned_about_before_the_robot_falls():
     assert fell is not None, "the push was meant to topple the robot"
     assert warned is not None and warned < fell, (warned, fell)
     assert "balance: the measured ZMP is" in module.warnings[0]
+    # The log says whether the loop was late (here on time: simulated 10-ms ticks).
+    trip = next(r.getMessage() for r in caplog.records if "balance guard" in r.getMessage())
+    assert re.search(r"longest tick in the last [0-9.]+ s: 10 ms", trip), trip
 
 
 def test_bad_walks_are_refused_and_the_robot_holds():

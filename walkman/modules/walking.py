@@ -66,6 +66,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections import deque
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
@@ -94,6 +95,7 @@ CROUCH_TIME = 1.5                      # s
 TICK_IK_ITERATIONS = 20
 SETTLED_SPEED = 0.01                   # m/s: the CoM is at rest below this
 REPORT_PERIOD = 0.5                    # s between balance reports on the status port
+GAPS_KEPT = 300                        # ticks whose gaps a balance guard trip logs (3 s at 100 Hz)
 DEFLECTION_SHARE = 0.8                 # of the legs' measured spring deflection made up for
 ANKLE_AIM = (0.08, 0.04)               # m: the most a foot's desired CoP is off its sole's centre
 #: s the ankles stay compliant after a walk's last motion; standing, they are stiff: a
@@ -214,6 +216,9 @@ class Module(TaskModule):
         self.com_velocity = np.zeros(2)
         self.roll_pitch = (0.0, 0.0)
         self.last_tick = self.last_report = self.now()
+        #: (time, seconds since the tick before) of the last ticks: a guard trip's log says
+        #: whether the loop itself was late (a stalled loop topples the robot).
+        self.tick_gaps: deque = deque(maxlen=GAPS_KEPT)
 
     def sole(self, q: np.ndarray, side: str) -> np.ndarray:
         return self.kinematics.point(q, FRAMES[side], SOLE)
@@ -340,6 +345,7 @@ class Module(TaskModule):
         """One tick of the walk (``paused``: standing for another module, see run_paused)."""
         now = self.now()
         dt = min(max(now - self.last_tick, 0.0), 0.05)
+        self.tick_gaps.append((now, now - self.last_tick))
         self.last_tick = now
         plan = self.plan
         if self.pause_requested and not self.halted_for_pause and self.foothold is None:
@@ -466,6 +472,11 @@ class Module(TaskModule):
     def guard_check(self, now: float, tilt: float) -> None:
         problem = self.guard.update(now, self.margin, tilt)
         if problem is not None:
+            when, gap = max(self.tick_gaps, key=lambda tick: tick[1], default=(now, 0.0))
+            log.warning("%s: balance guard: %s; the loop's longest tick in the last %.1f s: "
+                        "%.0f ms, %.2f s ago", self.name, problem,
+                        now - self.tick_gaps[0][0] if self.tick_gaps else 0.0, gap * 1000,
+                        now - when)
             if self.plan.walking:
                 self.warn(f"balance: {problem}; stopping the walk and standing")
                 self.plan.cancel(now)
