@@ -24,14 +24,15 @@ def line_format(tag: str) -> str:
 
 
 def configure_logging(tag: str, verbose: bool = False,
-                      names: Sequence[str] = OUR_LOGGERS) -> None:
-    """Our loggers print ``[tag] LEVEL logger: message`` to stderr, not through the root's.
+                      names: Sequence[str] = OUR_LOGGERS, line: str = "") -> None:
+    """Our loggers print ``[tag] LEVEL logger: message`` (or ``line``, a logging format) to
+    stderr, not through the root's.
 
     rospy.init_node (in a background thread) replaces the root logger's
     handlers with its log files; our lines must keep coming meanwhile.
     """
     handler = logging.StreamHandler()
-    handler.setFormatter(logging.Formatter(line_format(tag)))
+    handler.setFormatter(logging.Formatter(line or line_format(tag)))
     for name in names:
         logger = logging.getLogger(name)
         for old in [h for h in logger.handlers if getattr(h, "_nodekit", False)]:

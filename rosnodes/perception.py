@@ -24,7 +24,7 @@ import sys
 import threading
 import time
 
-from walkman.head_camera import SUMMARY_PERIOD_S, FrameClock, HeadCamera, topics
+from walkman.head_camera import FrameClock, HeadCamera, topics
 
 log = logging.getLogger("walkman.perception")
 
@@ -80,12 +80,9 @@ def main(argv=None) -> int:
                          "the sim?)", options.robot)
                 said = time.monotonic()
             continue
-        if time.monotonic() - node.stages.since >= SUMMARY_PERIOD_S:
-            log.info("perception: %s", node.stages.summary())
-        if node.frames == 1:
-            log.info("perception: first frame published (%dx%d)", options.width,
-                     options.height)
-            node.stages.summary()  # the rate counts from here, not from the wait for the HAL
+        progress = node.progress()
+        if progress:
+            log.info("perception: %s", progress)
     keeper.stop()
     node.camera.close()
     ros.stop()

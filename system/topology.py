@@ -90,11 +90,13 @@ def components(kind: str, perception_rate: float = 1.0, tasks: bool = False) -> 
         hal_component(),
         Component("gaze_control", "robot", (*module, "gaze_control"), r"ready for the pilot"),
         Component("temperature", "robot", (*module, "temperature"), r"ready for the pilot"),
-        # A 40x30 cloud (every 8th pixel) and a 320x240 image per frame: about 0.3 Mbit/s
-        # at 1 Hz, inside the bridge's 0.6 Mbit/s UDP budget (the link is < 1 Mbit/s).
-        Component("perception", "robot", (PYTHON, "-m", "rosnodes.perception", "--rate",
-                                          str(perception_rate), "--cloud-step", "8"),
-                  r"ROS node .* registered"),
+        # The head camera as a GYM module (the paper's section 3.1: the perception pilot
+        # pauses it, changes its rate and picture), streaming from launch.  A 40x30 cloud
+        # (every 8th pixel, its .ini) and a 320x240 image per frame: about 0.3 Mbit/s at
+        # 1 Hz, inside the bridge's 0.6 Mbit/s UDP budget (the link is < 1 Mbit/s).
+        Component("perception", "robot", (*module, "perception", "--start",
+                                          "--set", "rate", f"{perception_rate:g}"),
+                  r"ready for the pilot"),
         Component("joint_state", "robot", (PYTHON, "-m", "rosnodes.joint_state"),
                   r"joint state: reading"),
         Component("bridge_robot", "robot", (), r"side ready", ("drc",)),

@@ -249,6 +249,17 @@ class HeadCamera:
         self.stages.add("publish", time.perf_counter() - published)
         return True
 
+    def progress(self) -> Optional[str]:
+        """What the log says after a frame went out: the first one, then every
+        :data:`SUMMARY_PERIOD_S` the rate delivered and each stage's median time (the rate
+        counted from the first frame, not from the wait for the HAL)."""
+        if self.frames == 1:
+            self.stages.summary()
+            return f"first frame published ({self.camera.width}x{self.camera.height})"
+        if time.monotonic() - self.stages.since >= SUMMARY_PERIOD_S:
+            return self.stages.summary()
+        return None
+
     def open_yarp(self, keeper, port_name: str = "/perception/world:i") -> None:
         """Follow the HAL's world (the scene's positions) on ``port_name``."""
         from walkman.hal import protocol

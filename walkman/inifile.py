@@ -78,3 +78,21 @@ def load(name: str, context: str = "", defaults: Optional[Dict[str, object]] = N
             values[section] = entries
     values["__file__"] = str(path)
     return values
+
+
+def override(values: Dict[str, object], pairs: List[List[str]]) -> Dict[str, object]:
+    """``values`` with each ``(key, text)`` of the command line set over the file's, the
+    text read as a file's value is (``--set rate 1`` is the number 1) -- as YARP's
+    ``--key value`` after ``--from`` overrides the file."""
+    out = dict(values)
+    for key, text in pairs:
+        try:
+            words = parse(text)
+        except ValueError as exc:
+            raise IniError(f"--set {key} {text!r}: {exc}") from None
+        if not key.strip():
+            raise IniError(f"--set {key!r} {text!r}: the key is empty")
+        if not words:
+            raise IniError(f"--set {key} {text!r}: no value in it")
+        out[key] = words[0] if len(words) == 1 else list(words)
+    return out

@@ -56,9 +56,7 @@ def test_keyed_server_and_ports_work_together(keyed, lite):
                          ids=lambda verb: verb[0])
 def test_other_keys_are_refused_with_a_message_within_seconds(keyed, lite, verb, rogue_key):
     env = keyed.variant_env("rogue", rogue_key)
-    started = time.monotonic()
     result = keyed.run_tool(lite, *verb, env=env, input_text="")
-    elapsed = time.monotonic() - started
     assert result.returncode == 1, result.stdout + result.stderr
     assert REFUSED in result.stderr
     if rogue_key is None:
@@ -67,7 +65,9 @@ def test_other_keys_are_refused_with_a_message_within_seconds(keyed, lite, verb,
         assert f"{env['YARP_CONFIG_HOME']}/auth.conf" in result.stderr
     else:
         assert f"key from {env['YARP_CONFIG_HOME']}/auth.conf" in result.stderr
-    assert elapsed < 8, f"took {elapsed:.1f} s"
+    # Refused on what the server said, at once -- not after a timer ran out ("no answer
+    # within"): a wall-clock bound here failed beside a loaded machine's slow tool start.
+    assert "no answer within" not in result.stderr, result.stderr
     keyed.server.wait_for(f"{REFUSED} .*key from {keyed.config}/auth.conf")
     assert keyed.run_tool(lite, "name", "list").returncode == 0
 
@@ -75,12 +75,11 @@ def test_other_keys_are_refused_with_a_message_within_seconds(keyed, lite, verb,
 def test_a_keyed_tool_is_refused_by_a_server_without_authentication(make_world, lite):
     plain = make_world(lite)
     env = plain.variant_env("keyed", KEY)
-    started = time.monotonic()
     result = plain.run_tool(lite, "name", "list", env=env)
     assert result.returncode == 1
+    # the 2-s wait for a challenge, not the tool's timeout (run_tool's 60 s would raise)
     assert f"{REFUSED} (connector, waiting for the challenge): no answer within 2 s" \
         in result.stderr
-    assert time.monotonic() - started < 8
 
 
 def test_a_port_refuses_a_direct_connection_with_another_key(keyed, lite):

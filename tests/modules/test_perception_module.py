@@ -43,7 +43,7 @@ def camera(lite_world, tmp_path):
     watch = lite_world.start([PYTHON, "-c", WATCH], "watch", env=env)
     watch.wait_for("WATCHING", 60)
     pilot = Pilot(lite_world, "perception", STATUSES)
-    yield pilot, watch
+    yield pilot, watch, module
     pilot.close()
 
 
@@ -52,7 +52,7 @@ def images(watch) -> list:
 
 
 def test_the_pilot_starts_retargets_and_pauses_the_camera(camera, lite):
-    pilot, watch = camera
+    pilot, watch, module = camera
     assert images(watch) == []                     # a GYM module: nothing before start
     pilot.send(lite, "switch", "start")
     pilot.wait_state("streaming", 60)
@@ -89,3 +89,7 @@ def test_the_pilot_starts_retargets_and_pauses_the_camera(camera, lite):
     pilot.send(lite, "switch", "resume")
     pilot.wait_state("streaming", 30)
     wait_until(lambda: len(images(watch)) >= paused_at + 3, 30, message="frames after resume")
+    # Its log goes on after rospy took the root logger's handlers: each command, the frames.
+    log = module.output()
+    assert re.search(r"perception: command set_rate 4(\.0)? \(seq", log), log[-2000:]
+    assert "perception: first frame published (320x240)" in log, log[-2000:]

@@ -282,6 +282,7 @@ def second() -> None:
             not in caption or ("red: tiles" in caption) != bool(image.missing):
         fail(f"the camera says {caption!r}, the bridge {image}, {cloud}")
     say("STEP camera shows the bridge's reports")
+    camera_under_control()
     # The robot's battery: HAL -> walkman-joint-state -> /battery -> the bridge -> this PI.
     wait(lambda: window.status.battery.reading is not None, 60, "the robot's battery")
     say(f"STEP battery shown: {window.status.battery.text()}")
@@ -300,6 +301,46 @@ def second() -> None:
     wait(lambda: "HAL free" in window.banner.text(), 20, "the release")
     say("STEP released")
     say("DONE")
+
+
+def frames_stop(view, what: str) -> None:
+    """No new picture once a frame on its way has come (the topology's camera: 1 Hz)."""
+    pump(1.5)
+    shown = view.frames
+    pump(3.0)                   # the thing under test: three frame periods pass, nothing comes
+    if view.frames != shown:
+        fail(f"{view.frames - shown} camera frames came after {what}")
+
+
+def frames_come(view, what: str) -> None:
+    shown = view.frames
+    wait(lambda: view.frames >= shown + 2, 30, f"camera frames after {what}")
+
+
+def camera_under_control() -> None:
+    """The head camera is a GYM module (issue 32): from its Generic Widget the pilot pauses
+    and resumes it, and sets its rate to 0 (running, no pictures) and to 2 Hz again."""
+    camera, view = widget("perception"), window.camera
+    wait(lambda: camera.state == "streaming", 30, "perception streaming")
+    wait_sendable("perception")
+    click(camera.switch_buttons["pause"], "perception pause", camera)
+    wait(lambda: camera.state == "paused", 20, "perception paused")
+    frames_stop(view, "the pause")
+    click(camera.switch_buttons["resume"], "perception resume", camera)
+    wait(lambda: camera.state == "streaming", 20, "perception streaming after resume")
+    frames_come(view, "the resume")
+    say("STEP camera paused and resumed from its widget")
+    for rate, state in ((0.0, "idle"), (2.0, "streaming")):
+        camera.command_box.setCurrentText("set_rate")
+        camera.number_fields[0].setValue(rate)
+        click(camera.send_button, f"perception set_rate {rate:g}", camera)
+        wait(lambda: camera.state == state and f"{rate:g} Hz" in camera.status_label.text(),
+             20, f"perception {state} at {rate:g} Hz")
+        if rate == 0:
+            frames_stop(view, "set_rate 0")
+        else:
+            frames_come(view, "set_rate 2")
+    say(f"STEP camera rate 0 then 2 Hz from its widget: {camera.status_label.text()}")
 
 
 def red_pixels() -> int:

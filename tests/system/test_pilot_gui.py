@@ -5,7 +5,9 @@ perception and joint state; the pilot PC its bridge, gateway and joint state.  A
 PI process (tests/system/pi_driver.py) starts gaze_control and steps the valve
 task by clicks; it is SIGKILLed mid-task and a new PI finishes the task, cancels a
 timed turn with a second click, and checks that the 3-D view draws the robot and
-the cloud, and that the camera says what the pilot bridge reports arrived.  In
+the cloud, that the camera says what the pilot bridge reports arrived, and that the
+camera (the perception GYM module) pauses, resumes, and runs at rate 0 then 2 Hz from
+its widget.  In
 the lab (no bridge) a frame with a black sky and a cloud without depth read 100 %.
 The valve is read in the MuJoCo scene.  Screenshots are kept in the test's folder
 (and copied to ``out/pilot-gui`` for a look).
@@ -105,7 +107,13 @@ def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
                        second.output())
     assert pixels, second.output()
     assert "STEP camera shows the bridge's reports" in second.output(), second.output()
-    assert re.search(r"STEP battery shown: battery 100 %   5\d\.\d V", second.output()), \
+    assert "STEP camera paused and resumed from its widget" in second.output()
+    assert re.search(r"STEP camera rate 0 then 2 Hz from its widget: streaming .*2 Hz",
+                     second.output()), second.output()
+    perception = drc.process("perception").output()
+    for rate in ("0", "2"):
+        assert re.search(rf"command set_rate {rate}(\.0)? ", perception), perception[-3000:]
+    assert re.search(r"STEP battery shown: battery (100|9\d) %   5\d\.\d V", second.output()), \
         second.output()
     # STOP ALL crossed the bridge: the robot's HAL held and the modules paused, then let go.
     assert "STEP released" in second.output(), second.output()

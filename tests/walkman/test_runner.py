@@ -493,3 +493,31 @@ def test_each_numbered_switch_is_receipted_accepted_or_refused_with_why(make_run
         runner.quit_requested = True
         runner.wake.set()
         watchdog.join(TIMEOUT)
+
+
+def test_a_start_requested_on_launch_is_carried_out_by_the_watchdog(make_runner):
+    """``walkman-module NAME --start``: the module starts as if the pilot said so."""
+    runner = make_runner(Scripted)
+    assert runner.state == State.CONSTRUCTOR
+    watchdog = in_background(runner.watchdog)
+    runner.request_start()
+    wait_until(lambda: runner.state == State.RUNNING, TIMEOUT, message="started on launch")
+    says(runner, lambda: runner.interfaces.state == "ok", "the module's own status")
+    runner.quit_requested = True
+    runner.wake.set()
+    watchdog.join(TIMEOUT)
+
+
+def test_the_command_line_sets_keys_over_the_ini_and_bad_values_are_named():
+    options = runner_module.parse_args(["perception", "--start", "--set", "rate", "1",
+                                        "--set", "robot_name", "other"])
+    config = runner_module.load_config(options)
+    assert options.start
+    assert config["rate"] == 1 and config["robot_name"] == "other"
+    assert config["cloud_step"] == 8            # the rest from perception.ini
+    bad = runner_module.parse_args(["perception", "--set", "rate", '"unclosed'])
+    with pytest.raises(runner_module.inifile.IniError, match=r"--set rate '\"unclosed': no value"):
+        runner_module.load_config(bad)
+    empty = runner_module.parse_args(["perception", "--set", " ", "1"])
+    with pytest.raises(runner_module.inifile.IniError, match=r"the key is empty"):
+        runner_module.load_config(empty)

@@ -49,7 +49,7 @@ import threading
 import time
 from typing import Any, Callable, Dict, List, Optional, Type
 
-from nodekit.logs import time_prefix
+from nodekit.logs import configure_logging, time_prefix
 from walkman import inifile
 from walkman.gym.bridge_link import BridgeLink
 from walkman.gym.command_life import CommandState, Receipt
@@ -400,6 +400,12 @@ class ModuleRunner:
                 return  # the lifecycle said why
         self.warn(verdict.warning)
 
+    def request_start(self) -> None:
+        """Start as soon as the robot allows, as the pilot's ``start`` would (the watchdog
+        carries it out; ``stop`` or ``quit`` before then cancel it)."""
+        self.start_pending = True
+        self.wake.set()
+
     def _robot_allows_start(self) -> bool:
         """Whether ``start`` may go on now: not before the HAL, never if it cannot come."""
         if self.robot_failure is not None:
@@ -488,6 +494,11 @@ def parse_args(argv: Optional[List[str]] = None) -> argparse.Namespace:
     parser.add_argument("--context", default="", help="configuration context (folder)")
     parser.add_argument("--name", help="port prefix (default /<module>)")
     parser.add_argument("--period", type=float, help="thread_period in ms (overrides the .ini)")
+    parser.add_argument("--set", nargs=2, action="append", default=[], metavar=("KEY", "VALUE"),
+                        help="set a configuration key over the .ini's (repeatable)")
+    parser.add_argument("--start", action="store_true",
+                        help="start on launch, as if the pilot said start (not after a restart: "
+                             "a module that crashed waits for the pilot)")
     parser.add_argument("--initial", choices=["constructor", "stopped"], default="constructor",
                         help=argparse.SUPPRESS)
     parser.add_argument("--heartbeat-fd", type=int, help=argparse.SUPPRESS)
@@ -506,6 +517,7 @@ def load_config(options: argparse.Namespace) -> Dict[str, Any]:
         if options.config_file:
             raise
         config = dict(DEFAULTS)
+    config = inifile.override(config, options.set)
     if options.period:
         config["thread_period"] = options.period
     period = float(config["thread_period"])
@@ -518,8 +530,12 @@ def run_module(argv: Optional[List[str]] = None) -> int:
     options = parse_args(argv)
     sys.setswitchinterval(SWITCH_INTERVAL)
     make_process_realtime()     # no thread holding the interpreter lock preempted (realtime.py)
-    logging.basicConfig(level=logging.DEBUG if options.verbose else logging.INFO,
-                        format=f"{time_prefix()}[%(levelname)s] %(message)s", stream=sys.stderr)
+    line = f"{time_prefix()}[%(levelname)s] %(message)s"
+    logging.basicConfig(level=logging.DEBUG if options.verbose else logging.INFO, format=line,
+                        stream=sys.stderr)         # a user's module's own loggers
+    # Ours on handlers of their own: a module that starts a ROS node (perception) lost every
+    # later line when rospy.init_node replaced the root's handlers.
+    configure_logging("", options.verbose, line=line)
     try:
         config = load_config(options)
     except inifile.IniError as exc:
@@ -537,6 +553,9 @@ def run_module(argv: Optional[List[str]] = None) -> int:
     signal.signal(signal.SIGTERM, request_quit)
     try:
         runner.start()
+        if options.start and runner.state == State.CONSTRUCTOR:
+            log.info("%s: starting on launch (--start)", name)
+            runner.request_start()
         code = runner.watchdog()
     except KeyboardInterrupt:
         code = EXIT_QUIT

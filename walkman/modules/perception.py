@@ -25,6 +25,7 @@ coming for 10 s is warned once.
 
 from __future__ import annotations
 
+import logging
 import os
 import time
 from typing import Any, Dict, List, Optional
@@ -32,6 +33,8 @@ from typing import Any, Dict, List, Optional
 from walkman.gym.link_loss import LinkLoss
 from walkman.gym.thread import GenericThread
 from walkman.head_camera import MAX_SIZE, FrameClock, HeadCamera, Region, topics
+
+log = logging.getLogger(__name__)
 
 DEFAULT_RATE = 2.0
 MAX_RATE = 30.0
@@ -102,6 +105,9 @@ class Module(GenericThread):
         now = time.monotonic()
         if sent:
             self.world_since, self.silence_warned = now, False
+            progress = self.camera.progress()
+            if progress:
+                log.info("%s: %s", self.name.lstrip("/"), progress)
         elif self.world_since is not None and now - self.world_since > SILENT_WORLD_S and \
                 not self.silence_warned:
             self.silence_warned = True
