@@ -106,6 +106,18 @@ KNOWN: Tuple[Known, ...] = (
     Known("tests/system/test_pilot_gui.py::"
           "test_the_terrain_course_by_clicks_with_footsteps_placed_in_the_3d_view",
           "the bridges silent 2-4 s beside two burners, walking paused (fc19; d9a24ba)"),
+    Known("tests/system/test_tasks_via_gateway.py::test_walking_through_rosservice",
+          "the guard tripped at a 0.3-cm ZMP margin, the HAL on time (fc22; the trip now logs "
+          "the loop's longest tick: e497490)"),
+    Known("tests/system/test_tasks_via_gateway.py::test_the_drive_task_through_rosservice",
+          "'throttle pressed' not seen in 10 s of probes (fc22; watched throughout: 41555e4)"),
+    Known("tests/interop/test_controlboard_oracle.py::"
+          "test_a_cpp_remote_controlboard_moves_the_simulated_robot[sim-left_arm-3--40.0-udp]",
+          "a real remote_controlboard over udp (fc22; the output was not kept, 30 runs since "
+          "passed)"),
+    Known("tests/integration/test_auth.py::test_other_keys_are_refused_with_a_message_within_seconds",
+          "refused after 10-26 s, over its 8-s bound (fc2 of 2026-11-27, with two extra GUI "
+          "runs; judged by the refusal's reason since: df94822)"),
 )
 
 
