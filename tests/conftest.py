@@ -42,6 +42,23 @@ def pytest_configure(config):
                             "WALKMAN_REQUIRE_<NAME> is set")
 
 
+#: Folders whose tests start whole topologies, first: the workers then begin with the
+#: minute-long tests and end on the short ones, which fill the gaps (alphabetical order put
+#: tests/system last, and its longest test started in the final minutes of a run).
+HEAVY_FIRST = ("system", "modules", "bridge", "interop")
+
+
+def pytest_collection_modifyitems(config, items):
+    """The heaviest folders first, each in its usual order (the same on every worker)."""
+    root = Path(__file__).resolve().parent
+
+    def rank(item) -> int:
+        folder = Path(str(item.fspath)).resolve().relative_to(root).parts[0]
+        return HEAVY_FIRST.index(folder) if folder in HEAVY_FIRST else len(HEAVY_FIRST)
+
+    items.sort(key=rank)
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item):
     apply_marks(item)  # before any fixture builds what the machine may lack
