@@ -62,6 +62,14 @@ def usage(pid: int) -> Optional[Tuple[int, int]]:
         return None
 
 
+def thread_count(pid: int) -> int:
+    """How many threads a process has now (0 once it is gone)."""
+    try:
+        return len(os.listdir(f"/proc/{pid}/task"))
+    except (FileNotFoundError, ProcessLookupError):
+        return 0
+
+
 def fifo_priorities(pid: int) -> List[int]:
     """The SCHED_FIFO priorities of a process's threads, read from /proc (policy 1)."""
     found = []

@@ -42,10 +42,12 @@ def pytest_configure(config):
                             "WALKMAN_REQUIRE_<NAME> is set")
 
 
-#: Folders whose tests start whole topologies, first: the workers then begin with the
-#: minute-long tests and end on the short ones, which fill the gaps (alphabetical order put
-#: tests/system last, and its longest test started in the final minutes of a run).
-HEAVY_FIRST = ("system", "modules", "bridge", "interop")
+#: Folders in the order their tests run, those that start whole topologies first, then those
+#: with processes or installs of their own: the workers begin with the minute-long tests and
+#: end on the short ones (unit, control, fuzz...), which fill the gaps (alphabetical order
+#: put tests/system last, and its longest test started in the final minutes of a run).
+HEAVY_FIRST = ("system", "modules", "bridge", "interop", "packaging", "walkman", "bench",
+               "pilot", "integration")
 
 
 def pytest_collection_modifyitems(config, items):
