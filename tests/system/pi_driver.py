@@ -330,17 +330,26 @@ def camera_under_control() -> None:
     wait(lambda: camera.state == "streaming", 20, "perception streaming after resume")
     frames_come(view, "the resume")
     say("STEP camera paused and resumed from its widget")
+    shown = ""
+
+    def says(state: str, rate: float) -> bool:
+        nonlocal shown
+        text = camera.status_label.text()    # read once: a link event may change it next
+        if camera.state == state and f"{rate:g} Hz" in text:
+            shown = text
+        return bool(shown)
+
     for rate, state in ((0.0, "idle"), (2.0, "streaming")):
         camera.command_box.setCurrentText("set_rate")
         camera.number_fields[0].setValue(rate)
+        shown = ""
         click(camera.send_button, f"perception set_rate {rate:g}", camera)
-        wait(lambda: camera.state == state and f"{rate:g} Hz" in camera.status_label.text(),
-             20, f"perception {state} at {rate:g} Hz")
+        wait(lambda: says(state, rate), 20, f"perception {state} at {rate:g} Hz")
         if rate == 0:
             frames_stop(view, "set_rate 0")
         else:
             frames_come(view, "set_rate 2")
-    say(f"STEP camera rate 0 then 2 Hz from its widget: {camera.status_label.text()}")
+    say(f"STEP camera rate 0 then 2 Hz from its widget: {shown}")
 
 
 def red_pixels() -> int:
