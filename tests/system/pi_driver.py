@@ -549,7 +549,13 @@ def peer() -> None:
         return next((line for line in window.log.toPlainText().splitlines()
                      if other in line and "look_at" in line), "")
 
-    wait(others_look_at, 30, f"{other}'s look_at in the log")
+    end = time.monotonic() + 30
+    while not others_look_at() and time.monotonic() < end:
+        pump(0.05)
+    if not others_look_at():
+        shown = window.log.toPlainText().splitlines()
+        fail(f"timed out (30 s) waiting for {other}'s look_at in the log; its last "
+             f"{min(len(shown), 15)} of {len(shown)} lines:\n    " + "\n    ".join(shown[-15:]))
     line = others_look_at()
     say(f"STEP saw {line}")
     if window.view3d is None:

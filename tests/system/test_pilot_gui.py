@@ -234,6 +234,22 @@ def second_pilot_pc(drc, tmp_path, request):
         pc.close()
 
 
+def look_at_hops(x: str, sender: Proc, sending_gateway: Proc, receiving_gateway: Proc,
+                 receiver: Proc) -> str:
+    """Where one pilot's look_at got to on its way to the other PI's log: each hop's line,
+    or that it is missing (the CI run of 88b0274 lost one and kept no trace of where)."""
+    hops = [(sender, rf"CLICK (send )?look_at {x}"),
+            (sending_gateway, rf"gateway: sent to /gaze_control/command:i: .*look_at {x}"),
+            (receiving_gateway, rf"gateway: station \d+ sent to /gaze_control/command:i: "
+                                rf".*look_at {x}"),
+            (receiver, rf"STEP saw .*look_at {x}")]
+    lines = []
+    for proc, pattern in hops:
+        found = re.search(rf"^.*(?:{pattern}).*$", proc.output(), re.M)
+        lines.append(f"  {proc.name}: {found.group(0).strip() if found else 'MISSING'}")
+    return f"look_at {x}:\n" + "\n".join(lines)
+
+
 def test_two_pilot_pcs_see_each_others_commands_and_a_pi_survives_restarts(
         drc, second_pilot_pc, display, tmp_path):
     """Two PIs on two pilot PCs (one gateway each, one pilot YARP name server): each
@@ -259,9 +275,15 @@ def test_two_pilot_pcs_see_each_others_commands_and_a_pi_survives_restarts(
         # the main PI drags the valve (its 3-D view may first restart after a librviz
         # crash), then the other PI sees it in the shared scene
         main.wait_for(r"STEP waiting for the restarts|FAIL", 150)
-        assert "FAIL" not in main.output(), main.output()
         status.wait_for(r"DONE|FAIL", 60)
-        assert "FAIL" not in status.output(), status.output()
+        hops = "\n".join((
+            look_at_hops("1.25", main, drc.process("gateway"),
+                         second_pilot_pc.processes["gateway"], status),
+            look_at_hops("1.45", status, second_pilot_pc.processes["gateway"],
+                         drc.process("gateway"), main)))
+        print(hops)
+        assert "FAIL" not in main.output(), f"{hops}\n{main.output()}"
+        assert "FAIL" not in status.output(), f"{hops}\n{status.output()}"
         assert re.search(r"STEP saw .*pi_main \(station 1\) -> /gaze_control/command: "
                          r".*look_at 1.25", status.output()), status.output()
         assert re.search(r"STEP saw .*pi_status \(station 2\) -> /gaze_control/command: "
