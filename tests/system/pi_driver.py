@@ -55,8 +55,22 @@ def say(text: str) -> None:
 
 def fail(text: str) -> None:
     say(f"FAIL {text}")
-    window.screenshot(OUT / "failure.png")
+    if not window.screenshot(OUT / "failure.png"):
+        say(f"(the failure's screenshot could not be saved in {OUT})")
     sys.exit(1)
+
+
+def widget_state(owner) -> str:
+    """What a module widget shows and knows, for a failure's message."""
+    from pilot.catalogue import legal_switches
+
+    catalogue = getattr(owner, "catalogue", None)
+    legal = catalogue.legal(owner.state or "") if catalogue is not None else []
+    age = owner.age
+    return (f"state {owner.state!r}, presence {owner.presence}, heard "
+            f"{'never' if age is None else f'{age:.1f} s ago'}, status label "
+            f"{owner.status_label.text()!r}, legal commands {sorted(legal)}, switches "
+            f"{sorted(legal_switches(owner.state))}, link down since {owner.link_down_at}")
 
 
 def pump(seconds: float) -> None:
@@ -106,7 +120,7 @@ def wait_word(word: str, timeout: float) -> None:
 def click(button: QPushButton, what: str, owner=None) -> None:
     """Click; with ``owner`` (the button's module widget), a refusal it shows fails."""
     if not button.isEnabled():
-        fail(f"{what} is disabled")
+        fail(f"{what} is disabled" + (f" ({widget_state(owner)})" if owner is not None else ""))
     shown = owner.warnings.count() if owner is not None else 0
     QTest.mouseClick(button, Qt.LeftButton)
     say(f"CLICK {what}")

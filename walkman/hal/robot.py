@@ -40,15 +40,15 @@ import math
 import threading
 import time
 from abc import ABC, abstractmethod
-from collections import deque
 from dataclasses import dataclass, field
-from typing import Deque, Dict, List, Optional, Sequence, Set, Tuple
+from typing import Dict, List, Optional, Sequence, Set, Tuple
 
 import numpy as np
 
 from walkman.hal import controlboard, protocol
 from walkman.hal.clock import RobotClock
 from walkman.hal.controlboard import ControlBoardError
+from walkman.hal.rounds import RoundPeriod
 from walkman.hal.protocol import HalProtocolError, HalUsageError
 from walkman.model.description import CHAINS, walkman
 from walkman.model.description import Robot as RobotModel
@@ -207,9 +207,7 @@ class Robot(WholeBody):
         self._updated = 0.0
         self._lock = threading.Lock()
         self._round = threading.Condition(self._lock)  # a round arrived (see wait_round)
-        self._round_spacings: Deque[float] = deque(maxlen=32)
-        self._round_steps: Deque[int] = deque(maxlen=32)  # robot steps between rounds
-        self._round_seq = 0
+        self._rounds = RoundPeriod()
         self._bad_whole = Burst()
         self._ft: Dict[str, np.ndarray] = {}
         self._imu: Optional[Tuple[List[float], List[float], List[float]]] = None
@@ -403,7 +401,7 @@ class Robot(WholeBody):
         self.clock.observe(state.time)
         link = self._links[chain]
         self._store((link,), link.indices, state.seq, state.q, state.qdot, state.tau,
-                    state.temperature)
+                    state.temperature, robot_time=state.time)
 
     def _on_whole_state_si(self, bottle: Bottle) -> None:
         self._reader_priority()
@@ -416,7 +414,7 @@ class Robot(WholeBody):
             return
         self.clock.observe(state.time)
         self._store(self._whole_links, self._whole_indices, state.seq, state.q, state.qdot,
-                    state.tau, state.temperature)
+                    state.tau, state.temperature, robot_time=state.time)
 
     def _on_state_ext(self, chain: str, indices: List[int], bottle: Bottle,
                       envelope: str = "") -> None:
@@ -440,10 +438,12 @@ class Robot(WholeBody):
     def _store(self, links: Sequence[_ChainLink], indices: List[int], seq: int,
                q: Sequence[float], qdot: Sequence[float], tau: Sequence[float],
                temperature: Optional[Sequence[float]],
-               modes: Optional[Sequence[str]] = None) -> None:
+               modes: Optional[Sequence[str]] = None,
+               robot_time: Optional[float] = None) -> None:
         """The state of ``links`` (their joints at ``indices``, in order), arrived now;
-        ``modes`` (one chain's) when the state says them.  A whole-robot state is stored
-        in one go: at 500 Hz in every module, chain by chain cost a third of its reading."""
+        ``modes`` (one chain's) when the state says them; ``robot_time`` when it says the
+        robot's time (our HAL's ``stateSI``).  A whole-robot state is stored in one go: at
+        500 Hz in every module, chain by chain cost a third of its reading."""
         now = time.monotonic()
         with self._lock:
             for link in links:
@@ -463,12 +463,9 @@ class Robot(WholeBody):
             self._seen[indices] = True
             self.last_seq = seq
             self._updated = now
-            newest = self.newest_round
-            if all(other.seen_at > newest for other in self._links.values()):
-                if now - newest < STALE_AFTER:
-                    self._round_spacings.append(now - newest)
-                    self._round_steps.append(seq - self._round_seq)
-                self.newest_round, self._round_seq = now, seq
+            if all(other.seen_at > self.newest_round for other in self._links.values()):
+                self._rounds.round(now, seq, robot_time)
+                self.newest_round = now
                 self._round.notify_all()
 
     def _poll_temperatures(self) -> None:
@@ -543,19 +540,9 @@ class Robot(WholeBody):
 
     @property
     def round_period(self) -> float:
-        """The robot's step period, from the last rounds -- when they come every robot step
-        (by the state count) and still come.  A reader throttled
-        to fewer (``state_interval``) sees its own rhythm, not the robot's: 0, unknown."""
+        """The robot's step period (:class:`walkman.hal.rounds.RoundPeriod`); 0: not known."""
         with self._lock:
-            spacings = list(self._round_spacings)
-            steps = list(self._round_steps)
-            fresh = time.monotonic() - self.newest_round < STALE_AFTER
-        if len(spacings) < 8 or not fresh or sorted(steps)[len(steps) // 2] != 1 or \
-                sum(steps) <= 0:
-            return 0.0
-        # The robot's step, averaged over the last rounds by its state count: one round's
-        # arrival jitters by a tenth of a millisecond, the robot's clock does not.
-        return sum(spacings) / sum(steps)
+            return self._rounds.period(time.monotonic())
 
     def wait_round(self, after: float, timeout: float) -> Optional[float]:
         with self._round:
