@@ -241,6 +241,7 @@ class PilotLink:
         self._status_port = None
         self._tf = None             # /tf (the preview's ghost), once on the pilot roscore
         self._scene_edits = None    # /pilot/scene_edit, likewise
+        self._every_pilots_commands: Tuple[Any, ...] = ()   # what any pilot sent, its fate
         self._lock = threading.Lock()
 
     # -- life ----------------------------------------------------------------------------
@@ -398,6 +399,15 @@ class PilotLink:
         threading.Thread(target=ask, name=word, daemon=True).start()
         return ""
 
+    def hears_every_pilot(self) -> bool:
+        """True once the gateway's record of every pilot's commands (and their fates) reaches
+        us: a command sent before is missing from this PI's log, as from a PI started later
+        (each is published once)."""
+        from nodekit.ros_node import handshaken
+
+        subscribers = self._every_pilots_commands
+        return bool(subscribers) and all(handshaken(s) > 0 for s in subscribers)
+
     def cannot_send(self, module: str) -> str:
         """Why a switch or command to ``module`` would go nowhere now, or "".
 
@@ -434,11 +444,11 @@ class PilotLink:
             rospy.Subscriber(f"/{module}/status", Status, self._on_status)
             rospy.Subscriber(f"/{module}/warning", Warning, self._on_warning)
             rospy.Subscriber(f"/{module}/countdown", Countdown, self._on_countdown)
-        every_pilots_commands = rospy.Subscriber("/pilot/sent_commands", SentCommand,
-                                                 self._on_sent)
+        self._every_pilots_commands = (
+            rospy.Subscriber("/pilot/sent_commands", SentCommand, self._on_sent),
+            rospy.Subscriber("/pilot/command_states", CommandState, self._on_command_state,
+                             queue_size=200))
         rospy.Subscriber("/bridge/link", Link, self._on_link)
-        rospy.Subscriber("/pilot/command_states", CommandState, self._on_command_state,
-                         queue_size=200)
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=1)
         from tf2_msgs.msg import TFMessage
         from walkman_msgs.msg import Scene, SceneObject as SceneObjectMsg
@@ -462,8 +472,7 @@ class PilotLink:
         # missing from this PI's log (the gateway publishes each once).
         deadline = time.monotonic() + 3.0
         while time.monotonic() < deadline and (
-                any(map(self.cannot_send, self.modules))
-                or every_pilots_commands.get_num_connections() == 0):
+                any(map(self.cannot_send, self.modules)) or not self.hears_every_pilot()):
             time.sleep(0.05)
         self.post(RosEvent(True))
         log.info("pilot: %s on the pilot roscore, %d modules", self.name, len(self.modules))

@@ -117,3 +117,61 @@ def test_a_header_that_declares_more_than_the_limit_is_refused_without_buffering
     sender.join(timeout=ros_node.HANDSHAKE_TIMEOUT)
     assert not sender.is_alive() and sent < 2 * ros_node.MAX_HANDSHAKE_BYTES
     assert served.empty()
+
+
+def _read_header(sock: socket.socket) -> bytes:
+    size = struct.unpack("<I", sock.recv(4, socket.MSG_WAITALL))[0]
+    return sock.recv(size, socket.MSG_WAITALL)
+
+
+def _header(fields: dict) -> bytes:
+    body = b"".join(struct.pack("<I", len(f"{k}={v}")) + f"{k}={v}".encode()
+                    for k, v in fields.items())
+    return struct.pack("<I", len(body)) + body
+
+
+def test_a_subscription_counts_a_publisher_once_the_publisher_answered_its_handshake(
+        monkeypatch):
+    """rospy's subscriber connection, against a publisher that takes its time to answer:
+    rospy counts it at once (``get_num_connections``), :func:`ros_node.handshaken` only once
+    the publisher's header came back -- what it publishes before never arrives."""
+    from types import SimpleNamespace
+
+    from rospy.impl import tcpros_base
+    from rospy.impl.tcpros_base import TCPROSTransport
+    from rospy.impl.tcpros_pubsub import TCPROSSub
+    from std_msgs.msg import String
+
+    # no master here: rospy would ask it for the tcp_keepalive parameter first
+    monkeypatch.setattr(tcpros_base, "_is_use_tcp_keepalive", lambda: False)
+
+    listener = socket.create_server(("127.0.0.1", 0))
+    answer, asked = threading.Event(), threading.Event()
+
+    def slow_publisher() -> None:
+        connection, _ = listener.accept()
+        with connection:
+            assert b"topic=/chatter" in _read_header(connection)
+            asked.set()
+            answer.wait(10)
+            connection.sendall(_header({"callerid": "/slow", "topic": "/chatter",
+                                        "type": "std_msgs/String", "md5sum": String._md5sum,
+                                        "message_definition": String._full_text}))
+            time.sleep(1.0)
+
+    threading.Thread(target=slow_publisher, daemon=True).start()
+    transport = TCPROSTransport(TCPROSSub("/chatter", String), "/chatter")
+    subscriber = SimpleNamespace(impl=SimpleNamespace(connections=[transport]))  # as rospy
+    connecting = threading.Thread(target=transport.connect, daemon=True,
+                                  args=("127.0.0.1", listener.getsockname()[1], "/slow", 10))
+    connecting.start()
+    try:
+        assert asked.wait(10)
+        assert len(subscriber.impl.connections) == 1 and ros_node.handshaken(subscriber) == 0
+        answer.set()
+        connecting.join(10)
+        assert ros_node.handshaken(subscriber) == 1
+    finally:
+        answer.set()
+        transport.close()
+        listener.close()

@@ -556,6 +556,9 @@ def peer() -> None:
     other, x = sys.argv[3], float(sys.argv[4])
     threading.Thread(target=read_stdin, daemon=True).start()
     gaze = start_gaze()
+    # every pilot's commands reach our log from here (fc3: the PI counted its subscription
+    # a second before the loaded gateway took it, and both look_ats went out meanwhile)
+    wait(window.link.hears_every_pilot, 30, "the gateway's record of every pilot's commands")
     say("STEP ready")
     wait_word("go", 120)
     send_look_at(gaze, x)

@@ -30,6 +30,22 @@ def test_a_burst_after_our_reader_was_held_up_does_not_shorten_the_robots_step()
     assert fed(arrivals, seqs, robot_times).period(arrivals[-1]) == pytest.approx(MS)
 
 
+def test_read_chain_by_chain_a_step_said_twice_adds_nothing():
+    """Eight chains of a 2-ms robot, one state each per step: a round can end on a chain
+    that already said this step -- a round of no step, a tenth of a millisecond later."""
+    arrivals, seqs, robot_times = [], [], []
+    for k in range(KEPT):
+        arrivals.append(1.0 + k * 2 * MS)
+        seqs.append(k)
+        robot_times.append(k * 2 * MS)
+        if k % 3 == 0:                          # the same step again, just after
+            arrivals.append(arrivals[-1] + 0.1 * MS)
+            seqs.append(k)
+            robot_times.append(robot_times[-1])
+    rounds = fed(arrivals, seqs, robot_times)
+    assert rounds.period(arrivals[-1]) == pytest.approx(2 * MS)
+
+
 def test_a_robot_whose_time_does_not_move_is_timed_by_arrival():
     """fakeMotionControl stamps time 0: the arrivals say the step."""
     arrivals = [1.0 + k * 2 * MS for k in range(KEPT)]
