@@ -695,9 +695,11 @@ class Bridge:
         return numbers, late
 
     def _publish_status(self, port: Port) -> None:
+        """The status every period to every reader that took the last one: a reader held up
+        misses some, and the others never wait for it (they would read "link down")."""
         while not self._stop.wait(STATUS_PERIOD):
             try:
-                port.write(self._status_bottle())
+                port.write(self._status_bottle(), skip_busy=True)
             except YarpError:
                 pass
 

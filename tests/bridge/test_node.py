@@ -122,3 +122,33 @@ def test_the_presence_thread_follows_the_peer_and_remembers_its_word(pilot_bridg
                    state_dir=tmp_path / "state")
     assert again._peer_presence == {(7, 0), (7, 2)}   # a restart in an outage shows them
     again.journal.close()
+
+
+def test_a_reader_that_stops_reading_the_status_does_not_silence_it_for_the_others(
+        pilot_bridge):
+    """Every gateway, PI and GYM module reads its bridge's status to tell the link is down
+    after 2 s without one.  One reader held up (a PI busy restarting its 3-D view) held the
+    bridge's status writer on its acknowledgement, and both gateways of fc3 said "link down
+    (no status from the pilot bridge for 2 s)" with the link up."""
+    import threading
+
+    from yarp_lite import network
+    from yarp_lite.port import Port
+
+    held, heard = threading.Event(), []
+
+    def stall(bottle) -> None:
+        held.wait(30)                 # stuck in its first status until the test ends
+
+    stalled = Port(reader=stall).open("/test/stalled/status:i")
+    listening = Port(reader=heard.append).open("/test/heard/status:i")
+    try:
+        pilot_bridge._open_status_ports()
+        for reader in (stalled, listening):
+            assert network.connect("/bridge/pilot/status:o", reader.name).ok
+        wait_until(lambda: len(heard) >= 4, 10,     # one each 0.5 s (STATUS_PERIOD)
+                   message=f"statuses while another reader is stalled (had {len(heard)})")
+    finally:
+        held.set()
+        stalled.close()
+        listening.close()
