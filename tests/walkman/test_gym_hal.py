@@ -55,7 +55,18 @@ class Pilot:
         return decode_status(bottle, self.statuses)[2] if bottle is not None else []
 
     def wait_state(self, state: str, timeout: float = 20.0) -> None:
-        wait_until(lambda: self.state() == state, timeout, message=f"{self.module} {state}")
+        seen: List[Optional[str]] = []
+
+        def reached() -> bool:
+            seen.append(self.state())
+            return seen[-1] == state
+
+        try:
+            wait_until(reached, timeout, message=f"{self.module} {state}")
+        except AssertionError as exc:   # WaitTimeout: say what the module said instead
+            said = [s for k, s in enumerate(seen) if k == 0 or seen[k - 1] != s]
+            raise type(exc)(f"{exc}; its states meanwhile {said[-8:]}, its warnings "
+                            f"{self.warnings[-5:]}") from None
 
     def send(self, tool, port: str, line: str) -> None:
         result = self.world.run_tool(tool, "write", f"/test/writer{int(time.time() * 1e6)}",
