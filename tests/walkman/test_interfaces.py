@@ -88,3 +88,42 @@ def test_the_standard_ports_are_named_in_one_place_in_the_bridges_kind_order():
                                              "receipt:o"]
     assert SWITCH.of("gaze_control") == "/gaze_control/switch:i"
     assert RECEIPT.of("/a/b") == "/a/b/receipt:o"
+
+
+def test_a_status_reader_held_up_neither_holds_the_sender_nor_silences_the_others(lite_world):
+    """The watchdog that sends the status also carries out ``stop``: a reader that stops
+    reading (a ``yarp read`` on a loaded laptop) must not hold it."""
+    import threading
+    import time
+
+    from harness import wait_until
+    from walkman.gym.interfaces import PilotInterfaces
+    from yarp_lite import network
+    from yarp_lite.port import Port
+
+    held, heard = threading.Event(), []
+
+    def stall(bottle) -> None:
+        held.wait(30)
+
+    interfaces = PilotInterfaces("/held_up", statuses=["ok"])
+    interfaces.open(wait=10)
+    stalled = Port(reader=stall).open("/test/stalled:i")
+    listening = Port(reader=heard.append).open("/test/heard:i")
+    try:
+        for reader in (stalled, listening):
+            assert network.connect("/held_up/status:o", reader.name).ok
+        sent = 0
+        deadline = time.monotonic() + 10
+        while len(heard) < 5 and time.monotonic() < deadline:
+            interfaces.set_status("ok", [sent])
+            interfaces.send_status()          # returns at once: the stalled one is skipped
+            sent += 1
+            time.sleep(0.05)
+        wait_until(lambda: len(heard) >= 5, 5,
+                   message=f"statuses while another reader is stalled (had {len(heard)})")
+    finally:
+        held.set()
+        stalled.close()
+        listening.close()
+        interfaces.close()

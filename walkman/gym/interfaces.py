@@ -338,9 +338,12 @@ class PilotInterfaces:
         return changed
 
     def send_status(self) -> None:
+        """The status to every reader that took the last one: the watchdog that sends it
+        also carries out the pilot's ``stop``, and must never wait on a reader held up
+        (the status is sent again within a period; a slow reader misses some)."""
         if self.status_port is not None:
             self.status_port.write(self.status_encoder(next(self._status_seq), self.state,
-                                                       self.data))
+                                                       self.data), skip_busy=True)
 
     def warn(self, text: str) -> None:
         if self.warning_port is not None:
