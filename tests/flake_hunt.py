@@ -118,6 +118,19 @@ KNOWN: Tuple[Known, ...] = (
     Known("tests/integration/test_auth.py::test_other_keys_are_refused_with_a_message_within_seconds",
           "refused after 10-26 s, over its 8-s bound (fc2 of 2026-11-27, with two extra GUI "
           "runs; judged by the refusal's reason since: df94822)"),
+    Known("tests/walkman/test_gym_hal.py::test_the_robot_says_when_each_state_round_arrives",
+          "0.71 ms for a 1-ms robot, 2.06 for 2 ms: rounds timed by arrival (fc2, fc3 of the "
+          "third 2026-11-27 session; by the robot's clock since: 5ad64ff, a4d92dd)"),
+    Known("tests/walkman/test_gym_hal.py::test_pilot_moves_the_head_through_yarp_write",
+          "gaze_control's log silent after its robot ports, no 'tracking' (fc4) or no exit "
+          "after quit (fc6), beside two burners; fc11 before: the write tool failed; not found"),
+    Known("tests/system/test_pilot_gui.py::"
+          "test_the_wall_task_by_clicks_cuts_the_circle_in_the_world",
+          "'approach is disabled' right after 'reach -> reached' (fc2; not found, the driver "
+          "now says the widget's state)"),
+    Known("tests/bridge/test_tcp_channel.py::"
+          "test_an_unacknowledged_event_is_followed_by_empty_frames_and_a_periodic_one_is_not",
+          "its 3-s wait for the nudges beside two burners (fc6; 15 s since: 7c633c2)"),
 )
 
 
