@@ -207,7 +207,7 @@ class Robot(WholeBody):
         self._updated = 0.0
         self._lock = threading.Lock()
         self._round = threading.Condition(self._lock)  # a round arrived (see wait_round)
-        self._rounds = RoundPeriod()
+        self._rounds = RoundPeriod(STALE_AFTER)
         self._bad_whole = Burst()
         self._ft: Dict[str, np.ndarray] = {}
         self._imu: Optional[Tuple[List[float], List[float], List[float]]] = None
@@ -465,7 +465,6 @@ class Robot(WholeBody):
             self._updated = now
             if all(other.seen_at > self.newest_round for other in self._links.values()):
                 self._rounds.round(now, seq, robot_time)
-                self.newest_round = now
                 self._round.notify_all()
 
     def _poll_temperatures(self) -> None:
@@ -537,6 +536,10 @@ class Robot(WholeBody):
     @property
     def state_age(self) -> float:
         return time.monotonic() - self._updated if self._updated else math.inf
+
+    @property
+    def newest_round(self) -> float:  # type: ignore[override]
+        return self._rounds.newest
 
     @property
     def round_period(self) -> float:

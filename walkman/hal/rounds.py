@@ -27,14 +27,16 @@ from typing import Deque, Optional, Tuple
 KEPT = 32
 #: Fewer rounds than this: the period is not known yet.
 AT_LEAST = 8
-#: s without a round after which the period is not known (the robot went silent).
+#: s without a round after which the period is not known (the robot went silent); the
+#: robot client passes its own staleness (:data:`walkman.hal.robot.STALE_AFTER`).
 STALE_AFTER = 0.5
 
 
 class RoundPeriod:
     """Seconds per robot step, from the rounds' arrivals, counts and robot times."""
 
-    def __init__(self) -> None:
+    def __init__(self, stale_after: float = STALE_AFTER) -> None:
+        self.stale_after = stale_after
         #: per round: seconds since the last by arrival, by the robot's clock (None: it
         #: did not say), and robot steps
         self._rounds: Deque[Tuple[float, Optional[float], int]] = deque(maxlen=KEPT)
@@ -44,7 +46,7 @@ class RoundPeriod:
 
     def round(self, now: float, seq: int, robot_time: Optional[float] = None) -> None:
         """A round arrived at ``now``: the robot's state count ``seq``, its time if said."""
-        if now - self.newest < STALE_AFTER:
+        if now - self.newest < self.stale_after:
             before = self._robot_time
             by_robot = robot_time - before if robot_time is not None and before is not None \
                 else None
@@ -56,7 +58,7 @@ class RoundPeriod:
         """The robot's step in seconds; 0 when not known (see the module's docstring)."""
         rounds = list(self._rounds)
         steps = [taken for _, _, taken in rounds]
-        if len(steps) < AT_LEAST or now - self.newest >= STALE_AFTER or \
+        if len(steps) < AT_LEAST or now - self.newest >= self.stale_after or \
                 sorted(steps)[len(steps) // 2] != 1 or sum(steps) <= 0:
             return 0.0
         # Chain by chain, a round may end on a chain that already said this step: 0 steps,
