@@ -34,12 +34,16 @@ sys.path.append(str(Path(__file__).resolve().parent))
 from harness import (YarpWorld, dump_outputs_if_failed, lite_implementation,  # noqa: E402
                      missing_reference, real_implementation)
 from requirements import apply_marks  # noqa: E402
+from robot_slots import robot_slot  # noqa: E402
 
 
 def pytest_configure(config):
     config.addinivalue_line("markers", "requires(name, ...): needs root, the reference YARP... "
                             "(tests/requirements.py): skipped when missing, failed when "
                             "WALKMAN_REQUIRE_<NAME> is set")
+    config.addinivalue_line("markers", "free_standing: runs a robot with the harness off in "
+                            "real time; such tests take turns on a machine "
+                            "(tests/robot_slots.py)")
 
 
 #: Folders in the order their tests run, those that start whole topologies first, then those
@@ -59,6 +63,19 @@ def pytest_collection_modifyitems(config, items):
         return HEAVY_FIRST.index(folder) if folder in HEAVY_FIRST else len(HEAVY_FIRST)
 
     items.sort(key=rank)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """A ``free_standing`` test holds a robot slot from its setup to its teardown; the wait,
+    if any, is in the JUnit report's properties."""
+    if item.get_closest_marker("free_standing") is None:
+        yield
+        return
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
+    with robot_slot(preferred=int(worker.lstrip("gw") or 0)) as waited:
+        item.user_properties.append(("waited_for_a_robot_slot_s", round(waited, 1)))
+        yield
 
 
 @pytest.hookimpl(tryfirst=True)

@@ -159,6 +159,7 @@ def test_the_door_task_through_rosservice(pilot_at):
     assert math.degrees(door.scene("door")["door"]) > 30
 
 
+@pytest.mark.free_standing
 def test_walking_through_rosservice(pilot_at):
     walk = pilot_at("yard", "walking", "--harness", "off")
     before = walk.scene()["base_x"]

@@ -1,0 +1,65 @@
+"""Free-standing robots take turns on a machine: the ``free_standing`` mark.
+
+Theory of operation.  A simulated robot with the harness off balances on its own feet: its
+physics (SCHED_FIFO 60), the threads that carry its states (55) and its walking loop (50)
+must run on time, and they do beside any amount of normal-priority load.  Beside a *second*
+robot they do not: the other robot's physics and port threads are real-time too, at the
+same or higher priorities, and on a two-core machine the two preempt each other's loops
+(ticks of 33 ms were logged when a walk tripped its balance guard beside another robot,
+fresh-clone runs fc15, fc16 and the run of 2026-11-27).  A real Walk-Man has a computer to
+itself; the suite's three workers do not.  So a test marked ``free_standing`` holds one of
+``slots()`` machine-wide slots -- one per two cores -- from its setup to its teardown, and
+a second such test, on another worker or in another pytest run on the machine, waits for it.
+
+A slot is an exclusive ``flock`` on a file under the system's temporary folder: the kernel
+releases it when its holder dies, so a killed run never leaves a slot taken.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import tempfile
+import time
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterator, Optional
+
+#: Where the slots' lock files live (machine-wide: every pytest run on the machine shares them).
+SLOT_FOLDER = Path(tempfile.gettempdir()) / "walkman-free-standing-robots"
+
+
+def slots(cores: Optional[int] = None) -> int:
+    """How many free-standing robots the machine runs at once: one per two cores."""
+    return max(1, (cores if cores is not None else os.cpu_count() or 1) // 2)
+
+
+@contextmanager
+def robot_slot(folder: Path = SLOT_FOLDER, count: Optional[int] = None,
+               preferred: int = 0) -> Iterator[float]:
+    """Hold a free slot for the block; yields how long it waited (s).  With every slot
+    taken it blocks on slot ``preferred`` (mod the count) until its holder lets go."""
+    count = slots() if count is None else count
+    if count < 1:
+        raise ValueError(f"a machine has at least one robot slot, not {count}")
+    folder.mkdir(parents=True, exist_ok=True)
+    began = time.monotonic()
+    handles = [open(folder / f"slot-{index}.lock", "a+") for index in range(count)]
+    held = None
+    try:
+        for handle in handles:
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                continue
+            held = handle
+            break
+        if held is None:
+            held = handles[preferred % count]
+            fcntl.flock(held, fcntl.LOCK_EX)
+        yield time.monotonic() - began
+    finally:
+        if held is not None:
+            fcntl.flock(held, fcntl.LOCK_UN)
+        for handle in handles:
+            handle.close()

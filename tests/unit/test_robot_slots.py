@@ -1,0 +1,114 @@
+"""tests/robot_slots.py: free-standing robots take turns, machine-wide, and a dead holder
+frees its slot."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from robot_slots import robot_slot, slots
+
+TESTS = Path(__file__).resolve().parents[1]
+HOLDER = """
+import sys, time
+sys.path.insert(0, {tests!r})
+from pathlib import Path
+from robot_slots import robot_slot
+print("trying", flush=True)
+with robot_slot(Path({folder!r}), count={count}) as waited:
+    print("got", time.monotonic(), waited, flush=True)
+    sys.stdin.readline()          # hold until the test says
+"""
+
+
+def holder(folder: Path, count: int) -> subprocess.Popen:
+    code = HOLDER.format(tests=str(TESTS), folder=str(folder), count=count)
+    child = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE,
+                             stdout=subprocess.PIPE, text=True)
+    assert child.stdout.readline().strip() == "trying"
+    return child
+
+
+def blocked_on_a_lock(pid: int) -> bool:
+    """/proc/locks lists a process waiting for a lock on a ``->`` line."""
+    return any("->" in line and f" {pid} " in f" {line} " for line in
+               Path("/proc/locks").read_text().splitlines())
+
+
+def wait_for(predicate, what: str, timeout: float = 30.0) -> None:
+    end = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < end, f"{what} not seen in {timeout} s"
+        time.sleep(0.01)
+
+
+def free(folder: Path, index: int) -> bool:
+    with open(folder / f"slot-{index}.lock", "a+") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return False
+        fcntl.flock(handle, fcntl.LOCK_UN)
+        return True
+
+
+@pytest.mark.parametrize("cores, expected", [(None, None), (1, 1), (2, 1), (3, 1), (4, 2),
+                                             (16, 8)])
+def test_one_slot_per_two_cores_and_never_none(cores, expected):
+    if cores is None:
+        assert slots() == max(1, (os.cpu_count() or 1) // 2)
+    else:
+        assert slots(cores) == expected
+
+
+def test_a_second_robot_waits_until_the_first_lets_go(tmp_path):
+    with robot_slot(tmp_path, count=1) as waited:
+        assert waited < 5
+        child = holder(tmp_path, 1)
+        try:
+            wait_for(lambda: blocked_on_a_lock(child.pid), "the second holder blocked")
+            released_at = time.monotonic()
+        except BaseException:
+            child.kill()
+            raise
+    try:
+        word, got_at, child_waited = child.stdout.readline().split()
+        assert word == "got" and float(got_at) >= released_at
+        assert float(child_waited) > 0
+    finally:
+        child.communicate("\n", timeout=30)
+
+
+def test_two_slots_hold_two_robots_and_a_third_waits(tmp_path):
+    with robot_slot(tmp_path, count=2), robot_slot(tmp_path, count=2):
+        assert not free(tmp_path, 0) and not free(tmp_path, 1)
+        third = holder(tmp_path, 2)
+        try:
+            wait_for(lambda: blocked_on_a_lock(third.pid), "the third holder blocked")
+        finally:
+            third.kill()
+            third.wait(30)
+    assert free(tmp_path, 0) and free(tmp_path, 1)
+
+
+def test_a_killed_holder_frees_its_slot(tmp_path):
+    child = holder(tmp_path, 1)
+    assert child.stdout.readline().startswith("got")
+    assert not free(tmp_path, 0)
+    os.kill(child.pid, signal.SIGKILL)
+    child.wait(30)
+    with robot_slot(tmp_path, count=1) as waited:
+        assert waited < 5
+
+
+def test_no_slots_is_a_clear_error(tmp_path):
+    with pytest.raises(ValueError, match="at least one robot slot, not 0"):
+        with robot_slot(tmp_path, count=0):
+            pass
