@@ -97,7 +97,7 @@ KNOWN: Tuple[Known, ...] = (
     Known("tests/modules/test_walking.py::test_the_door_sequence_unsupported_as_processes",
           "the walk short, the guard tripped beside another robot (fc15, fc16): threads at normal "
           "priority held the interpreter lock (44348b6); real-time throttling with two "
-          "multi-module robots (open)"),
+          "multi-module robots: free-standing robots take turns since d98a2bb"),
     Known("tests/modules/test_walking.py::test_turns_side_steps_and_a_push_standing_as_processes",
           "tilt 0.122 rad after the push beside another robot (fc16; 44348b6)"),
     Known("tests/modules/test_walking.py::"
@@ -108,7 +108,8 @@ KNOWN: Tuple[Known, ...] = (
           "the bridges silent 2-4 s beside two burners, walking paused (fc19; d9a24ba)"),
     Known("tests/system/test_tasks_via_gateway.py::test_walking_through_rosservice",
           "the guard tripped at a 0.3-cm ZMP margin, the HAL on time (fc22; the trip now logs "
-          "the loop's longest tick: e497490)"),
+          "the loop's longest tick: e497490); again at 0.1 cm after a 33-ms tick (2026-11-27 "
+          "fc2): free-standing robots take turns (d98a2bb)"),
     Known("tests/system/test_tasks_via_gateway.py::test_the_drive_task_through_rosservice",
           "'throttle pressed' not seen in 10 s of probes (fc22; watched throughout: 41555e4)"),
     Known("tests/interop/test_controlboard_oracle.py::"
