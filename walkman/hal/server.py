@@ -5,7 +5,10 @@ Theory of operation
 One thread steps the backend at 1 kHz of wall-clock time (on a loaded machine slower,
 never in long bursts: ``MAX_LAG_S``; modules follow the robot's time).  Before each step
 it applies the newest command each chain received; every ``period_ms`` it
-snapshots the state of every chain; every 10 ms the F/T sensors and the IMU.
+snapshots the state of every chain; every 10 ms the F/T sensors and the IMU.  The steps
+of one state period run back to back, one wake-up per period (at most 2 ms: the modules'
+period): nothing between them is published, and a wake-up costs the machine as much
+as a step (an idle HAL used 17 % of a core waking every 1 ms, 13 % every 2 ms).
 Snapshots go to a single publisher thread that writes the ports, so a slow
 reader can never stall the physics (streams are latest-only: a snapshot not
 yet sent is replaced by a newer one).
@@ -72,7 +75,16 @@ STATUS_PERIOD_S = 5.0
 #: (walkman.hal.clock), so a slip only slows the world down, where a long burst of catch-up
 #: steps would leave the controllers' commands far apart in simulated time.
 MAX_LAG_S = 0.005
+#: The longest run of physics steps back to back (s): the modules' 2 ms period.
+MAX_BURST_S = 0.002
 PUBLISHED_HISTORY = 2048  # state publications remembered for latency (2 s at 1 kHz)
+
+
+def steps_per_wakeup(state_every: int, dt: float) -> int:
+    """How many physics steps run back to back per wake-up of the physics thread: those of
+    one state period (nothing between them is published), at most ``MAX_BURST_S`` of
+    them (a command that arrives meanwhile waits for the next burst)."""
+    return max(1, min(state_every, int(round(MAX_BURST_S / dt))))
 
 
 class Publisher(threading.Thread):
@@ -450,6 +462,7 @@ class HalServer:
         self.publisher.start()
         self.running = True
         state_every = max(1, round(self.config.period_ms / 1000.0 / backend.dt))
+        burst = steps_per_wakeup(state_every, backend.dt)
         sensor_every = max(1, round(SENSOR_PERIOD_S / backend.dt))
         world_every = max(1, round(WORLD_PERIOD_S / backend.dt))
         battery_every = max(1, round(BATTERY_STEP_S / backend.dt))
@@ -485,7 +498,9 @@ class HalServer:
                 next_status = begin + STATUS_PERIOD_S
             if self.realtime:
                 deadline += backend.dt
-                delay = deadline - time.perf_counter()
+                if self.steps % burst:
+                    continue        # the period's next step, back to back
+                delay = deadline + (burst - 1) * backend.dt - time.perf_counter()
                 if delay > 0:
                     time.sleep(delay)
                 elif delay < -MAX_LAG_S:
