@@ -184,6 +184,17 @@ Event = Union[StreamValue, ReliableAccepted, Acknowledged, PresenceHeard, Droppe
 # -- what to send, and when ------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class Due:
+    """What leaves now (:meth:`Streams.due`)."""
+
+    #: the flows to send: None for the periodic frame (every changed flow)
+    flows: Optional[FrozenSet[FlowKey]]
+    #: those whose event is due, the periodic frame's too: a pilot waits for them, so the
+    #: frame is followed by nudges
+    events: FrozenSet[FlowKey] = frozenset()
+
+
 class Streams:
     """The newest value of every streaming flow, and when each must leave (thread-safe).
 
@@ -216,20 +227,20 @@ class Streams:
         with self._lock:
             return min([self._next_tick, *self._events.values()])
 
-    def due(self, now: float) -> Optional[FrozenSet[FlowKey]]:
-        """What leaves now: None for the periodic frame (every changed flow, and every
-        event with it), else the flows whose event is due (perhaps none)."""
+    def due(self, now: float) -> Due:
+        """What leaves now: the periodic frame (every changed flow, and every event with
+        it, still an event), else the flows whose event is due (perhaps none)."""
         with self._lock:
             tick = now >= self._next_tick
-            due = set(self._events) if tick else \
-                {key for key, when in self._events.items() if when <= now}
+            due = frozenset(self._events) if tick else \
+                frozenset(key for key, when in self._events.items() if when <= now)
             for key in due:
                 del self._events[key]
                 self._event_sent[key] = now
             if tick:
                 self._next_tick = max(self._next_tick + self.period, now)
-                return None
-            return frozenset(due)
+                return Due(None, due)
+            return Due(due, due)
 
     def take(self, only: Optional[AbstractSet[FlowKey]] = None) -> List[Tuple[FlowKey, Any]]:
         """The changed values (of ``only``, if given), now no longer changed."""
@@ -464,14 +475,18 @@ class FrameSession:
     def next_frame(self, now: float, *, wall: float,
                    streams: Optional[AbstractSet[FlowKey]] = None,
                    presence: Optional[Presence] = None,
-                   kernel: KernelQueue = KernelQueue()) -> Outgoing:
+                   kernel: KernelQueue = KernelQueue(),
+                   events: Optional[AbstractSet[FlowKey]] = None) -> Outgoing:
         """The frame to send at ``now`` (``wall``: the wall clock, for command ageing).
 
         It holds what the outbox owes, our ack, the presence if it changed (None: not
         known yet) and the streaming flows :meth:`Streams.due` named (``None``: every
-        changed flow, the periodic frame).  Its bookkeeping counts it as sent: a session
-        whose frame could not be sent is over (the connection is dropped).
+        changed flow, the periodic frame), of which ``events`` are events (by default all
+        that ``streams`` names; a pilot waits for them).  Its bookkeeping counts it as
+        sent: a session whose frame could not be sent is over (the connection is dropped).
         """
+        if events is None:
+            events = streams or frozenset()
         self._check_up("a frame to send")
         nudge = now >= self.nudges.at and self.nudges.take(now, kernel.only_unacknowledged)
         reliable = self.queues.unacknowledged(after=self.sent_upto or 0,
@@ -486,7 +501,7 @@ class FrameSession:
             if route is not None and route.copies:
                 copies.append((route.key, item.seq, payload))
         held_back = 0
-        events = False
+        carries_event = False
         if streams is None or streams:
             if drops.hold_back(kernel.unsent):
                 held_back = kernel.unsent
@@ -496,12 +511,14 @@ class FrameSession:
                           (streams is None or key in streams)}
                 if urgent:
                     streaming = self._streaming_entries(self.streams.take(urgent))
-                    events = bool(streaming)
+                    carries_event = bool(streaming)
                     encoded.extend(streaming)
             else:
-                streaming = self._streaming_entries(self.streams.take(streams))
-                events = streams is not None and bool(streaming)
-                encoded.extend(streaming)
+                taken = self.streams.take(streams)
+                # An event that rides with the periodic frame is awaited all the same: a
+                # sender late for both (a loaded machine) sent it unnudged (fc3, 2026-11-27).
+                carries_event = any(key in events for key, _ in taken)
+                encoded.extend(self._streaming_entries(taken))
         accepted = self.queues.accepted(self.peer_session)
         ack = accepted if accepted != self.ack_sent else None
         if presence == self._presence_sent:
@@ -519,7 +536,7 @@ class FrameSession:
         if reliable:
             self.sent_upto = reliable[-1].seq
             self.stats.reliable_sent += len(reliable)
-        awaited = bool(reliable) or events or presence is not None
+        awaited = bool(reliable) or carries_event or presence is not None
         if awaited:
             self.nudges.awaited_frame_sent(now, kernel.round_trip)
         if nudge:

@@ -46,7 +46,7 @@ import termios
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import AbstractSet, Any, Callable, List, Optional, Tuple
+from typing import Any, Callable, List, Optional, Tuple
 
 from bridge import compact, drops
 from bridge.channel_phase import ChannelPhase
@@ -54,7 +54,7 @@ from bridge.copies import ReliableCopy
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeError, BridgeProtocolError
 from bridge.flows import FlowKey, Route
-from bridge.frame_session import (Dropped, Event, FrameSession, KernelQueue, LinkStats,
+from bridge.frame_session import (Dropped, Due, Event, FrameSession, KernelQueue, LinkStats,
                                   PresenceHeard, ReliableAccepted, Streams, StreamValue)
 # The channel's timing constants, named here before the frame session took them over.
 from bridge.frame_session import (DELAYED_ACK, EVENT_MIN_GAP, KEEPALIVE,  # noqa: F401
@@ -640,11 +640,11 @@ class TcpChannel:
                 self._urgent = False
                 connection = self._connection
             now = time.monotonic()
-            streams = self._streams.due(now)
+            due = self._streams.due(now)
             if connection is None or connection.closed:
                 continue
             try:
-                self._send(connection, now, streams)
+                self._send(connection, now, due)
             except OSError as exc:
                 self._drop(f"send failed: {exc.strerror or exc}", connection)
             except BridgeError as exc:
@@ -654,12 +654,12 @@ class TcpChannel:
                 log.exception("TCP channel: sending failed (a bug); dropping the connection")
                 self._drop("internal error while sending", connection)
 
-    def _send(self, connection: _Connection, now: float,
-              streams: Optional[AbstractSet[FlowKey]]) -> None:
+    def _send(self, connection: _Connection, now: float, due: Due) -> None:
         """The frame the session says is due, if any."""
-        out = connection.session.next_frame(now, wall=time.time(), streams=streams,
+        out = connection.session.next_frame(now, wall=time.time(), streams=due.flows,
                                             presence=self.presence(),
-                                            kernel=_kernel_queue(connection.sock))
+                                            kernel=_kernel_queue(connection.sock),
+                                            events=due.events)
         if out.held_back:
             self.drops.drop(Reason.HELD_BACK, f"{out.held_back} bytes still unsent")
         if out.body is None:

@@ -23,7 +23,7 @@ from bridge.errors import BridgeProtocolError, BridgeUsageError
 from bridge.flows import Carriage, FlowKey, Form, Route
 from bridge.frame_session import (DELAYED_ACK, EVENT_MIN_GAP, KEEPALIVE,
                                   MAX_RELIABLE_PER_FRAME, NUDGE_AFTER, NUDGES, Acknowledged,
-                                  Dropped, FrameSession, KernelQueue, Nudges, PresenceHeard,
+                                  Dropped, Due, FrameSession, KernelQueue, Nudges, PresenceHeard,
                                   ReliableAccepted, Streams, StreamValue)
 from bridge.frames import DataFrame, Entry
 from bridge.journal import Journal, Queued
@@ -114,9 +114,13 @@ class End:
 
     def frame(self, now: float, streams=NOTHING, kernel: KernelQueue = KernelQueue(),
               wall: float = WALL) -> frame_session.Outgoing:
+        """The frame at ``now``; ``streams`` the flows to send, or what
+        :meth:`Streams.due` said (a :class:`Due`: its flows and events)."""
         assert self.session is not None
-        return self.session.next_frame(now, wall=wall, streams=streams,
-                                       presence=self.presence, kernel=kernel)
+        due = streams if isinstance(streams, Due) else Due(streams, streams or frozenset())
+        return self.session.next_frame(now, wall=wall, streams=due.flows,
+                                       presence=self.presence, kernel=kernel,
+                                       events=due.events)
 
 
 def connect(robot: End, pilot: End) -> None:
@@ -352,19 +356,19 @@ def test_events_leave_at_once_at_most_once_per_gap_and_with_the_periodic_frame()
     assert streams.wake_at() == PERIOD
     assert streams.post(STATUS, Bottle([1]), event=True)          # a first event: due now
     assert not streams.post(STATUS, Bottle([2]), event=True)      # coalesced with it
-    assert streams.due(0.01) == {STATUS}
+    assert streams.due(0.01) == Due({STATUS}, {STATUS})
     assert streams.take({STATUS}) == [(STATUS, Bottle([2]))]
     assert streams.post(STATUS, Bottle([3]), event=True)
     assert streams.wake_at() == pytest.approx(0.01 + EVENT_MIN_GAP)  # one gap after the last
-    assert streams.due(0.02) == frozenset()
-    assert streams.due(0.01 + EVENT_MIN_GAP) == {STATUS}
+    assert streams.due(0.02) == Due(frozenset(), frozenset())
+    assert streams.due(0.01 + EVENT_MIN_GAP) == Due({STATUS}, {STATUS})
     streams.post(STATUS, Bottle([4]))                             # a change, not an event
-    assert streams.due(0.2) == frozenset() and streams.take(frozenset()) == []
+    assert streams.due(0.2) == Due(frozenset()) and streams.take(frozenset()) == []
     assert streams.post(STATUS, Bottle([5]), event=True)
-    assert streams.due(PERIOD) is None                          # the tick takes it along
+    assert streams.due(PERIOD) == Due(None, {STATUS})   # the tick takes it along, an event
     assert streams.take(None) == [(STATUS, Bottle([5]))]
     assert streams.wake_at() == 2 * PERIOD
-    assert streams.due(10.0) is None and streams.wake_at() == 10.0  # late: no burst of ticks
+    assert streams.due(10.0) == Due(None) and streams.wake_at() == 10.0  # late: no burst
 
 
 def test_an_event_frame_is_awaited_and_a_periodic_one_is_not(ends):
@@ -374,6 +378,21 @@ def test_an_event_frame_is_awaited_and_a_periodic_one_is_not(ends):
     assert not robot.frame(0.1, None).awaited
     robot.streams.post(STATUS, Bottle([2]), event=True)
     assert robot.frame(0.2, robot.streams.due(0.2)).awaited
+
+
+def test_an_event_that_rides_with_the_periodic_frame_is_awaited_too(ends):
+    """A sender late for both the tick and an event (a loaded machine) sends one frame:
+    the pilot waits for it all the same, so it is nudged (fc3 of 2026-11-27: 0 nudges)."""
+    robot, pilot = ends
+    send(robot, pilot)
+    robot.streams.post(STATUS, Bottle([1]))
+    robot.streams.post(STATUS, Bottle([2]), event=True)
+    due = robot.streams.due(PERIOD + 0.5)
+    assert due.flows is None
+    out = robot.frame(PERIOD + 0.5, due)
+    assert out.awaited and robot.session.nudge_at < math.inf
+    assert [e.value for e in pilot.session.receive_body(out.body)
+            if isinstance(e, StreamValue)] == [Bottle([2])]
 
 
 # -- presence, nudges, keepalive ------------------------------------------------------------

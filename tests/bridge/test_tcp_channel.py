@@ -22,6 +22,7 @@ from bridge.link import LinkKey
 from bridge.flows import Carriage, FlowKey, Form, Route
 from bridge.tcp_channel import TcpChannel
 from harness import free_port, wait_until
+from system.processes import WaitTimeout
 from yarp_lite.bottle import Bottle
 
 SWITCH, COMMAND, STATUS = FlowKey(7, 0), FlowKey(7, 1), FlowKey(7, 2)
@@ -159,6 +160,20 @@ def test_bytes_queued_for_a_slow_reader_are_not_taken_for_a_loss():
     assert not _only_unacknowledged(sender)            # closed: nothing
 
 
+def wait_for_nudges(end: "End", count: int, what: str) -> None:
+    """Until ``end`` has sent ``count`` nudges; else say how many, and its nudge plan."""
+    try:
+        wait_until(lambda: end.channel.stats.nudges >= count, 15, message=what)
+    except WaitTimeout:
+        pass
+    connection = end.channel._connection
+    session = connection.session if connection is not None else None
+    plan = vars(session.nudges) if session is not None else "no session"
+    assert end.channel.stats.nudges == count, \
+        f"{what}: {end.channel.stats.nudges} sent, {count} expected (plan now: {plan}, " \
+        f"round trip {end.channel.round_trip_ms()} ms, connected {end.channel.connected})"
+
+
 def test_an_unacknowledged_event_is_followed_by_empty_frames_and_a_periodic_one_is_not(
         pair, monkeypatch):
     from bridge import tcp_channel
@@ -174,13 +189,11 @@ def test_an_unacknowledged_event_is_followed_by_empty_frames_and_a_periodic_one_
     assert robot.channel.stats.nudges == 0
     robot.channel.post(STATUS, Bottle([20, "b"]), event=True)
     # (a bound for a loaded box, not a figure: fc6 beside two burners took over 3 s)
-    wait_until(lambda: robot.channel.stats.nudges == tcp_channel.NUDGES, 15,
-               message="the nudges")
+    wait_for_nudges(robot, tcp_channel.NUDGES, "the nudges")
     time.sleep(0.5)                                   # the thing under test: no more than that
     assert robot.channel.stats.nudges == tcp_channel.NUDGES
     pilot.channel.send_reliable(SWITCH, Bottle(["start", 1]))   # a command is awaited too
-    wait_until(lambda: pilot.channel.stats.nudges == tcp_channel.NUDGES, 15,
-               message="the command's nudges")
+    wait_for_nudges(pilot, tcp_channel.NUDGES, "the command's nudges")
     monkeypatch.setattr(tcp_channel, "_only_unacknowledged", lambda sock: False)  # acked
     robot.channel.post(STATUS, Bottle([21, "c"]), event=True)
     wait_until(lambda: pilot.streams[-1][1][0] == 21, 3, message="the event")
