@@ -13,7 +13,7 @@ Measures on loopback, each peer in its own process:
 * name server cost: one ``query`` round trip, and 100 concurrent
   registrations, against ``yarp-lite server`` and ``yarpserver``.
 
-Usage: ``.venv/bin/python bench/bench_yarp_lite.py [--quick]``.  Needs the
+Usage: ``.venv/bin/python bench/bench_yarp_lite.py [--quick | --smoke]``.  Needs the
 reference build (``launch_scripts/build_reference_yarp.sh``) for the C++
 columns and Debian's ROS for the rospy column; missing ones are reported,
 not faked.
@@ -199,10 +199,16 @@ def _stats(samples: List[float]) -> Dict[str, float]:
 
 
 class Bench:
-    def __init__(self, quick: bool) -> None:
-        self.quick = quick
-        self.rpc_count = 2000 if quick else 10000
-        self.blob_count = 100 if quick else 400
+    #: Samples per figure: the full run, ``--quick``'s, ``--smoke``'s (every table once,
+    #: too few samples to read: the test suite's check that the script runs whole).
+    SAMPLES = {"full": {"rpc": 10000, "blobs": 400, "rounds": (15, 3000), "queries": 1000},
+               "quick": {"rpc": 2000, "blobs": 100, "rounds": (5, 1000), "queries": 300},
+               "smoke": {"rpc": 200, "blobs": 20, "rounds": (1, 200), "queries": 50}}
+
+    def __init__(self, mode: str = "full") -> None:
+        self.samples = self.SAMPLES[mode]
+        self.rpc_count = self.samples["rpc"]
+        self.blob_count = self.samples["blobs"]
         self.tmp = Path(tempfile.mkdtemp(prefix="yarp-lite-bench-"))
         self.env = dict(os.environ, YARP_CONFIG_HOME=str(self.tmp / "config"),
                         YARP_DATA_HOME=str(self.tmp / "data"), PYTHONUNBUFFERED="1")
@@ -315,7 +321,7 @@ class Bench:
             if time.time() > deadline:
                 raise RuntimeError("echo servers did not register")
             time.sleep(0.2)
-        rounds, count = (5, 1000) if self.quick else (15, 3000)
+        rounds, count = self.samples["rounds"]
         medians: Dict[str, List[float]] = {label: [] for label in servers}
         labels = list(servers)
         for turn in range(rounds):
@@ -384,7 +390,7 @@ class Bench:
         client = NameClient(address=address, environ=self.env)
         client.register("/bench/query/target")
         samples = []
-        for _ in range(300 if self.quick else 1000):
+        for _ in range(self.samples["queries"]):
             started = time.perf_counter()
             client.query("/bench/query/target")
             samples.append((time.perf_counter() - started) * 1e6)
@@ -419,7 +425,11 @@ def _last_line_starting(child: subprocess.Popen, word: str) -> str:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="fewer samples (CI smoke run)")
+    sizes = parser.add_mutually_exclusive_group()
+    sizes.add_argument("--quick", action="store_const", const="quick", dest="mode",
+                       default="full", help="fewer samples (a first look)")
+    sizes.add_argument("--smoke", action="store_const", const="smoke", dest="mode",
+                       help="every table once, too few samples to read (the test suite's run)")
     parser.add_argument("--role", nargs="+", help=argparse.SUPPRESS)
     parser.add_argument("--json", help="also write the figures to this file")
     options = parser.parse_args()
@@ -429,7 +439,7 @@ def main() -> int:
         return 0
     say_machine()
 
-    bench = Bench(options.quick)
+    bench = Bench(options.mode)
     results: Dict[str, object] = {}
     try:
         print("yarp_lite benchmark (loopback, one process per peer)", flush=True)

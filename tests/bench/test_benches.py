@@ -3,7 +3,7 @@
 A benchmark nobody runs breaks quietly (bench_yarp_lite's child roles printed
 the machine line into the JSON their parent parsed, and the script failed for
 weeks).  The figures are not checked here -- speed is for the benchmarks, not
-the tests -- only that each script starts and that bench_yarp_lite's quick run
+the tests -- only that each script starts and that bench_yarp_lite's smoke run
 prints every table.
 """
 
@@ -32,8 +32,8 @@ def test_a_benchmark_starts_and_explains_itself(script):
 
 
 @pytest.mark.requires("reference")
-def test_bench_yarp_lite_quick_run_prints_every_table():
-    result = subprocess.run([sys.executable, str(BENCH / "bench_yarp_lite.py"), "--quick"],
+def test_bench_yarp_lite_smoke_run_prints_every_table():
+    result = subprocess.run([sys.executable, str(BENCH / "bench_yarp_lite.py"), "--smoke"],
                             capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-3000:]
     for heading in ("RPC round trip", "Server side: a C++ RpcClient", "One-way throughput",
