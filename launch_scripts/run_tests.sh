@@ -20,12 +20,7 @@ export WALKMAN_REQUIRE_XVFB=1
 # for what it needs, never for a time, so a busy neighbour slows it but does not fail it.
 workers=${WALKMAN_TEST_WORKERS:-$(($(nproc) + 1))}
 parallel=()
-# Each worker takes the next test as it finishes one, the longest first (tests/schedule.py,
-# tests/durations.json); a group of tests that share an expensive fixture (the packaging
-# tests' installs) goes to one worker whole.
-if [[ $workers -gt 1 ]]; then
-  parallel=(-n "$workers" --dist loadgroup --no-loadscope-reorder)
-fi
+if [[ $workers -gt 1 ]]; then parallel=(-n "$workers" --dist worksteal); fi
 set +e
 .venv/bin/python -m pytest tests -ra --durations=25 "${parallel[@]}" "$@"   # the 25 slowest: where the time goes
 status=$?

@@ -35,7 +35,6 @@ from harness import (YarpWorld, dump_outputs_if_failed, lite_implementation,  # 
                      missing_reference, real_implementation)
 from requirements import apply_marks  # noqa: E402
 from robot_slots import robot_slot  # noqa: E402
-from schedule import load_durations, longest_first, without_group  # noqa: E402
 
 
 def pytest_configure(config):
@@ -47,15 +46,23 @@ def pytest_configure(config):
                             "(tests/robot_slots.py)")
 
 
+#: Folders in the order their tests run, those that start whole topologies first, then those
+#: with processes or installs of their own: the workers begin with the minute-long tests and
+#: end on the short ones (unit, control, fuzz...), which fill the gaps (alphabetical order
+#: put tests/system last, and its longest test started in the final minutes of a run).
+HEAVY_FIRST = ("system", "modules", "bridge", "interop", "packaging", "walkman", "bench",
+               "pilot", "integration")
+
+
 def pytest_collection_modifyitems(config, items):
-    """The longest tests first, free-standing robots spread out (tests/schedule.py): the
-    same order on every worker."""
-    ids = {id(item): without_group(item.nodeid) for item in items}
-    apart = {ids[id(item)] for item in items if item.get_closest_marker("free_standing")}
-    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
-    order = {test: index for index, test in enumerate(longest_first(
-        list(ids.values()), load_durations(), apart, workers))}
-    items.sort(key=lambda item: order[ids[id(item)]])
+    """The heaviest folders first, each in its usual order (the same on every worker)."""
+    root = Path(__file__).resolve().parent
+
+    def rank(item) -> int:
+        folder = Path(str(item.fspath)).resolve().relative_to(root).parts[0]
+        return HEAVY_FIRST.index(folder) if folder in HEAVY_FIRST else len(HEAVY_FIRST)
+
+    items.sort(key=rank)
 
 
 @pytest.hookimpl(hookwrapper=True)

@@ -18,8 +18,6 @@ from walkman.model.mjcf import DRILL_GRIP, PLUG_HALF, PLUG_SOCKETS, PLUG_TABLE_T
 from walkman.modules import drc_door, drc_drive, drc_plug, drc_valve, drc_wall, task
 
 WHEEL, DOOR, VALVE = PILOT_POSES["car"], PILOT_POSES["door"], PILOT_POSES["valve"]
-#: One worker runs them all: the module-scoped drive is set up once.
-pytestmark = pytest.mark.xdist_group("tasks_offline")
 
 
 def started(station: str, module_class, name: str):

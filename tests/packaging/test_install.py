@@ -29,9 +29,6 @@ import pytest
 
 from harness import Implementation, YarpWorld
 
-#: One worker runs them all: each environment is installed once (about a minute each).
-pytestmark = pytest.mark.xdist_group("packaging")
-
 REPO = Path(__file__).resolve().parents[2]
 #: The interpreter a user makes virtual environments from (Debian's, as the README says).
 BASE_PYTHON = Path(sys.base_prefix) / "bin" / "python3"
