@@ -42,9 +42,12 @@ def robot_slot(folder: Path = SLOT_FOLDER, count: Optional[int] = None,
     count = slots() if count is None else count
     if count < 1:
         raise ValueError(f"a machine has at least one robot slot, not {count}")
-    folder.mkdir(parents=True, exist_ok=True)
+    shared_folder(folder)
     began = time.monotonic()
-    handles = [open(folder / f"slot-{index}.lock", "a+") for index in range(count)]
+    # Read-only is enough for flock: a slot file another user made (CI as root, then a
+    # developer) still serves.
+    handles = [os.open(folder / f"slot-{index}.lock", os.O_RDONLY | os.O_CREAT, 0o666)
+               for index in range(count)]
     held = None
     try:
         for handle in handles:
@@ -62,4 +65,13 @@ def robot_slot(folder: Path = SLOT_FOLDER, count: Optional[int] = None,
         if held is not None:
             fcntl.flock(held, fcntl.LOCK_UN)
         for handle in handles:
-            handle.close()
+            os.close(handle)
+
+
+def shared_folder(folder: Path) -> None:
+    """``folder``, made writable by every user of the machine (as /tmp is) if we make it."""
+    try:
+        folder.mkdir(parents=True)
+    except FileExistsError:
+        return
+    os.chmod(folder, 0o1777)

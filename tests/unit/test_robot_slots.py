@@ -108,6 +108,17 @@ def test_a_killed_holder_frees_its_slot(tmp_path):
         assert waited < 5
 
 
+def test_the_folder_is_shared_and_a_slot_file_made_by_another_user_serves(tmp_path):
+    folder = tmp_path / "slots"
+    with robot_slot(folder, count=1):
+        pass
+    assert folder.stat().st_mode & 0o7777 == 0o1777
+    lock = folder / "slot-0.lock"
+    os.chmod(lock, 0o444)                         # as another user's file looks to us
+    with robot_slot(folder, count=1) as waited:
+        assert waited < 5
+
+
 def test_no_slots_is_a_clear_error(tmp_path):
     with pytest.raises(ValueError, match="at least one robot slot, not 0"):
         with robot_slot(tmp_path, count=0):
