@@ -18,6 +18,9 @@ export WALKMAN_REQUIRE_XVFB=1
 # 11:20).  Every test takes its ports from the machine-wide registry (yarp_lite/freeport.py)
 # and names its network namespaces after its process, so tests run side by side; each waits
 # for what it needs, never for a time, so a busy neighbour slows it but does not fail it.
+# Work stealing over the folders heaviest first (tests/conftest.py) pairs one stream of
+# topologies with lighter tests; starting the longest tests first on every worker (tried in
+# e42e00d) ran four topologies at once, the load average reached 38 and the suite took 15 min.
 workers=${WALKMAN_TEST_WORKERS:-$(($(nproc) + 1))}
 parallel=()
 if [[ $workers -gt 1 ]]; then parallel=(-n "$workers" --dist worksteal); fi
