@@ -57,6 +57,12 @@ class Known(NamedTuple):
 #: Every test that failed in a fresh-clone run of the README's test command or in the
 #: project's CI, from the closing notes (``issues stops``) and the commits that fixed them.
 KNOWN: Tuple[Known, ...] = (
+    Known("tests/system/test_view3d_restart.py::"
+          "test_a_killed_3d_view_comes_back_and_the_pi_lives_on",
+          "the valve's x did not follow the dragged marker (fc9 of the fourth 2026-11-27 "
+          "session): the render process connected twice at once to the PI's feedback "
+          "publisher, rospy dropped the duplicate while the other's handshake read it (EBADF "
+          "in nodekit.ros_node's bounded_read) and kept neither; open"),
     Known("tests/modules/test_drc_valve.py::test_the_valve_turns_by_the_commanded_angle",
           "valve slipped back after release (ci46, project CI; 15e599d, 7ba9f83)"),
     Known("tests/system/test_pilot_gui.py::"
