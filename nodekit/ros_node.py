@@ -78,7 +78,10 @@ def guard_tcpros() -> None:
         try:
             return read_header(_HandshakeBudget(sock), buffer, buff_size)
         finally:
-            sock.settimeout(previous)
+            try:
+                sock.settimeout(previous)
+            except OSError:   # closed meanwhile (rospy dropping a duplicate): the read's
+                pass          # own error is the one to report
             with lock:
                 waiting.pop(sock, None)   # read (or failed): no longer one to cut
 

@@ -175,3 +175,29 @@ def test_a_subscription_counts_a_publisher_once_the_publisher_answered_its_hands
         answer.set()
         transport.close()
         listener.close()
+
+
+class _ClosedWhileRead(socket.socket):
+    """A socket another thread closes just as the handshake reader reads it (rospy dropping
+    a duplicate connection: fc9 of the fourth 2026-11-27 session)."""
+
+    def recv(self, size: int) -> bytes:
+        self.close()
+        return super().recv(size)
+
+
+def test_a_socket_closed_under_the_handshake_reader_reports_the_reads_own_error():
+    from rospy.impl import tcpros_base
+
+    ros_node.guard_tcpros()
+    left, right = socket.socketpair()
+    sock = _ClosedWhileRead(fileno=left.detach())
+    try:
+        with pytest.raises(OSError) as raised:
+            tcpros_base.read_ros_handshake_header(sock, b"", 65536)
+        # The read's error, not one from restoring the timeout of the closed socket on top.
+        assert raised.value.__context__ is None
+        assert any(frame.name == "recv" for frame in raised.traceback)
+    finally:
+        sock.close()
+        right.close()
