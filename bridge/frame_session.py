@@ -473,20 +473,17 @@ class FrameSession:
         return self.nudges.at
 
     def next_frame(self, now: float, *, wall: float,
-                   streams: Optional[AbstractSet[FlowKey]] = None,
+                   due: Due = Due(None),
                    presence: Optional[Presence] = None,
-                   kernel: KernelQueue = KernelQueue(),
-                   events: Optional[AbstractSet[FlowKey]] = None) -> Outgoing:
+                   kernel: KernelQueue = KernelQueue()) -> Outgoing:
         """The frame to send at ``now`` (``wall``: the wall clock, for command ageing).
 
         It holds what the outbox owes, our ack, the presence if it changed (None: not
-        known yet) and the streaming flows :meth:`Streams.due` named (``None``: every
-        changed flow, the periodic frame), of which ``events`` are events (by default all
-        that ``streams`` names; a pilot waits for them).  Its bookkeeping counts it as
-        sent: a session whose frame could not be sent is over (the connection is dropped).
+        known yet) and what :meth:`Streams.due` said is due (by default the periodic
+        frame: every changed flow).  Its bookkeeping counts it as sent: a session whose
+        frame could not be sent is over (the connection is dropped).
         """
-        if events is None:
-            events = streams or frozenset()
+        streams, events = due.flows, due.events
         self._check_up("a frame to send")
         nudge = now >= self.nudges.at and self.nudges.take(now, kernel.only_unacknowledged)
         reliable = self.queues.unacknowledged(after=self.sent_upto or 0,

@@ -656,10 +656,9 @@ class TcpChannel:
 
     def _send(self, connection: _Connection, now: float, due: Due) -> None:
         """The frame the session says is due, if any."""
-        out = connection.session.next_frame(now, wall=time.time(), streams=due.flows,
+        out = connection.session.next_frame(now, wall=time.time(), due=due,
                                             presence=self.presence(),
-                                            kernel=_kernel_queue(connection.sock),
-                                            events=due.events)
+                                            kernel=_kernel_queue(connection.sock))
         if out.held_back:
             self.drops.drop(Reason.HELD_BACK, f"{out.held_back} bytes still unsent")
         if out.body is None:

@@ -118,9 +118,8 @@ class End:
         :meth:`Streams.due` said (a :class:`Due`: its flows and events)."""
         assert self.session is not None
         due = streams if isinstance(streams, Due) else Due(streams, streams or frozenset())
-        return self.session.next_frame(now, wall=wall, streams=due.flows,
-                                       presence=self.presence, kernel=kernel,
-                                       events=due.events)
+        return self.session.next_frame(now, wall=wall, due=due, presence=self.presence,
+                                       kernel=kernel)
 
 
 def connect(robot: End, pilot: End) -> None:
