@@ -52,7 +52,15 @@ def command(name: str, summary: str, usage: str):
 
 
 def out(text: str = "") -> None:
-    print(text, flush=True)
+    """Print one line in one write.
+
+    ``print`` writes the text and its newline separately; with an unbuffered stdout
+    (``PYTHONUNBUFFERED``, as under a supervisor) a log line from another thread, sent to
+    stderr on the same pipe, could land between them ("30.0[INFO] ..."), breaking the line
+    a user or script reads.
+    """
+    sys.stdout.write(text + "\n")
+    sys.stdout.flush()
 
 
 def _stdin_lines():
