@@ -21,6 +21,14 @@ serving under hostile peers.  At most :data:`MAX_HANDSHAKES` are read at once;
 when a new connection finds them all taken, the one that has waited longest is
 cut, not the newcomer: a flood of silent connections then cannot lock a real
 client out (it says its header at once, so it is never the oldest for long).
+
+rospy connects a subscription to a publisher in a thread per publisher update, and
+two updates close together (the master's ``publisherUpdate`` beside the subscriber's
+own registration) connect it twice at once: each finds no connection yet, the second
+added closes the first, and when the publisher's side kept the other of the two, both
+ends are closed and rospy never connects again (a 3-D view that ignored every drag).
+:func:`one_connection_per_publisher` makes the connects to one publisher of one topic
+take turns, so the second finds the first and leaves it alone.
 """
 
 from __future__ import annotations
@@ -106,6 +114,27 @@ def guard_tcpros() -> None:
     tcpros_base._walkman_guarded = True
 
 
+def one_connection_per_publisher() -> None:
+    """Serialise rospy's connects of one topic to one publisher (idempotent)."""
+    from rospy.impl import masterslave
+
+    handler = masterslave.ROSHandler
+    if getattr(handler, "_walkman_serialised", False):
+        return
+    connect = handler._connect_topic
+    locks: Dict[tuple, threading.Lock] = {}
+    locks_lock = threading.Lock()
+
+    def connect_in_turn(self: Any, topic: str, pub_uri: str):
+        with locks_lock:
+            turn = locks.setdefault((topic, pub_uri), threading.Lock())
+        with turn:   # rospy's own "already connected" check then sees the first
+            return connect(self, topic, pub_uri)
+
+    handler._connect_topic = connect_in_turn
+    handler._walkman_serialised = True
+
+
 class RosNode:
     """rospy's node for this process: started when the master answers, kept registered."""
 
@@ -158,6 +187,7 @@ class RosNode:
         if self._stop.is_set():
             return
         guard_tcpros()
+        one_connection_per_publisher()
         rospy.init_node(self.name, anonymous=False, disable_signals=True)
         self._master_pid = self._pid()
         log.info("ROS node %s registered with %s", rospy.get_name(), rosgraph.get_master_uri())
