@@ -117,10 +117,28 @@ def wait_word(word: str, timeout: float) -> None:
     fail(f"the test never said {word!r}")
 
 
+#: s a click waits for its disabled button to be enabled (a module's status comes every 0.5 s)
+ENABLE_WAIT_S = 10.0
+
+
 def click(button: QPushButton, what: str, owner=None) -> None:
-    """Click; with ``owner`` (the button's module widget), a refusal it shows fails."""
+    """Click; with ``owner`` (the button's module widget), a refusal it shows fails.
+
+    A disabled button is waited for, as a pilot would (at most :data:`ENABLE_WAIT_S`), and
+    the wait is printed with what the widget showed meanwhile: a PI whose GUI thread fell
+    behind shows the statuses it takes late as old, their module absent, until the next.
+    """
     if not button.isEnabled():
-        fail(f"{what} is disabled" + (f" ({widget_state(owner)})" if owner is not None else ""))
+        before = widget_state(owner) if owner is not None else ""
+        start = time.monotonic()
+        end = start + ENABLE_WAIT_S
+        while not button.isEnabled() and time.monotonic() < end:
+            QApplication.processEvents()
+            time.sleep(0.05)
+        if not button.isEnabled():
+            fail(f"{what} is disabled" + (f" ({before}; {ENABLE_WAIT_S:g} s later: "
+                                          f"{widget_state(owner)})" if owner else ""))
+        say(f"WAITED {time.monotonic() - start:.1f} s for {what} to be enabled ({before})")
     shown = owner.warnings.count() if owner is not None else 0
     QTest.mouseClick(button, Qt.LeftButton)
     say(f"CLICK {what}")
