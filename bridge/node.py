@@ -10,7 +10,7 @@ connections, :class:`~nodekit.ros_node.RosNode` re-registers topics).
 
 Data flows sink -> channel -> (link) -> channel -> source.  A module's
 stand-in ports (the pilot's ``/M/switch:i``, ``/M/status:o``...) are open only
-while the peer reports the module's own ports connected (:mod:`bridge.presence`);
+while the peer reports the module's own ports connected (:mod:`bridge.stand_ins`);
 the same thread that opened the endpoints keeps them in step.  Reliable messages
 (pilot commands, warnings) go through the journal on both sides; the delivery
 thread writes the inbox to the local ports in order, one flow at a time, and
@@ -34,22 +34,19 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
-from bridge import compact
-from bridge import presence as presence_rules
+from bridge import rpc_words
 from bridge import status as status_codec
 from bridge.config import PILOT, ROBOT, BridgeConfig, Channel
 from bridge.copies import FirstStatus, ReliableCopy, ReliableCopyCodec
+from bridge.delivery import Delivery
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeProtocolError, BridgeUsageError
-from bridge.expiry import aged_payload
-from bridge.stop_line import VERBS, Ack, PilotStops, RobotStops
-from walkman.gym.command_life import CommandState, Receipt, encode_receipt
-from walkman.gym.interfaces import GYM_PORTS, RECEIPT, command_seq
-from walkman.gym.validity import ValidityError, split
-from bridge.journal import Journal, QueueFull, is_tombstone
-from bridge.link import LinkKey
-from bridge.presence import READER_GRACE, Presence, PresenceMemory
 from bridge.flows import Carriage, FlowKey, Form, Route
+from bridge.journal import Journal, QueueFull
+from bridge.link import LinkKey
+from bridge.presence import Presence
+from bridge.stand_ins import PRESENCE_PERIOD, StandIns
+from bridge.stop_line import VERBS, Ack, PilotStops, RobotStops
 from bridge.tcp_channel import TcpChannel
 from bridge.udp_channel import UdpChannel, UdpRoute
 from yarp_lite.bottle import Bottle
@@ -60,17 +57,11 @@ from yarp_lite.rpc import RpcServer
 
 log = logging.getLogger("bridge")
 
-
-
-#: The kind of a GYM module's receipt flow.
-RECEIPT_KIND = GYM_PORTS.index(RECEIPT)
 #: Seconds after a pilot's command reaches a module during which its status changes are events.
 COMMAND_WINDOW = 1.0
 #: How often the bridge writes its status on ``/bridge/<side>/status:o`` (the pilot gateway
 #: tells the pilots from it that the link is down, within about two of these).
 STATUS_PERIOD = 0.5
-#: How often a bridge looks whether its modules' ports are connected, and its stand-ins in step.
-PRESENCE_PERIOD = 0.2
 
 
 class StatusEvents:
@@ -132,8 +123,6 @@ class Bridge:
         self.nameclient = NameClient()
         self.journal = Journal(state_dir, limit=queue_limit, fsync=fsync)
         self.refused = 0
-        self.delivered = 0
-        self.cancelled_dropped = 0       # tombstones of cancelled commands, not delivered
         self.internal_errors = 0
         self.drops = DropLedger("bridge", log)
         self._sources: Dict[FlowKey, Any] = {}
@@ -141,35 +130,31 @@ class Bridge:
         self.status_events = StatusEvents()
         self._ros_sinks: List[Any] = []
         self._stop = threading.Event()
-        self._deliver_wake = threading.Event()
         self._threads: List[threading.Thread] = []
         self._status_ports: List[Port] = []
         self.keeper = None
         self.ros_node = None
         self.routes: Dict[FlowKey, Route] = config.routes()
-        self._stand_in_keys = presence_rules.stand_ins(config, side)
-        self._watched = presence_rules.watched(config, side)
-        self._module_ends: Dict[FlowKey, Any] = {}   # endpoints whose program's port is watched
-        self._stand_ins: Dict[FlowKey, Any] = {}     # stand-in endpoints open now
-        self._presence_memory = PresenceMemory(state_dir, config)
-        self._presence_memory_loaded = self._presence_memory.load()
-        self._peer_presence: Presence = self._presence_memory_loaded
-        self._endpoint_lock = threading.Lock()    # stand-ins: open/close vs delivery, stop
-        self._leaving: Dict[FlowKey, float] = {}      # stand-ins said gone, still writing
-        self._presence_wake = threading.Event()
-        self._here: Optional[Presence] = None    # watched flows connected, once known
+        self.first_status = FirstStatus()
+        self.delivery = Delivery(config, side, self.journal, self.routes, source=self._source,
+                                 post=self._post, one_way=self._one_way,
+                                 on_delivered=self.status_events.commanded, drops=self.drops)
+        self.stand_ins = StandIns(config, side, state_dir, self.journal,
+                                  open_endpoint=self._open_yarp_endpoint,
+                                  on_here_changed=lambda: self.tcp.kick(),
+                                  on_opened=self.delivery.wake.set,
+                                  on_closed=self.first_status.forget)
         tcp_routes = [route for route in self.routes.values() if route.on_tcp]
         udp_routes = self._udp_routes()
         self.tcp = TcpChannel(side=side, peer=peer, port=tcp_port,
                               listen=(side == ROBOT) if listen is None else listen,
                               config_text=config_text, journal=self.journal,
                               routes=tcp_routes, period=config.period,
-                              on_message=self._on_message, on_reliable=self._deliver_wake.set,
+                              on_message=self._on_message, on_reliable=self.delivery.wake.set,
                               on_connected=self._on_link_up, link_timeout=link_timeout,
-                              key=key, on_keys=self._on_keys, presence=self.local_presence,
-                              on_presence=self._on_peer_presence,
+                              key=key, on_keys=self._on_keys, presence=self.stand_ins.here,
+                              on_presence=self.stand_ins.on_peer,
                               on_copies=self._send_copies)
-        self.first_status = FirstStatus()
         self.udp = UdpChannel(peer=peer, port=udp_port, peer_port=peer_udp_port or udp_port,
                               routes=udp_routes, gather=config.gather,
                               on_message=self._on_message, rate=udp_rate) if udp_routes else None
@@ -214,7 +199,7 @@ class Bridge:
         if self.udp is not None:
             self.udp.start()
         self._spawn(self._open_endpoints, "endpoints")
-        self._spawn(self._deliver_loop, "delivery")
+        self._spawn(lambda: self.delivery.run(self._stop), "delivery")
 
     def _spawn(self, target, name: str) -> None:
         thread = threading.Thread(target=target, name=f"bridge {name}", daemon=True)
@@ -237,11 +222,11 @@ class Bridge:
             for channel in yarp_channels:
                 if self._stop.is_set():
                     return
-                if channel.key in self._stand_in_keys:
+                if channel.key in self.stand_ins.keys:
                     continue
                 endpoint = self._open_yarp_endpoint(channel)
-                if channel.key in self._watched:
-                    self._module_ends[channel.key] = endpoint
+                if channel.key in self.stand_ins.watched:
+                    self.stand_ins.watch(channel.key, endpoint)
                 if channel.source == self.side:
                     self._sinks.append(endpoint)
                 else:
@@ -268,14 +253,14 @@ class Bridge:
         connected = time.monotonic()
         self._stop.wait(PRESENCE_PERIOD)
         self.keeper.start()
-        self._deliver_wake.set()
+        self.delivery.wake.set()
         if self.robot_stops is not None:
             self._open_stop_all()
         log.info("bridge %s side ready: %d flows out, %d in (ports opened in %.2f s, "
                  "connected to the modules here in %.2f s)", self.side,
                  len(self.config.sending(self.side)), len(self.config.receiving(self.side)),
                  connecting - opening, connected - connecting)
-        self._keep_presence()
+        self.stand_ins.keep(self._stop)
 
     def _open_yarp_endpoint(self, channel: Channel) -> Any:
         from bridge.endpoints.yarp import YarpSink, YarpSource
@@ -283,98 +268,6 @@ class Bridge:
         if channel.source == self.side:
             return YarpSink(channel, self.nameclient, self.keeper, self._submit)
         return YarpSource(channel, self.nameclient, self.keeper)
-
-    # -- presence ------------------------------------------------------------------------
-
-    def local_presence(self) -> Optional[Presence]:
-        """The watched flows whose program's port is connected here, as last looked at
-        (what the TCP channel tells the peer); None until the endpoints are open and
-        connected to the modules already running."""
-        return self._here
-
-    def _look_here(self) -> Presence:
-        return frozenset(key for key, endpoint in list(self._module_ends.items())
-                         if endpoint.linked)
-
-    def _on_peer_presence(self, flows: Presence) -> None:
-        self._peer_presence = flows
-        self._presence_wake.set()
-
-    def _keep_presence(self) -> None:
-        """Tell the peer at once when a module's ports come or go here; open and close
-        the stand-ins as the peer's word says.  Never ends before the bridge does: a
-        name server gone in the middle is tried again, a bug is logged and counted."""
-        kept = self._presence_memory_loaded
-        failing = False
-        while not self._stop.is_set():
-            try:
-                here = self._look_here()
-                if here != self._here:
-                    self._here = here
-                    self.tcp.kick()
-                peer = self._peer_presence
-                if peer != kept:
-                    kept = peer
-                    self._presence_memory.save(peer)
-                self._follow(peer & self._stand_in_keys)
-                failing = False
-            except YarpError as exc:
-                if not failing:
-                    log.warning("presence: cannot open or close stand-ins now (%s); trying "
-                                "again", exc)
-                failing = True
-            except Exception:  # noqa: BLE001 -- our bug: seen, counted, and tried again
-                if self._stop.is_set():
-                    return  # the journal closed under us: stopping, not a bug
-                self.internal_errors += 1
-                log.exception("presence: following the peer failed (a bug); trying again")
-            self._presence_wake.wait(PRESENCE_PERIOD)
-            self._presence_wake.clear()
-
-    def _follow(self, wanted: Presence) -> None:
-        """Open the stand-ins ``wanted`` names, close the others -- once a closing one has
-        written what the journal holds for it (a module's last warning reaches the pilot)."""
-        opened: Dict[str, List[str]] = {}
-        closed: Dict[str, List[str]] = {}
-        pending: Optional[set] = None   # read from the journal only when one is closing
-        now = time.monotonic()
-        for key in sorted(self._stand_in_keys):
-            if self._stop.is_set():
-                return
-            channel = self.config.channel(key)
-            if key in wanted and key not in self._stand_ins:
-                endpoint = self._open_yarp_endpoint(channel)
-                with self._endpoint_lock:   # stop() closes what is listed, or we do
-                    if self._stop.is_set():
-                        endpoint.close()
-                        return
-                    self._stand_ins[key] = endpoint
-                    if channel.destination == self.side:
-                        self._sources[key] = endpoint
-                opened.setdefault(channel.module, []).append(endpoint.port.name)
-            elif key not in wanted and key in self._stand_ins:
-                leaving = self._leaving.setdefault(key, now)
-                if pending is None:
-                    pending = {FlowKey(message.id, message.kind)
-                               for message in self.journal.undelivered()}
-                if key in pending and now - leaving < READER_GRACE:
-                    continue   # what the journal holds for it first, for a while
-                self._leaving.pop(key, None)
-                with self._endpoint_lock:
-                    endpoint = self._stand_ins.pop(key)
-                    self._sources.pop(key, None)
-                self.first_status.forget(key)
-                endpoint.close()
-                closed.setdefault(channel.module, []).append(endpoint.port.name)
-            else:
-                self._leaving.pop(key, None)
-        peer = "pilot" if self.side == ROBOT else "robot"
-        for module, names in opened.items():
-            log.info("%s is on the %s: opened %s", module, peer, ", ".join(names))
-        for module, names in closed.items():
-            log.info("%s left the %s: closed %s", module, peer, ", ".join(names))
-        if opened:
-            self._deliver_wake.set()
 
     def _start_ros(self, channels: List[Channel]) -> None:
         from bridge.endpoints.ros import RosSink, RosSource
@@ -396,12 +289,17 @@ class Bridge:
     def _open_status_ports(self) -> None:
         base = f"/bridge/{self.side}"
         status = Port(nameclient=self.nameclient).open(f"{base}/status:o", wait=math.inf)
-        rpc = RpcServer(nameclient=self.nameclient, handler=self._on_rpc)
+        rpc = RpcServer(nameclient=self.nameclient,
+                        handler=lambda request: rpc_words.answer(request, self))
         rpc.open(f"{base}/rpc:i", wait=math.inf)
         self._status_ports = [status, rpc]
         self._spawn(lambda: self._publish_status(status), "status")
 
     # -- data paths --------------------------------------------------------------------
+
+    def _source(self, key: FlowKey) -> Optional[Any]:
+        """The endpoint that delivers ``key``'s messages here: always open, or a stand-in."""
+        return self._sources.get(key) or self.stand_ins.source(key)
 
     def _submit(self, channel: Channel, value: Any) -> None:
         """A local message for the link (called by sinks, in their threads)."""
@@ -449,7 +347,7 @@ class Bridge:
                 return
             if not self.first_status.first(key, value):
                 return
-        source = self._sources.get(key)
+        source = self._source(key)
         if source is None:
             self.drops.drop(Reason.NOT_READY, f"{key}: local endpoint not open yet")
             return
@@ -457,65 +355,6 @@ class Bridge:
             source.deliver(value)
         except (YarpError, BridgeProtocolError) as exc:
             log.warning("delivering on %s failed: %s", key, exc)
-
-    def _deliver_loop(self) -> None:
-        """Write queued reliable messages to their ports, in order, each exactly once.
-
-        A message stays queued until its port takes it; an exception from a port
-        (its network gone, or a bug) blocks only that flow until the next round, so
-        the thread never dies and nothing is lost.
-        """
-        failing: set = set()   # rows whose delivery raised a bug, logged once each
-        while not self._stop.is_set():
-            self._deliver_wake.wait(0.25)
-            self._deliver_wake.clear()
-            blocked = set()
-            for message in self.journal.undelivered():
-                row, key = message.row, FlowKey(message.id, message.kind)
-                if key in blocked:
-                    continue
-                route = self.routes.get(key)
-                if route is None:
-                    self.drops.drop(Reason.UNCONFIGURED, f"queued message for {key}")
-                    self.journal.delivered(row)
-                    continue
-                payload = message.payload
-                if route.expiring and _cancelled(payload):   # the pilot took it back
-                    self.journal.delivered(row)
-                    self.cancelled_dropped += 1
-                    continue
-                if route.expiring:   # the link's way over, and the wait in our inbox
-                    payload = aged_payload(payload, self._one_way() +
-                                           time.time() - message.received)
-                with self._endpoint_lock:   # not closed by _follow() between get and use
-                    source = self._sources.get(key)
-                try:
-                    # Not under the lock: a reader that never reads would hold every
-                    # stand-in still.  One closed meanwhile says not delivered: kept.
-                    ok = source is not None and source.ready and \
-                        source.deliver(compact.decode(payload))
-                except BridgeProtocolError as exc:
-                    self.drops.peer_error(exc, "queued message")
-                    self.journal.delivered(row)
-                    continue
-                except YarpError as exc:
-                    log.warning("delivering on %s failed, will retry: %s", key, exc)
-                    ok = False
-                except Exception:  # noqa: BLE001 -- our bug: seen, counted, message kept
-                    self.internal_errors += 1
-                    if row not in failing:
-                        failing.add(row)
-                        log.exception("delivering queued message %d on %s failed (a bug); "
-                                      "it stays queued", row, key)
-                    ok = False
-                if ok:
-                    self.journal.delivered(row)
-                    self.delivered += 1
-                    self.status_events.commanded(key.id)
-                    if route.expiring:
-                        self._say_delivered(key, payload)
-                else:
-                    blocked.add(key)
 
     # -- the stop-all -------------------------------------------------------------------
 
@@ -554,26 +393,6 @@ class Bridge:
         report = executor.stop(stop_id) if word == "stop_all" else executor.release(stop_id)
         return Ack(stop_id, VERBS[word], report.hal, report.took_ms, tuple(report.modules))
 
-    def _stop_request(self, word: str) -> Bottle:
-        try:
-            ack = self.stop_all(word)
-        except BridgeUsageError as exc:
-            return Bottle(["error", str(exc)])
-        if ack is None:
-            return Bottle(["error", f"{word}: the robot did not acknowledge within 5 s"])
-        return Bottle(["ok", ack.word, Bottle(["hal", "ok" if ack.hal else "failed"]),
-                       Bottle(["round_trip_ms", round(ack.round_trip_ms, 1)]),
-                       Bottle(["robot_ms", round(ack.took_ms, 1)]),
-                       Bottle(["paused", *ack.modules])])
-
-    def _say_delivered(self, key: FlowKey, payload: bytes) -> None:
-        """Tell the pilots a numbered switch or command reached its module's port (its
-        receipt flow: :mod:`walkman.gym.command_life`)."""
-        receipts = self.routes.get(FlowKey(key.id, RECEIPT_KIND))
-        seq = command_seq(compact.decode(payload))
-        if receipts is not None and seq is not None:
-            self._post(receipts, encode_receipt(Receipt(seq, CommandState.DELIVERED)))
-
     def _one_way(self) -> float:
         """Seconds a message takes over the link, as half the measured round trip."""
         return (self.tcp.round_trip_ms() or 0.0) / 2000.0
@@ -603,12 +422,13 @@ class Bridge:
             "oldest_queued_s": int(self.journal.oldest_age()),
             "undelivered": len(self.journal.undelivered()),
             "refused": self.refused,
-            "delivered": self.delivered,
-            "cancelled_dropped": self.cancelled_dropped,
-            "internal_errors": self.internal_errors,
+            "delivered": self.delivery.delivered,
+            "cancelled_dropped": self.delivery.cancelled_dropped,
+            "internal_errors": self.internal_errors + self.stand_ins.internal_errors +
+            self.delivery.internal_errors,
             "authenticated": self.tcp.key.keyed,
-            "modules_here": self._modules(self.local_presence() or frozenset()),
-            "modules_shown": self._modules(frozenset(self._stand_ins)),
+            "modules_here": self._modules(self.stand_ins.here() or frozenset()),
+            "modules_shown": self._modules(self.stand_ins.shown()),
             "dropped": self._dropped(),
             "tcp": {**asdict(stats), "drops": dict(self.tcp.drops.counts),
                     "last_drop": self.tcp.drops.last_error},
@@ -635,78 +455,24 @@ class Bridge:
                 total[reason] = total.get(reason, 0) + count
         return total
 
-    def _status_bottle(self) -> Bottle:
-        return status_codec.to_bottle(self.status())
-
-    def _on_rpc(self, request: Bottle) -> Bottle:
-        word = str(request[0]) if request else ""
-        if word == "status":
-            return self._status_bottle()
-        if word == "cancel":
-            return self._cancel_request(request)
-        if word in ("stop_all", "release") and len(request) == 1:
-            return self._stop_request(word)
-        if word == "help":
-            return Bottle(["status: link, queues and counters of this bridge; "
-                           "cancel MODULE SEQ|all: take back commands not yet sent; "
-                           "stop_all: hold the robot (HAL and every module); "
-                           "release: let the HAL move again"])
-        return Bottle(["error", f"unknown command {word!r}: try status, cancel, stop_all, "
-                                f"release or help"])
-
-    # -- cancelling ---------------------------------------------------------------------
-
-    def _cancel_request(self, request: Bottle) -> Bottle:
-        """``cancel MODULE SEQ`` or ``cancel MODULE all`` -> ``ok (cancelled S...)
-        (too_late S...)`` or ``error why``."""
-        if len(request) != 3 or not isinstance(request[1], str) or \
-                not (request[2] == "all" or (isinstance(request[2], int) and
-                                             not isinstance(request[2], bool))):
-            return Bottle(["error", "usage: cancel MODULE SEQ|all"])
-        try:
-            cancelled, too_late = self.cancel(str(request[1]),
-                                              None if request[2] == "all" else int(request[2]))
-        except BridgeUsageError as exc:
-            return Bottle(["error", str(exc)])
-        return Bottle(["ok", Bottle(["cancelled", *cancelled]),
-                       Bottle(["too_late", *too_late])])
-
     def cancel(self, module: str, seq: Optional[int]) -> Tuple[List[int], List[int]]:
         """Take back the module's switch or command numbered ``seq`` (every one, for None)
-        if no frame has carried it yet; ``(cancelled, too late)`` sequence numbers.  The
-        pilots hear of each cancelled one on the module's receipt port."""
-        if self.side != PILOT:
-            raise BridgeUsageError("commands are cancelled on the pilot side, where they wait")
-        ident = self.config.modules.get(module)
-        if ident is None or module not in self.config.gym_modules:
-            raise BridgeUsageError(f"{module!r} is not a GYM module of {self.config.path}")
-        flows = {key for key, route in self.routes.items()
-                 if key.id == ident and route.expiring}
-        wanted = lambda payload: seq is None or _seq_of(payload) == seq  # noqa: E731
-        cancelled, too_late = self.journal.cancel(flows, wanted)
-        numbers = [n for n in map(_seq_of, cancelled) if n is not None]
-        late = [n for n in map(_seq_of, too_late) if n is not None]
-        receipts = self._sources.get(FlowKey(ident, RECEIPT_KIND))
-        for number in numbers:
-            log.info("cancelled %s's command %d before it left", module, number)
-            if receipts is not None:
-                receipts.deliver(encode_receipt(Receipt(number, CommandState.CANCELLED,
-                                                        "cancelled by a pilot")))
-        return numbers, late
+        if no frame has carried it yet: :meth:`bridge.delivery.Delivery.cancel`."""
+        return self.delivery.cancel(module, seq)
 
     def _publish_status(self, port: Port) -> None:
         """The status every period to every reader that took the last one: a reader held up
         misses some, and the others never wait for it (they would read "link down")."""
         while not self._stop.wait(STATUS_PERIOD):
             try:
-                port.write(self._status_bottle(), skip_busy=True)
+                port.write(status_codec.to_bottle(self.status()), skip_busy=True)
             except YarpError:
                 pass
 
     def stop(self) -> None:
         self._stop.set()
-        self._deliver_wake.set()
-        self._presence_wake.set()
+        self.delivery.wake.set()
+        stand_ins = self.stand_ins.close()   # none opens from now on
         if self.stop_all_here is not None:
             self.stop_all_here.close()
         if self.keeper is not None:
@@ -714,9 +480,8 @@ class Bridge:
         self.tcp.stop()
         if self.udp is not None:
             self.udp.stop()
-        with self._endpoint_lock:   # a stand-in opened after this closes itself
-            endpoints = {id(e): e for e in [*self._sinks, *self._sources.values(),
-                                            *self._stand_ins.values(), *self._ros_sinks]}
+        endpoints = {id(e): e for e in [*self._sinks, *list(self._sources.values()),
+                                        *stand_ins, *self._ros_sinks]}
         for endpoint in endpoints.values():
             try:
                 endpoint.close()
@@ -731,19 +496,3 @@ class Bridge:
             self.ros_node.stop()
         self.journal.close()
 
-
-def _seq_of(payload: bytes) -> Optional[int]:
-    """The sequence number of a journalled switch or command, if it has one."""
-    try:
-        return command_seq(compact.decode(payload))
-    except BridgeProtocolError:
-        return None
-
-
-def _cancelled(payload: bytes) -> bool:
-    """Is this journalled switch or command the tombstone of a cancelled one?"""
-    try:
-        message, _ = split(compact.decode(payload))
-    except (BridgeProtocolError, ValidityError):
-        return False
-    return is_tombstone(message)

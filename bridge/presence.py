@@ -26,7 +26,7 @@ have no module end here.  A stand-in closes only once it has written what the
 journal holds for it, so a module's last warning still reaches the pilot.
 
 This module is pure: which endpoints are stand-ins, which flows a side watches,
-and the remembered word; :class:`bridge.node.Bridge` opens and closes ports.
+and the remembered word; :class:`bridge.stand_ins.StandIns` opens and closes ports.
 """
 
 from __future__ import annotations

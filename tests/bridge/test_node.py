@@ -84,17 +84,17 @@ def test_stand_ins_follow_the_word_and_a_closing_one_writes_its_last_warning(pil
     from yarp_lite.bottle import Bottle
 
     everything = frozenset((7, kind) for kind in range(4))
-    pilot_bridge._follow(everything)
+    pilot_bridge.stand_ins.follow(everything)
     assert shown_here() == {"/gaze_control/switch:i", "/gaze_control/command:i",
                             "/gaze_control/status:o", "/gaze_control/warning:o"}
     assert pilot_bridge.status()["modules_shown"] == ["gaze_control"]
     # The module's last warning arrived with the word that it is gone: the warning port
     # stays until the warning is written, the others close at once.
     pilot_bridge.journal.accept(1, 1, 7, 3, compact.encode(Bottle([1, "overheating"])))
-    pilot_bridge._follow(frozenset())
+    pilot_bridge.stand_ins.follow(frozenset())
     assert shown_here() == {"/gaze_control/warning:o"}
     pilot_bridge.journal.delivered(pilot_bridge.journal.undelivered()[0].row)
-    pilot_bridge._follow(frozenset())
+    pilot_bridge.stand_ins.follow(frozenset())
     assert shown_here() == set()
     assert pilot_bridge.status()["modules_shown"] == []
 
@@ -107,8 +107,9 @@ def test_the_presence_thread_follows_the_peer_and_remembers_its_word(pilot_bridg
     from bridge.node import Bridge
 
     # Said while the bridge was still opening its endpoints (before the thread runs).
-    pilot_bridge._on_peer_presence(frozenset({(7, 0), (7, 2)}))
-    thread = threading.Thread(target=pilot_bridge._keep_presence, daemon=True)
+    pilot_bridge.stand_ins.on_peer(frozenset({(7, 0), (7, 2)}))
+    thread = threading.Thread(target=pilot_bridge.stand_ins.keep, args=(pilot_bridge._stop,),
+                              daemon=True)
     thread.start()
     wait_until(lambda: shown_here() == {"/gaze_control/switch:i", "/gaze_control/status:o"},
                5, message="the stand-ins the word names")
@@ -120,7 +121,7 @@ def test_the_presence_thread_follows_the_peer_and_remembers_its_word(pilot_bridg
     again = Bridge(bridge_config.parse(PRESENCE_CONFIG), PRESENCE_CONFIG, side="pilot",
                    peer="127.0.0.1", tcp_port=free_port(), udp_port=free_port(),
                    state_dir=tmp_path / "state")
-    assert again._peer_presence == {(7, 0), (7, 2)}   # a restart in an outage shows them
+    assert again.stand_ins.peer == {(7, 0), (7, 2)}   # a restart in an outage shows them
     again.journal.close()
 
 
