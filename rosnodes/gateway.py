@@ -59,11 +59,13 @@ from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 from bridge import config as bridge_config
+from bridge import rpc_words
 from bridge import status as bridge_status
-from bridge.errors import BridgeProtocolError
+from bridge.errors import BridgeProtocolError, BridgeUsageError
 from nodekit.connections import ConnectionKeeper
 from nodekit.logs import configure_logging
 from nodekit.link_watch import LinkState, LinkWatch
+from rosnodes.pilot_topics import PilotTopics, status_msg
 from rosnodes.scene_keeper import SceneKeeper
 from rosnodes.stations import (SequenceNumbers, StationError, claim_station, parse_sent,
                                sent_bottle_fields)
@@ -71,7 +73,7 @@ from rosnodes.timed import CANCELLED, SENT, Countdowns
 from walkman.gym.lifecycle import TARGET, lifecycle_of_status
 from walkman.modules import module_class
 from walkman.gym.command_life import (CommandLife, CommandState, Ledger, Receipt,
-                                      ReceiptError, decode_receipt, describe)
+                                      ReceiptError, decode_receipt)
 from walkman.gym.interfaces import (COMMAND, RECEIPT, STATUS, SWITCH, WARNING, InterfaceError,
                                     PilotCommand, command_text, decode_command, decoder_for,
                                     decode_status, encode_command, readable)
@@ -218,9 +220,7 @@ class Gateway:
         self.link_watch = LinkWatch(direct, time.monotonic())
         self.ledger = Ledger()
         self._ledger_lock = threading.Lock()
-        self._states_pub = None
         self._link_lock = threading.Lock()
-        self._link_pub = None
         self.bridge_in: Optional[Port] = None
         self._stopper = None    # the lab's stop-all executor (walkman.gym.stop_all)
         self.prefix = ""
@@ -238,8 +238,8 @@ class Gateway:
         self.keeper = ConnectionKeeper()
         self.nameclient = NameClient()
         self._lock = threading.Lock()
-        self._ros: Dict[str, Dict[str, Any]] = {}
-        self._sent = None
+        self.topics = PilotTopics(modules)
+        self._ros_handlers: List[Any] = []   # subscribers and services, kept alive
         self._stop = threading.Event()
         #: set when the gateway must end: a signal, or ``error`` (another gateway is here)
         self.finished = threading.Event()
@@ -331,19 +331,9 @@ class Gateway:
         self._publish_link()
 
     def _publish_link(self) -> None:
-        if self._link_pub is None:
-            return
-        import rospy
-        from walkman_msgs.msg import Link
-
         with self._link_lock:
             state = self.link_watch.state
-        msg = Link()
-        msg.header.stamp = rospy.Time.now()
-        msg.state, msg.reason, msg.queued = state.state, state.reason, state.queued
-        msg.since = float(time.monotonic() - state.since)
-        msg.round_trip_ms = float(state.round_trip_ms)
-        self._link_pub.publish(msg)
+        self.topics.link(state, time.monotonic() - state.since)
 
     def _on_peer_sent(self, bottle: Bottle) -> None:
         fields = parse_sent(bottle)
@@ -367,9 +357,7 @@ class Gateway:
         with link.changed:
             link.last_status = (seq, state, data, bottle)
             link.changed.notify_all()
-        publisher = self._ros.get(link.module, {}).get("status")
-        if publisher is not None:
-            publisher.publish(self._status_msg(link.module, seq, state, code, data))
+        self.topics.status(link.module, seq, state, code, data)
 
     def _on_warning(self, link: ModuleLink, bottle: Bottle) -> None:
         text = " ".join(str(v) for v in bottle[1:]) if len(bottle) > 1 else str(bottle)
@@ -377,7 +365,7 @@ class Gateway:
         with link.changed:
             link.warnings.append(text)
             link.changed.notify_all()
-        self._publish_warning(link.module, seq, text)
+        self.topics.warning(link.module, seq, text)
 
     # -- ROS side ----------------------------------------------------------------------
 
@@ -409,87 +397,55 @@ class Gateway:
         return None
 
     def _open_ros(self) -> None:
+        """Once the node is registered (a roscore restart registers the same again:
+        :class:`nodekit.ros_node.RosNode`)."""
         import rospy
-        from walkman_msgs.msg import CommandState as CommandStateMsg
-        from walkman_msgs.msg import (Command, Countdown, Link, SentCommand, Status, Switch,
-                                      Warning)
-        from walkman_msgs.srv import Cancel, GetStatus, SendCommand, StopAll, SwitchModule
+        from walkman_msgs.srv import StopAll
 
         while not self.yarp_open.wait(1.0):    # the station numbers what ROS brings
             if self.finished.is_set():
                 return
-        if not self._ros:  # first registration (not a roscore restart)
-            other = self._other_gateway()
-            if other is not None:
-                self.error = (f"another pilot gateway already serves these modules on this "
-                              f"roscore ({other}); a second one would forward every topic "
-                              f"command twice.  Run one gateway per roscore (several pilots: "
-                              f"one roscore each, all on the pilot YARP name server)")
-                self.finished.set()
-                return
-
-        self._sent = rospy.Publisher("/pilot/sent_commands", SentCommand, queue_size=50)
-        if not self._ros:   # first registration: the services are kept across roscore restarts
-            self._stop_services = [
-                rospy.Service("/pilot/stop_all", StopAll, lambda r: self._stop_srv("stop_all")),
-                rospy.Service("/pilot/release", StopAll, lambda r: self._stop_srv("release"))]
-        self._link_pub = rospy.Publisher("/bridge/link", Link, queue_size=5, latch=True)
-        self._states_pub = rospy.Publisher("/pilot/command_states", CommandStateMsg,
-                                           queue_size=200)
+        other = self._other_gateway()
+        if other is not None:
+            self.error = (f"another pilot gateway already serves these modules on this "
+                          f"roscore ({other}); a second one would forward every topic "
+                          f"command twice.  Run one gateway per roscore (several pilots: "
+                          f"one roscore each, all on the pilot YARP name server)")
+            self.finished.set()
+            return
+        self.topics.open()
         self._publish_link()
-        for module in self.modules:
-            self._ros[module] = {
-                "status": rospy.Publisher(f"/{module}/status", Status, queue_size=10,
-                                          latch=True),
-                "warning": rospy.Publisher(f"/{module}/warning", Warning, queue_size=20),
-                "countdown": rospy.Publisher(f"/{module}/countdown", Countdown, queue_size=10),
-                "subs": [rospy.Subscriber(f"/{module}/switch", Switch,
-                                          lambda m, mod=module: self._on_switch_topic(mod, m)),
-                         rospy.Subscriber(f"/{module}/command", Command,
-                                          lambda m, mod=module: self._on_command_topic(mod, m))],
-                "services": [
-                    rospy.Service(f"/{module}/switch_and_wait", SwitchModule,
-                                  lambda r, mod=module: self._switch_and_wait(mod, r)),
-                    rospy.Service(f"/{module}/send_command", SendCommand,
-                                  lambda r, mod=module: self._send_command_srv(mod, r)),
-                    rospy.Service(f"/{module}/get_status", GetStatus,
-                                  lambda r, mod=module: self._get_status(mod)),
-                    rospy.Service(f"/{module}/cancel", Cancel,
-                                  lambda r, mod=module: self._cancel_srv(mod, r))],
-            }
-            link = self.links.get(module)
-            if link is not None and link.last_status is not None:
+        self._ros_handlers = [
+            rospy.Service("/pilot/stop_all", StopAll, lambda r: self._stop_srv("stop_all")),
+            rospy.Service("/pilot/release", StopAll, lambda r: self._stop_srv("release")),
+            *[handler for module in self.modules for handler in self._open_module_ros(module)]]
+        for module, link in self.links.items():
+            if link.last_status is not None:
                 seq, state, data, bottle = link.last_status
-                self._ros[module]["status"].publish(
-                    self._status_msg(module, seq, state, str(bottle[1]), data))
+                self.topics.status(module, seq, state, str(bottle[1]), data)
         self.scene.open_ros()
         threading.Thread(target=self._countdown_loop, name="gateway countdowns",
                          daemon=True).start()
         log.info("gateway: ROS topics and services up for %s", ", ".join(self.modules))
 
-    def _status_msg(self, module: str, seq: int, state: str, code: str, data: list) -> Any:
+    def _open_module_ros(self, module: str) -> List[Any]:
+        """The module's command topics and services, into this gateway."""
         import rospy
-        from walkman_msgs.msg import Status
+        from walkman_msgs.msg import Command, Switch
+        from walkman_msgs.srv import Cancel, GetStatus, SendCommand, SwitchModule
 
-        msg = Status()
-        msg.header.stamp = rospy.Time.now()
-        msg.module, msg.seq, msg.state, msg.code = module, seq, state, code
-        msg.data = " ".join(str(v) for v in data)
-        msg.values = [float(v) for v in data
-                      if isinstance(v, (int, float)) and not isinstance(v, bool)]
-        return msg
-
-    def _publish_warning(self, module: str, seq: int, text: str) -> None:
-        publisher = self._ros.get(module, {}).get("warning")
-        if publisher is None:
-            return
-        import rospy
-        from walkman_msgs.msg import Warning
-
-        msg = Warning()
-        msg.header.stamp = rospy.Time.now()
-        msg.module, msg.seq, msg.text = module, seq, text
-        publisher.publish(msg)
+        return [rospy.Subscriber(f"/{module}/switch", Switch,
+                                 lambda m: self._on_switch_topic(module, m)),
+                rospy.Subscriber(f"/{module}/command", Command,
+                                 lambda m: self._on_command_topic(module, m)),
+                rospy.Service(f"/{module}/switch_and_wait", SwitchModule,
+                              lambda r: self._switch_and_wait(module, r)),
+                rospy.Service(f"/{module}/send_command", SendCommand,
+                              lambda r: self._send_command_srv(module, r)),
+                rospy.Service(f"/{module}/get_status", GetStatus,
+                              lambda r: self._get_status(module)),
+                rospy.Service(f"/{module}/cancel", Cancel,
+                              lambda r: self._cancel_srv(module, r))]
 
     # -- sending -----------------------------------------------------------------------
 
@@ -540,15 +496,7 @@ class Gateway:
             with self._ledger_lock:
                 changed = self.ledger.sent(life, link_down=self.link_watch.state.state == "down")
             self._publish_states(changed)
-        if self._sent is not None:
-            import rospy
-            from walkman_msgs.msg import SentCommand
-
-            msg = SentCommand()
-            msg.header.stamp = rospy.Time.now()
-            msg.module, msg.port, msg.text, msg.seq = module, port, text, seq
-            msg.sender, msg.station = sender, station
-            self._sent.publish(msg)
+        self.topics.sent(module, port, text, seq, sender, station)
 
     # -- the commands' lives -------------------------------------------------------------
 
@@ -563,25 +511,11 @@ class Gateway:
         self._publish_states(changed)
 
     def _publish_states(self, lives: List[CommandLife]) -> None:
-        for life in lives:
-            if life.state in (CommandState.REFUSED, CommandState.EXPIRED,
-                              CommandState.CANCELLED, CommandState.QUEUED):
-                log.info("gateway: %s", describe(life))
-            if self._states_pub is None:
-                continue
-            import rospy
-            from walkman_msgs.msg import CommandState as CommandStateMsg
-
-            msg = CommandStateMsg()
-            msg.header.stamp = rospy.Time.now()
-            msg.module, msg.port, msg.seq, msg.text = life.module, life.port, life.seq, life.text
-            msg.sender, msg.station = life.sender, life.station
-            msg.state, msg.reason = life.state.value, life.reason
-            self._states_pub.publish(msg)
+        self.topics.command_states(lives)
 
     def _refuse(self, module: str, text: str) -> None:
         log.warning("gateway: %s", text)
-        self._publish_warning(module, 0, f"gateway: {text}")
+        self.topics.warning(module, 0, f"gateway: {text}")
 
     def _on_switch_topic(self, module: str, msg: Any) -> None:
         ok, message, _ = self.send_switch(module, msg.command, msg.seq, msg.sender,
@@ -634,18 +568,8 @@ class Gateway:
                 self._publish_countdown(event, sender)
 
     def _publish_countdown(self, event, sender: str = "") -> None:
-        publisher = self._ros.get(event.pending.module, {}).get("countdown")
-        if publisher is None:
-            return
-        import rospy
-        from walkman_msgs.msg import Countdown
-
-        msg = Countdown()
-        msg.header.stamp = rospy.Time.now()
-        msg.module, msg.command = event.pending.module, event.pending.text
-        msg.remaining, msg.state = float(event.remaining), event.state
-        msg.sender = sender or "rostopic"
-        publisher.publish(msg)
+        self.topics.countdown(event.pending.module, event.pending.text, event.remaining,
+                              event.state, sender)
 
     # -- services ----------------------------------------------------------------------
 
@@ -695,18 +619,14 @@ class Gateway:
             return False, [], ("no bridge here (the lab): a command goes straight to its "
                                "module and never waits, so there is nothing to cancel")
         try:
-            client = RpcClient(nameclient=self.nameclient)
-            try:
-                client.connect(BRIDGE_RPC)
-                reply = client.call(Bottle(["cancel", module, seq or "all"]), timeout=5.0)
-            finally:
-                client.close()
+            cancelled, too_late = rpc_words.read_cancel_reply(
+                self._ask_bridge(rpc_words.cancel_request(module, seq or None), timeout=5.0))
         except YarpError as exc:
             return False, [], f"cannot reach the pilot bridge ({BRIDGE_RPC}): {exc}"
-        if len(reply) != 3 or reply[0] != "ok":
-            return False, [], f"the pilot bridge refused: {readable(reply)}"
-        cancelled = [int(n) for n in list(reply[1])[1:]]
-        too_late = [int(n) for n in list(reply[2])[1:]]
+        except BridgeUsageError as exc:
+            return False, [], f"the pilot bridge refused: {exc}"
+        except BridgeProtocolError as exc:
+            return False, [], f"the pilot bridge's answer is malformed: {exc}"
         with self._ledger_lock:
             changed = [life for n in cancelled for life in self.ledger.receipt(
                 module, Receipt(n, CommandState.CANCELLED, "cancelled by a pilot"))]
@@ -738,24 +658,28 @@ class Gateway:
             return report.hal, report.line() if report.hal or word == "stop_all" else \
                 f"release: {report.problem}", took, report.took_ms, list(report.modules)
         try:
-            client = RpcClient(nameclient=self.nameclient)
-            try:
-                client.connect(BRIDGE_RPC)
-                reply = client.call(Bottle([word]), timeout=8.0)
-            finally:
-                client.close()
+            ack = rpc_words.read_stop_reply(self._ask_bridge(Bottle([word]), timeout=8.0))
         except YarpError as exc:
             return False, f"cannot reach the pilot bridge ({BRIDGE_RPC}): {exc}", 0.0, 0.0, []
-        if len(reply) != 6 or reply[0] != "ok":
-            return False, f"{word}: {readable(reply)}", 0.0, 0.0, []
-        fields = {str(item[0]): list(item)[1:] for item in list(reply)[2:]}
-        hal = fields["hal"] == ["ok"]
-        paused = [str(m) for m in fields["paused"]]
-        message = (f"{word}: {'HAL held' if hal else 'HAL NOT held'}; pause sent to "
+        except BridgeUsageError as exc:   # its words: "stop_all: the robot did not ..."
+            return False, str(exc) if str(exc).startswith(word) else f"{word}: {exc}", \
+                0.0, 0.0, []
+        except BridgeProtocolError as exc:
+            return False, f"{word}: the pilot bridge's answer is malformed: {exc}", 0.0, 0.0, []
+        paused = list(ack.modules)
+        message = (f"{word}: {'HAL held' if ack.hal else 'HAL NOT held'}; pause sent to "
                    f"{', '.join(paused) or 'no module'}" if word == "stop_all" else
-                   f"release: HAL {'free' if hal else 'NOT released'}")
-        return hal, message, float(fields["round_trip_ms"][0]), \
-            float(fields["robot_ms"][0]), paused
+                   f"release: HAL {'free' if ack.hal else 'NOT released'}")
+        return ack.hal, message, ack.round_trip_ms, ack.took_ms, paused
+
+    def _ask_bridge(self, request: Bottle, timeout: float) -> Bottle:
+        """One request to the pilot bridge's RPC port (:mod:`bridge.rpc_words`)."""
+        client = RpcClient(nameclient=self.nameclient)
+        try:
+            client.connect(BRIDGE_RPC)
+            return client.call(request, timeout=timeout)
+        finally:
+            client.close()
 
     def _local_stop_all(self) -> Any:
         """The lab's stop-all executor (one network: this gateway reaches the HAL itself)."""
@@ -786,7 +710,7 @@ class Gateway:
             return GetStatusResponse(False, "unknown", Status())
         seq, state, data, bottle = link.last_status
         return GetStatusResponse(True, link.lifecycle,
-                                 self._status_msg(module, seq, state, str(bottle[1]), data))
+                                 status_msg(module, seq, state, str(bottle[1]), data))
 
     def close(self) -> None:
         self._stop.set()

@@ -6,6 +6,9 @@ from __future__ import annotations
 from typing import List, Optional, Tuple
 
 import pytest
+from hypothesis import given
+
+from codec_helpers import FUZZ, bottles
 
 from bridge.errors import BridgeUsageError
 from bridge.rpc_words import answer
@@ -89,3 +92,71 @@ def test_an_unknown_word_names_the_words_there_are(request_text):
 def test_help_lists_every_word():
     text = answer(parse("help"), Bridge())[0]
     assert all(word in text for word in ("status", "cancel", "stop_all", "release"))
+
+
+# -- the asking side: what the pilot gateway reads back ----------------------------------------
+
+
+def test_a_cancel_reply_reads_back_what_the_bridge_answered():
+    from bridge.rpc_words import cancel_request, read_cancel_reply
+
+    bridge = Bridge()
+    assert cancel_request("gaze_control", None) == parse("cancel gaze_control all")
+    assert read_cancel_reply(answer(cancel_request("gaze_control", 4), bridge)) == ([4, 5], [3])
+    with pytest.raises(BridgeUsageError, match="not a GYM module"):
+        read_cancel_reply(answer(parse("cancel x 1"), Bridge(refuse="'x' is not a GYM module")))
+
+
+def test_a_stop_reply_reads_back_the_acknowledgement():
+    from bridge.rpc_words import read_stop_reply
+
+    ack = Ack(7, "held", False, 3.25, ("gaze_control",), round_trip_ms=104.04)
+    assert read_stop_reply(answer(parse("stop_all"), Bridge(ack))) == \
+        Ack(0, "held", False, 3.2, ("gaze_control",), 104.0)
+    with pytest.raises(BridgeUsageError, match="did not acknowledge"):
+        read_stop_reply(answer(parse("stop_all"), Bridge(None)))
+
+
+@pytest.mark.parametrize("reply", ["", "ok", "ok (cancelled 1)", "ok (too_late) (cancelled)",
+                                   "ok (cancelled 1.5) (too_late)", "ok (cancelled x) (too_late)",
+                                   "yes (cancelled) (too_late)", "error", "(cancelled) (too_late)",
+                                   "ok (cancelled) (too_late) (more)"])
+def test_a_cancel_reply_of_another_form_is_a_protocol_error(reply):
+    from bridge.errors import BridgeProtocolError
+    from bridge.rpc_words import read_cancel_reply
+
+    with pytest.raises(BridgeProtocolError, match="cancel reply|reply's fields"):
+        read_cancel_reply(parse(reply))
+
+
+@pytest.mark.parametrize("reply", ["ok", "ok held", "ok held (hal ok)",
+                                   "ok held (hal ok) (round_trip_ms x) (robot_ms 1) (paused)",
+                                   "ok held (hal) (round_trip_ms 1) (robot_ms 1) (paused)",
+                                   "ok 7 (hal ok) (round_trip_ms 1) (robot_ms 1) (paused)",
+                                   "ok held (hal ok) (robot_ms 1) (round_trip_ms 1) (paused)"])
+def test_a_stop_reply_of_another_form_is_a_protocol_error(reply):
+    from bridge.errors import BridgeProtocolError
+    from bridge.rpc_words import read_stop_reply
+
+    with pytest.raises(BridgeProtocolError, match="stop reply|reply's fields"):
+        read_stop_reply(parse(reply))
+
+
+@FUZZ
+@given(bottles)
+def test_any_reply_is_read_or_refused_with_a_bridge_error(reply):
+    from bridge.errors import BridgeError
+    from bridge.rpc_words import read_cancel_reply, read_stop_reply
+
+    for read in (read_cancel_reply, read_stop_reply):
+        try:
+            read(reply)
+        except BridgeError:
+            pass
+
+
+@FUZZ
+@given(bottles)
+def test_any_request_is_answered_never_raised(request_bottle):
+    bridge = Bridge()
+    assert isinstance(answer(request_bottle, bridge), Bottle)
