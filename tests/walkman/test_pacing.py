@@ -182,3 +182,41 @@ def test_a_stall_of_robot_and_loop_together_is_no_burst():
     clock.t = start + 250 * MS                   # the loop wakes first, robot still silent
     times = ticks(schedule, clock, 60)
     assert min(spaced(times)) >= 2 * 0.75
+
+
+def test_sleep_until_never_returns_before_its_deadline_and_spins_only_its_lead(monkeypatch):
+    import time as real_time
+
+    from walkman.gym import pacing
+
+    slept: List[float] = []
+    real_sleep = real_time.sleep
+    monkeypatch.setattr(pacing.time, "sleep", lambda s: (slept.append(s), real_sleep(s)))
+    for wait in (0.0, 0.00005, 0.0004, 0.002):
+        deadline = real_time.monotonic() + wait
+        pacing.sleep_until(deadline)
+        assert real_time.monotonic() >= deadline
+    # the waits longer than the lead slept all but the lead, the shorter ones only spun
+    lead = pacing.spin_lead()
+    assert len(slept) == 2 and all(s < 0.002 - lead + 1e-4 for s in slept)
+
+
+@pytest.mark.requires("root")
+def test_a_realtime_thread_spins_less_than_a_normal_one():
+    import os
+    import threading
+
+    from walkman.gym import pacing
+    from walkman.realtime import make_realtime
+
+    leads: List[float] = []
+
+    def realtime() -> None:
+        assert make_realtime(10), "SCHED_FIFO refused to root"
+        leads.append(pacing.spin_lead())
+
+    thread = threading.Thread(target=realtime)
+    thread.start()
+    thread.join()
+    assert os.sched_getscheduler(0) != os.SCHED_FIFO
+    assert leads == [pacing.SPIN_REALTIME] and pacing.spin_lead() == pacing.SPIN_NORMAL
