@@ -13,6 +13,7 @@ killed with their whole group when the test ends, pass or fail.
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -234,6 +235,15 @@ def dump_outputs_if_failed(request, processes) -> None:
     if not (report is not None and report.failed) and \
             (failing is None or issubclass(failing, GeneratorExit)):
         return
-    for proc in processes:
-        tail = "\n".join(proc.output().splitlines()[-40:])
-        print(f"\n----- output of {proc.name} (last 40 lines) -----\n{tail}")
+    kept = REPO / "out" / "failed" / _file_name(request.node.name, 120)
+    kept.mkdir(parents=True, exist_ok=True)
+    for number, proc in enumerate(processes):
+        whole = proc.output()
+        (kept / f"{number:02d}-{_file_name(proc.name, 60)}.log").write_text(whole + "\n")
+        tail = "\n".join(whole.splitlines()[-40:])
+        print(f"\n----- output of {proc.name} (last 40 lines; all of it in {kept}) -----\n"
+              f"{tail}")
+
+
+def _file_name(text: str, length: int) -> str:
+    return re.sub(r"[^\w.-]+", "_", text)[:length]

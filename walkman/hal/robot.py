@@ -14,8 +14,8 @@ written on yarp_lite.  The grouping is found at connection time:
   ``/<robot>/rpc:i`` with every chain and its joints, and streams the compact
   SI state ``stateSI:o`` (with the HAL's temperatures and a state count), so
   that is what we read;
-* any other YARP robot is found chain by chain (``/<robot>/<chain>/rpc:i``
-  for the chains of :data:`CHAINS`): ``[get] [axes]``, ``[get] [name] j``;
+* any other YARP robot is found chain by chain (:mod:`walkman.hal.discovery`:
+  ``/<robot>/<chain>/rpc:i`` for the model's chains, ``[get] [axes]``, ``[get] [name] j``);
   its state is the standard ``stateExt:o`` (``jointData``, degrees) and its
   motor temperatures are asked with ``[get] [tmps]`` once a second.
 
@@ -48,9 +48,10 @@ import numpy as np
 from walkman.hal import controlboard, protocol
 from walkman.hal.clock import RobotClock
 from walkman.hal.controlboard import ControlBoardError
+from walkman.hal.discovery import find_grouping
 from walkman.hal.rounds import RoundPeriod
 from walkman.hal.protocol import HalProtocolError, HalUsageError
-from walkman.model.description import CHAINS, walkman
+from walkman.model.description import walkman
 from walkman.model.description import Robot as RobotModel
 from walkman.realtime import PATH_PRIORITY, make_realtime_once
 from yarp_lite import network
@@ -228,7 +229,8 @@ class Robot(WholeBody):
     # -- connecting ----------------------------------------------------------------------
 
     def _connect(self, timeout: float) -> None:
-        grouping = self._find_grouping(timeout)
+        found = find_grouping(self.nameclient, self.robot, self.model, self.owner, timeout)
+        self.standard, grouping = found.standard, found.chains
         for chain, joints in grouping.items():
             unknown = [j for j in joints if j not in self.index]
             if unknown:
@@ -295,68 +297,6 @@ class Robot(WholeBody):
         warnings.open(f"{self.owner}/robot/warning:i")
         self._ports.append(warnings)
         self._persist(protocol.hal_warning_port_name(self.robot), warnings.name)
-
-    def _find_grouping(self, timeout: float) -> Dict[str, List[str]]:
-        """Ask the HAL for its chains; failing that, find a plain YARP robot's parts."""
-        deadline = time.monotonic() + timeout
-        said = 0.0
-        answer = ""
-        rpc_name = protocol.robot_rpc_name(self.robot)
-        while True:
-            try:
-                contact = self.nameclient.query(rpc_name)
-                if contact is not None:
-                    reply = network.request(contact, [Vocab("get"), "chains"], timeout=5)
-                    grouping = {str(group[0]): [str(j) for j in group[1:]] for group in reply
-                                if isinstance(group, list) and group}
-                    if grouping:
-                        return grouping
-                    # A HAL (or a bridge's copy of it) that is not ready yet: ask again.
-                    answer = f"; it answered {str(reply)[:120]}"
-                else:
-                    parts = self._find_parts()
-                    # Our HAL registers /<robot>/rpc:i before its chains: a chain seen
-                    # without it is a plain YARP robot's, not a HAL half started.
-                    if parts and self.nameclient.query(rpc_name) is None:
-                        self.standard = True
-                        return parts
-            except YarpError:
-                pass
-            now = time.monotonic()
-            if now > deadline:
-                raise NetworkError(f"no robot answered at {rpc_name} nor at "
-                                   f"/{self.robot}/<chain>/rpc:i within {timeout:g} s")
-            if now - said > 5:
-                log.info("%s: waiting for the robot (%s)%s", self.owner, rpc_name, answer)
-                said = now
-            time.sleep(0.3)
-
-    def _find_parts(self) -> Dict[str, List[str]]:
-        """A plain YARP robot: its control boards named after our chains, joints by name
-        (``[get] [name] j``) or, when the names are not ours, by our order."""
-        parts: Dict[str, List[str]] = {}
-        for chain in CHAINS:
-            contact = self.nameclient.query(protocol.port_names(self.robot, chain)["rpc"])
-            if contact is None:
-                continue
-            ours = [j.name for j in self.model.joints if j.chain == chain]
-            axes = network.request(contact, [Vocab("get"), Vocab("axes")], timeout=5)
-            if len(axes) < 3 or str(axes[-1]) != "ok" or not isinstance(axes[2], int):
-                raise HalProtocolError(f"/{self.robot}/{chain}: [get] [axes] answered {axes}")
-            names = []
-            for axis in range(int(axes[2])):
-                reply = network.request(contact, [Vocab("get"), Vocab("name"), axis], timeout=5)
-                names.append(str(reply[2]) if len(reply) > 2 and str(reply[-1]) == "ok" else "")
-            if all(name in self.index for name in names):
-                parts[chain] = names
-            elif len(names) == len(ours):
-                log.info("%s: /%s/%s names its axes %s; taking them as %s", self.owner,
-                         self.robot, chain, names, ours)
-                parts[chain] = ours
-            else:
-                raise HalProtocolError(f"/{self.robot}/{chain} has {len(names)} axes {names}; "
-                                       f"the model's {chain} has {len(ours)}: {ours}")
-        return parts
 
     def _persist(self, source: str, target: str) -> None:
         """Ask the name server to keep this connection up (robot restarts included)."""

@@ -41,18 +41,18 @@ from typing import Deque, Dict, List, Optional, Tuple
 
 import numpy as np
 
-from walkman.hal import protocol
-from walkman.hal import analog, controlboard
+from walkman.hal import analog, controlboard, protocol
 from walkman.hal import battery as battery_codec
+from walkman.hal import robot_rpc as robot_words
 from walkman.hal.arbitration import JointArbiter, owner_of
 from walkman.hal.backend import Backend
 from walkman.hal.battery import Battery, electric_power
 from walkman.hal.chain import ChainBoard
-from walkman.hal.sim import HARNESS_MODES
 from walkman.hal.config import HalConfig, load_config
-from walkman.inifile import IniError
 from walkman.hal.controlboard import ControlBoardError, JointData, Stamp
 from walkman.hal.protocol import ChainState
+from walkman.hal.robot_rpc import RobotWordError
+from walkman.inifile import IniError
 from walkman.model.mjcf import STATIONS
 from walkman.realtime import (HAL_BACKGROUND_PRIORITY, HAL_PRIORITY, PATH_PRIORITY,
                                SWITCH_INTERVAL, make_process_realtime, make_realtime,
@@ -186,7 +186,8 @@ class HalServer:
         self.whole_state_port = Port(nameclient=self.nameclient).open(
             protocol.whole_state_port_name(self.robot), wait=wait)
         self.ports.append(self.whole_state_port)
-        robot_rpc = RpcServer(nameclient=self.nameclient, handler=self._robot_rpc)
+        robot_rpc = RpcServer(nameclient=self.nameclient,
+                              handler=lambda request: robot_words.answer(request, self))
         robot_rpc.open(protocol.robot_rpc_name(self.robot), wait=wait)
         self.ports.append(robot_rpc)
         self.warning_port = self._open(Port(nameclient=self.nameclient),
@@ -300,75 +301,46 @@ class HalServer:
             log.info("%s rpc from %s (#%d of this burst): %s", chain, source or "?",
                      burst.count, text)
 
-    def _robot_rpc(self, request: Bottle) -> Bottle:
-        verb = str(request[0]) if request else ""
-        what = str(request[1]) if len(request) > 1 else ""
-        if verb == "get" and what == "chains":
-            return Bottle([Bottle([name, *chain.joints]) for name, chain in self.chains.items()])
-        if verb == "get" and what == "stats":
-            return Bottle([Bottle([key, value]) for key, value in self.stats().items()])
-        if verb == "set" and what == "harness" and len(request) > 2:
-            plant = getattr(self.backend, "plant", None)
-            if plant is None:
-                return Bottle([Vocab("fail"), "this backend has no harness"])
-            mode = {"on": "locked", "true": "locked", "1": "locked", "false": "off",
-                    "0": "off"}.get(str(request[2]), str(request[2]))
-            if mode not in HARNESS_MODES:
-                return Bottle([Vocab("fail"), f"harness must be one of "
-                                              f"{', '.join(HARNESS_MODES)}, got {mode!r}"])
-            self._harness = mode  # the physics thread applies it before its next step
-            return Bottle([Vocab("ok")])
-        if verb == "set" and what == "push":
-            return self._push(request)
-        if verb == "set" and what == "station":
-            return self._station_request(request)
-        if verb == "set" and what == "halt" and len(request) == 3 and \
-                str(request[2]) in ("on", "off"):
-            on = str(request[2]) == "on"
-            for chain in self.chains.values():
-                chain.halt(on)
-            log.warning("HAL: %s by the pilot's stop-all", "every joint held" if on else
-                        "released: commands apply again")
-            return Bottle([Vocab("ok")])
-        if verb == "get" and what == "halt":
-            return Bottle([Vocab("ok"), "on" if any(c.halted for c in self.chains.values())
-                           else "off"])
-        return Bottle([Vocab("fail"), "unknown request; try [get] chains, [get] stats, "
-                                      "[set] harness locked|trolley|off, [set] push IX IY IZ, "
-                                      "[set] station NAME, [set] halt on|off, [get] halt"])
+    # -- the robot-wide words (walkman.hal.robot_rpc.Operations) -----------------------
 
-    def _station_request(self, request: Bottle) -> Bottle:
-        """``[set] station NAME``: the simulated robot goes to a task's station (between the
-        DRC's tasks the real one walked or drove; here one session can do them all)."""
+    def chain_joints(self) -> Dict[str, List[str]]:
+        return {name: list(chain.joints) for name, chain in self.chains.items()}
+
+    def halt(self, on: bool) -> None:
+        for chain in self.chains.values():
+            chain.halt(on)
+        log.warning("HAL: %s by the pilot's stop-all", "every joint held" if on else
+                    "released: commands apply again")
+
+    def halted(self) -> bool:
+        return any(chain.halted for chain in self.chains.values())
+
+    def _plant(self, what: str):
         plant = getattr(self.backend, "plant", None)
         if plant is None:
-            return Bottle([Vocab("fail"), "this backend has no stations (simulation only)"])
-        name = str(request[2]) if len(request) == 3 else ""
-        if name not in STATIONS:
-            return Bottle([Vocab("fail"), f"station must be one of {', '.join(STATIONS)}, got "
-                                          f"{request.to_text()[:80]!r}"])
-        held = plant.grasped()
-        if held:
-            return Bottle([Vocab("fail"), f"a hand holds {', '.join(held)}: let go first "
-                                          f"(the part would go with the robot)"])
-        self._station = name  # the physics thread moves the robot before its next step
-        return Bottle([Vocab("ok")])
+            raise RobotWordError(f"this backend has no {what} (simulation only)")
+        return plant
 
-    def _push(self, request: Bottle) -> Bottle:
-        """``[set] push IX IY IZ [SECONDS]``: a simulated push on the torso (N*s, world)."""
+    def set_harness(self, mode: str) -> None:
+        self._plant("harness")
+        self._harness = mode  # the physics thread applies it before its next step
+
+    def go_to_station(self, name: str) -> None:
+        """The simulated robot goes to a task's station (between the DRC's tasks the real
+        one walked or drove; here one session can do them all)."""
+        held = self._plant("stations").grasped()
+        if held:
+            raise RobotWordError(f"a hand holds {', '.join(held)}: let go first (the part "
+                                 f"would go with the robot)")
+        self._station = name  # the physics thread moves the robot before its next step
+
+    def push(self, impulse: List[float], seconds: Optional[float]) -> None:
+        """A simulated push on the torso (N*s, world): two attribute writes the physics
+        thread reads at its next step."""
         push = getattr(self.backend, "push", None)
         if push is None:
-            return Bottle([Vocab("fail"), "this backend cannot be pushed (simulation only)"])
-        values = list(request)[2:]
-        if len(values) not in (3, 4) or not all(isinstance(v, (int, float)) and
-                                                not isinstance(v, bool) for v in values):
-            return Bottle([Vocab("fail"), "push takes IX IY IZ (N*s) and optionally SECONDS, "
-                                          f"got {request.to_text()[:80]!r}"])
-        try:  # two attribute writes the physics thread reads at its next step
-            push([float(v) for v in values[:3]], *[float(v) for v in values[3:]])
-        except ValueError as error:
-            return Bottle([Vocab("fail"), str(error)])
-        return Bottle([Vocab("ok")])
+            raise RobotWordError("this backend cannot be pushed (simulation only)")
+        push(impulse, *([] if seconds is None else [seconds]))
 
     # -- the loop ----------------------------------------------------------------------------
 
