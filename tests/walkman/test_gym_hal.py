@@ -10,6 +10,9 @@ module that hangs or throws; bad input is refused without harm.
 
 from __future__ import annotations
 
+import re
+import signal
+import subprocess
 import sys
 import time
 from typing import List, Optional, Tuple
@@ -82,6 +85,22 @@ class Pilot:
         self.warning_port.close()
 
 
+def assert_quits(module: Proc, timeout: float = 90.0) -> None:
+    """The module exits 0 after ``quit`` (a loaded 2-core box is slow to quit, not stuck);
+    if not, it is asked for every thread's stack (``SIGUSR1``), kept in its output."""
+    try:
+        code = module.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        module.popen.send_signal(signal.SIGUSR1)
+        try:
+            module.wait_for(r"Thread 0x|Current thread 0x", 10)
+        except AssertionError:
+            pass
+        raise AssertionError(f"{module.name} did not exit within {timeout:g} s of quit; "
+                             f"its threads' stacks (SIGUSR1) are at the end of its output")
+    assert code == 0, module.output()[-3000:]
+
+
 def start_hal(world: YarpWorld, backend: str = "sim", *extra: str) -> Proc:
     hal = world.start([PYTHON, "-m", "walkman.hal.server", "--backend", backend, *extra],
                       f"hal-{backend}")
@@ -145,7 +164,7 @@ def test_pilot_moves_the_head_through_yarp_write(lite_world, probe, implementati
         wait_until(lambda: neck(robot)[0] > before[0] + 0.25 and neck(robot)[1] > before[1] + 0.2,
                    5, message=f"head turned left and down from {before} (now {neck(robot)})")
         pilot.send(tool, "switch", "quit")
-        assert module.wait(timeout=90) == 0   # a loaded 2-core box is slow to quit, not stuck
+        assert_quits(module)
     finally:
         pilot.close()
 
@@ -197,7 +216,7 @@ def test_stop_and_quit_win_over_a_hanging_or_throwing_module(lite_world, lite):
         pilot.send(lite, "command", "hang")
         module.wait_for("misbehaving: command hang", count=2)  # in the restarted process
         pilot.send(lite, "switch", "quit")
-        assert module.wait(timeout=90) == 0   # a loaded 2-core box is slow to quit, not stuck
+        assert_quits(module)
     finally:
         pilot.close()
 
@@ -367,6 +386,24 @@ def test_the_threads_between_sense_and_move_run_with_real_time_priority(lite_wor
             assert fifo_priorities(pid).count(background) >= 5, fifo_priorities(pid)
         assert HAL_BACKGROUND_PRIORITY > CONTROL_PRIORITY > BACKGROUND_PRIORITY
         pilot.send(lite, "switch", "quit")
-        assert module.wait(timeout=90) == 0   # a loaded 2-core box is slow to quit, not stuck
+        assert_quits(module)
     finally:
         pilot.close()
+
+
+def test_a_module_asked_with_sigusr1_prints_every_thread_s_stack(lite_world):
+    """``kill -USR1`` to the supervisor: where each thread of the module process is (the
+    watchdog waiting for the pilot, the control loop), the module running on."""
+    module = start_module(lite_world, "gaze_control")
+    module.wait_for("ready for the pilot", timeout=60)
+    module.popen.send_signal(signal.SIGUSR1)
+    module.wait_for(r"in watchdog", 20)
+    assert re.search(r"File .*walkman/gym/runner\.py.* in run\b", module.output()), \
+        module.output()[-3000:]
+    pilot = Pilot(lite_world, "gaze_control", GAZE_STATUSES)
+    try:
+        assert pilot.state() is not None      # still serving the pilot
+    finally:
+        pilot.close()
+    module.popen.send_signal(signal.SIGTERM)
+    assert module.wait(30) == 0

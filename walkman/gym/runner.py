@@ -545,7 +545,11 @@ def run_module(argv: Optional[List[str]] = None) -> int:
     name = module_name(options.module)
     runner = ModuleRunner(name, module_class, config, prefix=options.name,
                           initial=State(options.initial), heartbeat_fd=options.heartbeat_fd)
+    import faulthandler
     import signal
+
+    # kill -USR1 (to this process or its supervisor): every thread's stack on stderr.
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
 
     def request_quit(*_):
         runner.quit_requested = True

@@ -12,7 +12,9 @@ watches its heartbeat (a byte every 0.5 s on a pipe):
   pilot can ``start`` it again.  Restarts are logged and rate-limited.
 
 This is the "escalate from thread to process" of the module template: a
-module can never be left ignoring the pilot.
+module can never be left ignoring the pilot.  ``kill -USR1`` to the supervisor
+has the module process print every thread's stack (``faulthandler``), to see
+where a module that does not answer is.
 """
 
 from __future__ import annotations
@@ -93,6 +95,12 @@ class Supervisor:
         if self.child is not None and self.child.poll() is None:
             self.child.send_signal(signal.SIGINT if signum == signal.SIGINT else signal.SIGTERM)
 
+    def show_stacks(self, _signum: int, _frame) -> None:
+        """``SIGUSR1``: the module process prints every thread's stack (a module that does
+        not answer can be asked where it is)."""
+        if self.child is not None and self.child.poll() is None:
+            self.child.send_signal(signal.SIGUSR1)
+
 
 def main(argv: Optional[List[str]] = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -104,6 +112,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     supervisor = Supervisor([arg for arg in argv if arg != "--no-supervisor"])
     signal.signal(signal.SIGINT, supervisor.forward)
     signal.signal(signal.SIGTERM, supervisor.forward)
+    signal.signal(signal.SIGUSR1, supervisor.show_stacks)
     return supervisor.run()
 
 
