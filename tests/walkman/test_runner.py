@@ -474,6 +474,42 @@ def test_the_watchdog_beats_while_it_waits_for_a_safe_pause(make_runner):
         runner.heartbeat_fd = None
 
 
+class SlowToInit(Scripted):
+    """A module whose custom_init (a model to load) takes until the test lets it finish."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.initialising = threading.Event()
+        self.may_finish = threading.Event()
+
+    def custom_init(self) -> bool:
+        self.initialising.set()
+        self.may_finish.wait(TIMEOUT)
+        return super().custom_init()
+
+
+def test_the_watchdog_beats_while_a_slow_custom_init_runs(make_runner):
+    """custom_init may take 30 s; the supervisor kills a module silent for 5 s.  A watchdog
+    waiting for it beat nothing before, and a slow init got the module killed."""
+    runner = make_runner(SlowToInit)
+    module = runner.thread
+    read_fd, runner.heartbeat_fd = os.pipe()
+    try:
+        starting = in_background(runner.switch, "start")
+        assert module.initialising.wait(TIMEOUT)       # init is under way...
+        for _ in range(3):                             # ...and the supervisor hears beats
+            ready, _, _ = select.select([read_fd], [], [], TIMEOUT)
+            assert ready and os.read(read_fd, 1) == b"."
+        assert starting.is_alive()
+        module.may_finish.set()
+        starting.join(TIMEOUT)
+        assert runner.state == State.RUNNING
+    finally:
+        os.close(read_fd)
+        os.close(runner.heartbeat_fd)
+        runner.heartbeat_fd = None
+
+
 def test_each_numbered_switch_is_receipted_accepted_or_refused_with_why(make_runner):
     from walkman.gym.command_life import CommandState, Receipt
     from yarp_lite.bottle_text import parse

@@ -107,14 +107,23 @@ class ControlLoop(threading.Thread):
         self.period_errors: List[float] = []
         self.exit = False
 
-    def ask(self, hook: str, timeout: Optional[float] = None) -> Optional[bool]:
-        """Have the control thread perform a hook; None if it did not within ``timeout``."""
+    def ask(self, hook: str, timeout: Optional[float] = None,
+            beat: Callable[[], None] = lambda: None) -> Optional[bool]:
+        """Have the control thread perform a hook; None if it did not within ``timeout``.
+        ``beat`` is called every :data:`STATUS_PERIOD` meanwhile: a watchdog waiting for a
+        slow ``custom_init`` (30 s allowed) is not hung, and its supervisor, which kills a
+        module silent for 5 s, must hear it."""
         timeout = HOOK_TIMEOUT if timeout is None else timeout
+        deadline = time.monotonic() + timeout
         with self.cond:
             self.request, self.done = hook, None
             self.cond.notify_all()
-            if not self.cond.wait_for(lambda: self.done is not None, timeout):
-                return None
+            while self.done is None:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return None
+                beat()
+                self.cond.wait(min(remaining, STATUS_PERIOD))
             return self.done
 
     def _serve_request(self) -> None:
@@ -234,7 +243,8 @@ class ModuleRunner:
 
     def _ask_control_thread(self, hook: str) -> Optional[bool]:
         """How the lifecycle runs a hook: on the control thread (None: it did not return)."""
-        return self.loop.ask(hook, timeout=30 if hook == "init" else None)
+        return self.loop.ask(hook, timeout=30 if hook == "init" else None,
+                             beat=self._heartbeat)
 
     def _wait_until(self, done: Callable[[], bool], timeout: float) -> bool:
         """How the lifecycle waits for a safe pause: here, while the control thread runs.
