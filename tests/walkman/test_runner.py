@@ -14,6 +14,7 @@ import select
 import threading
 import time
 import types
+from contextlib import contextmanager
 from typing import Iterator, List, Tuple
 
 import pytest
@@ -452,26 +453,37 @@ class SlowToPause(Scripted):
         return self.may_pause.is_set()
 
 
+@contextmanager
+def supervised(runner: ModuleRunner) -> Iterator:
+    """The runner's heartbeat on a pipe, as the supervisor reads it; yields ``hear(n)``,
+    which asserts that n beats arrive."""
+    read_fd, runner.heartbeat_fd = os.pipe()
+
+    def hear(count: int) -> None:
+        for _ in range(count):
+            ready, _, _ = select.select([read_fd], [], [], TIMEOUT)
+            assert ready and os.read(read_fd, 1) == b"."
+    try:
+        yield hear
+    finally:
+        os.close(read_fd)
+        os.close(runner.heartbeat_fd)
+        runner.heartbeat_fd = None
+
+
 def test_the_watchdog_beats_while_it_waits_for_a_safe_pause(make_runner):
     """A walk landing its foot is not a hung watchdog: the supervisor must not kill it."""
     runner = make_runner(SlowToPause)
     runner.switch("start")
     module = runner.thread
-    read_fd, runner.heartbeat_fd = os.pipe()
-    try:
+    with supervised(runner) as hear_beats:
         pausing = in_background(runner.switch, "pause")
         assert module.pause_checked.wait(TIMEOUT)      # the safe pause is under way...
-        for _ in range(2):                             # ...and the supervisor hears beats
-            ready, _, _ = select.select([read_fd], [], [], TIMEOUT)
-            assert ready and os.read(read_fd, 1) == b"."
+        hear_beats(2)                                  # ...and the supervisor hears beats
         assert pausing.is_alive() and runner.state == State.RUNNING
         module.may_pause.set()
         pausing.join(TIMEOUT)
         assert runner.state == State.PAUSED
-    finally:
-        os.close(read_fd)
-        os.close(runner.heartbeat_fd)
-        runner.heartbeat_fd = None
 
 
 class SlowToInit(Scripted):
@@ -493,21 +505,14 @@ def test_the_watchdog_beats_while_a_slow_custom_init_runs(make_runner):
     waiting for it beat nothing before, and a slow init got the module killed."""
     runner = make_runner(SlowToInit)
     module = runner.thread
-    read_fd, runner.heartbeat_fd = os.pipe()
-    try:
+    with supervised(runner) as hear_beats:
         starting = in_background(runner.switch, "start")
         assert module.initialising.wait(TIMEOUT)       # init is under way...
-        for _ in range(3):                             # ...and the supervisor hears beats
-            ready, _, _ = select.select([read_fd], [], [], TIMEOUT)
-            assert ready and os.read(read_fd, 1) == b"."
+        hear_beats(3)                                  # ...and the supervisor hears beats
         assert starting.is_alive()
         module.may_finish.set()
         starting.join(TIMEOUT)
         assert runner.state == State.RUNNING
-    finally:
-        os.close(read_fd)
-        os.close(runner.heartbeat_fd)
-        runner.heartbeat_fd = None
 
 
 def test_each_numbered_switch_is_receipted_accepted_or_refused_with_why(make_runner):
