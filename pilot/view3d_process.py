@@ -48,6 +48,7 @@ from typing import List, Optional, Sequence
 
 from python_qt_binding.QtCore import QObject, QSocketNotifier, Qt, QTimer, Signal
 
+from nodekit.exits import describe_exit
 from pilot.view3d_protocol import (Decoder, Direction, Go, Message, Ping, Pong,
                                    RemoteProtocolError, RosNodes, WindowReady, encode)
 
@@ -73,19 +74,6 @@ class ChildExit:
     up_for: Optional[float]     # seconds since its window was up; None if it never was
     reason: str                 # "crashed: signal 11 (SIGSEGV)", "hung: ..." (ours)
     folder: Optional[Path]      # its crash folder when kept
-
-
-def describe_exit(returncode: int) -> str:
-    """What a child's end looks like: ``crashed: signal 11 (SIGSEGV)``, ``exited: status 1``."""
-    if returncode < 0:
-        number = -returncode
-        try:
-            name = signal.Signals(number).name
-        except ValueError:
-            name = "unknown"
-        verb = "was killed" if number in (signal.SIGKILL, signal.SIGTERM) else "crashed"
-        return f"{verb}: signal {number} ({name})"
-    return "exited" if returncode == 0 else f"exited: status {returncode}"
 
 
 class RestartPolicy:

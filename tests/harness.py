@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
+from nodekit.exits import describe_exit
 from system.processes import Proc, wait_until  # noqa: F401 (re-exported)
 from yarp_lite import auth, freeport, nameconfig, reference
 from yarp_lite.errors import NetworkError
@@ -239,10 +240,14 @@ def dump_outputs_if_failed(request, processes) -> None:
     kept.mkdir(parents=True, exist_ok=True)
     for number, proc in enumerate(processes):
         whole = proc.output()
-        (kept / f"{number:02d}-{_file_name(proc.name, 60)}.log").write_text(whole + "\n")
+        # How it ended matters as much as what it said: a program that vanished without a
+        # word was killed (SIGKILL) or crashed (SIGSEGV without faulthandler).
+        ended = describe_exit(proc.popen.poll())
+        (kept / f"{number:02d}-{_file_name(proc.name, 60)}.log").write_text(
+            f"{whole}\n----- {proc.name} (pid {proc.popen.pid}): {ended} -----\n")
         tail = "\n".join(whole.splitlines()[-40:])
-        print(f"\n----- output of {proc.name} (last 40 lines; all of it in {kept}) -----\n"
-              f"{tail}")
+        print(f"\n----- output of {proc.name}, pid {proc.popen.pid}, {ended} (last 40 lines; "
+              f"all of it in {kept}) -----\n{tail}")
 
 
 def _file_name(text: str, length: int) -> str:

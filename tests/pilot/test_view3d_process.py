@@ -18,21 +18,13 @@ from typing import Callable, List, Tuple
 import pytest
 
 from pilot.view3d_process import (KEEP_CRASHES, ChildExit, CrashFolders, RenderSupervisor,
-                                  RestartPolicy, describe_exit)
+                                  RestartPolicy)
 from pilot.view3d_protocol import AddMarker, MarkerMoved, RosNodes
 
 FAKE = "tests.pilot.fake_view3d_child"
 
 
 # -- pure parts -----------------------------------------------------------------------------
-
-@pytest.mark.parametrize("returncode, said", [
-    (-11, "crashed: signal 11 (SIGSEGV)"), (-6, "crashed: signal 6 (SIGABRT)"),
-    (-9, "was killed: signal 9 (SIGKILL)"), (-15, "was killed: signal 15 (SIGTERM)"),
-    (0, "exited"), (3, "exited: status 3"), (-200, "crashed: signal 200 (unknown)")])
-def test_an_exit_is_described_by_its_signal_or_status(returncode, said):
-    assert describe_exit(returncode) == said
-
 
 def test_a_view_that_was_up_restarts_at_once_one_that_cannot_start_waits_longer_each_time():
     policy = RestartPolicy()

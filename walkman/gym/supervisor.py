@@ -28,6 +28,7 @@ import sys
 import time
 from typing import List, Optional
 
+from nodekit.exits import describe_exit
 from nodekit.logs import time_prefix
 from walkman.gym.runner import EXIT_ESCALATED, EXIT_QUIT, parse_args, run_module
 
@@ -68,7 +69,7 @@ class Supervisor:
                 log.error("module restarted 10 times in a minute; giving up")
                 return 1
             reason = ("run() ignored the pilot" if code == EXIT_ESCALATED else
-                      "no heartbeat" if code is None else f"exit status {code}")
+                      "no heartbeat" if code is None else describe_exit(code))
             log.warning("module process ended (%s); starting a fresh one, stopped", reason)
             initial = "stopped"
 
