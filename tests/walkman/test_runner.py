@@ -25,7 +25,7 @@ from walkman.gym import runner as runner_module
 from walkman.gym.interfaces import RecordingInterfaces
 from walkman.gym.lifecycle import State
 from walkman.gym.link_loss import LinkLoss
-from walkman.gym.runner import ModuleRunner
+from walkman.gym.runner import QUITTING, ModuleRunner
 from walkman.gym.thread import ControlThread, GenericThread
 from walkman.hal.protocol import HalProtocolError, HalUsageError
 from yarp_lite.errors import NetworkError
@@ -513,6 +513,17 @@ def test_the_watchdog_beats_while_a_slow_custom_init_runs(make_runner):
         module.may_finish.set()
         starting.join(TIMEOUT)
         assert runner.state == State.RUNNING
+
+
+def test_a_quitting_runner_tells_its_supervisor_before_it_closes_its_ports(make_runner):
+    runner = make_runner(Scripted)
+    read_fd, runner.heartbeat_fd = os.pipe()
+    try:
+        runner._heartbeat()
+        runner.say_quitting()
+        assert os.read(read_fd, 16) == b"." + QUITTING
+    finally:
+        os.close(read_fd)
 
 
 def test_each_numbered_switch_is_receipted_accepted_or_refused_with_why(make_runner):

@@ -1,4 +1,5 @@
-"""The supervisor's watch on a module process: a starting process is not a hung one."""
+"""The supervisor's watch on a module process: a starting process is not a hung one, and a
+quitting one is not restarted."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import time
 import pytest
 
 from walkman.gym import supervisor
+from walkman.gym.runner import EXIT_QUIT, QUITTING
 from walkman.gym.supervisor import Supervisor
 
 
@@ -17,19 +19,22 @@ from walkman.gym.supervisor import Supervisor
 def short_timeouts(monkeypatch):
     monkeypatch.setattr(supervisor, "HEARTBEAT_TIMEOUT", 0.5)
     monkeypatch.setattr(supervisor, "STARTUP_TIMEOUT", 2.5)
+    monkeypatch.setattr(supervisor, "QUIT_GRACE", 1.5)
 
 
-def watched(beats: int):
-    """A child that sleeps, a pipe beaten ``beats`` times 0.2 s apart; (seconds until
-    the watch killed it, the watch's return)."""
+def watched(beats: int, then: bytes = b"", child_lives: float = 60):
+    """A child that sleeps ``child_lives`` s, a pipe beaten ``beats`` times 0.2 s apart and
+    then written ``then``; (seconds until the watch ended, the watch's return)."""
     read_fd, write_fd = os.pipe()
     watcher = Supervisor([])
-    watcher.child = subprocess.Popen(["sleep", "60"])
+    watcher.child = subprocess.Popen(["sleep", str(child_lives)])
 
     def beat() -> None:
         for _ in range(beats):
             os.write(write_fd, b".")
             time.sleep(0.2)
+        if then:
+            os.write(write_fd, then)
 
     threading.Thread(target=beat, daemon=True).start()
     began = time.monotonic()
@@ -53,3 +58,17 @@ def test_a_module_that_stops_beating_is_killed_after_the_heartbeat_timeout(short
     seconds, code = watched(beats=5)          # about 1 s of beats, then silence
     assert code is None
     assert 1.3 <= seconds < 2.4, seconds      # the last beat + 0.5 s, well before 2.5 s
+
+
+def test_a_module_closing_after_a_quit_is_given_the_quit_grace_not_the_heartbeat_timeout(
+        short_timeouts):
+    """fc14 of 2026-11-28: closing a dozen ports after ``quit`` took over 5 s under load; the
+    supervisor took the silence for a hang and started a fresh module, stopped."""
+    seconds, code = watched(beats=3, then=QUITTING)        # then silence, still running
+    assert code == EXIT_QUIT                  # killed, and counted as the quit: no restart
+    assert 0.4 + 1.5 <= seconds < 3.5, seconds   # the grace, not the 0.5 s heartbeat timeout
+
+
+def test_a_module_that_ends_within_the_quit_grace_gives_its_own_exit(short_timeouts):
+    seconds, code = watched(beats=2, then=QUITTING + b".", child_lives=1.2)
+    assert code == 0 and seconds < 1.5 + 1.2, seconds

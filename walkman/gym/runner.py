@@ -68,6 +68,10 @@ from yarp_lite.nameclient import NameClient
 log = logging.getLogger("walkman.gym")
 
 EXIT_QUIT = 0
+#: What the runner writes on the heartbeat pipe once the pilot's ``quit`` is done and it is
+#: closing its ports (a heartbeat is ``b"."``): from then on the supervisor waits for it to
+#: end instead of restarting it (walkman.gym.supervisor.QUIT_GRACE)
+QUITTING = b"q"
 EXIT_ESCALATED = 3
 HOOK_TIMEOUT = 2.0
 STATUS_PERIOD = 0.5
@@ -469,12 +473,19 @@ class ModuleRunner:
         self.interfaces.send_status()
         return self.exit_code
 
-    def _heartbeat(self) -> None:
+    def _heartbeat(self, word: bytes = b".") -> None:
         if self.heartbeat_fd is not None:
             try:
-                os.write(self.heartbeat_fd, b".")
+                os.write(self.heartbeat_fd, word)
             except OSError:
                 self.heartbeat_fd = None
+
+    def say_quitting(self) -> None:
+        """Tell the supervisor the quit is done and the ports are closing: closing a dozen
+        ports (each unregistered from the name server) took more than the heartbeat's 5 s on
+        a loaded PC, and the supervisor killed the quitting module and started a fresh one,
+        stopped, that nobody had asked for (fc14 of 2026-11-28)."""
+        self._heartbeat(QUITTING)
 
     def close(self) -> None:
         self.loop.exit = True
@@ -580,6 +591,8 @@ def run_module(argv: Optional[List[str]] = None) -> int:
                  stats["median_ms"], stats["p99_ms"], stats["samples"], stats["locked"],
                  stats["interval_p99_ms"])
     stuck = runner.loop.request is not None  # the control thread never took its last hook
+    if code == EXIT_QUIT and not stuck:
+        runner.say_quitting()
     runner.close()  # unregister the ports either way
     if stuck or code == EXIT_ESCALATED:
         os._exit(code)  # a thread stuck in run(): do not wait for it

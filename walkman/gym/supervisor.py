@@ -4,6 +4,9 @@ The supervisor starts the module process (:mod:`walkman.gym.runner`) and
 watches its heartbeat (a byte every 0.5 s on a pipe):
 
 * the process exits 0 (the pilot said ``quit``): the supervisor exits too;
+* it says it is quitting (``QUITTING`` on the pipe, once the pilot's ``quit`` is done
+  and it closes its ports): the supervisor waits up to ``QUIT_GRACE`` for it to end,
+  then kills it, and exits either way -- a module told to quit is never restarted;
 * it exits with ``EXIT_ESCALATED`` (``run()`` ignored a ``stop``), crashes, or
   its heartbeat stops for 5 s (a hang that even blocks the watchdog; a process
   that has not beaten yet is still importing and gets 60 s, as systemd's
@@ -30,7 +33,7 @@ from typing import List, Optional
 
 from nodekit.exits import describe_exit
 from nodekit.logs import time_prefix
-from walkman.gym.runner import EXIT_ESCALATED, EXIT_QUIT, parse_args, run_module
+from walkman.gym.runner import EXIT_ESCALATED, EXIT_QUIT, QUITTING, parse_args, run_module
 
 log = logging.getLogger("walkman.gym.supervisor")
 
@@ -38,6 +41,9 @@ HEARTBEAT_TIMEOUT = 5.0
 #: Before its first beat a module is starting (Python, numpy, MuJoCo imports on a loaded
 #: 2-core PC took over 5 s and the module was killed ten times over, never started).
 STARTUP_TIMEOUT = 60.0
+#: s a module that said it is quitting has to end (closing its ports, each unregistered
+#: from the name server) before it is killed
+QUIT_GRACE = 30.0
 
 
 class Supervisor:
@@ -76,20 +82,28 @@ class Supervisor:
     def _watch(self, read_fd: int) -> Optional[int]:
         assert self.child is not None
         last_beat, limit = time.monotonic(), STARTUP_TIMEOUT
+        quitting = False
         while True:
             readable, _, _ = select.select([read_fd], [], [], 0.5)
             if readable:
-                if os.read(read_fd, 1024):
+                words = os.read(read_fd, 1024)
+                if words and not quitting:
                     last_beat, limit = time.monotonic(), HEARTBEAT_TIMEOUT
+                if QUITTING in words and not quitting:
+                    quitting, last_beat, limit = True, time.monotonic(), QUIT_GRACE
             code = self.child.poll()
             if code is not None:
                 return code
             if time.monotonic() - last_beat > limit and not self.stopping:
-                log.warning("module heartbeat %s for %.0f s: killing it",
-                            "lost" if limit == HEARTBEAT_TIMEOUT else "never came", limit)
+                if quitting:
+                    log.warning("module still closing %.0f s after the pilot's quit: "
+                                "killing it", limit)
+                else:
+                    log.warning("module heartbeat %s for %.0f s: killing it",
+                                "lost" if limit == HEARTBEAT_TIMEOUT else "never came", limit)
                 self.child.kill()
                 self.child.wait()
-                return None
+                return EXIT_QUIT if quitting else None
 
     def forward(self, signum: int, _frame) -> None:
         self.stopping = True
