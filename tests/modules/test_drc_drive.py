@@ -29,10 +29,16 @@ def test_steer_and_accelerate(task_at):
         drive.pilot.wait_state("drive", 40)
         assert drive.scene.prop("steering") - before == pytest.approx(angle, rel=0.1), command
     # The status: the angle asked in all, and the one the hand on the rim measures, which is
-    # the wheel's in the world.
-    centre_x, centre_y, centre_z, asked, measured = drive.pilot.data()
-    assert asked == pytest.approx(-0.5)
-    assert measured == pytest.approx(drive.scene.prop("steering") - start, abs=0.1)
+    # the wheel's in the world -- once the status after the turn's end has come (statuses
+    # come twice a second; the wheel settles after the state's change: fc14 of 2026-11-28
+    # read the one before, 0.13 rad short, on a loaded PC).
+    def measured_matches_the_world() -> bool:
+        measured = drive.pilot.data()[4]
+        return abs(measured - (drive.scene.prop("steering") - start)) <= 0.1
+
+    wait_until(measured_matches_the_world, 10,
+               message="the status's measured angle to match the wheel's within 0.1 rad")
+    assert drive.pilot.data()[3] == pytest.approx(-0.5)
     drive.send("command", "accelerate 1")
     drive.pilot.wait_warning("the foot is not on the pedal (rotate_foot first)")
     drive.send("command", "rotate_foot")   # from drive back to drive: see it leave first

@@ -57,6 +57,10 @@ def fail(text: str) -> None:
     say(f"FAIL {text}")
     if not window.screenshot(OUT / "failure.png"):
         say(f"(the failure's screenshot could not be saved in {OUT})")
+    # Closed as the PI closes on its way out (pilot.app.main): exiting with the link's
+    # threads still posting to the window crashed the interpreter's teardown (SIGSEGV in a
+    # port's reader, fc14 of 2026-11-28), which hid the failure's cause behind a crash.
+    window.close_link()
     sys.exit(1)
 
 
@@ -442,7 +446,7 @@ def drag(marker: str, position, yaw: float, followed, what: str) -> None:
 
     topic = rospy.Publisher(f"{window.view3d.markers_topic}/feedback", InteractiveMarkerFeedback,
                             queue_size=5)
-    wait(lambda: topic.get_num_connections() > 0, 15, "the marker server's feedback subscriber")
+    wait(lambda: topic.get_num_connections() > 0, 60, "the marker server's feedback subscriber")
     feedback = InteractiveMarkerFeedback(client_id="/rviz/Markers", marker_name=marker,
                                          control_name="move_x",
                                          event_type=InteractiveMarkerFeedback.POSE_UPDATE)
