@@ -1,6 +1,7 @@
-"""The foothold check: a sole landing on higher ground comes down heel first, turned about its
-heel, and the first touch says whether the heel bears (walkman/control/foothold.py); the walking
-module's use of it on the simulated robot is in tests/modules/test_walking.py."""
+"""The foothold checks: a sole landing on higher ground comes down heel first, turned about its
+heel, and the first touch says whether the heel bears; a sole stepping down must not carry
+weight before it is near its landing (walkman/control/foothold.py); the walking module's use of
+them on the simulated robot is in tests/modules/test_walking.py."""
 
 import math
 
@@ -9,8 +10,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from walkman.control.balance import Sole
-from walkman.control.foothold import (LATEST, REACH, SEEK_AFTER, SEEK_DEPTH, SEEK_SPEED, TILT,
-                                      TOUCH, TURN, FootholdCheck)
+from walkman.control.foothold import (LATEST, REACH, SEEK_AFTER, SEEK_DEPTH, SEEK_SPEED,
+                                      STRIKE_ABOVE, TILT, TOUCH, TURN, DescentCheck,
+                                      FootholdCheck)
 
 LANDING = 10.0
 HEEL = -Sole().half_length
@@ -111,3 +113,40 @@ def test_a_sole_that_does_not_bear_stays_turned_until_its_foot_lifts():
     check.release(decided + 1.0)
     assert check.tilt(decided + 1.0 + TURN) == pytest.approx(0.0)
     assert check.done(decided + 1.0 + TURN)
+
+
+# -- a sole stepping down ------------------------------------------------------------------
+
+LOADED = (0.0, 0.0, 540.0)
+
+
+def test_a_sole_stepping_down_that_carries_weight_early_struck_and_is_said_once():
+    check = DescentCheck("left", 0.05, LANDING)
+    assert check.sample(LANDING - 0.8, 0.05, LOADED) is None    # the weight still leaving it
+    assert check.sample(LANDING - 0.7, 0.06, None) is None      # lifted
+    problem = check.sample(LANDING - 0.12, 0.013, LOADED)
+    assert problem == ("the left sole met ground on its way 5 cm down, 0.12 s before it "
+                       "should have landed (540 N on it): the ground it leaves goes on under it")
+    assert check.sample(LANDING - 0.11, 0.010, LOADED) is None  # once
+
+
+def test_a_sole_that_touches_near_or_after_its_landing_did_not_strike():
+    check = DescentCheck("right", 0.05, LANDING)
+    check.sample(LANDING - 0.5, 0.09, None)
+    assert check.sample(LANDING - 0.02, STRIKE_ABOVE, LOADED) is None
+    assert check.sample(LANDING + 0.1, 0.0, LOADED) is None
+
+
+@given(st.lists(st.tuples(st.floats(0.0, 0.2), st.booleans()), max_size=60))
+def test_a_strike_is_said_only_after_a_lift_off_and_only_once_per_lift_off(samples):
+    check = DescentCheck("left", 0.05, LANDING)
+    lifted = False     # a sample without weight since the start or the last strike said
+    for index, (above, loaded) in enumerate(samples):
+        problem = check.sample(LANDING - 1 + 0.01 * index, above, LOADED if loaded else None)
+        if not loaded:
+            lifted = True
+        if problem:
+            assert lifted and above > STRIKE_ABOVE
+            lifted = False
+        else:
+            assert not (lifted and loaded and above > STRIKE_ABOVE)

@@ -281,3 +281,26 @@ def test_retreat_puts_the_foot_back_where_it_lifted_from_and_drops_the_rest():
     play(plan, plan.end_time() + 0.1)
     assert plan.feet == FEET and plan.heights == {"left": 0.0, "right": 0.0}
     assert plan.travelled == pytest.approx((0.0, 0.0, 0.0), abs=1e-9)
+
+
+def test_strike_holds_the_foot_on_the_ground_it_left_then_puts_it_back():
+    plan = WalkPlan(dict(FEET), ground={"left": Ground(0.05), "right": Ground(0.05)})
+    plan.step_to(0.33, -0.05, 0.0)
+    lead = plan.steps[0]
+    t = lead.land_at - 0.12                  # on its way down, 1.3 cm above the floor
+    play(plan, t)
+    where, height = plan.foot("left", t)
+    assert 0.0 < height < 0.05
+    assert plan.strike(lead, t) == 1
+    # it stands where it is, on the ground it left (the sole lags the plan's lower height)
+    assert plan.foot("left", t) == (where, 0.05)
+    assert plan.heights == {"left": 0.05, "right": 0.05} and not plan.set_aside
+    back = plan.steps[0]
+    assert (back.start, back.land, back.start_z, back.land_z) == (where, lead.start, 0.05, 0.05)
+    assert back.slow and not back.check and back.lift_at > t   # the weight stays on the right
+    assert back.land_at - back.lift_at == pytest.approx(Timing().swing + Timing().climb)
+    stance = plan.zmp(np.array([back.lift_at]))
+    assert float(stance[0][0]) == pytest.approx(plan.feet["right"][0], abs=1e-6)
+    play(plan, plan.end_time() + 0.1)
+    assert plan.feet == FEET and plan.heights == {"left": 0.05, "right": 0.05}
+    assert plan.travelled == pytest.approx((0.0, 0.0, 0.0), abs=1e-9)

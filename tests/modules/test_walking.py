@@ -215,6 +215,33 @@ def test_a_step_up_sent_too_far_from_the_kerb_is_found_on_landing_and_the_foot_p
     assert not [w for w in module.warnings if "foothold" in w], module.warnings
 
 
+def test_a_step_down_sent_before_the_kerbs_edge_strikes_it_and_the_foot_is_put_back():
+    """Issue 32's other fall: ``step_down`` sent right after ``step_up``, not walked to the
+    far edge first, brings the left sole down onto the kerb it leaves, 5 cm above where it
+    was going (unwatched: 1.4 kN on it and the robot fell).  The touch on the way down is
+    found, the foot stays on the kerb and goes back where it lifted from, the robot stands
+    on the kerb, and walked to the edge the same step_down is made."""
+    world, module = walker("terrain")
+    backend = world.backend
+    _, end, height = TERRAIN_STEP
+    walk_through(world, module, "go_straight 0.12")
+    walk_through(world, module, "step_up 0.05")
+    walk_through(world, module, "step_down 0.05")    # asserts the robot upright throughout
+    assert sole_heights(backend) == pytest.approx((height, height), abs=0.005)  # on the kerb
+    found = [w for w in module.warnings if "foothold" in w]
+    assert len(found) == 1 and "the left sole met ground on its way 5 cm down" in found[0] \
+        and "putting the foot back" in found[0], found
+    world.step(1.0)
+    assert upright(backend) and both_feet_loaded(backend)
+    module.warnings.clear()
+    walk_through(world, module, "go_straight 0.48")  # the toes to the far edge
+    walk_through(world, module, "step_down 0.05")
+    world.step(1.0)
+    assert upright(backend) and both_feet_loaded(backend)
+    assert sole_heights(backend) == pytest.approx((0.0, 0.0), abs=0.005)
+    assert not module.warnings, module.warnings
+
+
 def test_a_step_the_legs_cannot_make_is_refused_with_a_warning_before_a_foot_lifts():
     world, module = walker("terrain")
     before = world.backend.positions()

@@ -45,14 +45,21 @@ stop threw the trailing foot's swing onto the kerb (tried: the ZMP within 3 mm
 of the feet's edge); pressing while the weight shifts on left the robot no way
 back (tried: it fell stepping back).
 
-Limits: steps down are not checked.  Landing toes first and waiting cost the
-step down its margin under load (tried: the guard tripped in 2 of 4 runs of the
-click test beside two CPU burners), and what it would find -- a step down sent
-too early, the heel landing on the kerb it leaves -- the robot falls from anyway:
-the sole strikes the kerb 5 cm above where it was going (1.5 kN on the first
-touch); that needs a landing that slows down and gives near the ground.
-Sagittal only: kerbs and steps cross the walk; a sole half over a side edge
-(debris beside a foot) is not checked.
+A step *down* is watched on its way instead (:class:`DescentCheck`).  Sent
+before the feet reach the kerb's far edge, its sole comes down on the kerb it
+leaves, 5 cm above where it was going: unwatched, the leg went on pressing it
+down -- 1.4 kN on the sole, the robot thrown off its standing foot and fallen.
+Watched, a sole that carries weight while the plan still has it more than
+:data:`STRIKE_ABOVE` above its landing has met ground early: it stays there, on
+the ground it left (the sole lags the plan: the plan had it 3.7 cm lower), the
+weight on the standing foot, and goes back where it lifted from
+(:meth:`walkman.control.footsteps.WalkPlan.strike`).  A step down that meets
+nothing early costs nothing: no tilt, no wait (landing toes first and waiting,
+tried before, cost the step down its margin under load: the guard tripped in 2
+of 4 runs of the click test beside two CPU burners).
+
+Limits: sagittal only: kerbs and steps cross the walk; a sole half over a side
+edge (debris beside a foot) is not checked.
 """
 
 from __future__ import annotations
@@ -87,6 +94,12 @@ SEEK_DEPTH = 0.015
 #: there is no way back (tried: waiting 0.3 s the robot fell stepping back, 0.4 s and 0.5 s
 #: it stood; each 0.1 s more costs the step course about 0.5 cm of ZMP margin)
 WAIT = 0.4
+#: m: a sole stepping down that carries weight while the plan has it this far above its
+#: landing met ground early.  The sole lags the plan on the way down (coming down a 5-cm
+#: step onto the kerb it left, it touched while the plan had it 1.3 cm above the floor:
+#: 3.7 cm behind); a sole landing as planned touched only after the plan had it down
+#: (measured: carrying no weight until then)
+STRIKE_ABOVE = 0.005
 
 
 @dataclass
@@ -190,3 +203,32 @@ class FootholdCheck:
         return (f"the {self.side} sole landed on its heel but bore {abs(reached) * 100:.0f} "
                 f"cm {where} its centre, {short * 100:.0f} cm from its heel (at most "
                 f"{REACH * 100:.0f}): its heel is over an edge")
+
+
+@dataclass
+class DescentCheck:
+    """One sole stepping down ``drop`` m, due to land at ``landing`` (the plan's time),
+    watched from its lift-off: it must not carry weight before it is near its landing
+    (:data:`STRIKE_ABOVE`)."""
+
+    side: str
+    drop: float
+    landing: float
+    #: the sole has been seen carrying no weight since it lifted (before that, the weight
+    #: still leaving it is no touch)
+    _free: bool = field(default=False, repr=False)
+
+    def sample(self, t: float, above_landing: float,
+               pressure: Optional[Tuple[float, float, float]]) -> Optional[str]:
+        """At ``t``, the plan's sole height above its landing (m) and the sole's measured
+        (px, py, fz) -- None when it carries no weight; returns why it struck, once, or
+        None."""
+        if pressure is None:
+            self._free = True
+            return None
+        if not self._free or above_landing <= STRIKE_ABOVE:
+            return None
+        self._free = False      # said once
+        return (f"the {self.side} sole met ground on its way {self.drop * 100:.0f} cm down, "
+                f"{self.landing - t:.2f} s before it should have landed ({pressure[2]:.0f} N "
+                f"on it): the ground it leaves goes on under it")

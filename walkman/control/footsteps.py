@@ -41,7 +41,9 @@ cannot make is refused whole, saying which step and why.  A step onto
 higher ground lands heel first and the weight waits on the other foot for
 ``Timing.foothold_wait`` while the walking module checks from the first touch that the
 heel bears (:mod:`walkman.control.foothold`); :meth:`WalkPlan.retreat` puts a foot
-whose heel does not bear back where it was.
+whose heel does not bear back where it was.  A step down is watched on its way, and a sole
+that meets the ground it leaves before its landing (a ``step_down`` sent before the kerb's
+far edge) stays there and goes back (:meth:`WalkPlan.strike`).
 
 :meth:`WalkPlan.zmp` samples that plan at any times (the preview controller of
 :mod:`walkman.control.lipm` looks 1.6 s ahead).  :meth:`WalkPlan.halt` keeps
@@ -169,6 +171,9 @@ class Step:
     land_ground: Ground = FLAT    # and where it lands
     #: its landing on higher ground is checked (False: it lands beside a sole that was)
     check: bool = True
+    #: swings as slowly as a step up or down, and twice as high (a foot going back where
+    #: it lifted from, after it struck the ground it left)
+    slow: bool = False
 
     @property
     def start_z(self) -> float:
@@ -458,7 +463,7 @@ class WalkPlan:
             after_climb = bool(timed) and timed[-1].climbs
             shift = timing.first_shift if (index == 0 and from_standing) or after_climb \
                 else timing.shift
-            swing = timing.swing + (timing.climb if step.climbs else 0.0)
+            swing = timing.swing + (timing.climb if step.climbs or step.slow else 0.0)
             stance = compose(feet[other(step.side)],
                              (0.0, timing.inward if step.side == "left" else -timing.inward,
                               0.0))
@@ -559,6 +564,25 @@ class WalkPlan:
         # where the foot stood a moment ago: no reach to check
         self._schedule([Step(step.side, self.feet[step.side], step.start, stride, 0.0, 0.0,
                              0.0, self.ground[step.side], step.start_ground)], t)
+        return 1
+
+    def strike(self, step: Step, t: float) -> int:
+        """``step``'s sole met ground on its way down, above where it was going (a step down
+        sent before the kerb's far edge): from ``t`` it stands where it is, on what it met,
+        and goes back where it lifted from, the weight still on the other foot; the rest of
+        the walk is dropped; returns the number of steps (1)."""
+        where, height = self.foot(step.side, t)
+        # The sole lags the plan coming down: what it met is at least the ground it left
+        # (touching a 5-cm kerb's top, the plan had it 1.3 cm above the floor); held at the
+        # plan's height, the leg would go on pressing down into it
+        met = Ground(max(height, step.start_z), step.pitch(t))
+        self.steps, self.set_aside = [], []
+        self.feet = {**self.feet, step.side: where}
+        self.ground = {**self.ground, step.side: met}
+        # where it stood a moment ago (no reach to check, nor its landing: it stood there)
+        self._schedule([Step(step.side, where, step.start, (0.0, 0.0, 0.0), 0.0, 0.0, 0.0,
+                             met, step.start_ground, check=False, slow=True)], t,
+                       from_standing=False)
         return 1
 
     def cancel(self, t: float) -> None:

@@ -39,7 +39,9 @@ The module cannot see a kerb's edge: a sole landing on higher ground comes
 down heel first and the first touch says whether the heel bears
 (:mod:`walkman.control.foothold`); if not -- a ``step_up`` sent from too far
 lands the heel over the lower floor -- the pilot is warned and the foot goes
-back where it lifted from before the weight goes onto it.
+back where it lifted from before the weight goes onto it.  A sole stepping down
+that meets ground on its way (a ``step_down`` sent before the kerb's far edge:
+the kerb it leaves) stays there and goes back the same way.
 
 On start the knees bend (the pelvis sinks ``CROUCH``) so that steps are within
 reach and the pendulum's height is constant while walking.  The pilot's
@@ -74,7 +76,7 @@ import numpy as np
 from walkman.control.balance import (AnkleCompliance, AttitudeLoop, BalanceGuard, Sole,
                                      combined_zmp, foot_zmp, rotation_rpy, support_margin,
                                      to_local)
-from walkman.control.foothold import FootholdCheck
+from walkman.control.foothold import STRIKE_ABOVE, DescentCheck, FootholdCheck
 from walkman.control.footsteps import SIDES, Planar, Step, WalkPlan, compose, inverse
 from walkman.control.lipm import PreviewAxis, preview_gains
 from walkman.control.trajectory import quintic
@@ -93,6 +95,8 @@ SOLE = np.array([0.03, 0.0, -0.10])   # the middle of the sole, in the foot fram
 CROUCH = 0.08                          # m the pelvis sinks at start: knees bent, steps reachable
 CROUCH_TIME = 1.5                      # s
 TICK_IK_ITERATIONS = 20
+#: rad: the least knee bend a leg's IK starts from each tick (see Module.unlocked)
+KNEE_UNLOCK = 0.1
 SETTLED_SPEED = 0.01                   # m/s: the CoM is at rest below this
 REPORT_PERIOD = 0.5                    # s between balance reports on the status port
 GAPS_KEPT = 300                        # ticks whose gaps a balance guard trip logs (3 s at 100 Hz)
@@ -192,6 +196,8 @@ class Module(TaskModule):
         self.height = (standing, crouched, self.now())
         self.pelvis_xy = -middle[:2]
         self.leg_index = {side: self.ik.joints_of(joints) for side, joints in LEGS.items()}
+        self.knee_index = {side: int(self.ik.joints_of([joints[3]])[0])
+                           for side, joints in LEGS.items()}
         waist = [self.robot.index[name] for name in WAIST]
         self.reference[waist] = 0.0  # upright
         com = self.kinematics.com(self.reference)
@@ -206,6 +212,8 @@ class Module(TaskModule):
         self.halted_for_pause = False
         self.foothold: Optional[FootholdCheck] = None   # a sole landing heel first
         self.foothold_step: Optional[Step] = None    # and its step
+        self.descent: Optional[DescentCheck] = None  # a sole stepping down
+        self.descent_step: Optional[Step] = None     # and its step
         self.legs = np.concatenate(list(self.leg_index.values()))
         self.stiffness = np.array([self.kinematics.robot.joint(self.robot.joint_names[i]).stiffness
                                    for i in self.legs])
@@ -299,6 +307,7 @@ class Module(TaskModule):
         super().forget_motions()
         self.plan.steps, self.plan.set_aside = [], []
         self.foothold = self.foothold_step = None
+        self.descent = self.descent_step = None
 
     # -- every tick ----------------------------------------------------------------------
 
@@ -370,6 +379,7 @@ class Module(TaskModule):
         yaw = (planar["left"][2] + planar["right"][2]) / 2
         tilt = self.sense_balance()
         self.check_foothold(now)
+        self.check_descent(now, flying)
         roll, pitch = self.attitude.update(dt, *self.roll_pitch)
         self.guard_check(now, tilt)
         start, end, t0 = self.height
@@ -400,9 +410,25 @@ class Module(TaskModule):
             result = self.ik.solve(FRAMES[side], target,
                                    rotation.T @ rotation_rpy(foot_roll, foot_pitch + ground_pitch,
                                                              foot_yaw),
-                                   self.reference, LEGS[side], offset=SOLE, restarts=0,
+                                   self.unlocked(side), LEGS[side], offset=SOLE, restarts=0,
                                    max_iterations=TICK_IK_ITERATIONS)
             self.reference[index] = result.q[index]
+
+    def unlocked(self, side: str) -> np.ndarray:
+        """The IK's seed for a leg: the reference, its knee bent by at least
+        :data:`KNEE_UNLOCK`.  A straight knee is a singularity the descent cannot leave: bending
+        it moves the foot across the leg, not along it, so a foot target that comes closer
+        to the hip is met by the hip and ankle and the knee stays pinned at its limit (tried: a
+        step down that struck the kerb it left, the foot held on it, then swung back -- the
+        knee straight for 0.9 s, the sole dragged over the kerb until the solution jumped to
+        a bent knee, 0.9 rad in one tick, and the robot fell).  A target that needs the knee
+        straight straightens it again within the tick's iterations."""
+        seed = self.reference
+        knee = self.knee_index[side]
+        if seed[knee] < KNEE_UNLOCK:
+            seed = seed.copy()
+            seed[knee] = KNEE_UNLOCK
+        return seed
 
     def check_foothold(self, now: float) -> None:
         """Sample the sole landing heel first; at the verdict, if the heel does not bear,
@@ -427,6 +453,29 @@ class Module(TaskModule):
             self.warn(f"foothold: {problem}; putting the foot back where it was, the rest "
                       f"of the walk dropped (walk closer and step again)")
             self.plan.retreat(self.foothold_step, now)
+
+    def check_descent(self, now: float, flying: Optional[Step]) -> None:
+        """Watch a sole stepping down: if it meets ground well above where it was going
+        (the kerb it leaves), say so; it stays there and goes back where it lifted from
+        (the rest of the walk dropped)."""
+        if flying is None or flying.land_z > flying.start_z - STRIKE_ABOVE:
+            self.descent = self.descent_step = None
+            return
+        if self.descent_step is not flying:
+            self.descent = DescentCheck(flying.side, flying.start_z - flying.land_z,
+                                        flying.land_at)
+            self.descent_step = flying
+        assert self.descent is not None
+        _, height = self.plan.foot(flying.side, now)
+        wrench = self.wrenches.get(flying.side)
+        problem = self.descent.sample(now, height - flying.land_z,
+                                      None if wrench is None else foot_zmp(wrench,
+                                                                           self.sole_shape))
+        if problem:
+            self.warn(f"foothold: {problem}; putting the foot back where it was, the rest of "
+                      f"the walk dropped (walk to the edge and step again)")
+            self.plan.strike(flying, now)
+            self.descent = self.descent_step = None
 
     def comply(self, dt: float, now: float, planar: Dict[str, Planar],
                paused: bool = False) -> Dict[str, np.ndarray]:
