@@ -96,7 +96,18 @@ KNOWN: Tuple[Known, ...] = (
           "the first command beat the connection keeper (44637d4)"),
     Known("tests/system/test_hostile_peers.py::"
           "test_every_program_keeps_serving_under_hostile_peers",
-          "a flood locked a real rosservice call out (01ba698)"),
+          "a flood locked a real rosservice call out (01ba698); the robot name server under a "
+          "1000-connection flood did not answer `yarp-lite wait` within 20 s (fc13 of the "
+          "sixth 2026-11-27 session, beside the PI start loop: load 11 on 2 cores)"),
+    Known("tests/integration/test_text_and_cli.py::test_cli_conf_namespace_where_clean",
+          "`yarp-lite clean` got 'connection refused' from the test's name server right after "
+          "it had served `name register /ghost`; its log ended there, no error (fc13 of the "
+          "sixth session, beside the PI start loop); 60 runs since passed; a failed test's "
+          "dump now says how each program ended (6d09c3c); open"),
+    Known("tests/modules/test_drc_drive.py::test_steer_and_accelerate",
+          "the status's measured wheel angle 0.13 rad short of the world's: the status before "
+          "the wheel settled (fc14 of the sixth, beside the PI start loop; waits for the "
+          "next since: afa4c6b)"),
     Known("tests/system/test_pilot_gui.py::"
           "test_the_wall_task_by_clicks_cuts_the_circle_in_the_world",
           "a whole cut judged 340 of 360 degrees: the bit sampled, not swept (fc15; 0bc5197)"),
@@ -142,7 +153,10 @@ KNOWN: Tuple[Known, ...] = (
           "(out/failed/) and the module's stacks (SIGUSR1).  Found (d9f9ecf): the 40-line "
           "tail was a *second* module process ('state stopped'): the watchdog beat nothing "
           "while it waited for the quit's hooks (2 s each), the supervisor killed the "
-          "quitting module after 5 s of silence and restarted it, stopped, for ever"),
+          "quitting module after 5 s of silence and restarted it, stopped, for ever; again "
+          "(fc14 of the sixth, beside the PI start loop): the quit's hooks were done, then "
+          "closing its ports took over 5 s -- the runner now says QUITTING and the supervisor "
+          "gives it 30 s, never a restart (4c2bf2a)"),
     Known("tests/system/test_pilot_gui.py::"
           "test_the_wall_task_by_clicks_cuts_the_circle_in_the_world",
           "'approach is disabled' right after 'reach -> reached' (fc2; not found, the driver "
