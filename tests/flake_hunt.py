@@ -97,16 +97,16 @@ KNOWN: Tuple[Known, ...] = (
     Known("tests/system/test_hostile_peers.py::"
           "test_every_program_keeps_serving_under_hostile_peers",
           "a flood locked a real rosservice call out (01ba698); the robot name server under a "
-          "1000-connection flood did not answer `yarp-lite wait` within 20 s (fc13 of the "
-          "sixth 2026-11-27 session, beside the PI start loop: load 11 on 2 cores)"),
+          "1000-connection flood did not answer `yarp-lite wait` within 20 s (fc13 of "
+          "2026-11-28, beside the PI start loop: load 11 on 2 cores)"),
     Known("tests/integration/test_text_and_cli.py::test_cli_conf_namespace_where_clean",
           "`yarp-lite clean` got 'connection refused' from the test's name server right after "
-          "it had served `name register /ghost`; its log ended there, no error (fc13 of the "
-          "sixth session, beside the PI start loop); 60 runs since passed; a failed test's "
+          "it had served `name register /ghost`; its log ended there, no error (fc13 of "
+          "2026-11-28, beside the PI start loop); 60 runs since passed; a failed test's "
           "dump now says how each program ended (6d09c3c); open"),
     Known("tests/modules/test_drc_drive.py::test_steer_and_accelerate",
           "the status's measured wheel angle 0.13 rad short of the world's: the status before "
-          "the wheel settled (fc14 of the sixth, beside the PI start loop; waits for the "
+          "the wheel settled (fc14 of 2026-11-28, beside the PI start loop; waits for the "
           "next since: afa4c6b)"),
     Known("tests/system/test_pilot_gui.py::"
           "test_the_wall_task_by_clicks_cuts_the_circle_in_the_world",
@@ -154,7 +154,7 @@ KNOWN: Tuple[Known, ...] = (
           "tail was a *second* module process ('state stopped'): the watchdog beat nothing "
           "while it waited for the quit's hooks (2 s each), the supervisor killed the "
           "quitting module after 5 s of silence and restarted it, stopped, for ever; again "
-          "(fc14 of the sixth, beside the PI start loop): the quit's hooks were done, then "
+          "(fc14 of 2026-11-28, beside the PI start loop): the quit's hooks were done, then "
           "closing its ports took over 5 s -- the runner now says QUITTING and the supervisor "
           "gives it 30 s, never a restart (4c2bf2a)"),
     Known("tests/system/test_pilot_gui.py::"
