@@ -489,20 +489,25 @@ def drag_marker() -> None:
     say(f"STEP marker dragged: valve pose {values}")
 
 
-def walk(command: str, fields=()) -> None:
+def walk(command: str, fields=(), expected: str = "") -> None:
     """A walking command by clicks: its fields typed, the timed button counted down, then
-    the walk until the module is idle again (the robot standing)."""
+    the walk until the module is idle again (the robot standing).  ``expected``: the walk
+    must end in a foothold warning containing it (a landing put back), else in none."""
     walking = widget("walking")
+    before = walking.warnings.count()
     for field, value in zip(walking.fields.get(command, []), fields):
         field.setValue(value)
     click(walking.buttons[command], f"walking {command}", walking)
     wait(lambda: walking.state not in ("idle", None), 60, f"walking to start {command}")
     wait(lambda: walking.state == "idle", 120, f"walking idle after {command}")
-    shown = [walking.warnings.item(i).text() for i in range(walking.warnings.count())]
+    shown = [walking.warnings.item(i).text() for i in range(before, walking.warnings.count())]
     # the guard tripped (the walk was cut) or a landing was put back (walking.foothold)
-    if any("balance" in text or "foothold" in text for text in shown):
-        fail(f"walking {command}: {shown}")
-    say(f"STEP walking {command} {' '.join(map(str, fields))} done".replace("  ", " "))
+    if any("balance" in text for text in shown) or \
+            [text for text in shown if "foothold" in text and expected not in text] or \
+            (expected and not any(expected in text for text in shown)):
+        fail(f"walking {command}: {shown}" + (f" (expected {expected!r})" if expected else ""))
+    say(f"STEP walking {command} {' '.join(map(str, fields))} done".replace("  ", " ") +
+        (f" with the warning {expected!r}" if expected else ""))
 
 
 def terrain() -> None:
@@ -518,6 +523,10 @@ def terrain() -> None:
     say("STEP walking started")
     walk("go_straight", [0.12])
     walk("step_up", [0.05, 0.33])
+    # sent before the far edge: the sole comes down on the kerb it leaves, and goes back
+    walk("step_down", [0.05, 0.33], expected="met ground on its way 5 cm down")
+    pump(1.0)
+    window.screenshot(OUT / "terrain-step-down-put-back.png")
     wait(lambda: window.soles() is not None, 30, "the robot's joint state")
     for _ in range(2):
         click(walking.add_button, "add footstep", walking)
