@@ -104,6 +104,10 @@ KNOWN: Tuple[Known, ...] = (
           "it had served `name register /ghost`; its log ended there, no error (fc13 of "
           "2026-11-28, beside the PI start loop); 60 runs since passed; a failed test's "
           "dump now says how each program ended (6d09c3c); open"),
+    Known("tests/bridge/test_rogue_host.py::test_a_rogue_on_the_radio_gets_nothing_executed",
+          "the pilot's 250 commands (25 s) ended before the attacks did (fc15 of 2026-11-28, "
+          "beside the PI start loop and a flake hunt: load up to 29); the pilot commands until "
+          "told since"),
     Known("tests/modules/test_drc_drive.py::test_steer_and_accelerate",
           "the status's measured wheel angle 0.13 rad short of the world's: the status before "
           "the wheel settled (fc14 of 2026-11-28, beside the PI start loop; waits for the "

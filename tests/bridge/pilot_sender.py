@@ -5,10 +5,12 @@ for N in FIRST..LAST to TARGET (e.g. ``/counter/command:i``) over tcp, which
 YARP acknowledges; when a write fails it reconnects and sends the same N again,
 as a pilot GUI would.  Prints ``sent N`` after each acknowledged write, and
 ``not accepted N`` once when N first fails (tests wait for it to know the
-pilot noticed an outage).
+pilot noticed an outage).  LAST ``-``: until its stdin closes (a test that
+needs the pilot commanding through phases of unknown length), then ``last N``.
 """
 
 import sys
+import threading
 import time
 
 from yarp_lite.bottle import Bottle
@@ -16,12 +18,18 @@ from yarp_lite.port import Port
 
 
 def main() -> int:
-    target, first, last = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+    target, first = sys.argv[1], int(sys.argv[2])
     interval = float(sys.argv[4]) if len(sys.argv) > 4 else 0.05
+    told = threading.Event()
+    if sys.argv[3] == "-":
+        last = sys.maxsize
+        threading.Thread(target=lambda: (sys.stdin.read(), told.set()), daemon=True).start()
+    else:
+        last = int(sys.argv[3])
     port = Port()
     port.open(f"/test/sender{first}", wait=60)
     number, refused = first, None
-    while number <= last:
+    while number <= last and not told.is_set():
         if (port.output_count or port.add_output(target, quiet=True)) and \
                 port.write(Bottle([Bottle(["count", number]), number])) and port.output_count:
             print(f"sent {number}", flush=True)
@@ -32,6 +40,8 @@ def main() -> int:
             print(f"not accepted {number}", flush=True)
             refused = number
         time.sleep(0.2)
+    if told.is_set():
+        print(f"last {number - 1}", flush=True)
     port.close()
     return 0
 

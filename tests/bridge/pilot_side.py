@@ -9,7 +9,7 @@ writes each command it executes to ``$COUNTER_LOG``; the pilot sends with
 from __future__ import annotations
 
 from pathlib import Path
-from typing import List
+from typing import List, Optional
 
 from bridge_harness import HERE, Side, TwoPCs
 from harness import Implementation, Proc, wait_until
@@ -22,10 +22,13 @@ def executed(log: Path) -> List[int]:
     return [e.seq for e in read_log(log) if e.name == "count"]
 
 
-def send(pcs: TwoPCs, first: int, last: int, interval: float = 0.05) -> Proc:
-    """``(count N) N`` for N in first..last to the module, insisting until each is accepted."""
+def send(pcs: TwoPCs, first: int, last: Optional[int], interval: float = 0.05) -> Proc:
+    """``(count N) N`` for N in first..last to the module, insisting until each is accepted;
+    ``last`` None: until the sender's stdin is closed (it then prints ``last N``)."""
     return pcs.pilot.python(str(HERE / "pilot_sender.py"), "/counter/command:i", str(first),
-                            str(last), str(interval), name=f"sender {first}-{last}")
+                            "-" if last is None else str(last), str(interval),
+                            name=f"sender {first}-{'' if last is None else last}",
+                            stdin=last is None)
 
 
 GYM_PORTS = ("switch:i", "command:i", "status:o", "warning:o")

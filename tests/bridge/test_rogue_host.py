@@ -47,7 +47,6 @@ CONFIG = """<bridge period="0.5" gather="0.4">
   </custom_modules>
 </bridge>
 """
-COMMANDS = 250          # one every 0.1 s: the pilot commands through every phase
 STRANGER_DATAGRAMS, FORGED_DATAGRAMS, REPLAYED_DATAGRAMS = 5, 10, 20
 ATTACKED = ("stranger", "unauthenticated", "forged", "replayed", "malformed")
 
@@ -133,7 +132,7 @@ def test_a_rogue_on_the_radio_gets_nothing_executed(pcs: TwoPCs, lite, link: Emu
     pcs.pilot.python(str(HERE / "pilot_sender.py"), "/joystick/axes:i", "1000000", "9999999",
                      "0.05", name="joystick")
     switch(pcs, lite, "start", 2)
-    sender = send(pcs, 1, COMMANDS, interval=0.1)
+    sender = send(pcs, 1, None, interval=0.1)   # until told: through every phase
     run(capture, 60)
 
     def progress() -> int:
@@ -187,9 +186,12 @@ def test_a_rogue_on_the_radio_gets_nothing_executed(pcs: TwoPCs, lite, link: Emu
     wait_until(lambda: progress() > resumed, 30, message="the pilot's commands after reconnecting")
     assert sender.popen.poll() is None, "the pilot stopped commanding before phase two ended"
 
+    sender.close_stdin()                         # the attacks are over: the pilot stops
     assert sender.wait(120) == 0, sender.output()
+    last = int(sender.wait_for(r"^last (\d+)", 10).group(1))
+    assert last > executed_during, sender.output()
     wait_nothing_in_flight(pcs, lite)
-    assert executed_lines(pcs.log) == [f"count {n}" for n in range(1, COMMANDS + 1)]
+    assert executed_lines(pcs.log) == [f"count {n}" for n in range(1, last + 1)]
     final = status(pcs.robot, lite)
     assert (final["internal_errors"], final["tcp"]["internal_errors"],
             final["udp"]["internal_errors"]) == (0, 0, 0), "the attack hit a bug in the bridge"
