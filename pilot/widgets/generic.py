@@ -123,6 +123,7 @@ class GenericWidget(QGroupBox):
         self.warnings = QListWidget()
         self.warnings.setObjectName("warnings")
         self.warnings.setMaximumHeight(90)
+        self.warnings.setWordWrap(True)     # a warning reads whole, not cut at the edge
         body.addWidget(self.warnings)
         outer.addWidget(self.body)
         self.refresh()

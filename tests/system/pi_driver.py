@@ -35,6 +35,7 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import List
 
 from python_qt_binding.QtCore import Qt
 from python_qt_binding.QtTest import QTest
@@ -494,13 +495,17 @@ def walk(command: str, fields=(), expected: str = "") -> None:
     the walk until the module is idle again (the robot standing).  ``expected``: the walk
     must end in a foothold warning containing it (a landing put back), else in none."""
     walking = widget("walking")
-    before = walking.warnings.count()
+
+    def warnings() -> List[str]:
+        return [walking.warnings.item(i).text() for i in range(walking.warnings.count())]
+
+    before = set(warnings())        # (each line has its time: a new one is a new line)
     for field, value in zip(walking.fields.get(command, []), fields):
         field.setValue(value)
     click(walking.buttons[command], f"walking {command}", walking)
     wait(lambda: walking.state not in ("idle", None), 60, f"walking to start {command}")
     wait(lambda: walking.state == "idle", 120, f"walking idle after {command}")
-    shown = [walking.warnings.item(i).text() for i in range(before, walking.warnings.count())]
+    shown = [text for text in warnings() if text not in before]
     # the guard tripped (the walk was cut) or a landing was put back (walking.foothold)
     if any("balance" in text for text in shown) or \
             [text for text in shown if "foothold" in text and expected not in text] or \
