@@ -90,7 +90,12 @@ KNOWN: Tuple[Known, ...] = (
           "test_persistent_connection_made_when_ports_appear_and_after_restart",
           "all-real-YARP persistence: stale connection 'already present' (ci15; 77e6ab9, a474bd1)"),
     Known("tests/system/test_chaos.py::test_three_rounds_with_a_link_cut_on_emulated_hosts",
-          "8 commands expired: the gateway stamped 10 s validity (23c97c0)"),
+          "8 commands expired: the gateway stamped 10 s validity (23c97c0); one command lost "
+          "(fc17 of 2026-11-28, beside the PI start loop): the witness module receipted "
+          "'accepted' for count 34 and was killed -9 by round 3 before its control thread ran "
+          "it -- 'accepted' is terminal and no one says the command died with the process; "
+          "open (a design gap: the restarted module could report what its predecessor took "
+          "and never ran)"),
     Known("tests/system/test_pc_launcher.py::"
           "test_launchers_bring_up_both_pcs_and_a_plain_shell_pilots_the_robot",
           "the first command beat the connection keeper (44637d4)"),
