@@ -171,8 +171,8 @@ class Step:
     land_ground: Ground = FLAT    # and where it lands
     #: its landing on higher ground is checked (False: it lands beside a sole that was)
     check: bool = True
-    #: swings as slowly as a step up or down, and twice as high (a foot going back where
-    #: it lifted from, after it struck the ground it left)
+    #: swings as slowly as a step up or down (a foot going back where it lifted from,
+    #: after it struck the ground it left)
     slow: bool = False
 
     @property

@@ -379,7 +379,7 @@ class Module(TaskModule):
         yaw = (planar["left"][2] + planar["right"][2]) / 2
         tilt = self.sense_balance()
         self.check_foothold(now)
-        self.check_descent(now, flying)
+        self.check_descent(now, flying, feet)
         roll, pitch = self.attitude.update(dt, *self.roll_pitch)
         self.guard_check(now, tilt)
         start, end, t0 = self.height
@@ -454,7 +454,8 @@ class Module(TaskModule):
                       f"of the walk dropped (walk closer and step again)")
             self.plan.retreat(self.foothold_step, now)
 
-    def check_descent(self, now: float, flying: Optional[Step]) -> None:
+    def check_descent(self, now: float, flying: Optional[Step],
+                      feet: Dict[str, Tuple[Planar, float]]) -> None:
         """Watch a sole stepping down: if it meets ground well above where it was going
         (the kerb it leaves), say so; it stays there and goes back where it lifted from
         (the rest of the walk dropped)."""
@@ -466,7 +467,7 @@ class Module(TaskModule):
                                         flying.land_at)
             self.descent_step = flying
         assert self.descent is not None
-        _, height = self.plan.foot(flying.side, now)
+        _, height = feet[flying.side]          # the plan's, this tick
         wrench = self.wrenches.get(flying.side)
         problem = self.descent.sample(now, height - flying.land_z,
                                       None if wrench is None else foot_zmp(wrench,
