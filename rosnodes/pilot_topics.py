@@ -20,6 +20,7 @@ log = logging.getLogger("walkman.gateway")
 
 #: The lives a gateway also writes in its log: those that did not simply go ahead.
 LOGGED_STATES = (CommandState.REFUSED, CommandState.EXPIRED, CommandState.CANCELLED,
+                 CommandState.INTERRUPTED,
                  CommandState.QUEUED)
 
 

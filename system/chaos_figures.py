@@ -15,11 +15,12 @@ the records of :mod:`system.chaos_record` into the figures of
   run, in the order it ran them, with when it started and the lifetime it
   arrived with;
 * ``ended``: the commands that ended without running, and how (``expired``,
-  ``cancelled``), from the pilot's view of their lives and the programs' logs;
+  ``cancelled``, ``interrupted``: the module's process died holding it and its next
+  process said so), from the pilot's view of their lives and the programs' logs;
 * ``statuses``: every ``/M/status`` message the pilot received, with its time.
 
 A command is *lost* when it was sent, never executed, and did not end as
-expired or cancelled; *duplicated* when it ran more than once, *out of order*
+expired, cancelled or interrupted; *duplicated* when it ran more than once, *out of order*
 when it ran after a command sent later had already run.  A command that ran
 without ever being logged as sent is counted apart (*unacknowledged*): the
 gateway was killed between the write and its log line, and neither the pilot
@@ -92,7 +93,7 @@ def blackouts(seed: int, duration: float, gap: Tuple[float, float] = (30.0, 120.
 # -- commands ---------------------------------------------------------------------------------
 
 
-EXPIRED, CANCELLED = "expired", "cancelled"
+EXPIRED, CANCELLED, INTERRUPTED = "expired", "cancelled", "interrupted"
 #: Seconds a command's wall-clock age may exceed its validity when it starts: the hops its
 #: lifetime does not count (the gateway's write into the pilot bridge, the wire between the
 #: bridges, the robot bridge's write into the module: milliseconds, 0.13 s on a degraded
@@ -117,12 +118,15 @@ class Commands:
     #: sent, not run, and accounted for: refused as too old, or taken back by the pilot
     expired: List[int] = field(default_factory=list)
     cancelled: List[int] = field(default_factory=list)
+    #: sent, not run, and told: the module's process died holding it (killed with it)
+    interrupted: List[int] = field(default_factory=list)
 
 
 def commands(sent: Sequence[Tuple[int, int]], accepted: Sequence[int],
              executed: Sequence[int], ended: Mapping[int, str] = {}) -> Commands:
     """Lost, duplicated and out-of-order commands from ``(N, seq)`` sent, seqs executed and
-    how the others ended (``ended``: seq -> :data:`EXPIRED` or :data:`CANCELLED`)."""
+    how the others ended (``ended``: seq -> :data:`EXPIRED`, :data:`CANCELLED` or
+    :data:`INTERRUPTED`)."""
     order = {seq: index for index, (_, seq) in enumerate(sent)}
     number = {seq: n for n, seq in sent}
     out = Commands(sent=len(order), accepted=len(accepted), executed=len(executed))
@@ -143,8 +147,8 @@ def commands(sent: Sequence[Tuple[int, int]], accepted: Sequence[int],
         if seq in ran:
             continue
         how = ended.get(seq)
-        (out.expired if how == EXPIRED else out.cancelled if how == CANCELLED
-         else out.lost).append(seq)
+        {EXPIRED: out.expired, CANCELLED: out.cancelled,
+         INTERRUPTED: out.interrupted}.get(how, out.lost).append(seq)
     runs_of: Dict[int, int] = {}
     for seq in ran:
         if seq in number:
@@ -153,10 +157,12 @@ def commands(sent: Sequence[Tuple[int, int]], accepted: Sequence[int],
     return out
 
 
-def endings(expired: Collection[int], cancelled: Collection[int]) -> Dict[int, str]:
+def endings(expired: Collection[int], cancelled: Collection[int],
+            interrupted: Collection[int] = ()) -> Dict[int, str]:
     """seq -> how it ended without running; a cancel the bridge confirmed wins (a command
     it took back never reached the module that could have called it expired)."""
-    ended = {seq: EXPIRED for seq in expired}
+    ended = {seq: INTERRUPTED for seq in interrupted}
+    ended.update({seq: EXPIRED for seq in expired})
     ended.update({seq: CANCELLED for seq in cancelled})
     return ended
 

@@ -102,6 +102,10 @@ class Record:
     def expired(self) -> Set[int]:
         return {seq for seq, state in self.states.items() if state == "expired"}
 
+    def interrupted(self) -> Set[int]:
+        """Seqs the pilot heard the module's next process say its dead one held."""
+        return {seq for seq, state in self.states.items() if state == "interrupted"}
+
 
 def sent_commands(lines: Iterable[str]) -> List[Tuple[int, int]]:
     """``(N, seq)`` a gateway logged writing to the witness's port, in its order."""

@@ -54,6 +54,7 @@ def summarize(record: Record, sent: Sequence[Tuple[int, int]], ended: Mapping[in
         "short_lived": len([a for a in record.accepted if a.get("validity")]),
         "cancel_asked": len([a for a in record.accepted if a.get("cancel")]),
         "expired": len(counted.expired), "cancelled": len(counted.cancelled),
+        "interrupted_commands": len(counted.interrupted),
         "lost": len(counted.lost), "duplicated": len(counted.duplicated),
         "out_of_order": len(counted.out_of_order),
         "late": len(checked.late), "cancelled_ran": len(checked.cancelled_ran),
@@ -159,8 +160,8 @@ def table(summary: dict) -> str:
             ("commands sent / executed", f"{f['sent']} / {f['executed']}", "", ""),
             (f"  short-lived ({short}) / cancel asked",
              f"{f['short_lived']} / {f['cancel_asked']}", "", ""),
-            ("  ended expired / cancelled (not run)", f"{f['expired']} / {f['cancelled']}",
-             "", ""),
+            ("  ended expired / cancelled / interrupted (not run)",
+             f"{f['expired']} / {f['cancelled']} / {f.get('interrupted_commands', 0)}", "", ""),
             ("lost", fmt(f["lost"]), "0", mark("lost")),
             ("duplicated", fmt(f["duplicated"]), "0", mark("duplicated")),
             ("out of order", fmt(f["out_of_order"]), "0", mark("out_of_order")),
@@ -199,10 +200,12 @@ def table(summary: dict) -> str:
 
 DEFINITIONS = (
     "*Lost*: logged as sent by the gateway (the bridge acknowledged it), never executed by "
-    "the witness, and neither expired nor cancelled; *duplicated*: executed twice; *out of "
-    "order*: executed after a command sent later.  *Expired*: refused by the module as older "
-    "than its validity (every few commands are sent short-lived); *cancelled*: taken back by "
-    "the pilot (`/counter/cancel`) while the pilot bridge still held it -- both told by "
+    "the witness, and neither expired nor cancelled nor interrupted; *duplicated*: executed "
+    "twice; *out of order*: executed after a command sent later.  *Expired*: refused by the "
+    "module as older than its validity (every few commands are sent short-lived); "
+    "*cancelled*: taken back by the pilot (`/counter/cancel`) while the pilot bridge still "
+    "held it; *interrupted*: the module's process was killed holding it, and its next process "
+    "said so and did not run it -- all told by "
     "`/pilot/command_states`, the gateway's answer, or the bridge's and the module's logs.  "
     "*Ran after their deadline*: the witness started it with a lifetime already past its "
     "validity, or later than the pilot's send time + validity + "

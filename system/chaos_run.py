@@ -328,7 +328,7 @@ class Chaos:
 
     def drain(self, timeout: float) -> None:
         """Have the pilot send no more (it goes on watching), then give every command sent
-        ``timeout`` s to end: run, or refused as expired, or cancelled."""
+        ``timeout`` s to end: run, or refused as expired, cancelled, or interrupted."""
         pilot = self.topology.pilot.processes[PILOT]
         if pilot.popen.poll() is None:
             pilot.popen.send_signal(signal.SIGUSR1)
@@ -359,13 +359,13 @@ class Chaos:
         return sent_commands(self.lines_of("pilot:gateway"))
 
     def ended(self, sent: Sequence[Tuple[int, int]]) -> Dict[int, str]:
-        """seq -> expired or cancelled, for the commands that ended without running: what
-        the pilot heard, and what the pilot bridge and the witness logged."""
+        """seq -> expired, cancelled or interrupted, for the commands that ended without
+        running: what the pilot heard, and what the pilot bridge and the witness logged."""
         cancelled = self.record.cancelled() | \
             cancelled_by_bridge(self.lines_of("pilot:bridge_pilot"))
         expired = self.record.expired() | seqs_of_numbers(
             expired_at_module(self.lines_of(f"robot:{WITNESS_MODULE}")), sent, self.ran)
-        return figures.endings(expired, cancelled)
+        return figures.endings(expired, cancelled, self.record.interrupted())
 
     def close(self) -> Dict[str, list]:
         """Stop everything, then count (and kill) what is left.  Safe to call on any failure."""

@@ -139,7 +139,8 @@ class YarpWorld:
     def env(self) -> Dict[str, str]:
         env = dict(os.environ)
         env.update({"YARP_CONFIG_HOME": str(self.config), "YARP_DATA_HOME": str(self.data),
-                    "PYTHONUNBUFFERED": "1"})
+                    # a module's command journal and a bridge's, this world's own
+                    "XDG_STATE_HOME": str(self.root / "state"), "PYTHONUNBUFFERED": "1"})
         env.pop("YARP_NAMESPACE", None)
         env.pop("YARP_PORT_PREFIX", None)
         if self.namespace != "/root":
@@ -164,7 +165,7 @@ class YarpWorld:
     def apply_to_process(self, monkeypatch) -> None:
         """Point in-process yarp_lite code at this world (via monkeypatch)."""
         for key, value in self.env.items():
-            if key.startswith("YARP"):
+            if key.startswith("YARP") or key == "XDG_STATE_HOME":
                 monkeypatch.setenv(key, value)
         if self.namespace == "/root":
             monkeypatch.delenv("YARP_NAMESPACE", raising=False)

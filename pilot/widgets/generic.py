@@ -252,7 +252,7 @@ class GenericWidget(QGroupBox):
             self.queued[event.seq] = event.text
         else:
             self.queued.pop(event.seq, None)
-        if event.state in ("refused", "expired"):
+        if event.state in ("refused", "expired", "interrupted"):
             self.on_warning(WarningEvent(self.module, f"`{event.text}` {event.state}: "
                                                      f"{event.reason}", event.stamp))
         self.refresh()

@@ -87,7 +87,7 @@ class LogView(QTextEdit):
 
     #: The states of a command worth a line: what the pilot must know happened to it.
     TOLD = {"queued": "#2f6fd0", "refused": "#d00000", "expired": "#d00000",
-            "cancelled": "#606060"}
+            "interrupted": "#d00000", "cancelled": "#606060"}
 
     def on_command_state(self, event: CommandStateEvent) -> None:
         colour = self.TOLD.get(event.state)

@@ -155,6 +155,9 @@ def test_queued_commands_are_listed_with_a_cancel_and_their_end_is_told(qt):
     widget.on_command_state(state(43, "home", "expired", "too old"))
     assert widget.cancel_button.isHidden()
     assert warnings(widget)[0].endswith("`home` expired: too old")
+    widget.on_command_state(state(44, "look_at 0 0 1", "accepted"))
+    widget.on_command_state(state(44, "look_at 0 0 1", "interrupted", "its process died"))
+    assert warnings(widget)[0].endswith("`look_at 0 0 1` interrupted: its process died")
 
 
 def test_the_log_says_when_the_link_goes_and_comes_back(qt):

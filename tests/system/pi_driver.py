@@ -508,7 +508,8 @@ def walk(command: str, fields=(), expected: str = "") -> None:
     shown = [text for text in warnings() if text not in before]
     # the guard tripped (the walk was cut) or a landing was put back (walking.foothold)
     if any("balance" in text for text in shown) or \
-            [text for text in shown if "foothold" in text and expected not in text] or \
+            [text for text in shown if "foothold" in text and
+             (not expected or expected not in text)] or \
             (expected and not any(expected in text for text in shown)):
         fail(f"walking {command}: {shown}" + (f" (expected {expected!r})" if expected else ""))
     say(f"STEP walking {command} {' '.join(map(str, fields))} done".replace("  ", " ") +
@@ -551,7 +552,10 @@ def terrain() -> None:
     pump(1.0)
     window.screenshot(OUT / "terrain-footsteps.png")
     walk("footsteps")
-    walk("go_straight", [0.33])
+    # the toes to 1 cm from the far edge: the 0.33-m step down then lands its heel 6 cm past
+    # it (from 4 cm short, 3 cm past: fc21 of 2026-11-28 under load, the heel caught the edge
+    # on its way down, the foot was put back, and walk() did not see that warning)
+    walk("go_straight", [0.36])
     walk("step_down", [0.05, 0.33])
     say("DONE")
 

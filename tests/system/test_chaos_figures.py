@@ -99,14 +99,15 @@ def test_growth_after_the_warm_up_and_bounded_sizes():
 # -- commands that end without running ---------------------------------------------------------
 
 
-def test_an_expired_or_cancelled_command_is_accounted_for_not_lost():
-    sent = [(1, 10), (2, 20), (3, 30), (4, 40)]
-    ended = figures.endings(expired=[20], cancelled=[30])
-    counted = figures.commands(sent, [10, 20, 30, 40], [10], ended)
+def test_an_expired_cancelled_or_interrupted_command_is_accounted_for_not_lost():
+    sent = [(1, 10), (2, 20), (3, 30), (4, 40), (5, 50)]
+    ended = figures.endings(expired=[20], cancelled=[30], interrupted=[50])
+    counted = figures.commands(sent, [10, 20, 30, 40, 50], [10], ended)
     assert counted.expired == [20] and counted.cancelled == [30]
+    assert counted.interrupted == [50]          # its module killed holding it, and said so
     assert counted.lost == [40]                 # no word of how it ended: lost
-    # Without the endings the same record loses three.
-    assert figures.commands(sent, [10, 20, 30, 40], [10]).lost == [20, 30, 40]
+    # Without the endings the same record loses four.
+    assert figures.commands(sent, [10, 20, 30, 40, 50], [10]).lost == [20, 30, 40, 50]
 
 
 def test_a_cancel_the_bridge_confirmed_wins_over_an_expiry():

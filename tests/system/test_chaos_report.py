@@ -5,7 +5,7 @@ goal and a row of the report."""
 from __future__ import annotations
 
 from system import chaos
-from system.chaos_figures import CANCELLED, EXPIRED, Fault
+from system.chaos_figures import CANCELLED, EXPIRED, INTERRUPTED, Fault
 from system.chaos_record import Record, RoundResult
 from system.chaos_report import markdown, summarize, table
 from walkman.modules.witness import Execution
@@ -31,21 +31,22 @@ def summary_of(record, sent, ended, tmp_path) -> dict:
     return summarize(record, sent, ended, options, False, NO_LEAKS, 10.0, False, "")
 
 
-def test_expired_and_cancelled_commands_count_apart_and_pass(tmp_path):
+def test_expired_cancelled_and_interrupted_commands_count_apart_and_pass(tmp_path):
     accepted = [{"t": 100.0, "n": 1, "seq": 10, "validity": 0.0, "cancel": False},
                 {"t": 101.0, "n": 2, "seq": 20, "validity": 3.0, "cancel": False},
                 {"t": 102.0, "n": 3, "seq": 30, "validity": 0.0, "cancel": True},
-                {"t": 103.0, "n": 4, "seq": 40, "validity": 3.0, "cancel": False}]
+                {"t": 103.0, "n": 4, "seq": 40, "validity": 3.0, "cancel": False},
+                {"t": 103.5, "n": 5, "seq": 50, "validity": 0.0, "cancel": False}]
     record = record_of([Execution("count", 10, 100.1), Execution("count", 40, 104.0, 0.1, 3.0)],
                        accepted)
-    summary = summary_of(record, [(1, 10), (2, 20), (3, 30), (4, 40)],
-                         {20: EXPIRED, 30: CANCELLED}, tmp_path)
+    summary = summary_of(record, [(1, 10), (2, 20), (3, 30), (4, 40), (5, 50)],
+                         {20: EXPIRED, 30: CANCELLED, 50: INTERRUPTED}, tmp_path)
     f = summary["figures"]
-    assert (f["expired"], f["cancelled"], f["lost"], f["late"], f["cancelled_ran"]) == \
-        (1, 1, 0, 0, 0)
+    assert (f["expired"], f["cancelled"], f["interrupted_commands"], f["lost"], f["late"],
+            f["cancelled_ran"]) == (1, 1, 1, 0, 0, 0)
     assert (f["short_lived"], f["cancel_asked"], f["deadline_checked"]) == (2, 1, 1)
     assert all(summary["goals"].values()), summary["goals"]
-    assert "ended expired / cancelled (not run)" in table(summary)
+    assert "ended expired / cancelled / interrupted (not run)" in table(summary)
 
 
 def test_a_late_and_a_cancelled_command_that_ran_miss_their_goals(tmp_path):

@@ -181,7 +181,7 @@ def test_the_terrain_course_by_clicks_with_footsteps_placed_in_the_3d_view(tmp_p
     robot stands on the floor past the step."""
     with clicked_on_drc(tmp_path, display, request, emulated_link, "walking", "terrain",
                         "--station", "terrain", "--harness", "off") as (topology, pi):
-        for step in ("go_straight 0.12", "step_up 0.05 0.33", "footsteps", "go_straight 0.33",
+        for step in ("go_straight 0.12", "step_up 0.05 0.33", "footsteps", "go_straight 0.36",
                      "step_down 0.05 0.33"):
             assert f"STEP walking {step} done" in pi.output(), pi.output()
         out = topology.robot.run([PYTHON, "-m", "tests.modules.scene"], timeout=60).output()

@@ -55,6 +55,18 @@ def test_receipts_out_of_order_never_move_a_command_back_nor_past_its_end():
     assert ledger.sent(TURN) == []             # our own echoed by another station: once
 
 
+def test_an_accepted_command_whose_module_died_ends_interrupted_and_nothing_after():
+    ledger = Ledger()
+    ledger.sent(TURN)
+    ledger.receipt("drc_valve", Receipt(42, S.ACCEPTED))
+    why = "drc_valve's previous process ended during the tick that took `turn 1.57`"
+    assert ledger.receipt("drc_valve", Receipt(42, S.INTERRUPTED, why))[0].reason == why
+    assert ledger.receipt("drc_valve", Receipt(42, S.EXPIRED)) == []
+    refused = CommandLife("m", "command", 1, "go", state=S.REFUSED)
+    assert refused.moved(S.INTERRUPTED) is None       # a command that ended stays ended
+    assert S.ACCEPTED not in TERMINAL and S.INTERRUPTED in TERMINAL
+
+
 def test_the_ledger_is_bounded_and_knows_what_a_cancel_could_catch():
     ledger = Ledger(limit=3)
     for seq in range(1, 6):

@@ -10,6 +10,7 @@ module that hangs or throws; bad input is refused without harm.
 
 from __future__ import annotations
 
+import os
 import re
 import signal
 import subprocess
@@ -21,6 +22,8 @@ import numpy as np
 import pytest
 
 from harness import Proc, YarpWorld, missing_reference, wait_until
+from walkman.gym.command_life import Receipt, decode_receipt
+from walkman.gym.inbox_journal import journal_path
 from walkman.gym.interfaces import decode_status
 from walkman.model import MODELS_DIR
 from yarp_lite import network
@@ -43,11 +46,17 @@ class Pilot:
         self.warnings: List[str] = []
         self.warning_port = BufferedPort(f"/test/{module}/warning:i",
                                          on_read=lambda b: self.warnings.append(str(b[1])))
+        self.receipts: List[Receipt] = []
+        self.receipt_port = BufferedPort(f"/test/{module}/receipt:i",
+                                         on_read=lambda b: self.receipts.append(
+                                             decode_receipt(b)))
         client = NameClient()
         client.subscribe(f"/{module}/status:o", self.status.name)
         client.subscribe(f"/{module}/warning:o", self.warning_port.name)
+        client.subscribe(f"/{module}/receipt:o", self.receipt_port.name)
         # Persistent connections are made by the name server, shortly after.
-        assert self.status.wait_for_inputs(1, 20) and self.warning_port.wait_for_inputs(1, 20)
+        assert self.status.wait_for_inputs(1, 20) and self.warning_port.wait_for_inputs(1, 20) \
+            and self.receipt_port.wait_for_inputs(1, 20)
 
     def state(self) -> Optional[str]:
         bottle = self.status.read(timeout=2)
@@ -80,9 +89,19 @@ class Pilot:
         wait_until(lambda: any(text in w for w in self.warnings), timeout,
                    message=f"warning containing {text!r} (got {self.warnings})")
 
+    def receipt(self, seq: int, state: str, timeout: float = 20.0) -> Receipt:
+        """The first receipt ``state`` of command ``seq`` (waits for it)."""
+        def said() -> Optional[Receipt]:
+            return next((r for r in list(self.receipts)
+                         if r.seq == seq and r.state.value == state), None)
+        wait_until(lambda: said() is not None, timeout,
+                   message=f"receipt {state} of seq {seq} (got {self.receipts})")
+        return said()
+
     def close(self) -> None:
         self.status.close()
         self.warning_port.close()
+        self.receipt_port.close()
 
 
 def assert_quits(module: Proc, timeout: float = 90.0) -> None:
@@ -217,6 +236,56 @@ def test_stop_and_quit_win_over_a_hanging_or_throwing_module(lite_world, lite):
         module.wait_for("misbehaving: command hang", count=2)  # in the restarted process
         pilot.send(lite, "switch", "quit")
         assert_quits(module)
+    finally:
+        pilot.close()
+
+
+def module_process(supervisor: Proc) -> int:
+    """The pid of the module process a supervisor runs now."""
+    found = subprocess.run(["pgrep", "-P", str(supervisor.popen.pid), "-f",
+                            "walkman.gym.runner"], capture_output=True, text=True)
+    pids = found.stdout.split()
+    assert len(pids) == 1, f"{supervisor.name}: module processes {pids}"
+    return int(pids[0])
+
+
+def test_commands_a_killed_module_held_are_said_interrupted_by_its_next_process(
+        lite_world, lite):
+    """fc17 of 2026-11-28: a command accepted, then its module killed -9 before it ran,
+    was gone without a word.  The next process now says ``interrupted`` of what the dead
+    one held -- taken (it may have begun) or only queued -- and runs neither again."""
+    start_hal(lite_world, "sim")
+    module = start_module(lite_world, "tests.walkman.misbehaving:Module")
+    module.wait_for("ready for the pilot", timeout=60)
+    pilot = Pilot(lite_world, "misbehaving", ["ok"])
+    address = NameClient().server_address()
+    journal = journal_path("/misbehaving", f"{address.host}:{address.port}",
+                           lite_world.env["XDG_STATE_HOME"])
+    try:
+        pilot.send(lite, "switch", "start")
+        pilot.wait_state("ok")
+        pilot.send(lite, "command", "hang 41")
+        pilot.receipt(41, "accepted")                 # run() took it: hanging now
+        pilot.send(lite, "command", "(idle 1) 42")    # queued behind the hanging tick
+        wait_until(lambda: "a 42 idle 1" in journal.read_text(), 20,
+                   message="the second command in the module's journal")
+        first = module_process(module)
+        os.kill(first, signal.SIGKILL)
+        module.wait_for("starting a fresh one, stopped", timeout=30)
+        taken, queued = pilot.receipt(41, "interrupted"), pilot.receipt(42, "interrupted")
+        assert "during the tick that took `hang`" in taken.reason, taken
+        assert "before taking `idle 1`; not run" in queued.reason, queued
+        pilot.wait_warning("the previous process ended holding 2 command(s), interrupted")
+        pilot.send(lite, "switch", "start")
+        pilot.wait_state("ok")
+        pilot.send(lite, "command", "hang 41")        # a resend of each: both dropped
+        pilot.send(lite, "command", "(idle 1) 42")
+        pilot.send(lite, "command", "idle 43")
+        # In the port's order 41 and 42 came first: had `hang 41` run, 43 would never be taken.
+        pilot.receipt(43, "accepted")
+        assert [r.state.value for r in pilot.receipts if r.seq in (41, 42)] == \
+            ["accepted", "interrupted", "interrupted"], pilot.receipts
+        assert module_process(module) != first
     finally:
         pilot.close()
 

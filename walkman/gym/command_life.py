@@ -4,9 +4,10 @@ Theory of operation
 -------------------
 ::
 
-    sent --> queued --> delivered --> accepted
+    sent --> queued --> delivered --> accepted --> interrupted (why)
       |        |            |     \\-> refused (why)
-      |        |            \\------> expired
+      |        |            +------> expired
+      |        |            \\------> interrupted (why)
       |        \\--> cancelled
       \\--------------------------> (any later state)
 
@@ -15,11 +16,13 @@ Each place that holds a command says what it knows, in a *receipt*
 when the link is down), the pilot bridge that a cancel took it out of its
 queue (``cancelled``), the robot bridge that it wrote it to the module's port
 (``delivered``), the module that it took it (``accepted``) or would not
-(``refused``, ``expired``, with the reason).  Receipts cross the link on
+(``refused``, ``expired``, with the reason), or the module's next process that
+the one before it died holding it (``interrupted``: never run again, and maybe
+begun if it had been accepted; :mod:`walkman.gym.inbox_journal`).  Receipts cross the link on
 their own reliable flow (``/M/receipt:o``), so they are never lost, but
 what different places say may still arrive out of order (the module's
 ``accepted`` before the robot bridge's ``delivered``): a state only moves
-*forward* (:data:`RANK`), a terminal state never changes, and a receipt
+*forward* (:data:`RANK`), a terminal state (:data:`TERMINAL`) never changes, and a receipt
 that would move a command back is ignored, not an error.
 
 Pure: receipts in, the new state (or None) out.  The gateway keeps one
@@ -43,15 +46,19 @@ class CommandState(str, Enum):
     REFUSED = "refused"
     EXPIRED = "expired"
     CANCELLED = "cancelled"
+    INTERRUPTED = "interrupted"
 
 
 #: How far along each state is: a command only moves to a higher rank.
 RANK: Dict[CommandState, int] = {
     CommandState.SENT: 0, CommandState.QUEUED: 1, CommandState.DELIVERED: 2,
     CommandState.ACCEPTED: 3, CommandState.REFUSED: 3, CommandState.EXPIRED: 3,
-    CommandState.CANCELLED: 3,
+    CommandState.CANCELLED: 3, CommandState.INTERRUPTED: 4,
 }
-TERMINAL = frozenset(state for state, rank in RANK.items() if rank == max(RANK.values()))
+#: States after which nothing more is said: ``accepted`` is not one, its module's process
+#: may still die before the tick that took it ends (``interrupted``).
+TERMINAL = frozenset({CommandState.REFUSED, CommandState.EXPIRED, CommandState.CANCELLED,
+                      CommandState.INTERRUPTED})
 
 
 class ReceiptError(ValueError):

@@ -53,6 +53,7 @@ from dataclasses import dataclass
 from typing import Callable, Collection, Deque, List, Optional, Sequence, Tuple
 
 from walkman.gym.command_life import CommandState, Receipt, encode_receipt
+from walkman.gym.inbox_journal import ARRIVED, ENDED, TAKEN, InboxJournal
 from walkman.gym.validity import (DEFAULT_VALIDITY, Lifetime, ValidityError, describe_expiry,
                                   split, stamp)
 from yarp_lite.bottle import Bottle, Vocab
@@ -228,6 +229,16 @@ class _Inbox:
         self.on_arrival: Optional[Callable[[], None]] = None
         #: told what became of each numbered command (:mod:`walkman.gym.command_life`)
         self.on_receipt: Callable[[Receipt], None] = lambda receipt: None
+        #: where each command's arrival, take and end are written for the next process
+        #: (:mod:`walkman.gym.inbox_journal`); None: not kept
+        self.journal: Optional[InboxJournal] = None
+        #: taken by the tick now running; ended by :meth:`settle` once it returns
+        self.in_hand: List[int] = []
+
+    def remember(self, seqs: Sequence[int]) -> None:
+        """Seqs a previous process of this module saw: a resend of one is dropped too."""
+        with self.lock:
+            self.recent.extend(seqs)
 
     def feed(self, bottle: Bottle) -> None:
         arrived = self.clock()
@@ -246,10 +257,12 @@ class _Inbox:
                 if command.seq in self.recent:
                     return  # already executed: a resend
                 self.recent.append(command.seq)
+                self._journal(ARRIVED, command.seq, command_text(command))
         try:
             self.queue.put_nowait((command, arrived))
         except queue.Full:
             self.rejected.append(f"command queue full, dropped {command.name}")
+            self._journal(ENDED, command.seq)
             self._receipt(command, CommandState.REFUSED, "the module's command queue is full")
         if self.on_arrival:
             self.on_arrival()
@@ -257,6 +270,17 @@ class _Inbox:
     def _receipt(self, command: PilotCommand, state: CommandState, reason: str = "") -> None:
         if command.seq is not None:
             self.on_receipt(Receipt(command.seq, state, reason))
+
+    def _journal(self, kind: str, seq: Optional[int], text: str = "") -> None:
+        if self.journal is not None and seq is not None:
+            self.journal.write(kind, seq, text)
+
+    def settle(self) -> None:
+        """The tick that took :attr:`in_hand` returned: those commands are the module's doing
+        now, not a dead process's to report (control thread, after each tick)."""
+        for seq in self.in_hand:
+            self._journal(ENDED, seq)
+        self.in_hand.clear()
 
     def get(self, timeout: Optional[float] = None) -> Optional[PilotCommand]:
         """The next command that may still start; older ones are refused on the way
@@ -272,11 +296,15 @@ class _Inbox:
             lifetime = (command.lifetime or Lifetime()).older(self.clock() - arrived)
             if not lifetime.expired(self.validity):
                 if self.taking_accepts:
+                    if command.seq is not None and self.journal is not None:
+                        self.in_hand.append(command.seq)
+                        self._journal(TAKEN, command.seq)
                     self._receipt(command, CommandState.ACCEPTED)
                 return command
             self.expired += 1
             refusal = describe_expiry(command_text(command), lifetime, self.validity)
             self.rejected.append(refusal)
+            self._journal(ENDED, command.seq)
             self._receipt(command, CommandState.EXPIRED, refusal)
             if self.on_arrival:
                 self.on_arrival()   # the refusal is said now, not with the next command

@@ -53,6 +53,7 @@ from nodekit.logs import configure_logging, time_prefix
 from walkman import inifile
 from walkman.gym.bridge_link import BridgeLink
 from walkman.gym.command_life import CommandState, Receipt
+from walkman.gym.inbox_journal import InboxJournal, Predecessor, interruptions, journal_path
 from walkman.gym.interfaces import PilotCommand, PilotInterfaces, decoder_for, validity_of
 from walkman.gym.link_loss import LinkLossDecider, link_loss_of
 from walkman.gym.pacing import TickSchedule
@@ -164,10 +165,13 @@ class ControlLoop(threading.Thread):
                     runner.thread.run()
                 else:
                     runner.thread.run_paused()
+                runner.interfaces.commands.settle()
             except HalUsageError as exc:
+                runner.interfaces.commands.settle()
                 runner.warn(f"{runner.name}: refused by the robot: {exc}")
                 runner.lifecycle.hold("a refused command")
             except Exception as exc:  # the module's bug: told with its traceback, hold, stop
+                runner.interfaces.commands.settle()
                 hook = "run()" if state == State.RUNNING else "run_paused()"
                 runner.warn(f"{runner.name}: {hook} raised {type(exc).__name__}: {exc}",
                             exc_info=True)
@@ -270,7 +274,9 @@ class ModuleRunner:
     # -- set-up --------------------------------------------------------------------------
 
     def start(self) -> None:
+        before = self._take_over_journal() if self._link_from_port else Predecessor()
         self.interfaces.open(wait=math.inf)
+        self._report_predecessor(before)
         if self._link_from_port:
             self.link.open(self.nameclient, f"{self.prefix}/bridge:i")
         if getattr(self.module_class, "needs_robot", False):
@@ -281,6 +287,38 @@ class ModuleRunner:
         self.loop.start()
         log.info("%s: ready for the pilot on %s/switch:i (state %s; link-loss policy %s)",
                  self.name, self.prefix, self.state.value, self.link_loss.policy)
+
+    def _take_over_journal(self) -> Predecessor:
+        """Read what this module's previous process left in its command journal, and keep
+        one for the next (:mod:`walkman.gym.inbox_journal`); before the ports open, so a
+        resend of a command the previous process saw is dropped from the first."""
+        try:
+            address = self.nameclient.server_address()
+            server = f"{address.host}:{address.port}"
+        except NetworkError:
+            server = "unconfigured"
+        journal = InboxJournal(journal_path(self.prefix, server))
+        try:
+            before = journal.take_over()
+        except OSError as exc:
+            log.warning("%s: no command journal (%s): a command this process dies holding "
+                        "will not be reported", self.name, exc)
+            return Predecessor()
+        self.interfaces.commands.remember(before.seen)
+        self.interfaces.commands.journal = journal
+        return before
+
+    def _report_predecessor(self, before: Predecessor) -> None:
+        """Say ``interrupted`` of every command the previous process died holding."""
+        receipts = interruptions(before.unfinished, self.name)
+        for receipt in receipts:
+            self.interfaces.receipt(receipt)
+        if receipts:
+            listed = ", ".join(f"`{held.text}` (seq {held.seq}, "
+                               f"{'taken: it may have begun' if held.taken else 'not taken'})"
+                               for held in before.unfinished)
+            self.warn(f"{self.name}: the previous process ended holding {len(receipts)} "
+                      f"command(s), interrupted, none run again: {listed}")
 
     def _connect_robot(self) -> None:
         """The connector thread: retry while the HAL is not there; any other failure is final."""
@@ -493,6 +531,8 @@ class ModuleRunner:
             self.robot.close()
         self.link.close()
         self.interfaces.close()
+        if self.interfaces.commands.journal is not None:
+            self.interfaces.commands.journal.close()
 
     def period_stats(self) -> Dict[str, float]:
         errors = sorted(abs(e) for e in self.loop.period_errors)
