@@ -20,7 +20,6 @@ it; both send UDP to the peer's ``--udp-port``.  Talk to a running bridge with
 from __future__ import annotations
 
 import argparse
-import faulthandler
 import logging
 import re
 import signal
@@ -34,6 +33,7 @@ from bridge.config import ConfigError
 from bridge.errors import BridgeUsageError
 from bridge.journal import default_state_dir
 from bridge.link import LinkKey, generate_key_file
+from nodekit import stacks
 from nodekit.logs import configure_logging
 from walkman.realtime import BRIDGE_PRIORITY, make_process_realtime
 
@@ -193,7 +193,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     except OSError as exc:
         print(f"walkman-bridge: cannot start: {exc}", file=sys.stderr)
         return 1
-    faulthandler.register(signal.SIGUSR1)  # kill -USR1 <pid>: every thread's stack to stderr
+    stacks.on_signals()   # kill -USR1 <pid>: every thread's stack to stderr (-USR2: wedged)
     done = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: done.set())

@@ -94,8 +94,7 @@ KNOWN: Tuple[Known, ...] = (
           "(fc17 of 2026-11-28, beside the PI start loop): the witness module receipted "
           "'accepted' for count 34 and was killed -9 by round 3 before its control thread ran "
           "it -- 'accepted' is terminal and no one says the command died with the process; "
-          "open (a design gap: the restarted module could report what its predecessor took "
-          "and never ran)"),
+          "the module's next process now says 'interrupted' of what it held (f2d5331)"),
     Known("tests/system/test_pc_launcher.py::"
           "test_launchers_bring_up_both_pcs_and_a_plain_shell_pilots_the_robot",
           "the first command beat the connection keeper (44637d4)"),
@@ -134,7 +133,14 @@ KNOWN: Tuple[Known, ...] = (
           "the bridges silent 2-4 s beside two burners, walking paused (fc19; d9a24ba); the "
           "guard tripped standing on the kerb after step_up, ZMP -0.5 cm, the loop on time "
           "(fc4 of the third, fc6 of the fourth 2026-11-27 session, both beside burners: "
-          "open, issue 32's step robustness)"),
+          "open, issue 32's step robustness); the step down from 4 cm short of the far edge: "
+          "the heel caught it, the foot put back, and walk() blind to that warning (fc21 of "
+          "2026-11-28, quiet; from 1 cm, and the driver sees it: f2d5331)"),
+    Known("tests/walkman/test_gym_hal.py::"
+          "test_a_module_asked_with_sigusr1_prints_every_thread_s_stack",
+          "the module process died of SIGSEGV in faulthandler's all-threads dump while its "
+          "connector thread imported (2026-11-28, beside nothing); SIGUSR1 is a Python "
+          "handler since (nodekit/stacks.py), faulthandler's dump moved to SIGUSR2"),
     Known("tests/system/test_tasks_via_gateway.py::test_walking_through_rosservice",
           "the guard tripped at a 0.3-cm ZMP margin, the HAL on time (fc22; the trip now logs "
           "the loop's longest tick: e497490); again at 0.1 cm after a 33-ms tick (2026-11-27 "

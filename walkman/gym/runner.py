@@ -49,6 +49,7 @@ import threading
 import time
 from typing import Any, Callable, Dict, List, Optional, Type
 
+from nodekit import stacks
 from nodekit.logs import configure_logging, time_prefix
 from walkman import inifile
 from walkman.gym.bridge_link import BridgeLink
@@ -606,11 +607,11 @@ def run_module(argv: Optional[List[str]] = None) -> int:
     name = module_name(options.module)
     runner = ModuleRunner(name, module_class, config, prefix=options.name,
                           initial=State(options.initial), heartbeat_fd=options.heartbeat_fd)
-    import faulthandler
     import signal
 
-    # kill -USR1 (to this process or its supervisor): every thread's stack on stderr.
-    faulthandler.register(signal.SIGUSR1, all_threads=True)
+    # kill -USR1 (to this process or its supervisor): every thread's stack on stderr;
+    # -USR2: faulthandler's, for an interpreter wedged in C (nodekit.stacks).
+    stacks.on_signals()
 
     def request_quit(*_):
         runner.quit_requested = True

@@ -16,8 +16,9 @@ watches its heartbeat (a byte every 0.5 s on a pipe):
 
 This is the "escalate from thread to process" of the module template: a
 module can never be left ignoring the pilot.  ``kill -USR1`` to the supervisor
-has the module process print every thread's stack (``faulthandler``), to see
-where a module that does not answer is.
+has the module process print every thread's stack (:mod:`nodekit.stacks`), to see
+where a module that does not answer is; ``kill -USR2``, faulthandler's dump, for
+one whose interpreter is wedged.
 """
 
 from __future__ import annotations
@@ -110,11 +111,11 @@ class Supervisor:
         if self.child is not None and self.child.poll() is None:
             self.child.send_signal(signal.SIGINT if signum == signal.SIGINT else signal.SIGTERM)
 
-    def show_stacks(self, _signum: int, _frame) -> None:
-        """``SIGUSR1``: the module process prints every thread's stack (a module that does
-        not answer can be asked where it is)."""
+    def show_stacks(self, signum: int, _frame) -> None:
+        """``SIGUSR1`` (``SIGUSR2``): the module process prints every thread's stack (a
+        module that does not answer can be asked where it is), passed on as it came."""
         if self.child is not None and self.child.poll() is None:
-            self.child.send_signal(signal.SIGUSR1)
+            self.child.send_signal(signum)
 
 
 def main(argv: Optional[List[str]] = None) -> int:
@@ -128,6 +129,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     signal.signal(signal.SIGINT, supervisor.forward)
     signal.signal(signal.SIGTERM, supervisor.forward)
     signal.signal(signal.SIGUSR1, supervisor.show_stacks)
+    signal.signal(signal.SIGUSR2, supervisor.show_stacks)
     return supervisor.run()
 
 

@@ -87,6 +87,10 @@ class ChainBoard(cb.ControlBoardDevice):
         self._moving = np.zeros(count, dtype=bool)
         self._dirty = np.zeros(count, dtype=bool)   # direct references not yet applied
         self._idle_changed = False
+        #: something for :meth:`step` to do (a reference, a move, a mode): without it, and
+        #: with no joint in velocity mode, a tick costs one test -- most chains, most ticks
+        self._work = False
+        self._velocity_joints: List[int] = []
         self.commands = 0
         self.refused = 0  # commands skipped because a joint was in another mode
         self._refusals: Dict[str, Burst] = {}
@@ -176,7 +180,9 @@ class ChainBoard(cb.ControlBoardDevice):
                 self.velocity[joint] = 0.0
                 self._moving[joint] = False
                 self._dirty[joint] = mode != cb.MODE_IDLE
-            self._idle_changed = True
+            self._idle_changed = self._work = True
+            self._velocity_joints = [k for k, m in enumerate(self.modes)
+                                     if m == cb.MODE_VELOCITY]
 
     def command(self, what: str, joints: Sequence[int], values: Sequence[float],
                 owner: str = "", seq: Optional[int] = None) -> None:
@@ -226,6 +232,7 @@ class ChainBoard(cb.ControlBoardDevice):
             self.on_halted(owner, text)
 
     def _record(self, what: str, joint: int, value: float) -> None:
+        self._work = True
         lower, upper = self.limits(joint)
         if what == "direct":
             self.direct[joint] = min(max(value, lower), upper)
@@ -272,6 +279,8 @@ class ChainBoard(cb.ControlBoardDevice):
         """Turn this tick's intentions into servo references (called before each step)."""
         backend, idx = self.backend, self.indices
         with self.lock:
+            if not self._work and not self._velocity_joints:
+                return
             modes = self.modes
             idle_changed, self._idle_changed = self._idle_changed, False
             if idle_changed:
@@ -289,7 +298,8 @@ class ChainBoard(cb.ControlBoardDevice):
                 step = np.clip(self.targets[moving] - current, -limit, limit)
                 backend.set_references(idx[moving], np.radians(current + step))
                 self._moving[moving] = np.abs(self.targets[moving] - current - step) > 1e-9
-            velocity = [k for k, m in enumerate(modes) if m == cb.MODE_VELOCITY]
+            self._work = bool(self._moving.any())      # a move goes on next tick
+            velocity = self._velocity_joints
             if velocity:
                 stale = backend.time - self.velocity_at[velocity] > VELOCITY_WATCHDOG_S
                 self.velocity[np.array(velocity)[stale]] = 0.0

@@ -165,6 +165,8 @@ class HalServer:
         # When each state seq went out, as a ring indexed by seq (written by the loop,
         # read by command readers without a lock: one float store, no iteration).
         self.published_at = np.zeros(PUBLISHED_HISTORY)
+        #: every port a state goes out on (set by :meth:`open`)
+        self._state_ports: List[Port] = []
         self.latencies: Deque[float] = deque(maxlen=5000)
         self.overruns = 0
         self.max_step_s = 0.0
@@ -225,6 +227,9 @@ class HalServer:
         if getattr(self.backend, "plant", None) is not None:
             self.world_port = self._open(Port(nameclient=self.nameclient),
                                          protocol.world_port_name(self.robot))
+        self._state_ports = [self.whole_state_port, *(
+            ports[key] for ports in self.chain_ports.values()
+            for key in ("state", "state_ext", "state_si"))]
         log.info("HAL for %s: %d chains (%s), %s backend, state every %g ms", self.robot,
                  len(self.chains), ", ".join(self.chains), type(self.backend).__name__,
                  self.config.period_ms)
@@ -361,9 +366,11 @@ class HalServer:
         backend = self.backend
         envelope = self.state_stamp.update(time.time()).envelope()
         seq = self.state_stamp.count
+        self.published_at[seq % PUBLISHED_HISTORY] = time.perf_counter()
+        if not any(port.has_outputs for port in self._state_ports):
+            return      # nobody reads a state: none is made (an idle HAL's every other tick)
         q, qdot, tau = backend.positions(), backend.velocities(), backend.torques()
         temperature = backend.temperatures()
-        now = time.perf_counter()
         if self.whole_state_port is not None and self.whole_state_port.has_outputs:
             every = self.whole_indices
             self.publisher.publish(self.whole_state_port, protocol.encode_whole_state(ChainState(
@@ -385,7 +392,6 @@ class HalServer:
                                        controlboard.encode_joint_data(data, len(idx)), envelope)
             if ports["state"].has_outputs:
                 self.publisher.publish(ports["state"], Bottle(q_deg.tolist()), envelope)
-        self.published_at[seq % PUBLISHED_HISTORY] = now
 
     def _publish_sensors(self) -> None:
         envelope = self.sensor_stamp.update(time.time()).envelope()
