@@ -135,7 +135,9 @@ KNOWN: Tuple[Known, ...] = (
           "(fc4 of the third, fc6 of the fourth 2026-11-27 session, both beside burners: "
           "open, issue 32's step robustness); the step down from 4 cm short of the far edge: "
           "the heel caught it, the foot put back, and walk() blind to that warning (fc21 of "
-          "2026-11-28, quiet; from 1 cm, and the driver sees it: f2d5331)"),
+          "2026-11-28, quiet; from 1 cm, and the driver sees it: f2d5331); again from 1 cm "
+          "(fc23): 51-52 N read for a tick by a swinging sole, its way clear by 6 cm -- a "
+          "strike is now 150 N for two ticks in a row"),
     Known("tests/walkman/test_gym_hal.py::"
           "test_a_module_asked_with_sigusr1_prints_every_thread_s_stack",
           "the module process died of SIGSEGV in faulthandler's all-threads dump while its "

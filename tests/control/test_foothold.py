@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 
 from walkman.control.balance import Sole
 from walkman.control.foothold import (LATEST, REACH, SEEK_AFTER, SEEK_DEPTH, SEEK_SPEED,
-                                      STRIKE_ABOVE, TILT, TOUCH, TURN, DescentCheck,
-                                      FootholdCheck)
+                                      STRIKE_ABOVE, STRIKE_SAMPLES, TILT, TOUCH, TURN,
+                                      DescentCheck, FootholdCheck)
 
 LANDING = 10.0
 HEEL = -Sole().half_length
@@ -124,10 +124,23 @@ def test_a_sole_stepping_down_that_carries_weight_early_struck_and_is_said_once(
     check = DescentCheck("left", 0.05, LANDING)
     assert check.sample(LANDING - 0.8, 0.05, LOADED) is None    # the weight still leaving it
     assert check.sample(LANDING - 0.7, 0.06, None) is None      # lifted
+    assert check.sample(LANDING - 0.122, 0.013, LOADED) is None  # a tick: not yet
     problem = check.sample(LANDING - 0.12, 0.013, LOADED)
     assert problem == ("the left sole met ground on its way 5 cm down, 0.12 s before it "
                        "should have landed (540 N on it): the ground it leaves goes on under it")
     assert check.sample(LANDING - 0.11, 0.010, LOADED) is None  # once
+
+
+def test_a_swinging_sole_s_reading_for_a_tick_or_a_light_one_is_no_strike():
+    """fc21 and fc23 of 2026-11-28: 51-52 N for a tick, 0.19 s before landing, the way clear
+    of the edge: the foot was put back for nothing."""
+    check = DescentCheck("left", 0.05, LANDING)
+    check.sample(LANDING - 0.6, 0.08, None)
+    for k in range(20):     # light, for as long as it likes
+        assert check.sample(LANDING - 0.5 + 0.002 * k, 0.05, (0.0, 0.0, 52.0)) is None
+    assert check.sample(LANDING - 0.3, 0.04, LOADED) is None    # one tick of weight
+    assert check.sample(LANDING - 0.298, 0.04, None) is None
+    assert check.sample(LANDING - 0.296, 0.04, LOADED) is None  # and another, not in a row
 
 
 def test_a_sole_that_touches_near_or_after_its_landing_did_not_strike():
@@ -141,12 +154,17 @@ def test_a_sole_that_touches_near_or_after_its_landing_did_not_strike():
 def test_a_strike_is_said_only_after_a_lift_off_and_only_once_per_lift_off(samples):
     check = DescentCheck("left", 0.05, LANDING)
     lifted = False     # a sample without weight since the start or the last strike said
+    pressed = 0        # loaded samples in a row, early, since the lift-off
     for index, (above, loaded) in enumerate(samples):
         problem = check.sample(LANDING - 1 + 0.01 * index, above, LOADED if loaded else None)
         if not loaded:
-            lifted = True
-        if problem:
-            assert lifted and above > STRIKE_ABOVE
-            lifted = False
+            lifted, pressed = True, 0
+        elif lifted and above > STRIKE_ABOVE:
+            pressed += 1
         else:
-            assert not (lifted and loaded and above > STRIKE_ABOVE)
+            pressed = 0
+        if problem:
+            assert lifted and above > STRIKE_ABOVE and pressed == STRIKE_SAMPLES
+            lifted, pressed = False, 0
+        else:
+            assert pressed < STRIKE_SAMPLES
