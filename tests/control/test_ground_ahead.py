@@ -1,0 +1,147 @@
+"""walkman.control.ground_ahead: surfaces from a cloud, footsteps on them, refusals with where."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Callable, Dict, List
+
+import numpy as np
+import pytest
+from hypothesis import given, strategies as st
+
+from walkman.control.ground_ahead import (CROSS_REACH, HEEL_MARGIN, MAX_RISE,
+                                          SOLE_HALF_LENGTH, STRIDE, TOE_MARGIN, GroundError,
+                                          Pose, Surface, place, profile)
+
+FLOOR = -1.03          # the soles' height in the pelvis frame, standing
+SOLES: Dict[str, Pose] = {"left": (0.03, 0.11, FLOOR, 0.0, 0.0, 0.0),
+                          "right": (0.03, -0.11, FLOOR, 0.0, 0.0, 0.0)}
+
+
+def cloud(height: Callable[[float], float], x_to: float = 2.2, faces: List[float] = (),
+          seed: int = 1) -> np.ndarray:
+    """Ground points every 1 cm ahead (0.25 m on), 3 cm across, 2 mm of noise; points on
+    the face at each x in ``faces`` (a kerb seen from above); a few strays."""
+    rng = np.random.default_rng(seed)
+    xs, ys = np.meshgrid(np.arange(0.25, x_to, 0.01), np.arange(-0.2, 0.21, 0.03))
+    zs = np.vectorize(height)(xs) + rng.normal(0, 0.002, xs.shape)
+    points = [np.stack([xs.ravel(), ys.ravel(), zs.ravel()], axis=1)]
+    for x in faces:
+        low, high = sorted((height(x - 0.005), height(x + 0.005)))
+        fz, fy = np.meshgrid(np.arange(low, high, 0.005), np.arange(-0.2, 0.21, 0.03))
+        points.append(np.stack([np.full(fz.size, x), fy.ravel(), fz.ravel()], axis=1))
+    strays = np.column_stack([rng.uniform(0.3, x_to, 5), rng.uniform(-0.1, 0.1, 5),
+                              rng.uniform(-0.5, 0.5, 5)])
+    return np.concatenate(points + [strays, [[np.nan, np.nan, np.nan]]])
+
+
+def kerb(start: float, end: float, rise: float) -> Callable[[float], float]:
+    return lambda x: FLOOR + (rise if start <= x < end else 0.0)
+
+
+def check_walk(steps: List[Pose], surfaces: List[Surface], soles=SOLES) -> None:
+    """Every footstep: the sides take turns, each sole whole on one surface within its
+    margins, at its height, never further than a step reaches from the other foot."""
+    feet = {side: pose[0] for side, pose in soles.items()}
+    side = "left" if steps[0][1] > 0 else "right"
+    # the first surface goes on back under the feet (the camera does not see there)
+    surfaces = [replace(surfaces[0], start=-1.0, z0=surfaces[0].z(-1.0)), *surfaces[1:]]
+    for x, y, z, roll, pitch, yaw in steps:
+        assert (y > 0) == (side == "left")
+        other = feet["right" if side == "left" else "left"]
+        assert x - other <= CROSS_REACH + 1e-9 and x >= feet[side] - 1e-9
+        on = [s for s in surfaces if s.start + SOLE_HALF_LENGTH <= x + 1e-9 and
+              x <= s.end - SOLE_HALF_LENGTH - TOE_MARGIN + 1e-9]
+        assert len(on) == 1, (x, surfaces)
+        assert z == pytest.approx(on[0].z(x), abs=0.006) and roll == yaw == 0.0
+        assert pitch == pytest.approx(on[0].pitch)
+        feet[side] = x
+        side = "right" if side == "left" else "left"
+    assert abs(steps[-1][0] - steps[-2][0]) < 0.006       # they end side by side
+
+
+def test_a_kerb_seen_from_above_is_three_surfaces_at_their_heights():
+    surfaces = profile(cloud(kerb(0.6, 1.4, 0.05), faces=[0.6, 1.4]), 0.0, -0.1, 2.2)
+    # the bin holding a face is neither surface's (it mixes their heights)
+    assert [(round(s.start, 2), round(s.end, 2)) for s in surfaces] == \
+        [(0.24, 0.6), (0.62, 1.4), (1.42, 2.2)]
+    assert [s.z(s.start + 0.1) for s in surfaces] == \
+        pytest.approx([FLOOR, FLOOR + 0.05, FLOOR], abs=0.002)
+    assert all(abs(s.slope) < 0.01 for s in surfaces)
+
+
+def test_up_a_kerb_along_it_and_down_the_far_side():
+    surfaces = profile(cloud(kerb(0.6, 1.4, 0.05), faces=[0.6, 1.4]), 0.0, -0.1, 2.2)
+    steps = place(surfaces, SOLES, 1.8)
+    check_walk(steps, surfaces)
+    # strides of 0.15 (walking's own), together with the toes 1 cm from the kerb (its face
+    # at 0.60), over it heel 7 cm past the edge, along, together 1 cm from the far edge
+    # (1.40), down, on to the goal side by side
+    assert [round(step[0], 2) for step in steps] == \
+        [0.18, 0.33, 0.46, 0.46, 0.8, 0.95, 1.1, 1.26, 1.26, 1.6, 1.75, 1.83, 1.83]
+    assert [round(step[2] - FLOOR, 2) for step in steps] == \
+        [0.0] * 4 + [0.05] * 5 + [0.0] * 4
+
+
+def test_a_camera_that_reads_the_ground_2_cm_high_places_the_same_footsteps():
+    true = place(profile(cloud(kerb(0.6, 1.4, 0.05)), 0.0, -0.1, 2.2), SOLES, 1.8)
+    biased = place(profile(cloud(kerb(0.6, 1.4, 0.05)) + [0, 0, 0.02], 0.0, -0.1, 2.2),
+                   SOLES, 1.8)
+    assert np.allclose(np.array(true), np.array(biased), atol=0.004)
+
+
+def test_a_ramp_is_one_surface_whose_slope_pitches_the_soles():
+    slope = math.tan(math.radians(10))
+    ground = lambda x: FLOOR + max(0.0, x - 0.7) * slope   # noqa: E731
+    surfaces = profile(cloud(ground, x_to=1.6), 0.0, -0.1, 1.6)
+    assert len(surfaces) == 1 and surfaces[0].end == pytest.approx(1.6, abs=0.02)
+    # one straight line cannot follow the bend at the ramp's foot: the fit is a mean
+    steep = profile(cloud(ground, x_to=1.6), 0.0, 0.75, 1.6)
+    assert steep[0].pitch == pytest.approx(-math.radians(10), abs=0.01)
+    steps = place(steep, {s: (0.75 + p[0], *p[1:]) for s, p in
+                          {k: (0.0, *v[1:]) for k, v in SOLES.items()}.items()}, 0.4)
+    assert all(step[4] == pytest.approx(-math.radians(10), abs=0.01) for step in steps)
+
+
+@pytest.mark.parametrize("ground, distance, problem", [
+    (kerb(0.6, 1.4, 0.12), 1.0, "an edge 12 cm up 0.57 m ahead: the legs climb at most 8 cm"),
+    (kerb(0.6, 0.9, 0.05), 1.0, "is 0.30 m long: too short for a sole and its margins"),
+    (kerb(0.6, 1.4, 0.05), 2.5, "no ground seen beyond"),
+])
+def test_what_cannot_be_walked_is_refused_with_where(ground, distance, problem):
+    surfaces = profile(cloud(ground), 0.0, -0.1, 2.2)
+    with pytest.raises(GroundError, match=problem):
+        place(surfaces, SOLES, distance)
+
+
+def test_a_gap_wider_than_a_step_reaches_is_refused():
+    points = cloud(lambda x: FLOOR)
+    points = points[(points[:, 0] < 0.8) | (points[:, 0] > 1.1)]   # a ditch, unseen
+    with pytest.raises(GroundError, match=r"begins 0\.30 m beyond it: a step reaches 0\.34 m"):
+        place(profile(points, 0.0, -0.1, 2.2), SOLES, 1.5)
+
+
+def test_ground_not_seen_under_the_feet_is_refused():
+    with pytest.raises(GroundError, match="the ground under the feet is not seen"):
+        place(profile(cloud(lambda x: FLOOR), 0.0, 0.6, 2.2), SOLES, 1.0)
+    with pytest.raises(GroundError, match="no ground seen ahead"):
+        place([], SOLES, 1.0)
+
+
+@given(start=st.floats(0.45, 1.2), length=st.floats(0.35, 1.0),
+       rise=st.one_of(st.just(0.0), st.floats(0.02, 0.1), st.floats(-0.1, -0.02)),
+       distance=st.floats(0.2, 2.4))
+def test_any_kerb_is_walked_within_the_rules_or_refused_with_a_reason(start, length, rise,
+                                                                      distance):
+    surfaces = profile(cloud(kerb(start, start + length, rise), x_to=3.0), 0.0, -0.1, 3.0)
+    try:
+        steps = place(surfaces, SOLES, distance)
+    except GroundError as exc:
+        assert str(exc)
+        return
+    if steps:
+        check_walk(steps, surfaces)
+        heights = [step[2] for step in steps]
+        assert max(abs(b - a) for a, b in zip([FLOOR] + heights, heights)) <= MAX_RISE + 0.006
+        assert max(b[0] - a[0] for a, b in zip(steps, steps[1:])) <= CROSS_REACH + 1e-9

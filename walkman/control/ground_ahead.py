@@ -1,0 +1,229 @@
+"""The ground ahead of the feet, from the head camera's cloud, and footsteps placed on it.
+
+Theory of operation
+-------------------
+A pilot places footsteps in the 3-D view (walking's ``footsteps``); this places
+them from what the camera sees.  Pure: points in, footsteps or a refusal out.
+
+1. :func:`profile` -- the cloud's points in the pelvis frame (x ahead, z up) inside
+   a strip along the walking line are binned every :data:`BIN` m ahead; a bin's
+   height is the median of its points (a kerb's face and a stray point do not move
+   it), a bin with fewer than :data:`MIN_POINTS` is unseen.  Runs of seen bins whose
+   heights follow on (each within :data:`JUMP` of the last two: a bin that holds both
+   sides of an edge, half kerb and half floor, would otherwise bridge it) are *surfaces*, each
+   fitted with a line (a ramp's slope is its pitch); a jump or an unseen stretch
+   ends one.  A run shorter than a sole between two edges, at a height between its
+   neighbours', is a kerb's face seen edge-on and is dropped; any other short run
+   stays a surface (floor seen before a dip is still floor), one no foot lands on.
+2. :func:`place` -- the feet take turns along the line, each sole landing whole on
+   one surface: its toes at least :data:`TOE_MARGIN` short of the surface's far end,
+   its heel at least :data:`HEEL_MARGIN` past an edge it crosses (from 4 cm short of
+   a kerb's far edge, a 0.33-m step down caught its heel under load, fc21 of
+   2026-11-28), a stride at most :data:`STRIDE` ahead of the standing foot.  At an
+   edge the feet come together as close to it as the toes may go, then cross one by
+   one, rising or dropping at most :data:`MAX_RISE` (walking's reach).  Heights are
+   taken relative to the surface under the feet, so a camera's height error cancels.
+   The camera does not see under the toes: the first surface seen is taken to go on
+   back under the feet if it begins within :data:`MAX_UNSEEN` of the toes and lies
+   within :data:`MAX_OFFSET` of the soles' height -- otherwise an edge may hide in the
+   stretch not seen, and the footsteps are refused.
+
+What it will not do is said, with where: an edge higher than the legs climb, a
+surface too short to stand on, a far side beyond a step's reach, ground not seen.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from walkman.control.balance import Sole
+from walkman.control.footsteps import Reach, Timing
+
+#: m: bin length along the walking line, and the strip's half width around it
+BIN = 0.02
+STRIP_HALF_WIDTH = 0.10
+#: points a bin needs to be seen
+MIN_POINTS = 3
+#: m: the most two neighbouring bins of one surface differ (a 10-degree ramp: 0.35 cm)
+JUMP = 0.012
+#: m: the sole's half length
+SOLE_HALF_LENGTH = Sole.half_length
+TOE_MARGIN = 0.01
+HEEL_MARGIN = 0.05
+#: m: how far a foot lands ahead of the other along one surface (as walking's own
+#: strides), and the most a step across an edge may reach (2 cm inside the legs' reach)
+STRIDE = Timing.max_stride[0]
+CROSS_REACH = Reach.ahead - 0.02
+#: m: the most a step rises or drops (the legs' reach)
+MAX_RISE = Reach.height
+#: m: how far ahead of the toes the ground may first be seen (the body hides what is
+#: nearer; it is taken to go on under the feet), and how far its height may be off the
+#: soles' (a camera's error; more is an edge in the unseen stretch)
+MAX_UNSEEN = 0.30
+MAX_OFFSET = 0.03
+#: m: a stride that would leave less than this before an edge or the goal goes all the way
+MIN_STEP = 0.03
+
+Pose = Tuple[float, float, float, float, float, float]   # x y z roll pitch yaw
+
+
+class GroundError(ValueError):
+    """Footsteps cannot be placed on the ground seen; the text says where and why."""
+
+
+@dataclass(frozen=True)
+class Surface:
+    """Ground a sole can stand on, from ``start`` to ``end`` (m ahead, pelvis frame)."""
+
+    start: float
+    end: float
+    z0: float        # height at ``start``
+    slope: float     # dz/dx
+
+    def z(self, x: float) -> float:
+        return self.z0 + self.slope * (x - self.start)
+
+    @property
+    def pitch(self) -> float:
+        """A sole's pitch standing on it (negative where it rises ahead, as walking's)."""
+        return -math.atan(self.slope)
+
+
+def profile(points: np.ndarray, line_y: float, x_from: float, x_to: float,
+            half_width: float = STRIP_HALF_WIDTH) -> List[Surface]:
+    """The surfaces along the walking line ``y = line_y`` from ``x_from`` to ``x_to``."""
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    points = points[np.isfinite(points).all(axis=1)]
+    inside = (np.abs(points[:, 1] - line_y) <= half_width) & (points[:, 0] >= x_from) & \
+        (points[:, 0] < x_to)
+    strip = points[inside]
+    count = max(1, int(math.ceil((x_to - x_from) / BIN)))
+    index = np.minimum(((strip[:, 0] - x_from) / BIN).astype(int), count - 1)
+    heights: List[Optional[float]] = []
+    for k in range(count):
+        z = strip[index == k, 2]
+        heights.append(float(np.median(z)) if z.size >= MIN_POINTS else None)
+    runs: List[List[int]] = []
+    for k, height in enumerate(heights):
+        if height is None:
+            continue
+        run = runs[-1] if runs and runs[-1][-1] == k - 1 else None
+        if run is not None and (abs(height - heights[k - 1]) > JUMP or  # type: ignore
+                                len(run) >= 2 and abs(height - heights[k - 2]) > JUMP):
+            # an edge; a bin before it half way up holds both sides (the face): in neither
+            before, last = heights[run[-2]] if len(run) >= 2 else None, heights[k - 1]
+            if before is not None and (last - before) * (height - before) > 0 and \
+                    abs(last - before) > JUMP / 2:            # type: ignore[operator]
+                run.pop()
+            run = None
+        if run is None:
+            runs.append([k])
+        else:
+            run.append(k)
+    def level(run: List[int]) -> float:
+        return float(np.median([heights[k] for k in run]))
+
+    surfaces = []
+    for i, run in enumerate(runs):
+        start, end = x_from + run[0] * BIN, x_from + (run[-1] + 1) * BIN
+        if end - start < 2 * SOLE_HALF_LENGTH and 0 < i < len(runs) - 1 and \
+                runs[i - 1][-1] == run[0] - 1 and runs[i + 1][0] == run[-1] + 1 and \
+                min(level(runs[i - 1]), level(runs[i + 1])) < level(run) < \
+                max(level(runs[i - 1]), level(runs[i + 1])):
+            continue                 # a kerb's face seen edge-on: heights in between
+        xs = x_from + (np.array(run) + 0.5) * BIN
+        slope, intercept = np.polyfit(xs, [heights[k] for k in run], 1) if len(run) > 1 \
+            else (0.0, heights[run[0]])
+        surfaces.append(Surface(start, end, float(intercept + slope * start), float(slope)))
+    return surfaces
+
+
+@dataclass
+class _Foot:
+    side: str
+    x: float
+    y: float
+    surface: int
+
+
+def place(surfaces: Sequence[Surface], soles: Dict[str, Pose],
+          distance: float) -> List[Pose]:
+    """Footsteps (sole poses in the pelvis frame, the feet taking turns, the rear one first)
+    that walk the feet ``distance`` m ahead along the pelvis's x over ``surfaces``, ending
+    side by side; :class:`GroundError` when the ground does not allow it."""
+    if not surfaces:
+        raise GroundError("no ground seen ahead of the feet")
+    if not 0.0 < distance <= 5.0:
+        raise GroundError(f"walk 0-5 m ahead, not {distance:g}")
+    feet = {side: _Foot(side, float(pose[0]), float(pose[1]), 0) for side, pose in soles.items()}
+    here = min(feet.values(), key=lambda foot: foot.x).x
+    toes = max(foot.x for foot in feet.values()) + SOLE_HALF_LENGTH
+    ahead = [s for s in surfaces if s.end > toes]
+    if not ahead or ahead[0].start > toes + MAX_UNSEEN:
+        seen = f"only from {ahead[0].start - toes:.2f} m" if ahead else "nowhere"
+        raise GroundError(f"the ground under the feet is not seen: the camera sees it {seen} "
+                          f"ahead of the toes (at most {MAX_UNSEEN:.2f}): look down or walk on")
+    # the camera cannot see under the toes: the first surface goes on back under the feet
+    first = ahead[0]
+    back = min(first.start, here - SOLE_HALF_LENGTH)
+    surfaces = [replace(first, start=back, z0=first.z(back)), *ahead[1:]]
+    # the soles' heights over the ground seen ahead of them: a camera's error, cancelled --
+    # unless it is more than a camera errs, which is a kerb just out of sight
+    offset = float(np.mean([soles[s][2] - surfaces[0].z(soles[s][0]) for s in soles]))
+    if abs(offset) > MAX_OFFSET:
+        raise GroundError(f"the ground seen {first.start - toes:.2f} m ahead of the toes is "
+                          f"{-offset * 100:+.0f} cm from the soles' own: an edge out of sight "
+                          f"or a camera out of calibration; place the footsteps by hand")
+    goal = here + distance
+    steps: List[Pose] = []
+    mover = min(feet.values(), key=lambda foot: (foot.x, foot.side != "left"))
+    while len(steps) < 40:
+        stand = next(foot for foot in feet.values() if foot is not mover)
+        index = stand.surface
+        surface = surfaces[index]
+        last = surface.end - SOLE_HALF_LENGTH - TOE_MARGIN     # the toes short of its end
+        limit = min(last, goal)
+        x = stand.x + STRIDE
+        if x > limit - MIN_STEP:                              # no shuffle before a limit
+            x = limit
+        if mover.surface != index:                            # joining across an edge
+            x = max(x, surface.start + SOLE_HALF_LENGTH + HEEL_MARGIN)
+        if x <= mover.x + 0.005:
+            if stand.x < min(last, goal) - 0.005 or goal <= stand.x + 0.005:
+                break                                         # side by side at the goal
+            x, index = _across(surfaces, stand)               # together at the edge: over
+        landing = surfaces[index]
+        rise = landing.z(x) - surfaces[mover.surface].z(mover.x)
+        if abs(rise) > MAX_RISE + 1e-9:
+            raise GroundError(f"an edge {abs(rise) * 100:.0f} cm {'up' if rise > 0 else 'down'} "
+                              f"{landing.start - here:.2f} m ahead: the legs climb at most "
+                              f"{MAX_RISE * 100:.0f} cm")
+        mover.x, mover.surface = x, index
+        steps.append((x, mover.y, landing.z(x) + offset, 0.0, landing.pitch, 0.0))
+        mover = stand
+    return steps
+
+
+def _across(surfaces: Sequence[Surface], stand: _Foot) -> Tuple[float, int]:
+    """Where the moving foot lands past the edge the standing foot is at: its heel
+    :data:`HEEL_MARGIN` past it, the next surface's first footing."""
+    after = stand.surface + 1
+    edge = surfaces[stand.surface].end
+    if after >= len(surfaces):
+        raise GroundError(f"no ground seen beyond {edge - stand.x + SOLE_HALF_LENGTH:.2f} m "
+                          f"ahead of the feet: the footsteps end at the edge")
+    landing = surfaces[after]
+    x = landing.start + SOLE_HALF_LENGTH + HEEL_MARGIN
+    if x - stand.x > CROSS_REACH:
+        raise GroundError(f"the ground past the edge {edge - stand.x:.2f} m ahead begins "
+                          f"{landing.start - edge:.2f} m beyond it: a step reaches "
+                          f"{CROSS_REACH:.2f} m")
+    if x > landing.end - SOLE_HALF_LENGTH - TOE_MARGIN:
+        raise GroundError(f"the surface {landing.start - stand.x:.2f} m ahead is "
+                          f"{landing.end - landing.start:.2f} m long: too short for a sole "
+                          f"and its margins")
+    return x, after
