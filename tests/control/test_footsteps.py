@@ -260,10 +260,17 @@ def test_the_weight_waits_on_the_standing_foot_after_a_landing_on_other_ground()
     down.step_to(0.33, -0.05, 0.0)
     assert not any(step.checked_on_landing for step in down.steps)
     assert down.steps[1].shift_at == pytest.approx(down.steps[0].land_at)
-    # footsteps placed one by one are each checked
+    # footsteps placed one by one: each is checked, but one beside the standing sole on
+    # the ground that sole stands on (it bears there), as step_up's second
     placed = WalkPlan(dict(FEET))
     placed.place([(0.33, 0.11, 0.0, 0.05, 0.0), (0.33, -0.11, 0.0, 0.05, 0.0)], 0.0)
-    assert all(step.checked_on_landing for step in placed.steps)
+    assert [step.checked_on_landing for step in placed.steps] == [True, False]
+    ahead = WalkPlan(dict(FEET))
+    ahead.place([(0.33, 0.11, 0.0, 0.05, 0.0), (0.40, -0.11, 0.0, 0.05, 0.0)], 0.0)
+    assert [step.checked_on_landing for step in ahead.steps] == [True, True]
+    other = WalkPlan(dict(FEET))    # beside, but on other ground than the standing sole's
+    other.place([(0.33, 0.11, 0.0, 0.05, 0.0), (0.33, -0.11, 0.0, 0.07, 0.0)], 0.0)
+    assert [step.checked_on_landing for step in other.steps] == [True, True]
 
 
 def test_retreat_puts_the_foot_back_where_it_lifted_from_and_drops_the_rest():

@@ -75,13 +75,14 @@ def test_up_a_kerb_along_it_and_down_the_far_side():
     surfaces = profile(cloud(kerb(0.6, 1.4, 0.05), faces=[0.6, 1.4]), 0.0, -0.1, 2.2)
     steps = place(surfaces, SOLES, 1.8)
     check_walk(steps, surfaces)
-    # strides of 0.15 (walking's own), together with the toes 1 cm from the kerb (its face
-    # at 0.60), over it heel 7 cm past the edge, along, together 1 cm from the far edge
-    # (1.40), down, on to the goal side by side
+    # strides of 0.15 (walking's own; one of 0.18 rather than a 3-cm shuffle), together
+    # with the toes at the last floor bin before the kerb's face (0.60: 0-2 cm from it),
+    # over it heel 6 cm past the edge, the second foot beside the first, along, together
+    # at the far edge (1.40), down, on to the goal side by side
     assert [round(step[0], 2) for step in steps] == \
-        [0.18, 0.33, 0.46, 0.46, 0.8, 0.95, 1.1, 1.26, 1.26, 1.6, 1.75, 1.83, 1.83]
-    assert [round(step[2] - FLOOR, 2) for step in steps] == \
-        [0.0] * 4 + [0.05] * 5 + [0.0] * 4
+        [0.18, 0.33, 0.47, 0.47, 0.79, 0.79, 0.94, 1.09, 1.27, 1.27, 1.59, 1.59, 1.74, 1.83,
+         1.83]
+    assert [round(step[2] - FLOOR, 2) for step in steps] == [0.0] * 4 + [0.05] * 6 + [0.0] * 5
 
 
 def test_a_camera_that_reads_the_ground_2_cm_high_places_the_same_footsteps():

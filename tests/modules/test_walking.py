@@ -17,9 +17,11 @@ import numpy as np
 import pytest
 
 from harness import wait_until
-from tests.modules.walker import (LOWEST_PELVIS, MAX_TILT, both_feet_loaded, footsteps, ramp_course,
+from tests.modules.walker import (LOWEST_PELVIS, MAX_TILT, both_feet_loaded,
+                                  cloud_in_pelvis_frame, footsteps, ramp_course,
                                   sole_heights, soles_in_pelvis_frame, terrain_course, tilt,
                                   upright, walk_through, walker)
+from walkman.control.ground_ahead import footsteps_from_cloud
 from walkman.model.mjcf import TERRAIN_RAMP, TERRAIN_STEP
 from walkman.modules import walking
 from yarp_lite.bottle import Bottle
@@ -212,6 +214,43 @@ def test_a_step_up_sent_too_far_from_the_kerb_is_found_on_landing_and_the_foot_p
     walk_through(world, module, "go_straight 0.12")    # the toes up to the kerb
     walk_through(world, module, "step_up 0.05")
     assert sole_heights(backend) == pytest.approx((height, height), abs=0.005)
+    assert not [w for w in module.warnings if "foothold" in w], module.warnings
+
+
+def test_the_terrain_course_by_footsteps_placed_from_the_head_camera_s_cloud(tmp_path):
+    """Issue 32, footsteps from the perception cloud: the head pitched down (as gaze_control
+    would), the head camera's cloud in the pelvis frame, :mod:`walkman.control.ground_ahead`
+    places footsteps up the 5-cm step, along it and down the far side, none by hand.  The
+    walk goes a plan at a time, each cut where the feet next stand together (at an edge,
+    or the goal): look, place, walk, look again."""
+    world, module = walker("terrain")
+    backend = world.backend
+    _, end, height = TERRAIN_STEP
+    # the head bent all the way down (1.05 rad): from 0.2 m ahead of the toes, the floor
+    # before the kerb is in view (at 0.5 rad, from 1 m; then the feet's own ground is not
+    # seen, and the footsteps are refused)
+    backend.set_references([backend.index["NeckPitchj"]], [1.04])
+    world.step(1.0)
+    goal = end + 0.40                  # world x: the soles' centres well past the far edge
+    margins, plans = [], []
+    for _ in range(8):
+        soles = dict(zip(("left", "right"), map(tuple, soles_in_pelvis_frame(backend))))
+        here = min(float(backend.plant.d.body(f"{side}_foot").xpos[0]) for side in "lr") + \
+            walking.SOLE[0]
+        if goal - here < 0.05:
+            break
+        steps = footsteps_from_cloud(cloud_in_pelvis_frame(backend, tmp_path), soles,
+                                     goal - here)
+        cut = min(k for k in range(2, len(steps) + 1)    # to the next edge, or the goal
+                  if abs(steps[k - 1][0] - steps[k - 2][0]) < 0.006)
+        plans.append([round(step[0], 2) for step in steps[:cut]])
+        margins.append(walk_through(world, module, footsteps(*steps[:cut])))
+    world.step(1.0)
+    assert upright(backend) and both_feet_loaded(backend), plans
+    assert sole_heights(backend) == pytest.approx((0.0, 0.0), abs=0.005), plans
+    heels = [float(backend.plant.d.body(f"{side}_foot").xpos[0]) + 0.03 - 0.13 for side in "lr"]
+    assert min(heels) > end, (heels, plans)        # off the platform, on the floor beyond it
+    assert min(margins) > 0.02, list(zip(margins, plans))   # the ZMP never near the edge
     assert not [w for w in module.warnings if "foothold" in w], module.warnings
 
 

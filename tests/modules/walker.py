@@ -6,6 +6,10 @@ bench/bench_walking.py)."""
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
+from pathlib import Path
 from typing import List, Sequence, Tuple
 
 import numpy as np
@@ -127,3 +131,36 @@ def ramp_course(world, module) -> List[Leg]:
         leg = timed_walk(world, module, command if isinstance(command, str) else command())
         done.append((leg[0] if isinstance(command, str) else "footsteps", *leg[1:]))
     return done
+
+
+#: walkman-perception's own rendering of the head camera (walkman.head_camera), its points
+#: taken into the world by the camera's pose: in a process of its own, since MuJoCo picks
+#: its GL once per process (osmesa here, whatever the test process has)
+_SEE = r"""
+import sys
+import numpy as np
+from walkman.head_camera import CAMERA, SceneCamera, cloud_points, intrinsics
+camera = SceneCamera(320, 240)
+rgb, depth = camera.render(np.load(sys.argv[1]))
+f, cx, cy = intrinsics(camera.width, camera.height, camera.fovy)
+optical = cloud_points(depth, rgb, f, cx, cy, 2)[..., :3].reshape(-1, 3).astype(float)
+cam = camera.model.cam(CAMERA).id
+turn = camera.data.cam_xmat[cam].reshape(3, 3)
+# the optical frame (x right, y down, z ahead) is MuJoCo's camera frame (y up, z back) flipped
+np.save(sys.argv[2], camera.data.cam_xpos[cam] + (optical * [1.0, -1.0, -1.0]) @ turn.T)
+"""
+
+
+def cloud_in_pelvis_frame(backend, folder: Path) -> np.ndarray:
+    """What the head camera sees now, as points in the pelvis frame (the frame of
+    :func:`soles_in_pelvis_frame`; the PI takes it from TF)."""
+    qpos, points = folder / "qpos.npy", folder / "cloud.npy"
+    np.save(qpos, backend.plant.d.qpos)
+    root = Path(__file__).resolve().parents[2]
+    result = subprocess.run([sys.executable, "-c", _SEE, str(qpos), str(points)],
+                            capture_output=True, text=True, timeout=300, cwd=root,
+                            env={**os.environ, "MUJOCO_GL": "osmesa", "PYTHONPATH": str(root)})
+    assert result.returncode == 0, result.stderr[-3000:]
+    world = np.load(points)
+    d = backend.plant.d
+    return (world - d.body("pelvis").xpos) @ d.body("pelvis").xmat.reshape(3, 3)

@@ -85,6 +85,8 @@ FLAT = Ground()
 Landing = Tuple[str, Planar, Ground, Optional[Planar]]
 SIDES = ("left", "right")
 RISE, DESCEND = 0.2, 0.7  # swing phases: up until RISE, travel, down from DESCEND
+#: m along the standing sole within which a landing is beside it
+BESIDE = 0.05
 
 
 def compose(a: Planar, b: Planar) -> Planar:
@@ -392,7 +394,11 @@ class WalkPlan:
         given, the standing foot's continued to where it lands (level ground stays level,
         a ramp goes on); its stride (the odometry it stands for), if not given, how far it
         moves the point between the feet.  ``check_first_only``: the landings after the first
-        go beside it, and only its landing is checked (:attr:`Step.check`)."""
+        go beside it, and only its landing is checked (:attr:`Step.check`).  Nor is one
+        landing beside the standing sole (within :data:`BESIDE` along it) on the ground
+        that sole stands on: it bears there (footsteps up a kerb, the second foot beside
+        the first, as ``step_up``'s: checked too, its wait left the ZMP 1.7 cm inside the
+        feet, 3.0 without)."""
         if self.steps:
             raise ValueError("already walking: wait for the walk to end")
         feet, ground = dict(self.feet), dict(self.ground)
@@ -410,8 +416,13 @@ class WalkPlan:
             feet[side] = land
             if stride is None:
                 stride = compose(inverse(before), midpoint(feet["left"], feet["right"]))
+            # beside the standing sole, on the ground it stands on: that ground bears
+            beside = abs(compose(inverse(stance), land)[0]) < BESIDE and \
+                abs(land_ground.z - ground[other(side)].z) < 0.005 and \
+                abs(land_ground.pitch - ground[other(side)].pitch) < 0.05
             steps.append(Step(side, start, land, stride, 0.0, 0.0, 0.0, ground[side],
-                              land_ground, check=number == 1 or not check_first_only))
+                              land_ground, check=(number == 1 or not check_first_only) and
+                              not beside))
             ground[side] = land_ground
         self.set_aside = []
         self._schedule(steps, t)

@@ -9,24 +9,34 @@ them from what the camera sees.  Pure: points in, footsteps or a refusal out.
    a strip along the walking line are binned every :data:`BIN` m ahead; a bin's
    height is the median of its points (a kerb's face and a stray point do not move
    it), a bin with fewer than :data:`MIN_POINTS` is unseen.  Runs of seen bins whose
-   heights follow on (each within :data:`JUMP` of the last two: a bin that holds both
+   heights follow on (across at most :data:`GAP_BINS` unseen ones; each within
+   :data:`JUMP` of the last two: a bin that holds both
    sides of an edge, half kerb and half floor, would otherwise bridge it) are *surfaces*, each
    fitted with a line (a ramp's slope is its pitch); a jump or an unseen stretch
    ends one.  A run shorter than a sole between two edges, at a height between its
    neighbours', is a kerb's face seen edge-on and is dropped; any other short run
    stays a surface (floor seen before a dip is still floor), one no foot lands on.
 2. :func:`place` -- the feet take turns along the line, each sole landing whole on
-   one surface: its toes at least :data:`TOE_MARGIN` short of the surface's far end,
-   its heel at least :data:`HEEL_MARGIN` past an edge it crosses (from 4 cm short of
-   a kerb's far edge, a 0.33-m step down caught its heel under load, fc21 of
-   2026-11-28), a stride at most :data:`STRIDE` ahead of the standing foot.  At an
+   one surface: its toes no further than the surface's seen end, its heel at least
+   :data:`HEEL_MARGIN` past the seen start of one it crosses onto (the edge itself is
+   in the bin between: 4-6 cm past it; from 4 cm short of a kerb's far edge, a 0.33-m
+   step down landing 3 cm past it caught its heel under load, fc21 of 2026-11-28), a
+   stride at most :data:`STRIDE` ahead of the standing foot.  At an
    edge the feet come together as close to it as the toes may go, then cross one by
-   one, rising or dropping at most :data:`MAX_RISE` (walking's reach).  Heights are
+   one, the second landing beside the first (as walking's ``step_up``: a long swing
+   onto higher ground left the ZMP 3.5 mm inside the feet), rising or dropping at most
+   :data:`MAX_RISE` (walking's reach).  Heights are
    taken relative to the surface under the feet, so a camera's height error cancels.
    The camera does not see under the toes: the first surface seen is taken to go on
    back under the feet if it begins within :data:`MAX_UNSEEN` of the toes and lies
-   within :data:`MAX_OFFSET` of the soles' height -- otherwise an edge may hide in the
-   stretch not seen, and the footsteps are refused.
+   within :data:`MAX_OFFSET` of the soles' height.  Seen within :data:`EDGE_AT_TOES` of
+   the toes at another height, it is an edge right there (the feet at a kerb's far
+   edge); further, an edge may hide in the stretch not seen, and the footsteps are
+   refused.
+
+:func:`footsteps_from_cloud` is both, from a whole cloud: the strip between the soles'
+lines, without what is far above or below them (looking down, the camera sees the
+robot's own knees).
 
 What it will not do is said, with where: an edge higher than the legs climb, a
 surface too short to stand on, a far side beyond a step's reach, ground not seen.
@@ -46,14 +56,19 @@ from walkman.control.footsteps import Reach, Timing
 #: m: bin length along the walking line, and the strip's half width around it
 BIN = 0.02
 STRIP_HALF_WIDTH = 0.10
-#: points a bin needs to be seen
+#: points a bin needs to be seen, and how many unseen bins a surface may span (far
+#: ground is sampled sparsely: every other bin empty)
 MIN_POINTS = 3
+GAP_BINS = 2
 #: m: the most two neighbouring bins of one surface differ (a 10-degree ramp: 0.35 cm)
 JUMP = 0.012
 #: m: the sole's half length
 SOLE_HALF_LENGTH = Sole.half_length
-TOE_MARGIN = 0.01
-HEEL_MARGIN = 0.05
+#: m: a sole's toes short of a surface's seen end, its heel past a seen start.  A bin that
+#: holds an edge is in neither surface, so the real edge is 0-2 cm (:data:`BIN`) beyond
+#: what is seen: the toes end 0-2 cm short of it, the heel lands 4-6 cm past it
+TOE_MARGIN = 0.0
+HEEL_MARGIN = 0.04
 #: m: how far a foot lands ahead of the other along one surface (as walking's own
 #: strides), and the most a step across an edge may reach (2 cm inside the legs' reach)
 STRIDE = Timing.max_stride[0]
@@ -65,8 +80,15 @@ MAX_RISE = Reach.height
 #: soles' (a camera's error; more is an edge in the unseen stretch)
 MAX_UNSEEN = 0.30
 MAX_OFFSET = 0.03
+#: m: ground seen this close to the toes at another height is an edge right there
+EDGE_AT_TOES = 0.05
 #: m: a stride that would leave less than this before an edge or the goal goes all the way
 MIN_STEP = 0.03
+#: m: points further above or below the soles are no ground a foot could reach (the
+#: robot's own knees and hands, looked down at; a wall)
+BAND = 0.3
+#: m: how far beyond the goal the ground is looked at (the last steps need their footing)
+BEYOND = 1.0
 
 Pose = Tuple[float, float, float, float, float, float]   # x y z roll pitch yaw
 
@@ -111,11 +133,11 @@ def profile(points: np.ndarray, line_y: float, x_from: float, x_to: float,
     for k, height in enumerate(heights):
         if height is None:
             continue
-        run = runs[-1] if runs and runs[-1][-1] == k - 1 else None
-        if run is not None and (abs(height - heights[k - 1]) > JUMP or  # type: ignore
-                                len(run) >= 2 and abs(height - heights[k - 2]) > JUMP):
+        run = runs[-1] if runs and k - runs[-1][-1] <= 1 + GAP_BINS else None
+        if run is not None and (abs(height - heights[run[-1]]) > JUMP or  # type: ignore
+                                len(run) >= 2 and abs(height - heights[run[-2]]) > JUMP):
             # an edge; a bin before it half way up holds both sides (the face): in neither
-            before, last = heights[run[-2]] if len(run) >= 2 else None, heights[k - 1]
+            before, last = heights[run[-2]] if len(run) >= 2 else None, heights[run[-1]]
             if before is not None and (last - before) * (height - before) > 0 and \
                     abs(last - before) > JUMP / 2:            # type: ignore[operator]
                 run.pop()
@@ -167,14 +189,21 @@ def place(surfaces: Sequence[Surface], soles: Dict[str, Pose],
         seen = f"only from {ahead[0].start - toes:.2f} m" if ahead else "nowhere"
         raise GroundError(f"the ground under the feet is not seen: the camera sees it {seen} "
                           f"ahead of the toes (at most {MAX_UNSEEN:.2f}): look down or walk on")
-    # the camera cannot see under the toes: the first surface goes on back under the feet
+    # the camera cannot see under the toes: the first surface goes on back under the feet,
+    # the soles' heights over it a camera's error, cancelled -- unless that is more than a
+    # camera errs: seen right at the toes, it is an edge there (they stand at a kerb's
+    # far edge); further, an edge may hide anywhere in the stretch not seen
     first = ahead[0]
     back = min(first.start, here - SOLE_HALF_LENGTH)
-    surfaces = [replace(first, start=back, z0=first.z(back)), *ahead[1:]]
-    # the soles' heights over the ground seen ahead of them: a camera's error, cancelled --
-    # unless it is more than a camera errs, which is a kerb just out of sight
-    offset = float(np.mean([soles[s][2] - surfaces[0].z(soles[s][0]) for s in soles]))
-    if abs(offset) > MAX_OFFSET:
+    under = replace(first, start=back, z0=first.z(back))
+    offset = float(np.mean([soles[s][2] - under.z(soles[s][0]) for s in soles]))
+    if abs(offset) <= MAX_OFFSET:
+        surfaces = [under, *ahead[1:]]
+    elif first.start - toes <= EDGE_AT_TOES:
+        own = float(np.mean([pose[2] for pose in soles.values()]))
+        surfaces = [Surface(here - SOLE_HALF_LENGTH, first.start, own, 0.0), *ahead]
+        offset = 0.0
+    else:
         raise GroundError(f"the ground seen {first.start - toes:.2f} m ahead of the toes is "
                           f"{-offset * 100:+.0f} cm from the soles' own: an edge out of sight "
                           f"or a camera out of calibration; place the footsteps by hand")
@@ -188,10 +217,10 @@ def place(surfaces: Sequence[Surface], soles: Dict[str, Pose],
         last = surface.end - SOLE_HALF_LENGTH - TOE_MARGIN     # the toes short of its end
         limit = min(last, goal)
         x = stand.x + STRIDE
-        if x > limit - MIN_STEP:                              # no shuffle before a limit
+        if x >= limit - MIN_STEP:                             # no shuffle before a limit
             x = limit
-        if mover.surface != index:                            # joining across an edge
-            x = max(x, surface.start + SOLE_HALF_LENGTH + HEEL_MARGIN)
+        if mover.surface != index:      # the other foot across the edge: beside it, as
+            x = stand.x                 # walking's step_up lands its second foot
         if x <= mover.x + 0.005:
             if stand.x < min(last, goal) - 0.005 or goal <= stand.x + 0.005:
                 break                                         # side by side at the goal
@@ -227,3 +256,17 @@ def _across(surfaces: Sequence[Surface], stand: _Foot) -> Tuple[float, int]:
                           f"{landing.end - landing.start:.2f} m long: too short for a sole "
                           f"and its margins")
     return x, after
+
+
+def footsteps_from_cloud(points: np.ndarray, soles: Dict[str, Pose],
+                         distance: float) -> List[Pose]:
+    """From a cloud in the pelvis frame to footsteps, the whole way: the strip along the
+    line between the soles, from their heels to :data:`BEYOND` past the goal, without what
+    lies more than :data:`BAND` above or below them."""
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    height = float(np.mean([pose[2] for pose in soles.values()]))
+    line = float(np.mean([pose[1] for pose in soles.values()]))
+    near = points[np.abs(points[:, 2] - height) <= BAND]
+    x_from = min(pose[0] for pose in soles.values()) - SOLE_HALF_LENGTH
+    x_to = max(pose[0] for pose in soles.values()) + distance + BEYOND
+    return place(profile(near, line, x_from, x_to), soles, distance)
