@@ -217,6 +217,7 @@ class PilotWindow(QMainWindow):
         self.ghost: Optional[Any] = None          # the shown preview's placements
         self.ghosts_shown = 0                     # how many previews were shown so far
         self._kinematics: Optional[Any] = None    # for the ghost's links, made when first shown
+        self.cloud: Optional[events.CloudEvent] = None   # the head camera's last, with x y z
         self._edited: Set[str] = set()            # scene objects this window has dragged
         self.timer = QTimer(self)
         self.timer.timeout.connect(self._tick)
@@ -356,6 +357,28 @@ class PilotWindow(QMainWindow):
             self._kinematics = Kinematics()
         return sole_poses(self._kinematics, self.preview.posture)
 
+    def footsteps_from_camera(self, distance: float) -> Tuple[List[Tuple[float, ...]], str]:
+        """Footsteps ``distance`` m ahead, placed on what the head camera's last cloud shows
+        (:func:`walkman.control.ground_ahead.footsteps_from_cloud`): the cloud taken to the
+        pelvis frame by the robot's last joint state, as ``/tf`` would; ([], why) if not."""
+        from walkman.control.ground_ahead import GroundError, footsteps_from_cloud
+        from walkman.head_camera import FRAME, optical_to
+
+        soles = self.soles()
+        if soles is None:
+            return [], "the feet's posture is not known yet (no joint state from the robot)"
+        cloud = self.cloud
+        if cloud is None or cloud.xyz is None:
+            return [], "no point cloud from the head camera yet (is perception running?)"
+        if cloud.frame not in ("", FRAME):
+            return [], f"the cloud is in {cloud.frame}, not {FRAME}"
+        points = optical_to(cloud.xyz, *self._kinematics.pose(self.preview.posture,
+                                                              "multisense_frame"))
+        try:
+            return footsteps_from_cloud(points, soles, distance), ""
+        except GroundError as exc:
+            return [], f"no footsteps from the camera: {exc}"
+
     def _state_of(self, module: str) -> Optional[str]:
         return next((w.state for w in self.module_widgets.get(module, [])
                      if w.state is not None), None)
@@ -459,6 +482,8 @@ class PilotWindow(QMainWindow):
             return
         if isinstance(event, events.JointsEvent):
             self.preview.on_joints(event.names, event.position)
+        if isinstance(event, events.CloudEvent) and event.xyz is not None:
+            self.cloud = event                   # what footsteps are placed from
         if isinstance(event, events.CountdownEvent) and event.sender == self.name:
             if event.state == "waiting":
                 self.preview.countdown_left(event.module, event.remaining)

@@ -29,7 +29,7 @@ import logging
 import math
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, Optional, Sequence, Tuple
 
 import numpy as np
@@ -117,6 +117,10 @@ class ImageEvent:
 class CloudEvent:
     points: int
     stamp_ns: int
+    #: the points' x y z in :data:`frame` (N x 3), what footsteps are placed from; None
+    #: when the cloud has no x y z fields
+    xyz: Optional[np.ndarray] = field(default=None, compare=False, repr=False)
+    frame: str = ""
 
 
 Rectangle = Tuple[int, int, int, int]   # x, y, width, height (cells)
@@ -523,7 +527,18 @@ class PilotLink:
         self.post(ImageEvent(rgb, msg.header.stamp.to_nsec()))
 
     def _on_cloud(self, msg: Any) -> None:
-        self.post(CloudEvent(msg.width * msg.height, msg.header.stamp.to_nsec()))
+        from walkman.head_camera import cloud_xyz
+
+        offsets = {f.name: f.offset for f in msg.fields}
+        xyz = None
+        if {"x", "y", "z"} <= offsets.keys():
+            try:
+                xyz = cloud_xyz(bytes(msg.data), msg.point_step,
+                                (offsets["x"], offsets["y"], offsets["z"]))
+            except ValueError as exc:
+                log.warning("pilot: %s: %s", CLOUD_TOPIC, exc)
+        self.post(CloudEvent(msg.width * msg.height, msg.header.stamp.to_nsec(), xyz,
+                             msg.header.frame_id))
 
     # -- the bridge's status (YARP, local) --------------------------------------------------
 

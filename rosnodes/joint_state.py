@@ -28,12 +28,10 @@ import time
 import numpy as np
 
 from nodekit import tf
+from walkman.head_camera import OPTICAL_ROTATION
 from walkman.model import URDF_PATH
 
 log = logging.getLogger("walkman.joint_state")
-#: multisense_frame -> multisense_optical_frame (x right, y down, z ahead), xyzw, as in
-#: every ROS camera driver's static transform.
-OPTICAL_ROTATION = (-0.5, 0.5, -0.5, 0.5)
 
 
 def robot_tf(kinematics, q: np.ndarray, now):

@@ -35,6 +35,11 @@ log = logging.getLogger("walkman.perception")
 
 FRAME = "multisense_optical_frame"
 CAMERA = "multisense"
+#: multisense_frame -> multisense_optical_frame (x right, y down, z ahead), xyzw, as in
+#: every ROS camera driver's static transform; and as a matrix (optical axes in the
+#: camera frame's: x right = -y, y down = -z, z ahead = x)
+OPTICAL_ROTATION = (-0.5, 0.5, -0.5, 0.5)
+OPTICAL_TO_CAMERA = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 #: How often the node logs its frame rate and where a frame's time goes.
 SUMMARY_PERIOD_S = 10.0
 
@@ -58,6 +63,23 @@ def cloud_points(depth: np.ndarray, rgb: np.ndarray, f: float, cx: float, cy: fl
     packed = (colors[..., 0] << 16) | (colors[..., 1] << 8) | colors[..., 2]
     points[..., 3] = packed.view(np.float32)
     return points
+
+
+def cloud_xyz(data: bytes, point_step: int, offsets: Tuple[int, int, int]) -> np.ndarray:
+    """The x y z (float32, little-endian, at ``offsets`` in each point) of a cloud's
+    points as an N x 3 array -- :func:`cloud_points` read back, as the PI reads it."""
+    if point_step <= 0 or len(data) % point_step or max(offsets) + 4 > point_step:
+        raise ValueError(f"a cloud of {len(data)} bytes is not points of {point_step} bytes "
+                         f"with x y z at {offsets}")
+    raw = np.frombuffer(data, np.uint8).reshape(-1, point_step)
+    return np.stack([raw[:, k:k + 4].copy().view("<f4")[:, 0] for k in offsets], axis=1)
+
+
+def optical_to(xyz: np.ndarray, position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """Points of the optical frame in the frame where ``multisense_frame`` sits at
+    ``position``, turned by ``rotation`` (the pelvis frame, from the robot's kinematics)."""
+    return np.asarray(position, float) + np.asarray(xyz, float) @ (
+        np.asarray(rotation, float) @ OPTICAL_TO_CAMERA).T
 
 
 class StageTimes:

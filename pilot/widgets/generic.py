@@ -394,7 +394,9 @@ class ChoiceBox(WheelOnlyWhenChosen, QComboBox):
 def number_field() -> QDoubleSpinBox:
     field = NumberField()
     field.setDecimals(3)
-    field.setRange(-100.0, 100.0)
+    # wide: the module checks its numbers (perception's set_resolution takes up to 1280 px;
+    # at +-100 the field cut 640 to 100 without a word)
+    field.setRange(-1e5, 1e5)
     field.setSingleStep(0.05)
     field.setAlignment(Qt.AlignRight)
     return field

@@ -249,6 +249,25 @@ class WalkingWidget(TaskWidget):
         line.addWidget(self.clear_button)
         line.addWidget(self.footsteps_label, 1)
         self.task_area.addWidget(row)
+        camera = QWidget()
+        line = QHBoxLayout(camera)
+        line.setContentsMargins(0, 0, 0, 0)
+        self.camera_button = QPushButton("footsteps from the camera")
+        self.camera_button.setObjectName("footsteps_from_camera")
+        self.camera_button.setToolTip(
+            "place footsteps on the ground the head camera sees, this far ahead, to where the "
+            "feet next stand together (an edge, or there): look, then send footsteps; at an "
+            "edge, again (pitch the head down first: the ground under the toes must be seen)")
+        self.camera_button.clicked.connect(self.footsteps_from_camera)
+        self.camera_distance = number_field()
+        self.camera_distance.setObjectName("camera_distance")
+        self.camera_distance.setRange(0.1, 5.0)
+        self.camera_distance.setValue(1.0)
+        self.camera_distance.setSuffix(" m")
+        line.addWidget(self.camera_button)
+        line.addWidget(self.camera_distance)
+        line.addStretch(1)
+        self.task_area.addWidget(camera)
         self._show_count()
         self.refresh()
 
@@ -304,6 +323,35 @@ class WalkingWidget(TaskWidget):
         problem = self.sender_.place(name, "footstep", pose)
         if problem:
             self.show_problem(problem)
+
+    def footsteps_from_camera(self) -> None:
+        """The footsteps of the leg ahead, placed from the camera's cloud in the shared
+        scene (where every pilot sees, and may drag, them), the ones placed before cleared.
+        (A Qt slot: nothing gets out.)"""
+        try:
+            from walkman.control.ground_ahead import first_leg
+
+            steps, problem = self.sender_.footsteps_from_camera(self.camera_distance.value())
+            if problem:
+                self.show_problem(problem)
+                return
+            leg = first_leg(steps)
+            spec = self.catalogue.commands.get("footsteps")
+            most = spec.most // 6 if spec is not None and spec.most else len(leg)
+            if len(leg) > most:      # what one command carries: the rest after a look again
+                self.show_problem(f"{len(leg)} footsteps to the next edge or the goal: the "
+                                  f"first {most} placed (one command's), place again there")
+                leg = leg[:most]
+            self.clear_footsteps()
+            for number, pose in enumerate(leg, 1):
+                name = f"footstep_{number}"
+                self.footstep_moved(name, pose)
+                problem = self.sender_.place(name, "footstep", pose)
+                if problem:
+                    self.show_problem(problem)
+        except Exception as exc:  # noqa: BLE001
+            log.exception("pilot: footsteps from the camera failed")
+            self.show_problem(f"no footsteps from the camera: {exc}")
 
     def clear_footsteps(self) -> None:
         """(A Qt slot: nothing gets out.)"""

@@ -85,6 +85,20 @@ def test_up_a_kerb_along_it_and_down_the_far_side():
     assert [round(step[2] - FLOOR, 2) for step in steps] == [0.0] * 4 + [0.05] * 6 + [0.0] * 5
 
 
+def test_a_drop_s_shadow_puts_the_heel_on_the_first_ground_seen_past_it():
+    """Looking down from a kerb, the floor just past its far edge is hidden by the kerb
+    (6 cm of it, the click test of 2026-11-28): the heel lands on the first floor seen,
+    which is more than 4 cm past the edge already, and within a step's reach."""
+    points = cloud(kerb(-1.0, 0.8, 0.05))
+    points = points[(points[:, 0] < 0.8) | (points[:, 0] >= 0.86)]
+    on_kerb = {side: (x, y, z + 0.05, *rest) for side, (x, y, z, *rest) in SOLES.items()}
+    surfaces = profile(points, 0.0, -0.1, 2.2)
+    steps = place(surfaces, on_kerb, 0.9)
+    check_walk(steps, surfaces, on_kerb)
+    down = next(step for step in steps if step[2] < FLOOR + 0.01)
+    assert down[0] - SOLE_HALF_LENGTH == pytest.approx(0.86, abs=0.005)
+
+
 def test_a_camera_that_reads_the_ground_2_cm_high_places_the_same_footsteps():
     true = place(profile(cloud(kerb(0.6, 1.4, 0.05)), 0.0, -0.1, 2.2), SOLES, 1.8)
     biased = place(profile(cloud(kerb(0.6, 1.4, 0.05)) + [0, 0, 0.02], 0.0, -0.1, 2.2),

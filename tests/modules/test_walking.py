@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 
 from harness import wait_until
-from tests.modules.walker import (LOWEST_PELVIS, MAX_TILT, both_feet_loaded,
+from tests.modules.walker import (LOWEST_PELVIS, MAX_TILT, both_feet_loaded, camera_cloud,
                                   cloud_in_pelvis_frame, footsteps, ramp_course,
                                   sole_heights, soles_in_pelvis_frame, terrain_course, tilt,
                                   upright, walk_through, walker)
-from walkman.control.ground_ahead import footsteps_from_cloud
+from walkman.control.ground_ahead import first_leg, footsteps_from_cloud
 from walkman.model.mjcf import TERRAIN_RAMP, TERRAIN_STEP
 from walkman.modules import walking
 from yarp_lite.bottle import Bottle
@@ -241,10 +241,9 @@ def test_the_terrain_course_by_footsteps_placed_from_the_head_camera_s_cloud(tmp
             break
         steps = footsteps_from_cloud(cloud_in_pelvis_frame(backend, tmp_path), soles,
                                      goal - here)
-        cut = min(k for k in range(2, len(steps) + 1)    # to the next edge, or the goal
-                  if abs(steps[k - 1][0] - steps[k - 2][0]) < 0.006)
-        plans.append([round(step[0], 2) for step in steps[:cut]])
-        margins.append(walk_through(world, module, footsteps(*steps[:cut])))
+        leg = first_leg(steps)                          # to the next edge, or the goal
+        plans.append([round(step[0], 2) for step in leg])
+        margins.append(walk_through(world, module, footsteps(*leg)))
     world.step(1.0)
     assert upright(backend) and both_feet_loaded(backend), plans
     assert sole_heights(backend) == pytest.approx((0.0, 0.0), abs=0.005), plans
@@ -252,6 +251,25 @@ def test_the_terrain_course_by_footsteps_placed_from_the_head_camera_s_cloud(tmp
     assert min(heels) > end, (heels, plans)        # off the platform, on the floor beyond it
     assert min(margins) > 0.02, list(zip(margins, plans))   # the ZMP never near the edge
     assert not [w for w in module.warnings if "foothold" in w], module.warnings
+
+
+def test_the_pi_s_way_to_the_pelvis_frame_agrees_with_the_simulator_s_camera(tmp_path):
+    """The PI takes the cloud to the pelvis frame by the robot's kinematics (the URDF's
+    multisense_frame) and the optical turn (walkman.head_camera.optical_to); the simulator
+    by its own camera's pose: the same points, the head turned and bent."""
+    from walkman.control.kinematics import Kinematics
+    from walkman.head_camera import optical_to
+
+    world, _ = walker("terrain")
+    backend = world.backend
+    backend.set_references([backend.index["NeckPitchj"], backend.index["NeckYawj"]],
+                           [0.8, 0.3])
+    world.step(1.0)
+    optical, truth = camera_cloud(backend, tmp_path)
+    pis = optical_to(optical, *Kinematics().pose(backend.positions(), "multisense_frame"))
+    seen = np.isfinite(truth).all(axis=1)
+    error = np.linalg.norm(pis[seen] - truth[seen], axis=1)
+    assert seen.sum() > 1000 and np.percentile(error, 99) < 0.005, np.percentile(error, 99)
 
 
 def test_a_step_down_sent_before_the_kerbs_edge_strikes_it_and_the_foot_is_put_back():

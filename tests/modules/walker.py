@@ -148,19 +148,26 @@ cam = camera.model.cam(CAMERA).id
 turn = camera.data.cam_xmat[cam].reshape(3, 3)
 # the optical frame (x right, y down, z ahead) is MuJoCo's camera frame (y up, z back) flipped
 np.save(sys.argv[2], camera.data.cam_xpos[cam] + (optical * [1.0, -1.0, -1.0]) @ turn.T)
+np.save(sys.argv[3], optical)
 """
 
 
-def cloud_in_pelvis_frame(backend, folder: Path) -> np.ndarray:
-    """What the head camera sees now, as points in the pelvis frame (the frame of
-    :func:`soles_in_pelvis_frame`; the PI takes it from TF)."""
-    qpos, points = folder / "qpos.npy", folder / "cloud.npy"
+def camera_cloud(backend, folder: Path) -> Tuple[np.ndarray, np.ndarray]:
+    """What the head camera sees now: its points in the optical frame (as
+    ``/multisense/points`` carries them), and in the pelvis frame by MuJoCo's own camera
+    pose (the frame of :func:`soles_in_pelvis_frame`; the PI takes it from the kinematics)."""
+    qpos, points, optical = folder / "qpos.npy", folder / "cloud.npy", folder / "optical.npy"
     np.save(qpos, backend.plant.d.qpos)
     root = Path(__file__).resolve().parents[2]
-    result = subprocess.run([sys.executable, "-c", _SEE, str(qpos), str(points)],
+    result = subprocess.run([sys.executable, "-c", _SEE, str(qpos), str(points), str(optical)],
                             capture_output=True, text=True, timeout=300, cwd=root,
                             env={**os.environ, "MUJOCO_GL": "osmesa", "PYTHONPATH": str(root)})
     assert result.returncode == 0, result.stderr[-3000:]
     world = np.load(points)
     d = backend.plant.d
-    return (world - d.body("pelvis").xpos) @ d.body("pelvis").xmat.reshape(3, 3)
+    return np.load(optical), (world - d.body("pelvis").xpos) @ d.body("pelvis").xmat.reshape(3, 3)
+
+
+def cloud_in_pelvis_frame(backend, folder: Path) -> np.ndarray:
+    """What the head camera sees now, in the pelvis frame (:func:`camera_cloud`)."""
+    return camera_cloud(backend, folder)[1]

@@ -560,6 +560,56 @@ def test_the_walking_widget_places_footsteps_and_sends_them_in_order(qt):
     assert widget.footsteps_label.text() == "0 footsteps placed"
 
 
+def test_footsteps_from_the_camera_replace_the_placed_ones_to_the_next_edge(qt):
+    """Issue 32, footsteps from the perception cloud: the window places them on what the
+    camera sees (walkman.control.ground_ahead); the widget puts the leg to where the feet
+    next stand together into the shared scene, the ones placed before cleared."""
+    from python_qt_binding.QtCore import Qt
+    from python_qt_binding.QtTest import QTest
+
+    from pilot.catalogue import catalogue_of
+    from pilot.widgets.tasks import WalkingWidget
+
+    window = Scene()
+    asked: List[float] = []
+    plan: List[tuple] = [(0.18, 0.11, -1.03, 0, 0, 0), (0.18, -0.11, -1.03, 0, 0, 0),
+                         (0.48, 0.11, -0.98, 0, 0, 0), (0.48, -0.11, -0.98, 0, 0, 0)]
+    answer = ([], "no footsteps from the camera: an edge 12 cm up 0.30 m ahead")
+    window.footsteps_from_camera = lambda distance: asked.append(distance) or answer
+    widget = WalkingWidget(catalogue_of("walking"), window, advanced=lambda: True)
+    widget.footstep_moved("footstep_1", [0.15, 0.11, -1.03, 0.0, 0.0, 0.0])  # by hand
+    widget.camera_distance.setValue(0.8)
+    QTest.mouseClick(widget.camera_button, Qt.LeftButton)
+    assert asked == [0.8] and "an edge 12 cm up" in warnings(widget)[0]
+    assert list(widget.footsteps) == ["footstep_1"]            # refused: nothing changed
+    answer = (plan, "")
+    QTest.mouseClick(widget.camera_button, Qt.LeftButton)
+    assert window.placed[0] == ("footstep_1", "footstep", [0.15, 0.11, -1.03, 0, 0, 0], True)
+    assert window.placed[1:] == [("footstep_1", "footstep", [0.18, 0.11, -1.03, 0, 0, 0], False),
+                                 ("footstep_2", "footstep", [0.18, -0.11, -1.03, 0, 0, 0], False)]
+    assert widget.footsteps_label.text() == "2 footsteps placed"   # to the edge, not over
+    answer = ([(0.1 * k, 0.11 * (-1) ** k, -1.03, 0, 0, 0) for k in range(1, 14)]
+              + [(1.3, 0.11, -1.03, 0, 0, 0)], "")
+    QTest.mouseClick(widget.camera_button, Qt.LeftButton)
+    assert widget.footsteps_label.text() == "10 footsteps placed"
+    assert "14 footsteps to the next edge or the goal: the first 10 placed" in warnings(widget)[0]
+
+
+def test_a_command_s_number_field_takes_pixels_not_only_a_hundred(qt):
+    """perception's ``set_resolution 640 480`` from its Generic Widget: the fields held
+    -100..100 and sent ``set_resolution 100 100`` without a word (2026-11-28)."""
+    from pilot.catalogue import catalogue_of
+    from pilot.widgets.generic import GenericWidget
+
+    recorder = Recorder()
+    widget = GenericWidget(catalogue_of("perception"), recorder, advanced=lambda: True)
+    widget.command_box.setCurrentText("set_resolution")
+    for field, value in zip(widget.number_fields, (640, 480)):
+        field.setValue(value)
+    widget.send_button.click()
+    assert recorder.sent[-1][:3] == ("perception", "set_resolution", [640.0, 480.0])
+
+
 def test_the_generic_entry_of_a_repeated_group_holds_one_group():
     """``footsteps`` takes 6 to 60 numbers, a pose per sole: the Generic Widget's entry has
     six fields (one footstep), not sixty."""

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from harness import ManualClock
-from walkman.head_camera import FrameClock, cloud_points, intrinsics
+from walkman.head_camera import (OPTICAL_ROTATION, OPTICAL_TO_CAMERA, FrameClock, cloud_points,
+                                 cloud_xyz, intrinsics, optical_to)
 
 
 def test_intrinsics_of_mujocos_pinhole():
@@ -29,6 +30,32 @@ def test_a_wall_seen_straight_on_becomes_points_at_its_depth():
     assert points[3, 5, 0] == pytest.approx((u - cx) * 2.0 / f)
     assert points[3, 5, 1] == pytest.approx((v - cy) * 2.0 / f)
     assert points[1, 1, 3:].view(np.uint32)[0] == 0x123456
+
+
+def test_the_cloud_s_bytes_read_back_are_its_points_and_bad_sizes_are_named():
+    depth = np.linspace(1.0, 3.0, 48, dtype=np.float32).reshape(6, 8)
+    depth[2, 2] = np.nan
+    f, cx, cy = intrinsics(8, 6, 60.0)
+    points = cloud_points(depth, np.zeros((6, 8, 3), np.uint8), f, cx, cy, step=1)
+    xyz = cloud_xyz(points.tobytes(), 16, (0, 4, 8))
+    assert xyz.shape == (48, 3)
+    assert np.array_equal(xyz, points[..., :3].reshape(-1, 3), equal_nan=True)
+    for data, step, offsets in ((points.tobytes()[:-1], 16, (0, 4, 8)),
+                                (points.tobytes(), 0, (0, 4, 8)),
+                                (points.tobytes(), 16, (0, 4, 14))):
+        with pytest.raises(ValueError, match="is not points of"):
+            cloud_xyz(data, step, offsets)
+
+
+def test_the_optical_frame_is_the_camera_frame_turned_as_ros_drivers_turn_it():
+    x, y, z, w = OPTICAL_ROTATION
+    quaternion = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                           [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                           [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    assert np.allclose(quaternion, OPTICAL_TO_CAMERA)
+    # a point 2 m straight ahead of a camera 1 m up, looking along x: (1 right, 0.5 down)
+    assert np.allclose(optical_to([[1.0, 0.5, 2.0]], [0.0, 0.0, 1.0], np.eye(3)),
+                       [[2.0, -1.0, 0.5]])
 
 
 def test_frames_come_at_the_rate_asked_whatever_a_frame_costs():

@@ -89,6 +89,8 @@ MIN_STEP = 0.03
 BAND = 0.3
 #: m: how far beyond the goal the ground is looked at (the last steps need their footing)
 BEYOND = 1.0
+#: m: two soles this close along the line stand together
+TOGETHER = 0.006
 
 Pose = Tuple[float, float, float, float, float, float]   # x y z roll pitch yaw
 
@@ -239,14 +241,17 @@ def place(surfaces: Sequence[Surface], soles: Dict[str, Pose],
 
 def _across(surfaces: Sequence[Surface], stand: _Foot) -> Tuple[float, int]:
     """Where the moving foot lands past the edge the standing foot is at: its heel
-    :data:`HEEL_MARGIN` past it, the next surface's first footing."""
+    :data:`HEEL_MARGIN` past it and on ground seen, the next surface's first footing."""
     after = stand.surface + 1
     edge = surfaces[stand.surface].end
     if after >= len(surfaces):
         raise GroundError(f"no ground seen beyond {edge - stand.x + SOLE_HALF_LENGTH:.2f} m "
                           f"ahead of the feet: the footsteps end at the edge")
     landing = surfaces[after]
-    x = landing.start + SOLE_HALF_LENGTH + HEEL_MARGIN
+    # the heel on ground seen, and 4 cm past the edge, which lies in the bin after the
+    # standing surface's seen end (a drop's shadow, ground the kerb hides from the camera,
+    # may already put the first ground seen further)
+    x = max(landing.start, edge + BIN + HEEL_MARGIN) + SOLE_HALF_LENGTH
     if x - stand.x > CROSS_REACH:
         raise GroundError(f"the ground past the edge {edge - stand.x:.2f} m ahead begins "
                           f"{landing.start - edge:.2f} m beyond it: a step reaches "
@@ -270,3 +275,12 @@ def footsteps_from_cloud(points: np.ndarray, soles: Dict[str, Pose],
     x_from = min(pose[0] for pose in soles.values()) - SOLE_HALF_LENGTH
     x_to = max(pose[0] for pose in soles.values()) + distance + BEYOND
     return place(profile(near, line, x_from, x_to), soles, distance)
+
+
+def first_leg(steps: Sequence[Pose]) -> List[Pose]:
+    """The footsteps up to where the feet next stand together -- at an edge, or the goal:
+    what to walk before looking again (the ground past an edge is best seen from it)."""
+    for end in range(2, len(steps) + 1):
+        if abs(steps[end - 1][0] - steps[end - 2][0]) < TOGETHER:
+            return list(steps[:end])
+    return list(steps)
