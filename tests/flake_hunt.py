@@ -137,7 +137,7 @@ KNOWN: Tuple[Known, ...] = (
           "the heel caught it, the foot put back, and walk() blind to that warning (fc21 of "
           "2026-11-28, quiet; from 1 cm, and the driver sees it: f2d5331); again from 1 cm "
           "(fc23): 51-52 N read for a tick by a swinging sole, its way clear by 6 cm -- a "
-          "strike is now 150 N for two ticks in a row"); with PI_CAMERA_FOOTSTEPS=1 (not "
+          "strike is now 150 N for two ticks in a row; with PI_CAMERA_FOOTSTEPS=1 (not "
           "the suite's run) the walk on the kerb's top tripped the balance guard in 2 of 7 "
           "runs beside two burners, ZMP 0.4-0.6 cm from the feet's edge: open"),
     Known("tests/walkman/test_gym_hal.py::"
