@@ -62,7 +62,9 @@ KNOWN: Tuple[Known, ...] = (
           "the valve's x did not follow the dragged marker (fc9 of the fourth 2026-11-27 "
           "session): the render process connected twice at once to the PI's feedback "
           "publisher, rospy dropped the duplicate while the other's handshake read it (EBADF "
-          "in nodekit.ros_node's bounded_read) and kept neither; open"),
+          "in nodekit.ros_node's bounded_read) and kept neither; open; the ghost not on "
+          "the screen 30 s after the render process had switched the preview on (fc27 of "
+          "the second 2026-11-28 session, beside two burners): not looked into, open"),
     Known("tests/modules/test_drc_valve.py::test_the_valve_turns_by_the_commanded_angle",
           "valve slipped back after release (ci46, project CI; 15e599d, 7ba9f83)"),
     Known("tests/system/test_pilot_gui.py::"
@@ -102,7 +104,8 @@ KNOWN: Tuple[Known, ...] = (
           "test_every_program_keeps_serving_under_hostile_peers",
           "a flood locked a real rosservice call out (01ba698); the robot name server under a "
           "1000-connection flood did not answer `yarp-lite wait` within 20 s (fc13 of "
-          "2026-11-28, beside the PI start loop: load 11 on 2 cores)"),
+          "2026-11-28, beside the PI start loop: load 11 on 2 cores); again beside only two "
+          "burners (fc27 of the second 2026-11-28 session): open"),
     Known("tests/integration/test_text_and_cli.py::test_cli_conf_namespace_where_clean",
           "`yarp-lite clean` got 'connection refused' from the test's name server right after "
           "it had served `name register /ghost`; its log ended there, no error (fc13 of "
