@@ -350,12 +350,17 @@ class PilotWindow(QMainWindow):
         state -- where a new footstep is placed from -- or None before the first one."""
         if self.preview.posture is None:
             return None
-        from walkman.control.kinematics import Kinematics
         from walkman.modules.walking import sole_poses
 
+        return sole_poses(self.kinematics(), self.preview.posture)
+
+    def kinematics(self) -> Any:
+        """The robot's kinematics (pinocchio: made when first needed, not at the PI's start)."""
         if self._kinematics is None:
+            from walkman.control.kinematics import Kinematics
+
             self._kinematics = Kinematics()
-        return sole_poses(self._kinematics, self.preview.posture)
+        return self._kinematics
 
     def footsteps_from_camera(self, distance: float) -> Tuple[List[Tuple[float, ...]], str]:
         """Footsteps ``distance`` m ahead, placed on what the head camera's last cloud shows
@@ -372,8 +377,8 @@ class PilotWindow(QMainWindow):
             return [], "no point cloud from the head camera yet (is perception running?)"
         if cloud.frame not in ("", FRAME):
             return [], f"the cloud is in {cloud.frame}, not {FRAME}"
-        points = optical_to(cloud.xyz, *self._kinematics.pose(self.preview.posture,
-                                                              "multisense_frame"))
+        points = optical_to(cloud.xyz, *self.kinematics().pose(self.preview.posture,
+                                                               "multisense_frame"))
         try:
             return footsteps_from_cloud(points, soles, distance), ""
         except GroundError as exc:
@@ -390,11 +395,7 @@ class PilotWindow(QMainWindow):
 
     def _show_ghost(self, module: str, posture: Sequence[float]) -> None:
         """The preview's posture as the 3-D view's translucent second robot."""
-        from walkman.control.kinematics import Kinematics
-
-        if self._kinematics is None:
-            self._kinematics = Kinematics()
-        self.ghost = self._kinematics.link_placements(posture)
+        self.ghost = self.kinematics().link_placements(posture)
         self.ghosts_shown += 1
         self.link.publish_ghost(self.ghost)
         if self.view3d is not None:

@@ -166,18 +166,17 @@ class ControlLoop(threading.Thread):
                     runner.thread.run()
                 else:
                     runner.thread.run_paused()
-                runner.interfaces.commands.settle()
             except HalUsageError as exc:
-                runner.interfaces.commands.settle()
                 runner.warn(f"{runner.name}: refused by the robot: {exc}")
                 runner.lifecycle.hold("a refused command")
             except Exception as exc:  # the module's bug: told with its traceback, hold, stop
-                runner.interfaces.commands.settle()
                 hook = "run()" if state == State.RUNNING else "run_paused()"
                 runner.warn(f"{runner.name}: {hook} raised {type(exc).__name__}: {exc}",
                             exc_info=True)
                 runner.lifecycle.hold(f"{hook} raised")
                 runner.fail_stop()
+            finally:    # the tick that took them returned, or raised: theirs is done
+                runner.interfaces.commands.settle()
             self.period_errors.append(self.schedule.wait())
             if len(self.period_errors) > 20000:
                 del self.period_errors[:10000]
