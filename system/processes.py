@@ -105,7 +105,9 @@ class Proc:
         self.popen = subprocess.Popen(
             self.argv, env=env, cwd=str(cwd or REPO), stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT, stdin=subprocess.PIPE if stdin else subprocess.DEVNULL,
-            text=True, bufsize=1, start_new_session=True)
+            # A byte that is not UTF-8 (a library's stray output) is shown escaped: a strict
+            # decoder killed the reader there and lost every later line (fc29: the PI's DONE).
+            encoding="utf-8", errors="backslashreplace", bufsize=1, start_new_session=True)
         self._reader = threading.Thread(target=self._pump, daemon=True)
         self._reader.start()
 
