@@ -69,6 +69,20 @@ def background_share() -> float:
     return hits / max(1, len(samples))
 
 
+def steady_share(timeout: float = 30.0) -> float:
+    """The view's non-background share once three grabs in a row agree: one grab can catch a
+    frame half drawn or the container not yet repainted (fc27, beside two burners: the ghost
+    was never 'more than' such a baseline)."""
+    shares: List[float] = []
+
+    def steady() -> bool:
+        shares.append(1.0 - background_share())
+        return len(shares) >= 3 and max(shares[-3:]) - min(shares[-3:]) < 0.003
+
+    wait(steady, timeout, "three grabs of the view in a row that agree")
+    return shares[-1]
+
+
 def embedded_and_drawing(pid_not: int = 0) -> bool:
     view = window.view3d
     return view.embedded_pid not in (None, pid_not) and view.container is not None \
@@ -142,17 +156,21 @@ def ghost_drawn() -> None:
     robot = walkman()
     posture = home_posture(robot)
     q = np.array([posture[name] for name in robot.joint_names])
-    empty = 1.0 - background_share()
+    empty = steady_share()
+    asked = time.monotonic()
     window._show_ghost("drc_valve", q)
     wait(window.view3d.applied(), 30, "the render process to switch the preview on")
+    applied = time.monotonic() - asked
     wait(lambda: 1.0 - background_share() > empty + 0.01, 30, "the ghost on the screen")
-    shown = 1.0 - background_share()
+    drawn = time.monotonic() - asked
+    shown = steady_share()
     window.screenshot(OUT / "view3d-ghost.png")
     window._hide_ghost()
     wait(window.view3d.applied(), 30, "the render process to switch the preview off")
     wait(lambda: 1.0 - background_share() < shown - 0.005, 30, "the ghost gone")
     say(f"STEP ghost drawn: {100 * empty:.1f} % of the view not background without it, "
-        f"{100 * shown:.1f} % with it, {100 * (1.0 - background_share()):.1f} % hidden again")
+        f"{100 * shown:.1f} % with it, {100 * (1.0 - background_share()):.1f} % hidden again; "
+        f"switched on {applied:.2f} s and drawn {drawn:.2f} s after the ask")
 
 
 def main() -> None:
