@@ -42,6 +42,7 @@ class BufferedPort(Port):
         self.strict = strict
         self._latest_only = not strict
         self._min_interval = max(0.0, min_interval)
+        self._interval_set = threading.Condition()   # wakes connections waiting out the old
         self.max_pending = max_pending
         self.on_read = on_read
         self.dropped = 0
@@ -57,6 +58,25 @@ class BufferedPort(Port):
         self._used_for_read = True
 
     # -- receiving -----------------------------------------------------------------
+
+    @property
+    def min_interval(self) -> float:
+        """Seconds a connection waits after delivering a message (0: none); settable."""
+        return self._min_interval
+
+    @min_interval.setter
+    def min_interval(self, seconds: float) -> None:
+        """A reader whose need changes (a module that starts or stops controlling the robot)
+        changes its rate at once: a connection waiting out the old interval stops waiting."""
+        if self.strict and seconds:
+            raise ValueError("min_interval is for latest-only ports, not strict ones")
+        with self._interval_set:
+            self._min_interval = max(0.0, float(seconds))
+            self._interval_set.notify_all()
+
+    def _pace(self) -> None:
+        with self._interval_set:
+            self._interval_set.wait(self._min_interval)
 
     def _superseded(self, message: Incoming) -> None:
         self.received += 1

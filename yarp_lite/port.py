@@ -97,7 +97,7 @@ class _InputUnit:
             if not self._handshake():
                 return
             source = self.carrier.receiver(self.stream, self.stream.where, port.max_message)
-            latest_only, interval = port._latest_only, port._min_interval
+            latest_only = port._latest_only
             while not self.closing:
                 message = source.next()
                 data = message.command in ("d", "D") and not message.wants_reply
@@ -109,8 +109,8 @@ class _InputUnit:
                     continue
                 if not self._handle(message):
                     break
-                if latest_only and data and interval:
-                    time.sleep(interval)        # what comes meanwhile waits in the socket
+                if latest_only and data and port._min_interval:
+                    port._pace()                # what comes meanwhile waits in the socket
         except RemoteProtocolError as exc:
             log.warning("%s: dropping connection from %s: %s", port.name,
                         self.route.source or self.stream.remote_address, exc)
@@ -310,6 +310,10 @@ class Port:
     _latest_only = False
     #: Latest-only: the least time between two messages delivered from one connection.
     _min_interval = 0.0
+
+    def _pace(self) -> None:
+        """An input connection's wait after a delivery, under :attr:`_min_interval`."""
+        time.sleep(self._min_interval)
 
     def __init__(self, name: Optional[str] = None, *, reader: Optional[Reader] = None,
                  nameclient: Optional[NameClient] = None, timeout: Optional[float] = None,

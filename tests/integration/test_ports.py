@@ -153,6 +153,30 @@ def test_buffered_port_callback_and_background_write(lite_world, ports):
     assert [b[0] for b in seen] == list(range(50))
 
 
+def test_a_reader_s_min_interval_skips_to_the_newest_and_can_be_changed_while_connected(
+        lite_world, ports):
+    """A module reads the robot slowly while idle and at its own rate once it controls
+    (walkman.hal.robot.Robot.read_idle): the interval changes on a live connection."""
+    seen = []
+    reader = ports(BufferedPort, "/paced", on_read=lambda b: seen.append(b[0]),
+                   min_interval=600.0)
+    writer = ports(Port, "/pacer")
+    assert network.connect("/pacer", "/paced", "fast_tcp").ok
+    writer.write([0])
+    wait_until(lambda: seen == [0], timeout=20, message="the first message")
+    for index in range(1, 100):                 # they wait in the socket: 600 s to go
+        writer.write([index])
+    reader.min_interval = 0.0                   # the wait under way ends now
+    wait_until(lambda: seen[-1:] == [99], timeout=20, message="the newest, 99")
+    assert len(seen) <= 3, seen                 # the rest skipped, never decoded
+    for index in range(100, 120):               # one by one: none can supersede another
+        writer.write([index])
+        wait_until(lambda: seen[-1] == index, timeout=20, message=f"message {index}")
+    assert seen[-20:] == list(range(100, 120))
+    with pytest.raises(ValueError, match="latest-only"):
+        ports(BufferedPort, "/strictly", strict=True).min_interval = 0.5
+
+
 def test_a_latest_only_reader_that_fell_behind_skips_to_the_newest(lite_world, ports):
     """As YARP's non-strict BufferedPort: a callback still busy when messages pile up
     sees the newest next, not the backlog (a 500 Hz state stream read by a slow module

@@ -163,6 +163,9 @@ class Robot:
     def hold(self) -> bool:
         return self._hold()
 
+    def read_idle(self, idle: bool) -> None:
+        """Any rate will do: nothing is read (tests/walkman/test_transitions.py checks it)."""
+
     def take_hal_warnings(self) -> list:
         return []
 

@@ -10,9 +10,12 @@ raised out of a hook or a missed safe pause, and said less when a start failed.
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from typing import Callable, Iterator, List, Tuple
 
 import pytest
+
+from harness import wait_until
 
 from walkman.gym import runner as runner_module
 from walkman.gym import transitions
@@ -87,6 +90,7 @@ class HeldRobot:
 
     def __init__(self, holds: List[str]) -> None:
         self.holds = holds
+        self.reading_idle: List[bool] = []      # what the runner told, in order
 
     def hold(self) -> bool:
         self.holds.append("held")
@@ -98,23 +102,35 @@ class HeldRobot:
     def take_hal_warnings(self) -> list:
         return []
 
+    def read_idle(self, idle: bool) -> None:
+        self.reading_idle.append(idle)
+
     def close(self) -> None:
         """Nothing to close."""
+
+
+@contextmanager
+def run_by_a_runner(monkeypatch) -> Iterator[Driven]:
+    """A Probe under a module runner, its robot a :class:`HeldRobot` (``robot``)."""
+    monkeypatch.setenv("WALKMAN_NO_RT", "1")
+    monkeypatch.setattr(runner_module, "HOOK_TIMEOUT", TIMEOUT)  # a busy box is no hang
+    runner = ModuleRunner("probe", Probe, {"thread_period": 10},
+                          interfaces=RecordingInterfaces("/probe", Probe))
+    it = Driven(runner.switch, lambda: runner.state, runner.interfaces, runner.thread)
+    runner.robot = it.robot = HeldRobot(it.holds)
+    runner.start()
+    try:
+        yield it
+    finally:
+        runner.close()
+        runner.loop.join(TIMEOUT)
 
 
 @pytest.fixture(params=["runner", "offline"])
 def driven(request, monkeypatch) -> Iterator[Driven]:
     if request.param == "runner":
-        monkeypatch.setenv("WALKMAN_NO_RT", "1")
-        monkeypatch.setattr(runner_module, "HOOK_TIMEOUT", TIMEOUT)  # a busy box is no hang
-        runner = ModuleRunner("probe", Probe, {"thread_period": 10},
-                              interfaces=RecordingInterfaces("/probe", Probe))
-        it = Driven(runner.switch, lambda: runner.state, runner.interfaces, runner.thread)
-        runner.robot = HeldRobot(it.holds)
-        runner.start()
-        yield it
-        runner.close()
-        runner.loop.join(TIMEOUT)
+        with run_by_a_runner(monkeypatch) as it:
+            yield it
     else:
         world = OfflineWorld(SimBackend(scene=False))
         module = world.add(Probe, "probe")
@@ -145,6 +161,23 @@ def test_each_switch_runs_its_hook_in_the_runners_order_with_its_status_words(dr
     assert driven.interfaces.history == ["ok", "paused", "ok", "stopped", "ok", "destructor"]
     assert driven.holds == ["held", "held"]      # custom_init undone on stop and quit: held
     assert not driven.interfaces.warnings
+
+
+def test_the_robot_is_read_slowly_whenever_the_module_does_not_control_it(monkeypatch):
+    """Idle modules decoding the robot's 500-Hz state took a third of a core in a lab
+    topology: the runner tells its robot each change between controlling and not (the
+    offline world's robot is read straight from the simulator: nothing to slow)."""
+    with run_by_a_runner(monkeypatch) as driven:
+        robot = driven.robot
+        wait_until(lambda: robot.reading_idle == [True], TIMEOUT,
+                   message=f"constructor: read slowly ({robot.reading_idle})")
+        for command, idle in (("start", False), ("pause", True), ("resume", False),
+                              ("stop", True), ("start", False)):
+            told = len(robot.reading_idle)
+            driven.switch(command)
+            wait_until(lambda: len(robot.reading_idle) > told, TIMEOUT,
+                       message=f"{command}: told ({robot.reading_idle})")
+            assert robot.reading_idle[told:] == [idle], (command, robot.reading_idle)
 
 
 def test_a_stop_of_a_module_never_started_releases_and_holds_nothing(driven):

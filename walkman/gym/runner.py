@@ -47,7 +47,7 @@ import os
 import sys
 import threading
 import time
-from typing import Any, Callable, Dict, List, Optional, Type
+from typing import Any, Callable, Dict, List, Optional, Tuple, Type
 
 from nodekit import stacks
 from nodekit.logs import configure_logging, time_prefix
@@ -112,6 +112,7 @@ class ControlLoop(threading.Thread):
         self.done: Optional[bool] = None
         self.period_errors: List[float] = []
         self.exit = False
+        self._reading: Optional[Tuple[int, bool]] = None   # (robot, controlling) told
 
     def ask(self, hook: str, timeout: Optional[float] = None,
             beat: Callable[[], None] = lambda: None) -> Optional[bool]:
@@ -143,6 +144,14 @@ class ControlLoop(threading.Thread):
             self.done = result
             self.cond.notify_all()
 
+    def _read_robot_for(self, controlling: bool) -> None:
+        """The robot's state at the loop's rate while it controls, slowly otherwise
+        (:meth:`walkman.hal.robot.Robot.read_idle`); told once per change."""
+        robot = self.runner.robot
+        if robot is not None and self._reading != (id(robot), controlling):
+            robot.read_idle(not controlling)
+            self._reading = (id(robot), controlling)
+
     def run(self) -> None:
         runner = self.runner
         self.realtime = make_realtime(CONTROL_PRIORITY)
@@ -151,7 +160,9 @@ class ControlLoop(threading.Thread):
         while not self.exit:
             self._serve_request()
             state = runner.state
-            if state != State.RUNNING and not (paused_too and state == State.PAUSED):
+            controlling = state == State.RUNNING or (paused_too and state == State.PAUSED)
+            self._read_robot_for(controlling)
+            if not controlling:
                 with self.cond:
                     self.cond.wait_for(lambda: self.request is not None or self.exit, 0.1)
                 self.schedule.restart()
