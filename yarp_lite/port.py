@@ -35,6 +35,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import itertools
+from collections import OrderedDict
 import logging
 import socket
 import threading
@@ -63,6 +64,13 @@ Reply = Optional[Union[Bottle, Sequence]]
 _ACCEPT_TRANSIENT = {errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM,
                      errno.ECONNABORTED, errno.EPROTO}
 Reader = Callable[[Bottle], Reply]
+#: Accepted connections that have not yet said who they are (authentication and carrier
+#: header) kept at most; past it the oldest is closed to let the newest in.  A held flood of
+#: silent connections otherwise filled all of a port's inputs, each waiting out its own
+#: handshake, and a real client queued behind the flood in the listen backlog: a name
+#: server beside two CPU burners did not answer for 20 s (fc27 of 2026-11-28).  A real
+#: client introduces itself in milliseconds, so only the silent are ever the oldest.
+MAX_INTRODUCING = 64
 
 
 def _rooted(name: str) -> bool:
@@ -81,6 +89,7 @@ class _InputUnit:
         self.route = Route("", port.name, "")
         self.carrier: Optional[Carrier] = None
         self.closing = False
+        self.introduced = False     # the handshake is done: a peer that said who it is
         self.thread = threading.Thread(target=self._run, daemon=True,
                                        name=f"{port.name} input #{self.id}")
 
@@ -137,6 +146,7 @@ class _InputUnit:
         sender = carrier.expect_sender(self.stream)
         self.stream = carrier.respond_to_header(self.stream, sender, port.address.port)
         self.route = Route(sender, port.name, carrier.name, carrier.connectionless)
+        self.introduced = True
         port._input_started(self)
         return True
 
@@ -342,6 +352,9 @@ class Port:
         self._listener: Optional[socket.socket] = None
         self.max_inputs = 512
         self._refused = Burst()
+        self._evicted = Burst()
+        #: Accepted inputs not introduced yet, oldest first (see :data:`MAX_INTRODUCING`).
+        self._introducing: "OrderedDict[int, _InputUnit]" = OrderedDict()
         self._accept_errors = Burst()
         self._accept_thread: Optional[threading.Thread] = None
         self._handoff = _Handoff()
@@ -787,6 +800,7 @@ class Port:
                 if not self._open:
                     sock.close()
                     break
+                self._evict_the_oldest_silent()
                 if len(self._inputs) >= self.max_inputs:
                     # Flooded: keep serving the connections we have.
                     sock.close()
@@ -801,7 +815,21 @@ class Port:
                     log.debug("%s: a connection ended before it started: %s", self.name, exc)
                     continue
                 self._inputs[unit.id] = unit
+                self._introducing[unit.id] = unit
             unit.start()
+
+    def _evict_the_oldest_silent(self) -> None:
+        """Make room for one more connection still to introduce itself (lock held)."""
+        for unit_id, unit in list(self._introducing.items()):
+            if unit.introduced or unit_id not in self._inputs:
+                del self._introducing[unit_id]
+        while len(self._introducing) >= MAX_INTRODUCING:
+            _, oldest = self._introducing.popitem(last=False)
+            oldest.close()
+            if self._evicted.record():
+                log.warning("%s: %d connections closed that had not said who they are while "
+                            "newer ones came (a flood?); %d open", self.name,
+                            self._evicted.count, len(self._inputs))
 
     def _input_started(self, unit: _InputUnit) -> None:
         route = unit.route

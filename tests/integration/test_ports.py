@@ -153,6 +153,38 @@ def test_buffered_port_callback_and_background_write(lite_world, ports):
     assert [b[0] for b in seen] == list(range(50))
 
 
+def test_a_held_flood_of_silent_connections_cannot_lock_a_real_client_out(lite_world, ports,
+                                                                         caplog):
+    """More silent connections than the port takes inputs, all held open: the oldest that
+    never said who they are are closed for newer ones, and a real sender gets through (a
+    name server under such a flood beside two burners did not answer for 20 s)."""
+    received = []
+    target = ports(Port, "/flooded", reader=lambda b: received.append(b[0]))
+    target.max_inputs = 100                     # the flood below is half as big again
+    flood = []
+    try:
+        for _ in range(150):
+            sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            sock.setblocking(False)
+            flood.append(sock)
+            try:
+                sock.connect(("127.0.0.1", target.address.port))
+            except BlockingIOError:
+                pass
+        said = lambda text: any(text in r.getMessage() for r in caplog.records)  # noqa: E731
+        wait_until(lambda: said("had not said who they are") or said("connections refused"),
+                   timeout=30, message="the port flooded")
+        sender = ports(Port, "/real")
+        wait_until(lambda: network.connect("/real", "/flooded").ok, timeout=30,
+                   message="a real connection to the flooded port")
+        sender.write([7])
+        wait_until(lambda: received == [7], timeout=30, message="the real sender's message")
+    finally:
+        for sock in flood:
+            sock.close()
+    assert said("had not said who they are")
+
+
 def test_a_reader_s_min_interval_skips_to_the_newest_and_can_be_changed_while_connected(
         lite_world, ports):
     """A module reads the robot slowly while idle and at its own rate once it controls
