@@ -15,7 +15,8 @@ export WALKMAN_REQUIRE_XVFB=1
 # One pytest worker per core and one more (WALKMAN_TEST_WORKERS=1: one test at a time): the
 # robot's tests wait for simulated motions played in real time, and with one worker per core
 # 44 % of the CPU stayed idle (vmstat, 2 cores; 16 % with three workers, the suite 13:21 ->
-# 11:20).  Every test takes its ports from the machine-wide registry (yarp_lite/freeport.py)
+# 11:20; a fourth worker on 2 cores, tried on 2026-11-28: 10:52 against 10:30, the CPU 89 %
+# busy -- the suite is CPU-bound, and what shortens it is less CPU, not more workers).  Every test takes its ports from the machine-wide registry (yarp_lite/freeport.py)
 # and names its network namespaces after its process, so tests run side by side; each waits
 # for what it needs, never for a time, so a busy neighbour slows it but does not fail it.
 # Work stealing over the folders heaviest first (tests/conftest.py) pairs one stream of
