@@ -35,11 +35,11 @@ from __future__ import annotations
 import contextlib
 import errno
 import itertools
-from collections import OrderedDict
 import logging
 import socket
 import threading
 import time
+from collections import OrderedDict
 from typing import Callable, Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 from yarp_lite import admin, auth
