@@ -148,7 +148,7 @@ def main(argv=None) -> int:
     ros.when_ready(open_topics)
     ros.start()
     robot = Robot("/joint_state", robot=options.robot, connect_timeout=float("inf"),
-                  state_interval=state_interval(1.0 / options.rate))
+                  state_interval=state_interval(1.0 / options.rate), sensors=False)
     log.info("joint state: reading %d joints of /%s", len(robot.joint_names), options.robot)
     battery = follow_battery(options.robot, publishers) if options.battery else None
     stop = threading.Event()

@@ -428,6 +428,32 @@ def test_the_robot_says_when_each_state_round_arrives(lite_world, config, period
             robot.close()
 
 
+def test_a_robot_opened_without_sensors_reads_only_its_joints(lite_world):
+    """``walkman-joint-state`` shows joints only: three 100-Hz sensor streams it never used
+    cost it and the HAL a share of a core in every topology."""
+    from walkman.hal.protocol import HalUsageError
+    from walkman.hal.robot import Robot
+
+    start_hal(lite_world, "sim")
+    robots = []
+    try:
+        full, joints_only = Robot("/test/full"), Robot("/test/joints", sensors=False)
+        robots += [full, joints_only]
+        assert full.wait_until_ready(20) and joints_only.wait_until_ready(20)
+        wait_until(lambda: full.sense_imu() is not None, 10, message="the IMU")
+        assert {p.name for p in full._ports} > {"/test/full/robot/inertial:i"}
+        assert not [p.name for p in joints_only._ports
+                    if p.name.endswith(("inertial:i", "_ft:i"))]
+        assert np.allclose(full.sense_position(), joints_only.sense_position(), atol=2e-3)
+        with pytest.raises(HalUsageError, match="without its sensors"):
+            joints_only.sense_imu()
+        with pytest.raises(HalUsageError, match="without its sensors"):
+            joints_only.sense_ft("l_arm_ft")
+    finally:
+        for robot in robots:
+            robot.close()
+
+
 @pytest.mark.requires("root")
 def test_the_threads_between_sense_and_move_run_with_real_time_priority(lite_world, lite):
     """The loops, and the threads that hand a state to the module and its command back to

@@ -189,8 +189,11 @@ class Robot(WholeBody):
     def __init__(self, owner: str, robot: str = "walkman", model: Optional[RobotModel] = None,
                  nameclient: Optional[NameClient] = None, connect_timeout: float = 30.0,
                  carrier: str = "fast_tcp", state_interval: float = 0.0,
-                 realtime_readers: bool = False) -> None:
+                 realtime_readers: bool = False, sensors: bool = True) -> None:
         self.owner = owner.rstrip("/")
+        #: False: the force/torque sensors and the IMU are not read (a client that shows only
+        #: joints, such as ``walkman-joint-state``, spares three 100-Hz streams).
+        self.sensors = sensors
         #: The threads reading the robot's state take a real-time priority (a GYM module's
         #: runner asks for it: :mod:`walkman.realtime`).
         self.realtime_readers = realtime_readers
@@ -290,6 +293,19 @@ class Robot(WholeBody):
             self._ports.append(state)
             self._state_readers.append(state)
             self._persist(whole, state.name)
+        if self.sensors:
+            self._read_sensors()
+        if self.standard:
+            threading.Thread(target=self._poll_temperatures, daemon=True,
+                             name=f"{self.owner} temperatures").start()
+            return
+        warnings = BufferedPort(nameclient=self.nameclient, strict=True,
+                                on_read=self._on_hal_warning)
+        warnings.open(f"{self.owner}/robot/warning:i")
+        self._ports.append(warnings)
+        self._persist(protocol.hal_warning_port_name(self.robot), warnings.name)
+
+    def _read_sensors(self) -> None:
         for sensor in (s.name for s in self.model.sensors if s.kind == "ft"):
             port = BufferedPort(nameclient=self.nameclient,
                                 on_read=lambda b, sensor=sensor: self._on_ft(sensor, b))
@@ -302,15 +318,6 @@ class Robot(WholeBody):
         self._ports.append(imu)
         self._sensor_readers.append(imu)
         self._persist(protocol.imu_port_name(self.robot), imu.name)
-        if self.standard:
-            threading.Thread(target=self._poll_temperatures, daemon=True,
-                             name=f"{self.owner} temperatures").start()
-            return
-        warnings = BufferedPort(nameclient=self.nameclient, strict=True,
-                                on_read=self._on_hal_warning)
-        warnings.open(f"{self.owner}/robot/warning:i")
-        self._ports.append(warnings)
-        self._persist(protocol.hal_warning_port_name(self.robot), warnings.name)
 
     def _persist(self, source: str, target: str) -> None:
         """Ask the name server to keep this connection up (robot restarts included)."""
@@ -538,13 +545,20 @@ class Robot(WholeBody):
             return self._temperature.copy()
 
     def sense_ft(self, sensor: str) -> np.ndarray:
+        self._need_sensors()
         if sensor not in self._ft:
             return np.zeros(6)
         return self._ft[sensor].copy()
 
     def sense_imu(self) -> Optional[Tuple[List[float], List[float], List[float]]]:
         """(roll pitch yaw rad, acceleration m/s^2, angular velocity rad/s), if known."""
+        self._need_sensors()
         return self._imu
+
+    def _need_sensors(self) -> None:
+        if not self.sensors:
+            raise HalUsageError(f"{self.owner} opened the robot without its sensors "
+                                "(Robot(sensors=False)); open it with sensors to read them")
 
     # -- moving ----------------------------------------------------------------------------------
 
