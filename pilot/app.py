@@ -345,8 +345,8 @@ class PilotWindow(QMainWindow):
         if problem:
             self._note(problem)
 
-    def soles(self) -> Optional[Dict[str, Tuple[float, float, float, float]]]:
-        """Each sole's centre (x, y, yaw, z) in the pelvis frame from the robot's last joint
+    def soles(self) -> Optional[Dict[str, Tuple[float, ...]]]:
+        """Each sole's pose (x, y, z, roll, pitch, yaw) in the pelvis frame from the robot's last joint
         state -- where a new footstep is placed from -- or None before the first one."""
         if self.preview.posture is None:
             return None

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from pathlib import Path
 from typing import Callable, Dict, List
 
 import numpy as np
@@ -12,7 +13,8 @@ from hypothesis import given, strategies as st
 
 from walkman.control.ground_ahead import (CROSS_REACH, HEEL_MARGIN, MAX_RISE,
                                           SOLE_HALF_LENGTH, STRIDE, TOE_MARGIN, GroundError,
-                                          Pose, Surface, place, profile)
+                                          Pose, Surface, first_leg, footsteps_from_cloud,
+                                          place, profile)
 
 FLOOR = -1.03          # the soles' height in the pelvis frame, standing
 SOLES: Dict[str, Pose] = {"left": (0.03, 0.11, FLOOR, 0.0, 0.0, 0.0),
@@ -97,6 +99,55 @@ def test_a_drop_s_shadow_puts_the_heel_on_the_first_ground_seen_past_it():
     check_walk(steps, surfaces, on_kerb)
     down = next(step for step in steps if step[2] < FLOOR + 0.01)
     assert down[0] - SOLE_HALF_LENGTH == pytest.approx(0.86, abs=0.005)
+
+
+def test_a_leg_ends_at_the_foot_of_a_rise_and_goes_on_over_a_drop():
+    """Look, walk a leg, look again: the top of a rise is best seen from its foot; the
+    ground past a drop from before it (from its edge the body hides it)."""
+    surfaces = profile(cloud(kerb(0.6, 1.4, 0.05), faces=[0.6, 1.4]), 0.0, -0.1, 2.2)
+    steps = place(surfaces, SOLES, 1.8)
+    legs = []
+    while steps:
+        legs.append([round(step[0], 2) for step in first_leg(steps)])
+        steps = steps[len(legs[-1]):]
+    assert legs == [[0.18, 0.33, 0.47, 0.47],                  # together at the kerb's foot
+                    [0.79, 0.79],                              # up: look along its top
+                    [0.94, 1.09, 1.27, 1.27, 1.59, 1.59],      # along, and down its far side
+                    [1.74, 1.83, 1.83]]
+
+
+DATA = Path(__file__).parent / "data"
+
+
+def pi_look(name: str):
+    """A cloud the PI's click test took (``tests/system/pi_driver.py``'s camera_leg: the
+    80 x 30 points of the lower half of a 640 x 480 render over the DRC link, the head bent
+    to 0.985 rad) with the joint state it was taken at: in the pelvis frame, and the soles."""
+    from walkman.control.kinematics import Kinematics
+    from walkman.head_camera import optical_to
+    from walkman.modules.walking import sole_poses
+
+    look, kinematics = np.load(DATA / name), Kinematics()
+    points = optical_to(look["xyz"], *kinematics.pose(look["posture"], "multisense_frame"))
+    return points, sole_poses(kinematics, look["posture"])
+
+
+def test_the_pis_look_from_the_kerbs_top_places_the_steps_down_its_far_side():
+    """On the terrain station's kerb, 5 cm up, its far edge 0.5 m ahead: the look from
+    the feet up on the kerb sees the floor past the edge, and the leg walks there and down,
+    the heels at least 4 cm past the edge.  From the edge itself the body hides the floor
+    for 0.10 m past the toes, and the look is refused -- the look before was the one to go
+    down by."""
+    points, soles = pi_look("pi-look-from-the-kerb-top.npz")
+    top = float(np.mean([pose[2] for pose in soles.values()]))
+    leg = first_leg(footsteps_from_cloud(points, soles, 1.0))
+    assert [round(step[2] - top, 2) for step in leg] == [0.0] * 4 + [-0.05] * 2, leg
+    surfaces = profile(points, 0.0, 0.0, 1.5)
+    edge = next(s.end for s in surfaces if abs(s.z(s.end) - top) < 0.01)
+    assert all(step[0] - SOLE_HALF_LENGTH >= edge + HEEL_MARGIN for step in leg[4:]), (edge, leg)
+    points, soles = pi_look("pi-look-from-the-far-edge.npz")
+    with pytest.raises(GroundError, match="an edge out of sight"):
+        footsteps_from_cloud(points, soles, 0.4)
 
 
 def test_a_camera_that_reads_the_ground_2_cm_high_places_the_same_footsteps():

@@ -562,16 +562,15 @@ def terrain() -> None:
         # 0.4-0.6 cm from the feet's edge on the kerb's flat top; quiet, it passed)
         look_down(start_gaze())
         finer_ground()
-        camera_leg(0.6)                 # to the far edge: the toes at its last bin seen
-        # down by step_down: a look from the edge did not see the floor for 10 cm past it
-        # in the 80 x 30 cloud, and the footsteps were refused (heel on ground seen: out of
-        # a step's reach)
+        # along the kerb and down its far side, placed by one look from the kerb's top
+        # (from the far edge itself the body hides the floor for 10 cm past the toes)
+        camera_leg(0.6)
     else:
         # the toes to 1 cm from the far edge: the 0.33-m step down then lands its heel 6 cm
         # past it (from 4 cm short, 3 cm past: fc21 of 2026-11-28 under load, the heel
         # caught the edge on its way down, the foot was put back)
         walk("go_straight", [0.36])
-    walk("step_down", [0.05, 0.33])
+        walk("step_down", [0.05, 0.33])
     say("DONE")
 
 
