@@ -32,12 +32,18 @@ def test_steer_and_accelerate(task_at):
     # the wheel's in the world -- once the status after the turn's end has come (statuses
     # come twice a second; the wheel settles after the state's change: fc14 of 2026-11-28
     # read the one before, 0.13 rad short, on a loaded PC).
-    def measured_matches_the_world() -> bool:
-        measured = drive.pilot.data()[4]
-        return abs(measured - (drive.scene.prop("steering") - start)) <= 0.1
+    seen = []          # (measured, the world's), the last look: said if they never match
 
-    wait_until(measured_matches_the_world, 10,
-               message="the status's measured angle to match the wheel's within 0.1 rad")
+    def measured_matches_the_world() -> bool:
+        seen[:] = [drive.pilot.data()[4], drive.scene.prop("steering") - start]
+        return abs(seen[0] - seen[1]) <= 0.1
+
+    try:
+        wait_until(measured_matches_the_world, 10,
+                   message="the status's measured angle to match the wheel's within 0.1 rad")
+    except Exception as exc:
+        raise AssertionError(f"{exc}: measured {seen[0]:+.3f} rad, the world's wheel "
+                             f"{seen[1]:+.3f} rad") from exc
     assert drive.pilot.data()[3] == pytest.approx(-0.5)
     drive.send("command", "accelerate 1")
     drive.pilot.wait_warning("the foot is not on the pedal (rotate_foot first)")
