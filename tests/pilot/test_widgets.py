@@ -205,6 +205,29 @@ def test_a_command_the_state_refuses_is_not_sent_and_the_reason_is_shown_in_red(
     assert warnings(refusing)[0].endswith("not sent: the PI is not connected")
 
 
+@pytest.mark.parametrize("module", ["drc_valve", "drc_drive", "drc_door", "drc_plug",
+                                    "drc_wall"])
+def test_a_task_widget_sends_the_pilots_estimate_of_the_whole_pose(qt, module):
+    """Every field of a pose command starts at the pilots' estimate of the scene: the drive
+    widget's pedal fields (optional in the command) started at 0 and sent the pedal to the
+    pelvis, and the module refused the wheel (found by bench_valve_topologies --task
+    drc_drive)."""
+    from pilot.catalogue import catalogue_of
+    from pilot.widgets.tasks import TaskWidget, pose_command
+    from walkman.model.mjcf import PILOT_POSES
+
+    sender = Recorder()
+    widget = TaskWidget(catalogue_of(module), sender)
+    widget.on_status(status(module, "idle"))
+    command = next(name for name in widget.buttons if pose_command(name))
+    widget.buttons[command].click()
+    estimate = next(pose.split() for pose in PILOT_POSES.values() if pose.startswith(command))
+    assert sender.sent == [(module, command, [pytest.approx(float(v), abs=5e-4)   # 3 decimals
+                                              for v in estimate[1:]],
+                            False)]
+    assert len(estimate) - 1 == catalogue_of(module).commands[command].most
+
+
 def test_the_timed_button_shows_the_gateways_countdown_and_stays_clickable_to_cancel(qt):
     from pilot.catalogue import catalogue_of
     from pilot.link import CountdownEvent

@@ -72,9 +72,10 @@ WALL_CIRCLE_CENTRE = (WALL_FACE_X, -7.28, 1.24)
 WALL_CIRCLE_RADIUS = 0.08
 #: The command a pilot sends at a station to tell its task module where the part is (its
 #: pose in the pelvis frame, as perception would measure it): one copy of the scene's numbers
-#: for tests and benchmarks.
+#: for tests, benchmarks and the PI's task widgets (every number the command takes: a widget
+#: shows a field for each, and an optional one left at 0 put the car's pedal at the pelvis).
 PILOT_POSES = {"valve": "valvedatasent 0.66 0.25 0.08 0 0 0 0.15",
-               "car": "steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18",
+               "car": "steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18 0.36 -0.11 -1.05",
                "door": "doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6",
                "plug": "plugdatasent 0.62 0.30 0.0 0 0 0 0 -0.18",
                "wall": "walldatasent 0.50 0.40 -0.06 0 0 0 0.85 0.22 0.12 0.08"}
