@@ -90,19 +90,29 @@ class Module(GraspTask):
 
     def measured_steer(self) -> float:
         """How far the wheel is turned, from where the hand holding its rim is (sensed):
-        the angle about the wheel's axis from the grip to the hand.  Before the hand
-        holds the rim, the angle asked (there is nothing to measure it by)."""
+        the angle asked when it began to drive, plus the angle about the wheel's axis
+        from where the hand was then to where it is now.  Before it drives, the angle
+        asked (there is nothing to measure it by).
+
+        From where the hand *took* the rim, not from the grip the pilot pointed at: the
+        hand closes where it is, a few millimetres off the grip (0.04 rad offline; more on
+        a loaded PC, fc43 of 2026-11-28), and the wheel turns with the hand from there."""
         wheel = self.target
-        if self.fsm.state not in HOLDING_THE_WHEEL:
+        held = wheel.get("held_at")
+        if self.fsm.state not in HOLDING_THE_WHEEL or held is None:
             return float(wheel["steered"])
-        hand, _ = self.pose(self.hand)
+        return wheel["steered_when_held"] + self._angle_about_the_wheel(held,
+                                                                        self.pose(self.hand)[0])
+
+    def _angle_about_the_wheel(self, start: np.ndarray, now: np.ndarray) -> float:
+        wheel = self.target
         axis = wheel["axis"] / np.linalg.norm(wheel["axis"])
 
         def in_plane(point: np.ndarray) -> np.ndarray:
             offset = point - wheel["center"]
             return offset - axis @ offset * axis
 
-        start, now = in_plane(wheel["grip"]), in_plane(hand)
+        start, now = in_plane(start), in_plane(now)
         return float(np.arctan2(axis @ np.cross(start, now), start @ now))
 
     def _start_steeringwheeldatasent(self, x, y, z, roll, pitch, yaw, radius,
@@ -122,7 +132,10 @@ class Module(GraspTask):
         self.aim(wheel, "wheel")
 
     def _start_drive(self) -> None:
-        """Grasped: from now on the pilot steers and accelerates."""
+        """Grasped: from now on the pilot steers and accelerates; the wheel turns with the
+        hand from where it holds the rim now (:meth:`measured_steer`)."""
+        self.target["held_at"], _ = self.pose(self.hand)
+        self.target["steered_when_held"] = float(self.target["steered"])
 
     def _start_turn_left(self, angle: float = 0.5) -> None:
         self._steer(abs(angle))
