@@ -11,8 +11,9 @@ wall time of one control tick against the 2 ms budget of a 500 Hz loop.  Then th
 push (N*s on the torso, over 0.1 s) survived standing, in 5 N*s steps, each way; and
 sideways in mid-walk.  Survived: upright (tilt < 0.1 rad, pelvis not sunk) 4 s after.
 The rough-ground courses (tests/modules/walker.py): up a 5-cm step, along it and down
-(station ``terrain``); onto a 10-degree ramp, up it and onto its top (station ``ramp``):
-each command's time and smallest ZMP margin, each course's speed.
+(station ``terrain``); onto a 10-degree ramp, up it and onto its top (station ``ramp``), and
+back down from the top (station ``ramp_top``): each command's time and smallest ZMP margin,
+each course's speed.
 """
 
 from __future__ import annotations
@@ -30,8 +31,8 @@ from bench_tasks import timed_ticks
 from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ beside bench/
-from tests.modules.walker import (ramp_course, terrain_course, tilt,  # noqa: E402
-                                  upright, walker)
+from tests.modules.walker import (ramp_course, ramp_down_course,  # noqa: E402
+                                  terrain_course, tilt, upright, walker)
 from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import SimBackend
 from walkman.modules import walking
@@ -78,12 +79,13 @@ def walk(command: str, axis: int, amount: float) -> Tuple[str, List[float]]:
 
 def rough_ground() -> List[str]:
     """The rough-ground courses (tests/modules/walker.py): the 5-cm step of station
-    ``terrain`` and the 10-degree ramp of station ``ramp``: per command its time and
-    smallest ZMP margin, then each course's speed."""
+    ``terrain`` and the 10-degree ramp of station ``ramp``, up and (``ramp_top``) down: per
+    command its time and smallest ZMP margin, then each course's speed."""
     rows = []
-    for station, course in (("terrain", terrain_course), ("ramp", ramp_course)):
+    for station, course in (("terrain", terrain_course), ("ramp", ramp_course),
+                            ("ramp_top", ramp_down_course)):
         world, module = walker(station)
-        start = world.backend.plant.base_pose()[0]
+        start = np.array(world.backend.plant.base_pose()[:2])
         try:
             legs = course(world, module)
         except AssertionError as exc:      # the base not upright: fell
@@ -92,7 +94,7 @@ def rough_ground() -> List[str]:
         for command, margin, seconds in legs:
             rows.append(f"  {command[:18]:18s} {seconds:5.1f} s  smallest ZMP margin "
                         f"{margin * 100:4.1f} cm")
-        distance = world.backend.plant.base_pose()[0] - start
+        distance = float(np.linalg.norm(np.array(world.backend.plant.base_pose()[:2]) - start))
         seconds = sum(leg[2] for leg in legs)
         rows.append(f"{station} course: {distance:.2f} m in {seconds:.1f} s "
                     f"({distance / seconds:.3f} m/s), smallest ZMP margin "

@@ -19,6 +19,7 @@ import pytest
 from harness import wait_until
 from tests.modules.walker import (LOWEST_PELVIS, MAX_TILT, both_feet_loaded, camera_cloud,
                                   cloud_in_pelvis_frame, footsteps, ramp_course,
+                                  ramp_down_course,
                                   sole_heights, soles_in_pelvis_frame, terrain_course, tilt,
                                   upright, walk_through, walker)
 from walkman.control.ground_ahead import first_leg, footsteps_from_cloud
@@ -189,6 +190,27 @@ def test_up_the_ramp_on_footsteps_pitched_like_it_then_onto_its_top():
     pitches = [sole[4] for sole in soles_in_pelvis_frame(backend)]
     assert pitches == pytest.approx([0.0, 0.0], abs=0.03)      # flat on the landing
     # (each footstep onto and off the slope is checked on landing: that wait costs ~0.8 cm)
+    assert min(margin for _, margin, _ in margins) > 0.015, margins
+    assert not module.warnings, module.warnings
+
+
+def test_down_the_ramp_from_its_landing_on_footsteps_pitched_like_it_then_onto_the_floor():
+    """Issue 32, rough ground, the way back: from the ramp's landing (station ``ramp_top``,
+    facing down), unsupported: two footsteps onto the ramp pitched down like it, go_straight
+    goes on down its slope, two footsteps onto the floor at its foot; the robot stands on the
+    floor, soles flat, and the ZMP stayed inside the feet all the way."""
+    world, module = walker("ramp_top")
+    backend = world.backend
+    _, foot, length, slope = TERRAIN_RAMP
+    assert sole_heights(backend) == pytest.approx([length * math.sin(slope)] * 2, abs=0.005)
+    margins = ramp_down_course(world, module)
+    world.step(1.0)
+    assert upright(backend) and both_feet_loaded(backend)
+    assert sole_heights(backend) == pytest.approx([0.0, 0.0], abs=0.005)
+    heels = [float(backend.plant.d.body(f"{side}_foot").xpos[0]) - 0.03 + 0.13 for side in "lr"]
+    assert max(heels) < foot, heels            # facing -x: off the ramp, on the floor beyond it
+    pitches = [sole[4] for sole in soles_in_pelvis_frame(backend)]
+    assert pitches == pytest.approx([0.0, 0.0], abs=0.03)
     assert min(margin for _, margin, _ in margins) > 0.015, margins
     assert not module.warnings, module.warnings
 

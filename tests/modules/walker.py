@@ -112,6 +112,22 @@ def ramp_course(world, module) -> List[Leg]:
     on it (pitched like it), up it, onto the level landing at its top by two more; each
     command timed, with its smallest ZMP margin.  The footsteps are placed as a pilot would from
     what perception shows: the ramp's surface under each sole, measured in the world."""
+    _, _, _, slope = TERRAIN_RAMP
+    return _on_the_ramp(world, module, ("go_straight 0.20", 0.33, -slope, "go_straight 0.36",
+                                        0.33, 0.0))
+
+
+def ramp_down_course(world, module) -> List[Leg]:
+    """Station ``ramp_top``, the way back: from the landing to its edge, onto the ramp by two
+    footsteps pitched down like it, down its slope, onto the floor at its foot by two more."""
+    _, _, _, slope = TERRAIN_RAMP
+    return _on_the_ramp(world, module, ("go_straight 0.08", 0.33, slope, "go_straight 0.22",
+                                        0.30, 0.0))
+
+
+def _on_the_ramp(world, module, course) -> List[Leg]:
+    """Walk ``course``: commands, and pairs (forward, pitch) of two footsteps that far ahead
+    of each sole, on the ramp's surface there, pitched so."""
     _, foot, length, slope = TERRAIN_RAMP
     top = length * math.sin(slope)
 
@@ -121,15 +137,20 @@ def ramp_course(world, module) -> List[Leg]:
     def onto(forward: float, pitch: float) -> str:
         soles = soles_in_pelvis_frame(world.backend)
         heights = sole_heights(world.backend)
-        x = float(world.backend.plant.d.body("l_foot").xpos[0]) + walking.SOLE[0] + forward
+        ahead = math.cos(world.backend.plant.base_pose()[3])      # +1 up the ramp, -1 down
+        x = float(world.backend.plant.d.body("l_foot").xpos[0]) + ahead * (walking.SOLE[0]
+                                                                           + forward)
         return footsteps(*(walking.sole_ahead(sole, forward, surface(x) - height, pitch)
                            for sole, height in zip(soles, heights)))
 
     done = []
-    for command in ("go_straight 0.20", lambda: onto(0.33, -slope), "go_straight 0.36",
-                    lambda: onto(0.33, 0.0)):
-        leg = timed_walk(world, module, command if isinstance(command, str) else command())
-        done.append((leg[0] if isinstance(command, str) else "footsteps", *leg[1:]))
+    steps = list(course)
+    while steps:
+        if isinstance(steps[0], str):
+            done.append(timed_walk(world, module, steps.pop(0)))
+        else:
+            forward, pitch = steps.pop(0), steps.pop(0)
+            done.append(("footsteps", *timed_walk(world, module, onto(forward, pitch))[1:]))
     return done
 
 

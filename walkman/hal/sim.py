@@ -35,7 +35,8 @@ from walkman.hal.drywall import Drywall
 from walkman.hal.thermal import ThermalModel
 from walkman.model import MJCF_PATH, SCENE_PATH
 from walkman.model.description import Robot, walkman
-from walkman.model.mjcf import GRASPABLE, HANDS, STATIONS, WALL_CIRCLE_RADIUS
+from walkman.model.mjcf import (GRASPABLE, HANDS, STATION_GROUND, STATIONS,
+                                WALL_CIRCLE_RADIUS)
 
 GRASP_CLOSED = 0.8
 GRASP_OPEN = 0.4
@@ -110,9 +111,10 @@ class MujocoPlant:
         if station not in STATIONS:
             raise ValueError(f"unknown station {station!r}: choose {', '.join(STATIONS)}")
         x, y, yaw = STATIONS[station]
+        ground = STATION_GROUND.get(station, 0.0)
         qpos = self.d.qpos
-        qpos[self.trolley] = (x, y, 0.0, yaw)
-        height = qpos[self.base + 2]
+        qpos[self.trolley] = (x, y, ground, yaw)
+        height = self.m.key_qpos[0][self.base + 2] + ground    # the standing keyframe's
         qpos[self.base:self.base + 7] = (x, y, height, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2))
         self.d.qvel[:] = 0.0
         mujoco.mj_forward(self.m, self.d)

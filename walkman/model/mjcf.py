@@ -53,11 +53,6 @@ GRASPABLE = (("valve", "valve_wheel", "valve_grip"),
              ("plug", "plug", "plug_grip"),
              ("drill", "drill", "drill_grip"))
 HANDS = ("l", "r")
-#: Where the robot can start: station -> (x, y, yaw) of the pelvis in the world.
-STATIONS = {"valve": (0.0, 0.0, 0.0), "car": (0.0, -2.5, 0.0), "door": (0.34, 2.25, 0.0),
-            "door_far": (-0.16, 2.25, 0.0), "yard": (-3.0, 0.0, 0.0), "plug": (0.0, -5.0, 0.0),
-            "wall": (0.0, -7.5, 0.0), "terrain": (-6.0, 0.0, 0.0),
-            "ramp": (-6.0, -1.2, 0.0)}
 #: The plug station's two sockets (world x, y of each centre; their floor is the table top).
 PLUG_SOCKETS = {"a": (0.62, -4.70), "b": (0.62, -4.88)}
 PLUG_TABLE_TOP = 0.98
@@ -91,6 +86,17 @@ TERRAIN_RAMP = (-1.2, -5.6, 0.6, 0.1745)
 TERRAIN_COURSE = ("go_straight 0.12", "step_up 0.05", "go_straight 0.48", "step_down 0.05")
 TERRAIN_DEBRIS = ((-5.55, 1.15, 0.3, 0.05, 0.03, 0.02), (-5.30, 1.30, -0.6, 0.08, 0.02, 0.015),
                   (-5.05, 1.05, 1.1, 0.04, 0.04, 0.03), (-4.80, 1.25, 0.2, 0.10, 0.015, 0.01))
+#: Where the robot can start: station -> (x, y, yaw) of the pelvis in the world, standing on
+#: the floor -- or on ground as high as :data:`STATION_GROUND` says (``ramp_top``: on the
+#: ramp's landing, facing down the ramp, the toes 10 cm from the landing's edge).
+STATIONS = {"valve": (0.0, 0.0, 0.0), "car": (0.0, -2.5, 0.0), "door": (0.34, 2.25, 0.0),
+            "door_far": (-0.16, 2.25, 0.0), "yard": (-3.0, 0.0, 0.0), "plug": (0.0, -5.0, 0.0),
+            "wall": (0.0, -7.5, 0.0), "terrain": (-6.0, 0.0, 0.0),
+            "ramp": (-6.0, -1.2, 0.0),
+            "ramp_top": (TERRAIN_RAMP[1] + TERRAIN_RAMP[2] * math.cos(TERRAIN_RAMP[3]) + 0.26,
+                         TERRAIN_RAMP[0], math.pi)}
+#: The height (m) of the ground a station stands on, where it is not the floor.
+STATION_GROUND = {"ramp_top": TERRAIN_RAMP[2] * math.sin(TERRAIN_RAMP[3])}
 #: Vertical stiffness (N/m) of the harness spring and its share of the robot's weight when
 #: the feet touch the floor (trolley mode).
 HARNESS_STIFFNESS = 3000.0
