@@ -12,17 +12,21 @@ export WALKMAN_REQUIRE_REFERENCE=1
 export WALKMAN_REQUIRE_REFERENCE_DEVICES=1
 export WALKMAN_REQUIRE_ROOT=1
 export WALKMAN_REQUIRE_XVFB=1
-# One pytest worker per core and one more (WALKMAN_TEST_WORKERS=1: one test at a time): the
-# robot's tests wait for simulated motions played in real time, and with one worker per core
-# 44 % of the CPU stayed idle (vmstat, 2 cores; 16 % with three workers, the suite 13:21 ->
-# 11:20; a fourth worker on 2 cores, tried on 2026-11-28: 10:52 against 10:30, the CPU 89 %
-# busy -- the suite is CPU-bound, and what shortens it is less CPU, not more workers).  Every test takes its ports from the machine-wide registry (yarp_lite/freeport.py)
-# and names its network namespaces after its process, so tests run side by side; each waits
-# for what it needs, never for a time, so a busy neighbour slows it but does not fail it.
-# Work stealing over the folders heaviest first (tests/conftest.py) pairs one stream of
-# topologies with lighter tests; starting the longest tests first on every worker (tried in
-# e42e00d) ran four topologies at once, the load average reached 38 and the suite took 15 min.
-workers=${WALKMAN_TEST_WORKERS:-$(($(nproc) + 1))}
+# One pytest worker per core (WALKMAN_TEST_WORKERS=N to choose; 1: one test at a time).
+# On a fast machine a third worker on 2 cores filled the CPU the robot's real-time waits left
+# idle (the suite 13:21 -> 11:20; a fourth: 10:52 against 10:30).  On one 2.5 times slower
+# (2026-11-28: a module's control tick 0.4-0.7 ms median against 0.15-0.25) three workers ran
+# three topologies at once: the load average reached 73-82, a walking module's loop stalled
+# 120 ms and its heartbeat 5 s, roscore gave up on its master after 10 s, and 5-8 tests
+# failed in each of three runs (23-30 min); two workers there: 22:27, the load at most 25.
+# The suite is CPU-bound: what shortens it is less CPU, and what keeps it honest is not
+# starving the simulated robot's loops.  Every test takes its ports from the machine-wide
+# registry (yarp_lite/freeport.py) and names its network namespaces after its process, so
+# tests run side by side; each waits for what it needs, never for a time.  Work stealing over
+# the folders heaviest first (tests/conftest.py) pairs one stream of topologies with lighter
+# tests; starting the longest tests first on every worker (tried in e42e00d) ran four
+# topologies at once, the load average reached 38 and the suite took 15 min.
+workers=${WALKMAN_TEST_WORKERS:-$(nproc)}
 parallel=()
 if [[ $workers -gt 1 ]]; then parallel=(-n "$workers" --dist worksteal); fi
 set +e
