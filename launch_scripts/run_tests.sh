@@ -18,7 +18,9 @@ export WALKMAN_REQUIRE_XVFB=1
 # (2026-11-28: a module's control tick 0.4-0.7 ms median against 0.15-0.25) three workers ran
 # three topologies at once: the load average reached 73-82, a walking module's loop stalled
 # 120 ms and its heartbeat 5 s, roscore gave up on its master after 10 s, and 5-8 tests
-# failed in each of three runs (23-30 min); two workers there: 22:27, the load at most 25.
+# failed in each of three runs (23-30 min); two workers there: 1 and 4 failures (PI click
+# tests, the drive's throttle timing), 22:27 and 23:46, the load at most 25 and 52 -- better,
+# not enough: on such a machine the suite still starves its robots (issue 31, open).
 # The suite is CPU-bound: what shortens it is less CPU, and what keeps it honest is not
 # starving the simulated robot's loops.  Every test takes its ports from the machine-wide
 # registry (yarp_lite/freeport.py) and names its network namespaces after its process, so
