@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import sys
-from typing import List
+from typing import List, Tuple
 
 import mujoco
 
@@ -33,7 +33,14 @@ class World:
 
     def prop(self, joint: str) -> float:
         """A scene joint's position: ``valve``, ``steering``, ``throttle``, ``door``..."""
-        return self._positions()[self.model.joint(joint).qposadr[0]]
+        return self.timed_prop(joint)[1]
+
+    def timed_prop(self, joint: str) -> Tuple[float, float]:
+        """The simulator's time (s) and a scene joint's position then: durations measured on
+        the robot's clock, which a reader held up by its machine does not stretch."""
+        bottle = self.port.read(timeout=5)
+        when, positions = protocol.decode_world(bottle, self.model.nq)
+        return when, positions[self.model.joint(joint).qposadr[0]]
 
     def base(self) -> list:
         """The pelvis in the world: x, y, z, yaw (ground truth)."""

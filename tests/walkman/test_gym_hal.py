@@ -58,8 +58,9 @@ class Pilot:
         assert self.status.wait_for_inputs(1, 20) and self.warning_port.wait_for_inputs(1, 20) \
             and self.receipt_port.wait_for_inputs(1, 20)
 
-    def state(self) -> Optional[str]:
-        bottle = self.status.read(timeout=2)
+    def state(self, timeout: float = 2.0) -> Optional[str]:
+        """The state in the next status (None: none came within ``timeout``)."""
+        bottle = self.status.read(timeout=timeout)
         return decode_status(bottle, self.statuses)[1] if bottle is not None else None
 
     def data(self) -> list:
