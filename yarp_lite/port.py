@@ -47,7 +47,8 @@ from yarp_lite.admin import Route
 from yarp_lite.bottle import Bottle
 from yarp_lite.bursts import Burst
 from yarp_lite.carriers import (PROTOCOL_NOT_FOUND, SUPPORTED, BottlePayload, Carrier,
-                                Incoming, Payload, carrier_for_header)
+                                Incoming, Payload, carrier_base_name, carrier_for_header,
+                                send_period)
 from yarp_lite.connection import REFUSED_RETRY, OutgoingConnection
 from yarp_lite.contact import Contact, apply_environment, check_port_name
 from yarp_lite.errors import (AuthenticationError, LocalProtocolError, NetworkError,
@@ -189,15 +190,32 @@ class _InputUnit:
 
 
 class _OutputUnit:
-    __slots__ = ("connection", "route", "spec", "gate")
+    __slots__ = ("connection", "route", "spec", "gate", "period", "next_due")
 
-    def __init__(self, connection: OutgoingConnection, route: Route, spec: str) -> None:
+    def __init__(self, connection: OutgoingConnection, route: Route, spec: str,
+                 period: float = 0.0) -> None:
         self.connection = connection
         self.route = route
         self.spec = spec
+        #: The reader's ``+period.S`` (0: every message); ``next_due`` its next send.
+        self.period = period
+        self.next_due = 0.0
         #: held by a new connection until its held messages are handed over: later writes
         #: wait behind them, so the reader sees every message in the order written
         self.gate = threading.Lock()
+
+    def due(self, now: float) -> bool:
+        """Whether a stream's message written ``now`` goes to this output: every one without
+        a period, else about one per period on average (each at most a quarter of a period
+        early, so a 500 Hz stream read at 250 Hz is sent every other message, not every
+        third when the writer's ticks jitter)."""
+        if not self.period:
+            return True
+        if now < self.next_due - self.period / 4:
+            return False
+        late = now - self.next_due
+        self.next_due = now + self.period if late > self.period else self.next_due + self.period
+        return True
 
 
 class _AdminView:
@@ -536,9 +554,14 @@ class Port:
         if address is None or not address.valid:
             return False, f"Do not know how to connect to {spec}"
         carrier = requested.carrier or address.carrier or "tcp"
+        try:
+            period = send_period(carrier)
+        except LocalProtocolError as exc:
+            return False, f"Cannot connect to {spec}: {exc}"
         self._remove_closed_outputs()
         existing = self._outputs.get(address.name)
-        if only_if_needed and existing is not None and existing.route.carrier == carrier:
+        if only_if_needed and existing is not None and \
+                existing.route.carrier == carrier_base_name(carrier) and existing.period == period:
             return True, f"Desired connection already present from {self.name} to {spec}"
         self.remove_output(address.name, quiet=True)
         try:
@@ -552,7 +575,7 @@ class Port:
             return False, f"Cannot connect to {spec}"
         route = Route(self.name, address.name, connection.carrier_name,
                       connection.carrier.connectionless)
-        unit = _OutputUnit(connection, route, spec)
+        unit = _OutputUnit(connection, route, spec, period)
         with self._lock:
             if not self._open:
                 connection.close()
@@ -562,8 +585,9 @@ class Port:
             if owed:
                 unit.gate.acquire()     # a fresh lock: free; writes to it wait from now on
         if _rooted(route.target) and _rooted(route.source):
-            log.info("Sending output from %s to %s using %s", route.source, route.target,
-                     route.carrier)
+            log.info("Sending output from %s to %s using %s%s", route.source, route.target,
+                     route.carrier, f" (about one message every {period:g} s of a stream)"
+                     if period else "")
         if owed and not self._hand_over(unit, owed):
             return False, f"Cannot connect to {spec}: it left while taking held messages"
         return True, f"Added connection from {self.name} to {spec}"
@@ -674,7 +698,8 @@ class Port:
         sends it (a Stamp is ``"count time"``); readers see it as ``envelope``.
         ``skip_busy`` (a stream where only the newest matters): never wait for a
         reader's acknowledgement, and skip a connection still waiting for one
-        (:attr:`skipped_writes` counts them).
+        (:attr:`skipped_writes` counts them), or one whose reader asked for fewer messages
+        (``+period.S``: :meth:`_OutputUnit.due`).
         """
         payload = bottle if isinstance(bottle, Payload) else BottlePayload(bottle)
         command = f"D {envelope}" if envelope else "D"
@@ -682,7 +707,10 @@ class Port:
             outputs = list(self._outputs.values())
             held = self.held.written(command, payload) if self.held is not None else None
         all_ok = True
+        now = time.monotonic() if skip_busy else 0.0
         for unit in outputs:
+            if skip_busy and not unit.due(now):
+                continue
             try:
                 sent = self._send_to(unit, command, payload, skip_busy)
             except YarpError as exc:

@@ -44,6 +44,7 @@ from walkman.hal.controlboard import JointData, Stamp, encode_joint_data
 from yarp_lite import network
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.buffered_port import BufferedPort
+from yarp_lite.carriers import with_send_period
 from yarp_lite.errors import YarpError
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
@@ -202,14 +203,17 @@ class RobotStateSink:
             self._q, self._tau = np.zeros(start), np.zeros(start)
             self._temperature = np.zeros(start)
             self._unheard = {chain for chain, _ in layout.counts}
+        interval = state_interval(1.0 / self.rate)
         for chain, _ in layout.chains:
             port = BufferedPort(nameclient=self.nameclient,
                                 on_read=lambda b, chain=chain: self._on_state(chain, b),
-                                min_interval=state_interval(1.0 / self.rate))
+                                min_interval=interval)
             port.open(f"/bridge/robot/state/{chain}:i")
             self._ports.append(port)
+            # asked for at that rate (``+period``): the HAL sends 50 states a second, not 500
             self.keeper.want(protocol.port_names(self.robot, chain)["state_si"], port.name,
-                             port, ours_is_source=False, carrier="fast_tcp")
+                             port, ours_is_source=False,
+                             carrier=with_send_period("fast_tcp", interval))
         log.info("robot state: %d chains, %d joints", len(layout.chains), layout.joints)
 
     def _on_state(self, chain: str, bottle: Bottle) -> None:

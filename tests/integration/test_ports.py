@@ -209,6 +209,27 @@ def test_a_reader_s_min_interval_skips_to_the_newest_and_can_be_changed_while_co
         ports(BufferedPort, "/strictly", strict=True).min_interval = 0.5
 
 
+def test_a_reader_asking_for_a_period_is_sent_fewer_messages_of_a_stream(lite_world, ports):
+    """``+period.S``: the robot's 500 Hz state goes to a 10 Hz reader at about its rate
+    (the writer skips the rest, never sends them); a reader without one gets every message,
+    and a modifier the writer does not know is refused by name."""
+    slow, every = [], []
+    ports(BufferedPort, "/slow", on_read=lambda b: slow.append(b[0]))
+    ports(BufferedPort, "/every", on_read=lambda b: every.append(b[0]), strict=True)
+    writer = ports(Port, "/stream")
+    assert network.connect("/stream", "/slow", "fast_tcp+period.600").ok
+    assert network.connect("/stream", "/every", "fast_tcp").ok
+    for index in range(50):
+        writer.write([index], skip_busy=True)
+    wait_until(lambda: every[-1:] == [49], message=f"every message (saw {every[-3:]})")
+    assert every == list(range(50))
+    assert slow == [0]                          # the next one is due in ten minutes
+    writer.write([50])                          # a write that is not a stream's goes to all
+    wait_until(lambda: slow[-1:] == [50], message=f"the plain write (saw {slow})")
+    refused = network.connect("/stream", "/every", "fast_tcp+rate.5")
+    assert not refused.ok and "unknown modifier 'rate.5'" in refused.message, refused
+
+
 def test_a_latest_only_reader_that_fell_behind_skips_to_the_newest(lite_world, ports):
     """As YARP's non-strict BufferedPort: a callback still busy when messages pile up
     sees the newest next, not the backlog (a 500 Hz state stream read by a slow module

@@ -58,6 +58,7 @@ from yarp_lite import network
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.buffered_port import BufferedPort
 from yarp_lite.bursts import Burst
+from yarp_lite.carriers import with_send_period
 from yarp_lite.errors import NetworkError, YarpError
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
@@ -278,7 +279,8 @@ class Robot(WholeBody):
                 state.open(f"{self.owner}/robot/{chain}/state:i")
                 self._ports.append(state)
                 self._state_readers.append(state)
-                self._persist(names["state_ext" if self.standard else "state_si"], state.name)
+                self._persist(names["state_ext" if self.standard else "state_si"], state.name,
+                              stream=True)
         #: A whole-robot state lists the chains' joints one chain after the other (the
         #: grouping's order): their indices and names, worked out once, not for every state.
         self._whole_links = list(self._links.values())
@@ -292,7 +294,7 @@ class Robot(WholeBody):
             state.open(f"{self.owner}/robot/state:i")
             self._ports.append(state)
             self._state_readers.append(state)
-            self._persist(whole, state.name)
+            self._persist(whole, state.name, stream=True)
         if self.sensors:
             self._read_sensors()
         if self.standard:
@@ -312,18 +314,24 @@ class Robot(WholeBody):
             port.open(f"{self.owner}/robot/{sensor}:i")
             self._ports.append(port)
             self._sensor_readers.append(port)
-            self._persist(protocol.ft_port_name(self.robot, sensor), port.name)
+            self._persist(protocol.ft_port_name(self.robot, sensor), port.name, stream=True)
         imu = BufferedPort(nameclient=self.nameclient, on_read=self._on_imu)
         imu.open(f"{self.owner}/robot/inertial:i")
         self._ports.append(imu)
         self._sensor_readers.append(imu)
-        self._persist(protocol.imu_port_name(self.robot), imu.name)
+        self._persist(protocol.imu_port_name(self.robot), imu.name, stream=True)
 
-    def _persist(self, source: str, target: str) -> None:
-        """Ask the name server to keep this connection up (robot restarts included)."""
-        if not self.nameclient.subscribe(source, f"{self.carrier}:/{target}"):
+    def _persist(self, source: str, target: str, stream: bool = False) -> None:
+        """Ask the name server to keep this connection up (robot restarts included).
+        ``stream``: our HAL's state or a sensor, asked for at :attr:`state_interval` only
+        (``+period``, :func:`yarp_lite.carriers.send_period`), so the HAL does not send what
+        this reader would drop unread; a plain YARP robot's streams come whole."""
+        carrier = self.carrier
+        if stream and not self.standard:
+            carrier = with_send_period(carrier, self.state_interval)
+        if not self.nameclient.subscribe(source, f"{carrier}:/{target}"):
             raise NetworkError(f"name server refused the connection {source} -> {target}")
-        self._subs.append((source, f"{self.carrier}:/{target}"))
+        self._subs.append((source, f"{carrier}:/{target}"))
 
     def wait_until_ready(self, timeout: float = 10.0) -> bool:
         """Block until every joint has been seen at least once."""

@@ -10,6 +10,10 @@ text        ``CONNECT ``                 no     no      text
 text_ack    ``CONNACK ``                 yes    yes     text
 name_ser    ``NAME_SER``                 no     yes     text, name server only
 =========== ============================ ====== ======= ========
+
+One modifier is understood, as YARP writes modifiers (``carrier+key.value``):
+``+period.S`` asks the writer for about one message every ``S`` seconds on this connection
+(see :func:`send_period`); any other modifier is refused by name.
 """
 
 from __future__ import annotations
@@ -39,15 +43,46 @@ def carrier_base_name(name: str) -> str:
     return name.split("+", 1)[0]
 
 
+#: Longest ``+period.S`` a reader may ask for (s): a stream slower than this is a mistake.
+MAX_SEND_PERIOD = 3600.0
+
+
+def send_period(name: str) -> float:
+    """``fast_tcp+period.0.004`` -> 0.004: how often the reader of a stream wants a message
+    (0: every one).  A writer's streams where only the newest matters (``skip_busy``) send
+    such a connection about one message per period and skip the rest, so a 10 Hz reader of a
+    500 Hz robot state costs the writer 10 sends a second, not 500 (on 2 cores the robot's
+    own process spent most of a core sending states its readers dropped unread).  Other
+    modifiers, and a period that is not a positive number of seconds, are local errors."""
+    period = 0.0
+    for modifier in (name or "").split("+")[1:]:
+        key, _, value = modifier.partition(".")
+        if key != "period":
+            raise LocalProtocolError(f"carrier {name!r}: unknown modifier {modifier!r} "
+                                     f"(yarp_lite understands only +period.SECONDS)")
+        try:
+            period = float(value)
+        except ValueError:
+            period = -1.0
+        if not 0.0 < period <= MAX_SEND_PERIOD:
+            raise LocalProtocolError(f"carrier {name!r}: +period wants seconds in "
+                                     f"(0, {MAX_SEND_PERIOD:g}], got {value!r}")
+    return period
+
+
+def with_send_period(carrier: str, seconds: float) -> str:
+    """``carrier`` asking for one message every ``seconds`` (unchanged for 0: every one)."""
+    return f"{carrier}+period.{seconds:g}" if seconds > 0 else carrier
+
+
 def make_carrier(name: str) -> Carrier:
-    """A fresh carrier for one connection; unknown names are a local error."""
+    """A fresh carrier for one connection; unknown names and modifiers are local errors."""
     base = carrier_base_name(name or "tcp")
     cls = CARRIERS.get(base)
     if cls is None:
         raise LocalProtocolError(
             f"unknown carrier {base!r}; yarp_lite supports {', '.join(SUPPORTED)}")
-    if base != name:
-        raise LocalProtocolError(f"carrier modifiers are not supported: {name!r}")
+    send_period(name)
     return cls()
 
 
@@ -80,5 +115,5 @@ PROTOCOL_NOT_FOUND = (
     b"* Goodbye.\r\n")
 
 __all__ = ["Carrier", "CARRIERS", "SUPPORTED", "make_carrier", "carrier_for_header",
-           "carrier_base_name", "BottlePayload", "RawPayload", "Payload", "Incoming",
+           "carrier_base_name", "send_period", "with_send_period", "BottlePayload", "RawPayload", "Payload", "Incoming",
            "MessageSource", "DatagramStream", "PROTOCOL_NOT_FOUND"]
