@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import sys
@@ -34,7 +35,7 @@ sys.path.append(str(Path(__file__).resolve().parent))
 from harness import (YarpWorld, dump_outputs_if_failed, lite_implementation,  # noqa: E402
                      missing_reference, real_implementation)
 from requirements import apply_marks  # noqa: E402
-from robot_slots import robot_slot  # noqa: E402
+from robot_slots import machine_share, robot_slot  # noqa: E402
 
 
 def pytest_configure(config):
@@ -44,6 +45,8 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "free_standing: runs a robot with the harness off in "
                             "real time; such tests take turns on a machine "
                             "(tests/robot_slots.py)")
+    config.addinivalue_line("markers", "alone: has the machine to itself while it runs; "
+                            "every other test waits (tests/robot_slots.py)")
 
 
 #: Folders in the order their tests run, those that start whole topologies first, then those
@@ -67,14 +70,18 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item, nextitem):
-    """A ``free_standing`` test holds a robot slot from its setup to its teardown; the wait,
-    if any, is in the JUnit report's properties."""
-    if item.get_closest_marker("free_standing") is None:
-        yield
-        return
-    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
-    with robot_slot(preferred=int(worker.lstrip("gw") or 0)) as waited:
-        item.user_properties.append(("waited_for_a_robot_slot_s", round(waited, 1)))
+    """Every test holds the machine, shared, or to itself when marked ``alone``; a
+    ``free_standing`` test holds a robot slot too, from its setup to its teardown.  The
+    waits, if any, are in the JUnit report's properties (tests/robot_slots.py)."""
+    alone = item.get_closest_marker("alone") is not None
+    with contextlib.ExitStack() as held:
+        waited = held.enter_context(machine_share(alone))
+        if alone:
+            item.user_properties.append(("waited_for_the_machine_s", round(waited, 1)))
+        if item.get_closest_marker("free_standing") is not None:
+            worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
+            waited = held.enter_context(robot_slot(preferred=int(worker.lstrip("gw") or 0)))
+            item.user_properties.append(("waited_for_a_robot_slot_s", round(waited, 1)))
         yield
 
 

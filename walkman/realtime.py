@@ -103,6 +103,13 @@ def at_priority(priority: int, realtime: bool) -> Iterator[None]:
 def make_realtime_once(priority: int) -> None:
     """:func:`make_realtime` for a thread this code does not start (a port's reader),
     called on each message: only the thread's first call asks the kernel."""
-    if not getattr(_this_thread, "realtime_asked", False):
-        _this_thread.realtime_asked = True
+    if getattr(_this_thread, "realtime_asked", None) is None:
+        keep_priority(priority)
+
+
+def keep_priority(priority: int) -> None:
+    """Run the calling thread (a port's reader, called on each message) at ``priority``:
+    the kernel is asked only when it differs from what this thread last asked for."""
+    if getattr(_this_thread, "realtime_asked", None) != priority:
+        _this_thread.realtime_asked = priority
         make_realtime(priority)

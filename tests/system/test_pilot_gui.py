@@ -177,6 +177,7 @@ def test_the_wall_task_by_clicks_cuts_the_circle_in_the_world(tmp_path, display,
 
 @pytest.mark.requires("root")
 @pytest.mark.free_standing
+@pytest.mark.alone
 def test_the_terrain_course_by_clicks_with_footsteps_placed_in_the_3d_view(tmp_path, display,
                                                                          request, emulated_link):
     """Issue 32, rough ground, through the PI on the drc topology (over the emulated DRC

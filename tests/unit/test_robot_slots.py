@@ -123,3 +123,57 @@ def test_no_slots_is_a_clear_error(tmp_path):
     with pytest.raises(ValueError, match="at least one robot slot, not 0"):
         with robot_slot(tmp_path, count=0):
             pass
+
+
+SHARER = """
+import sys
+sys.path.insert(0, {tests!r})
+from pathlib import Path
+from robot_slots import machine_share
+print("trying", flush=True)
+with machine_share({alone!r}, Path({folder!r})):
+    print("got", flush=True)
+    sys.stdin.readline()          # hold until the test says
+"""
+
+
+def sharer(folder: Path, alone: bool) -> subprocess.Popen:
+    code = SHARER.format(tests=str(TESTS), folder=str(folder), alone=alone)
+    child = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE,
+                             stdout=subprocess.PIPE, text=True)
+    assert child.stdout.readline().strip() == "trying"
+    return child
+
+
+def let_go(child: subprocess.Popen) -> None:
+    child.stdin.write("\n")
+    child.stdin.flush()
+    assert child.wait(timeout=30) == 0
+
+
+def test_a_test_alone_waits_for_the_shared_ones_and_goes_before_any_that_come_later(tmp_path):
+    """The ``alone`` mark (tests/conftest.py): the PI's free-standing terrain course has the
+    machine to itself; a test on another worker that starts meanwhile waits for it."""
+    first = sharer(tmp_path, alone=False)
+    second = sharer(tmp_path, alone=False)
+    children = [first, second]
+    try:
+        for child in children:                            # shared: both at once
+            assert child.stdout.readline().strip() == "got"
+        lonely = sharer(tmp_path, alone=True)
+        children.append(lonely)
+        wait_for(lambda: blocked_on_a_lock(lonely.pid), "the lonely test waiting")
+        later = sharer(tmp_path, alone=False)
+        children.append(later)
+        wait_for(lambda: blocked_on_a_lock(later.pid), "a later shared test waiting")
+        let_go(first)
+        let_go(second)
+        assert lonely.stdout.readline().strip() == "got"   # before the later one
+        wait_for(lambda: blocked_on_a_lock(later.pid), "the later test still waiting")
+        let_go(lonely)
+        assert later.stdout.readline().strip() == "got"
+        let_go(later)
+    finally:
+        for child in children:
+            if child.poll() is None:
+                child.kill()

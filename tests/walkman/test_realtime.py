@@ -5,7 +5,7 @@ import threading
 
 import pytest
 
-from walkman.realtime import make_realtime, realtime_refused
+from walkman.realtime import keep_priority, make_realtime, make_realtime_once, realtime_refused
 
 
 def in_a_thread(function):
@@ -48,3 +48,25 @@ def test_granted_the_thread_runs_fifo_at_that_priority(monkeypatch):
     _, policy = in_a_thread(lambda: become())
     assert seen == {"refused": None, "priority": 3}
     assert policy == os.SCHED_FIFO
+
+
+@pytest.mark.requires("root")
+def test_a_reader_kept_at_a_priority_follows_its_module_and_asks_only_on_a_change(monkeypatch):
+    """A module's reader threads: above its loop while it controls, below every loop while
+    it is idle (walkman.hal.robot.Robot._reader_priority), the kernel asked once per change."""
+    monkeypatch.delenv("WALKMAN_NO_RT", raising=False)
+    asked, seen = [], []
+    import walkman.realtime as realtime
+    monkeypatch.setattr(realtime, "make_realtime",
+                        lambda priority: asked.append(priority) or make_realtime(priority))
+
+    def reader() -> None:
+        for priority in (10, 10, 55, 55, 55, 10):
+            keep_priority(priority)
+            seen.append(os.sched_getparam(0).sched_priority)
+        make_realtime_once(55)              # a thread already kept: left where it is
+        seen.append(os.sched_getparam(0).sched_priority)
+
+    in_a_thread(reader)
+    assert seen == [10, 10, 55, 55, 55, 10, 10]
+    assert asked == [10, 55, 10]

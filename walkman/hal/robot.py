@@ -53,7 +53,7 @@ from walkman.hal.rounds import RoundPeriod
 from walkman.hal.protocol import HalProtocolError, HalUsageError
 from walkman.model.description import walkman
 from walkman.model.description import Robot as RobotModel
-from walkman.realtime import PATH_PRIORITY, make_realtime_once
+from walkman.realtime import BACKGROUND_PRIORITY, PATH_PRIORITY, keep_priority
 from yarp_lite import network
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.buffered_port import BufferedPort
@@ -198,6 +198,7 @@ class Robot(WholeBody):
         #: The threads reading the robot's state take a real-time priority (a GYM module's
         #: runner asks for it: :mod:`walkman.realtime`).
         self.realtime_readers = realtime_readers
+        self._idle = False      # read_idle: the readers' priority too
         #: Read each chain's state at most this often (the newest; see :func:`walkman.hal.protocol.state_interval`).
         self.state_interval = state_interval
         #: The robot's time, for a module's trajectories (:mod:`walkman.hal.clock`).
@@ -363,6 +364,7 @@ class Robot(WholeBody):
         know the robot is there and where it stands: eight such modules, each decoding 500-Hz
         states and three 100-Hz sensors, took a third of a core and a sixth of the HAL's.
         Back in control it reads at its own rate after at most one idle interval."""
+        self._idle = idle
         for port in self._state_readers:
             port.min_interval = max(self.state_interval, IDLE_READ_INTERVAL) if idle \
                 else self.state_interval
@@ -370,8 +372,12 @@ class Robot(WholeBody):
             port.min_interval = IDLE_READ_INTERVAL if idle else 0.0
 
     def _reader_priority(self) -> None:
+        """A module's readers run above its loop while it controls the robot, and below
+        every loop while it is idle: an idle module's readers (gaze_control's and
+        temperature's while only walking walks) took the CPU from the loop of the one
+        walking, and on a slow 2-core machine that loop stalled 20 ms at a time."""
         if self.realtime_readers:
-            make_realtime_once(PATH_PRIORITY)
+            keep_priority(BACKGROUND_PRIORITY if self._idle else PATH_PRIORITY)
 
     def _on_state_si(self, chain: str, indices: List[int], bottle: Bottle,
                      envelope: str = "") -> None:
