@@ -20,7 +20,9 @@ export WALKMAN_REQUIRE_XVFB=1
 # 120 ms and its heartbeat 5 s, roscore gave up on its master after 10 s, and 5-8 tests
 # failed in each of three runs (23-30 min); two workers there: 1 and 4 failures (PI click
 # tests, the drive's throttle timing), 22:27 and 23:46, the load at most 25 and 52 -- better,
-# not enough: on such a machine the suite still starves its robots (issue 31, open).
+# not enough.  Then the HAL sent each reader only the rate it asked for (+period), an idle
+# module's readers ran below every loop, and the PI's free-standing terrain course got the
+# machine to itself (mark alone): fc61 passed whole there, 22:26, the load at most 12.
 # The suite is CPU-bound: what shortens it is less CPU, and what keeps it honest is not
 # starving the simulated robot's loops.  Every test takes its ports from the machine-wide
 # registry (yarp_lite/freeport.py) and names its network namespaces after its process, so
