@@ -176,6 +176,26 @@ def test_the_terrain_course_up_the_step_along_it_by_placed_footsteps_and_down():
     assert x == pytest.approx(0.12 + 0.33 + 0.30 + 0.18 + 0.33, abs=0.02) and margin > 0.03
 
 
+def test_standing_on_the_kerb_after_a_step_up_the_robot_settles_and_does_not_rock():
+    """A pilot may take a while to place the next footsteps (the PI's terrain course on a
+    slow machine: 5-10 s).  With the pelvis attitude loop's integral at 4/s the robot stood
+    on the 5-cm kerb rocking ever wider -- the pelvis swinging 3 mm, then 14 mm in a
+    second, the ZMP margin down from 11 cm to 1.3 cm in 30 s -- until the balance guard
+    stopped it (fresh-clone run fc62).  On the floor it stood still."""
+    world, module = walker("terrain")
+    walk_through(world, module, "go_straight 0.12")
+    walk_through(world, module, "step_up 0.05 0.33")
+    smallest, swing = math.inf, []
+    for _ in range(750):                    # 15 s standing
+        world.step(0.02)
+        smallest = min(smallest, module.thread.margin)
+        swing.append(float(world.backend.plant.base_pose()[0]))
+    last_second = swing[-50:]
+    assert max(last_second) - min(last_second) < 0.002, "the pelvis still rocks"
+    assert smallest > 0.08, smallest
+    assert module.state == "idle" and not module.warnings, module.warnings
+
+
 def test_up_the_ramp_on_footsteps_pitched_like_it_then_onto_its_top():
     """Issue 32, rough ground: the 10-degree ramp of station ``ramp``, unsupported: two
     footsteps onto it (pitched like it), go_straight goes on up its slope, two footsteps
