@@ -29,7 +29,11 @@ with robot_slot(Path({folder!r}), count={count}) as waited:
 
 
 def holder(folder: Path, count: int) -> subprocess.Popen:
-    code = HOLDER.format(tests=str(TESTS), folder=str(folder), count=count)
+    return trying(HOLDER.format(tests=str(TESTS), folder=str(folder), count=count))
+
+
+def trying(code: str) -> subprocess.Popen:
+    """A child process running ``code``, once it says it is trying for its lock."""
     child = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE,
                              stdout=subprocess.PIPE, text=True)
     assert child.stdout.readline().strip() == "trying"
@@ -138,11 +142,7 @@ with machine_share({alone!r}, Path({folder!r})):
 
 
 def sharer(folder: Path, alone: bool) -> subprocess.Popen:
-    code = SHARER.format(tests=str(TESTS), folder=str(folder), alone=alone)
-    child = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE,
-                             stdout=subprocess.PIPE, text=True)
-    assert child.stdout.readline().strip() == "trying"
-    return child
+    return trying(SHARER.format(tests=str(TESTS), folder=str(folder), alone=alone))
 
 
 def let_go(child: subprocess.Popen) -> None:
