@@ -6,7 +6,9 @@ from __future__ import annotations
 import os
 import subprocess
 import threading
+import sys
 import time
+from typing import Optional
 
 import pytest
 
@@ -27,13 +29,14 @@ def short_timeouts(monkeypatch):
 last_write: list = []
 
 
-def watched(beats: int, then: bytes = b"", child_lives: float = 60):
-    """A child that sleeps ``child_lives`` s, a pipe beaten ``beats`` times 0.2 s apart and
-    then written ``then``; (seconds until the watch ended, the watch's return), and
-    :data:`last_write` set."""
+def watched(beats: int, then: bytes = b"", child_lives: float = 60,
+            child: Optional[subprocess.Popen] = None):
+    """A child that sleeps ``child_lives`` s (or ``child``), a pipe beaten ``beats`` times
+    0.2 s apart and then written ``then``; (seconds until the watch ended, the watch's
+    return), and :data:`last_write` set."""
     read_fd, write_fd = os.pipe()
     watcher = Supervisor([])
-    watcher.child = subprocess.Popen(["sleep", str(child_lives)])
+    watcher.child = child or subprocess.Popen(["sleep", str(child_lives)])
     last_write.clear()
     began = time.monotonic()
 
@@ -72,6 +75,31 @@ def test_a_module_that_stops_beating_is_killed_after_the_heartbeat_timeout(short
     # from the watch's start failed a bound of 1.3 s that assumed the beats on time), and
     # before the 2.5 s a starting module is given.
     assert last_write[0] + 0.5 <= seconds < 2.4, (seconds, last_write)
+
+
+#: A module process hung in ``hung_here``, with the runner's faulthandler on SIGUSR2.
+HUNG_MODULE = """
+import faulthandler, signal, time
+faulthandler.register(signal.SIGUSR2, all_threads=True)
+def hung_here():
+    print("hanging", flush=True)
+    time.sleep(60)
+hung_here()
+"""
+
+
+def test_a_hung_module_prints_where_it_hung_before_it_is_killed(short_timeouts):
+    """A restart cannot tell where the module hung (a drc_door that lost its heartbeat in the
+    one-session test of 2026-11-28 left no trace): its threads' stacks come first."""
+    child = subprocess.Popen([sys.executable, "-c", HUNG_MODULE], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    assert child.stdout.readline() == "hanging\n"
+    seconds, code = watched(beats=2, child=child)
+    assert code is None and child.poll() is not None          # killed
+    stacks = child.stderr.read()
+    child.stdout.close()
+    child.stderr.close()
+    assert "in hung_here" in stacks and "Current thread" in stacks, stacks
 
 
 def test_a_module_closing_after_a_quit_is_given_the_quit_grace_not_the_heartbeat_timeout(

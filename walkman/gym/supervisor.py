@@ -11,7 +11,7 @@ watches its heartbeat (a byte every 0.5 s on a pipe):
   its heartbeat stops for 5 s (a hang that even blocks the watchdog; a process
   that has not beaten yet is still importing and gets 60 s, as systemd's
   start timeout is apart from its watchdog's): the
-  supervisor kills it and starts a fresh one in the *stopped* state, so the
+  supervisor has it print its threads' stacks (faulthandler), kills it and starts a fresh one in the *stopped* state, so the
   pilot can ``start`` it again.  Restarts are logged and rate-limited.
 
 This is the "escalate from thread to process" of the module template: a
@@ -39,6 +39,8 @@ from walkman.gym.runner import EXIT_ESCALATED, EXIT_QUIT, QUITTING, parse_args, 
 log = logging.getLogger("walkman.gym.supervisor")
 
 HEARTBEAT_TIMEOUT = 5.0
+#: s a hung module has to write its threads' stacks before it is killed.
+STACKS_GRACE = 0.5
 #: Before its first beat a module is starting (Python, numpy, MuJoCo imports on a loaded
 #: 2-core PC took over 5 s and the module was killed ten times over, never started).
 STARTUP_TIMEOUT = 60.0
@@ -100,11 +102,27 @@ class Supervisor:
                     log.warning("module still closing %.0f s after the pilot's quit: "
                                 "killing it", limit)
                 else:
-                    log.warning("module heartbeat %s for %.0f s: killing it",
+                    log.warning("module heartbeat %s for %.0f s: killing it (its threads' "
+                                "stacks first)",
                                 "lost" if limit == HEARTBEAT_TIMEOUT else "never came", limit)
+                    self._dump_stacks()
                 self.child.kill()
                 self.child.wait()
                 return EXIT_QUIT if quitting else None
+
+    def _dump_stacks(self) -> None:
+        """faulthandler's dump of a hung module's threads, on its stderr (ours): where it
+        hung is the one thing a restart cannot tell.  It is written from the signal handler
+        in C, so it comes even when the interpreter is wedged; the grace is its writing."""
+        assert self.child is not None
+        try:
+            self.child.send_signal(signal.SIGUSR2)
+        except ProcessLookupError:
+            return
+        try:
+            self.child.wait(STACKS_GRACE)   # (faulthandler's dump does not end the process)
+        except subprocess.TimeoutExpired:
+            pass
 
     def forward(self, signum: int, _frame) -> None:
         self.stopping = True
