@@ -127,3 +127,54 @@ def test_a_status_reader_held_up_neither_holds_the_sender_nor_silences_the_other
         stalled.close()
         listening.close()
         interfaces.close()
+
+
+def test_a_warning_reader_held_up_holds_neither_the_watchdog_nor_a_warning(lite_world):
+    """Warnings and receipts say something once, so none is skipped; but the watchdog that
+    writes them must not wait for a reader's acknowledgement either.  drc_door warned the
+    pilot of a flood of "may not command" through a robot bridge whose link was down: the
+    bridge held its acknowledgements, the watchdog's heartbeat stopped for 5 s and the
+    supervisor killed the module as hung.  Now each is queued, and sent in order once the
+    reader takes them."""
+    import threading
+
+    from harness import wait_until
+    from walkman.gym.command_life import CommandState, Receipt
+    from walkman.gym.interfaces import PilotInterfaces
+    from yarp_lite import network
+    from yarp_lite.port import Port
+
+    held, warnings, receipts = threading.Event(), [], []
+
+    def stall_then(into: list):
+        def take(bottle) -> None:
+            held.wait(30)
+            into.append(bottle)
+        return take
+
+    interfaces = PilotInterfaces("/held_up", statuses=["ok"])
+    interfaces.open(wait=10)
+    warning_reader = Port(reader=stall_then(warnings)).open("/test/warnings:i")
+    receipt_reader = Port(reader=stall_then(receipts)).open("/test/receipts:i")
+    try:
+        assert network.connect("/held_up/warning:o", warning_reader.name).ok
+        assert network.connect("/held_up/receipt:o", receipt_reader.name).ok
+
+        def watchdog() -> None:
+            for index in range(5):
+                interfaces.warn(f"warning {index}")
+                interfaces.receipt(Receipt(index, CommandState.ACCEPTED))
+        writing = threading.Thread(target=watchdog, daemon=True)
+        writing.start()
+        writing.join(20)              # (the port's own timeout would have ended it later)
+        assert not writing.is_alive(), "the watchdog waited on a reader held up"
+        assert not warnings and not receipts          # the readers still hold the first
+        held.set()
+        wait_until(lambda: len(warnings) == 5 and len(receipts) == 5, 20,
+                   message=f"every warning and receipt ({len(warnings)}, {len(receipts)})")
+        assert [bottle[1] for bottle in warnings] == [f"warning {i}" for i in range(5)]
+    finally:
+        held.set()
+        warning_reader.close()
+        receipt_reader.close()
+        interfaces.close()

@@ -57,6 +57,7 @@ from walkman.gym.inbox_journal import ARRIVED, ENDED, TAKEN, InboxJournal
 from walkman.gym.validity import (DEFAULT_VALIDITY, Lifetime, ValidityError, describe_expiry,
                                   split, stamp)
 from yarp_lite.bottle import Bottle, Vocab
+from yarp_lite.buffered_port import BufferedPort
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
 
@@ -353,8 +354,12 @@ class PilotInterfaces:
         self.ports = [switch, command, self.status_port, self.warning_port, self.receipt_port]
 
     def _reliable_output(self, gym_port: GymPort, wait: float) -> Port:
-        """A port whose messages say something once: held for readers that connect later."""
-        port = Port(nameclient=self.nameclient)
+        """A port whose messages say something once: held for readers that connect later,
+        and sent in order by a thread of its own.  The watchdog that writes them must never
+        wait on a reader: a robot bridge whose link to the pilot was down held back its
+        acknowledgements of drc_door's warnings (a flood of "may not command" while another
+        module held the arms) for 5 s, and the supervisor killed the module as hung."""
+        port = BufferedPort(nameclient=self.nameclient, strict=True)
         port.hold_for_late_readers(HELD_MESSAGES, held_for(self.validity))
         port.open(gym_port.of(self.prefix), wait=wait)
         return port

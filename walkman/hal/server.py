@@ -58,6 +58,7 @@ from walkman.realtime import (HAL_BACKGROUND_PRIORITY, HAL_PRIORITY, PATH_PRIORI
                                SWITCH_INTERVAL, make_process_realtime, make_realtime,
                                make_realtime_once)
 from yarp_lite.bottle import Bottle, Vocab
+from yarp_lite.buffered_port import BufferedPort
 from yarp_lite.bursts import Burst
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
@@ -192,7 +193,9 @@ class HalServer:
                               handler=lambda request: robot_words.answer(request, self))
         robot_rpc.open(protocol.robot_rpc_name(self.robot), wait=wait)
         self.ports.append(robot_rpc)
-        self.warning_port = self._open(Port(nameclient=self.nameclient),
+        # Sent by a thread of its own, in order: the arbiter warns from the thread that
+        # takes a module's commands, which must never wait on a module slow to read.
+        self.warning_port = self._open(BufferedPort(nameclient=self.nameclient, strict=True),
                                        protocol.hal_warning_port_name(self.robot))
         for chain in self.chains.values():
             names = protocol.port_names(self.robot, chain.name)
