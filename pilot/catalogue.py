@@ -18,6 +18,7 @@ state.  The lifecycle buttons follow Figure 8 (:mod:`walkman.gym.lifecycle`).
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass, field
 from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
@@ -32,6 +33,9 @@ class CommandSpec:
     most: int = 0
     usage: str = ""
     dangerous: bool = False
+    #: The numbers the module takes when they are left out (its ``_start_NAME``'s
+    #: defaults): what a task widget's fields start with.
+    defaults: Tuple[float, ...] = ()
 
     @property
     def fields(self) -> List[str]:
@@ -90,6 +94,22 @@ def legal_switches(status: Optional[str]) -> List[str]:
     return [switch.value for switch in TRANSITIONS[lifecycle_of_status(status)]]
 
 
+def defaults_of(start: Optional[Callable]) -> Tuple[float, ...]:
+    """The numbers a command's ``_start_NAME(self, ...)`` takes when they are all left out
+    (none when one of them has no default: the pilot must give that one)."""
+    if start is None:
+        return ()
+    numbers = list(inspect.signature(start).parameters.values())[1:]
+    defaults: List[float] = []
+    for parameter in numbers:
+        if parameter.kind is not inspect.Parameter.POSITIONAL_OR_KEYWORD or \
+                not isinstance(parameter.default, (int, float)) or \
+                isinstance(parameter.default, bool):
+            break
+        defaults.append(float(parameter.default))
+    return tuple(defaults) if len(defaults) == len(numbers) else ()
+
+
 def catalogue_of(module: str, statuses: Sequence[str] = ()) -> Catalogue:
     """The module's catalogue, from its class when it is one of ours."""
     cls = module_class(module)
@@ -107,6 +127,7 @@ def catalogue_of(module: str, statuses: Sequence[str] = ()) -> Catalogue:
     commands = {}
     for name in names:
         fewest, most, usage = arguments.get(name, (0, 0, ""))
-        commands[name] = CommandSpec(name, fewest, most, usage, name in dangerous)
+        commands[name] = CommandSpec(name, fewest, most, usage, name in dangerous,
+                                     defaults_of(getattr(cls, f"_start_{name}", None)))
     return Catalogue(module, list(statuses) or list(getattr(cls, "statuses", [])), commands,
                      table, getattr(cls, "describe_status", plain_numbers))

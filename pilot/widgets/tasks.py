@@ -48,12 +48,12 @@ def _pose(text: str) -> List[float]:
 
 
 #: Where each field starts: the pilots' estimate of each part of the scene (the marker's
-#: starting pose), and the usual angles and distances.
+#: starting pose), and the usual angles and distances where the module has none (its own
+#: defaults fill the others: :attr:`pilot.catalogue.CommandSpec.defaults`).
 STARTING_VALUES: Dict[str, Dict[str, List[float]]] = {
-    "drc_valve": {"valvedatasent": _pose(PILOT_POSES["valve"]), "turn": [math.pi / 2]},
-    "drc_door": {"doordatasent": _pose(PILOT_POSES["door"]), "turn": [0.6], "open": [0.5]},
-    "drc_drive": {"steeringwheeldatasent": _pose(PILOT_POSES["car"]), "turn_left": [0.3],
-                  "turn_right": [0.3], "accelerate": [1.0, 1.0]},
+    "drc_valve": {"valvedatasent": _pose(PILOT_POSES["valve"])},
+    "drc_door": {"doordatasent": _pose(PILOT_POSES["door"])},
+    "drc_drive": {"steeringwheeldatasent": _pose(PILOT_POSES["car"])},
     "drc_plug": {"plugdatasent": _pose(PILOT_POSES["plug"])},
     "drc_wall": {"walldatasent": _pose(PILOT_POSES["wall"])},
     "walking": {"go_straight": [0.5], "turn": [0.3], "step_side": [0.1],
@@ -92,7 +92,7 @@ class TaskWidget(GenericWidget):
             else:
                 button.clicked.connect(lambda _=False, n=name: self.do(n))
             grid.addWidget(button, row, 0)
-            values = starting.get(name, [])
+            values = starting.get(name) or list(spec.defaults)
             fields = []
             labels = [] if name in self.gathered else \
                 spec.fields[:len(values)] if spec.fewest == 0 else spec.fields

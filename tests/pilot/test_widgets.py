@@ -228,6 +228,26 @@ def test_a_task_widget_sends_the_pilots_estimate_of_the_whole_pose(qt, module):
     assert len(estimate) - 1 == catalogue_of(module).commands[command].most
 
 
+def test_a_task_widgets_numbers_start_at_the_modules_own_defaults(qt):
+    """The door widget's fields said turn 0.6 and open 0.5 where drc_door takes 0.9 and 0.7
+    when told nothing: clicked through with them, the door opened 28 degrees, short of the
+    30 the module's own test asks (the PI's one-session test of 2026-11-28).  The module's
+    defaults now fill the fields; the widget's table only has what no module knows."""
+    from pilot.catalogue import catalogue_of
+    from pilot.widgets.tasks import TaskWidget
+
+    door = TaskWidget(catalogue_of("drc_door"), Recorder())
+    assert door.numbers("turn") == [pytest.approx(0.9)]
+    assert door.numbers("open") == [pytest.approx(0.7)]
+    drive = TaskWidget(catalogue_of("drc_drive"), Recorder())
+    assert drive.numbers("turn_left") == drive.numbers("turn_right") == [pytest.approx(0.5)]
+    assert drive.numbers("accelerate") == [pytest.approx(1.0), pytest.approx(1.0)]
+    # A number without a default (how high the kerb is) is the pilot's: from the table.
+    assert catalogue_of("walking").commands["step_up"].defaults == ()
+    walking = TaskWidget(catalogue_of("walking"), Recorder())
+    assert walking.numbers("step_up") == [pytest.approx(0.05), pytest.approx(0.33)]
+
+
 def test_the_timed_button_shows_the_gateways_countdown_and_stays_clickable_to_cancel(qt):
     from pilot.catalogue import catalogue_of
     from pilot.link import CountdownEvent
