@@ -82,7 +82,8 @@ def follow(world: World, joint: str) -> None:
 
 def main(args: List[str]) -> None:
     """Print ``base_x X base_yaw YAW``, ``base_z Z tilt T`` (m, rad) then ``JOINT VALUE``
-    for each joint asked; ``--follow JOINT``: that joint's every value (:func:`follow`)."""
+    for each joint asked (``JOINT X Y Z upright COS`` for a free body's: the plug, the
+    drill); ``--follow JOINT``: that joint's every value (:func:`follow`)."""
     world = World("/probe/world:i")
     try:
         if args[:1] == ["--follow"] and len(args) == 2:
@@ -92,7 +93,10 @@ def main(args: List[str]) -> None:
         print("base_x", x, "base_yaw", yaw)
         print("base_z", z, "tilt", world.tilt())
         for joint in joints:
-            print(joint, world.prop(joint))
+            if world.model.joint(joint).type == mujoco.mjtJoint.mjJNT_FREE:    # a loose part
+                print(joint, *world.body_position(joint), "upright", world.upright(joint))
+            else:
+                print(joint, world.prop(joint))
     finally:
         world.close()
 

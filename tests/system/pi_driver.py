@@ -22,20 +22,23 @@ whole valve task COUNT times by clicks, printing ``TIMED run command state click
 shown-time`` per step and ``SHOWN time state stamp`` for every status the task widget
 showed, ``stamp`` the gateway's receipt; after each run but the last it waits for the
 bench to say ``next``), ``task MODULE COUNT`` (the same for any task module, by its
-``TASK_STEPS``).  ``PI_NAME`` and ``PI_LAYOUT`` choose the
+``TASK_STEPS``), ``tasks MODULE...`` (each task once, after the test said ``go
+MODULE``: the README's "every DRC task in one session"; drc_drive's wheel also steered by
+its slider).  ``PI_NAME`` and ``PI_LAYOUT`` choose the
 PI's name and layout (``PI_LAYOUTS`` the file of layouts).  Each step prints ``STEP
 name``; failures print ``FAIL why`` and exit 1.  Screenshots go to OUTDIR.
 """
 
 from __future__ import annotations
 
+import math
 import os
 import queue
 import sys
 import threading
 import time
 from pathlib import Path
-from typing import List
+from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 from python_qt_binding.QtCore import Qt
@@ -441,7 +444,6 @@ def send_look_at(gaze, x: float) -> None:
 def drag(marker: str, position, yaw: float, followed, what: str) -> None:
     """What RViz sends while the pilot drags ``marker`` to ``position`` turned ``yaw`` (pelvis
     frame): pose updates to the PI's marker server until ``followed()`` says the PI took it."""
-    import math
 
     import rospy
     from visualization_msgs.msg import InteractiveMarkerFeedback
@@ -477,7 +479,6 @@ def drag(marker: str, position, yaw: float, followed, what: str) -> None:
 
 def drag_marker() -> None:
     """What RViz sends while the pilot drags the valve's marker: the fields follow."""
-    import math
 
     valve = widget("drc_valve")
     fields = valve.fields["valvedatasent"]
@@ -662,7 +663,7 @@ def cloud_connected(uri: str) -> bool:
 
 def peer() -> None:
     other, x = sys.argv[3], float(sys.argv[4])
-    threading.Thread(target=read_stdin, daemon=True).start()
+    listen()
     gaze = start_gaze()
     # every pilot's commands reach our log from here (fc3: the PI counted its subscription
     # a second before the loaded gateway took it, and both look_ats went out meanwhile)
@@ -737,64 +738,142 @@ def latency() -> None:
     say("DONE")
 
 
-def task_runs(module: str, count: int) -> None:
-    """A task COUNT times by its buttons: the pose (the fields' defaults), then the module's
-    ``TASK_STEPS``; each step timed from its click to the widget showing the state it ends
-    in (a timed one through its countdown and the motion it starts)."""
-    from importlib import import_module
+def listen() -> None:
+    """Read the test's words from stdin (once, whichever phases ask)."""
+    global LISTENING
+    if not LISTENING:
+        LISTENING = True
+        threading.Thread(target=read_stdin, daemon=True).start()
 
-    from walkman.gym.runner import load_module_class
 
-    threading.Thread(target=read_stdin, daemon=True).start()
-    task = widget(module)
-    dangerous = load_module_class(module).dangerous
-    pose = next(name for name in task.buttons if name.endswith("datasent"))
-    steps = [(pose, "ready")] + [(command.split()[0], state) for command, state in
-                                 import_module(f"walkman.modules.{module}").TASK_STEPS]
-    shown = task.on_status                        # the window routes statuses by this name
-    seen = []                                     # (when shown, state), every status
+LISTENING = False
 
-    def on_status(event) -> None:
-        shown(event)
-        seen.append((time.time(), event.state))
-        say(f"SHOWN {seen[-1][0]:.6f} {event.state} {event.stamp:.6f}")
 
-    def reached(state: str, before: str, after: float):
+class TaskRun:
+    """One task module driven by its buttons: the pose (the fields' values), then the
+    module's ``TASK_STEPS``; each step timed from its click to the widget showing the state
+    it ends in (a timed one through its countdown and the motion it starts).  Every status
+    the widget shows is printed ``SHOWN time state stamp`` (``stamp``: the gateway's
+    receipt)."""
+
+    def __init__(self, module: str) -> None:
+        from importlib import import_module
+
+        from walkman.gym.runner import load_module_class
+
+        self.module = module
+        self.task = widget(module)
+        self.dangerous = load_module_class(module).dangerous
+        pose = next(name for name in self.task.buttons if name.endswith("datasent"))
+        self.steps = [(pose, "ready")] + [
+            (command.split()[0], state)
+            for command, state in import_module(f"walkman.modules.{module}").TASK_STEPS]
+        self.seen: List = []                      # (when shown, state), every status
+        shown = self.task.on_status               # the window routes statuses by this name
+
+        def on_status(event) -> None:
+            shown(event)
+            self.seen.append((time.time(), event.state))
+            say(f"SHOWN {self.seen[-1][0]:.6f} {event.state} {event.stamp:.6f}")
+
+        self.task.on_status = on_status
+
+    def reached(self, state: str, before: str, after: float):
         """When ``state`` was shown after ``after`` -- past a state other than ``before``
         first when the step ends where it began (the valve's turn: grasped to grasped)."""
-        later = [(when, said) for when, said in seen if when >= after]
+        later = [(when, said) for when, said in self.seen if when >= after]
         if state == before:
             moved = next((i for i, (_, said) in enumerate(later) if said != before), None)
             later = [] if moved is None else later[moved:]
         return next((when for when, said in later if said == state), None)
 
-    task.on_status = on_status
-    wait(lambda: task.state is not None, 60, f"{module}'s status")
-    wait_sendable(module)
-    if task.state != "idle":
-        click(task.switch_buttons["start"], f"{module} start", task)
-        wait(lambda: task.state == "idle", 60, f"{module} idle")
-    for run in range(count):
-        for command, state in steps:
-            button = task.buttons[command]
-            wait(button.isEnabled, 60, f"{command} enabled")
-            before, at = task.state, time.time()
-            click(button, f"{module} {command}", task)
-            since = at
-            if command in dangerous:              # the motion starts after the countdown
-                # A state other than the one clicked in: the motion's, or already its end.
-                # (Not "its end state shown": for a step that ends where it began -- the
-                # valve's turn, grasped to grasped -- the 2 Hz status of the state it counts
-                # down in is that, and the next() below found no change: StopIteration.)
-                wait(lambda: any(when >= at and said != before for when, said in seen), 60,
-                     f"{command} started after its countdown")
-                since = next(when for when, said in seen if when >= at and said != before)
-            wait(lambda: reached(state, before, since) is not None, 180,
-                 f"{module} {state} after {command}")
-            say(f"TIMED {run} {command} {state} {at:.6f} {reached(state, before, since):.6f}")
+    def start(self) -> None:
+        """The module's status seen, the PI heard by the gateway, the module started."""
+        module, task = self.module, self.task
+        wait(lambda: task.state is not None, 60, f"{module}'s status")
+        wait_sendable(module)
+        if task.state != "idle":
+            click(task.switch_buttons["start"], f"{module} start", task)
+            wait(lambda: task.state == "idle", 60, f"{module} idle")
+
+    def step(self, run: int, command: str, state: str) -> None:
+        task = self.task
+        button = task.buttons[command]
+        wait(button.isEnabled, 60, f"{command} enabled")
+        before, at = task.state, time.time()
+        click(button, f"{self.module} {command}", task)
+        since = at
+        if command in self.dangerous:             # the motion starts after the countdown
+            # A state other than the one clicked in: the motion's, or already its end.
+            # (Not "its end state shown": for a step that ends where it began -- the
+            # valve's turn, grasped to grasped -- the 2 Hz status of the state it counts
+            # down in is that, and the next() below found no change: StopIteration.)
+            wait(lambda: any(when >= at and said != before for when, said in self.seen), 60,
+                 f"{command} started after its countdown")
+            since = next(when for when, said in self.seen if when >= at and said != before)
+        wait(lambda: self.reached(state, before, since) is not None, 180,
+             f"{self.module} {state} after {command}")
+        say(f"TIMED {run} {command} {state} {at:.6f} {self.reached(state, before, since):.6f}")
+
+    def run(self, run: int = 0,
+            after: Optional[Dict[str, Callable[["TaskRun"], None]]] = None) -> None:
+        """Every step once; ``after[command](self)`` is called once that step is done."""
+        for command, state in self.steps:
+            self.step(run, command, state)
+            if after and command in after:
+                after[command](self)
         say(f"RUN {run} done")
+
+
+def task_runs(module: str, count: int) -> None:
+    """A task COUNT times by its buttons (:class:`TaskRun`); after each run but the last
+    it waits for the test to say ``next`` (the bench reads the scene)."""
+    listen()
+    task = TaskRun(module)
+    task.start()
+    for run in range(count):
+        task.run(run)
         if run + 1 < count:
-            wait_word("next", 300)                # the bench reads the scene
+            wait_word("next", 300)
+    say("DONE")
+
+
+def steer_by_slider(run: TaskRun, degrees: int) -> None:
+    """drc_drive's steering slider (Figure 14) set and ``steer`` clicked: the wheel turns
+    from where the module measures it to the slider's angle, and is measured there."""
+    drive = run.task
+    wait(lambda: drive.measured is not None, 30, "the wheel's measured angle")
+    drive.slider.setValue(degrees)
+    at = time.time()
+    click(drive.steer_button, f"steer to {degrees:+d} degrees", drive)
+    wait(lambda: run.reached("drive", "drive", at) is not None, 120,
+         "drc_drive turning the wheel, then driving again")
+    wait(lambda: abs(math.degrees(drive.measured) - degrees) < 5, 10,
+         f"the wheel measured within 5 degrees of {degrees:+d}")
+    say(f"STEP steered by the slider to {degrees:+d} degrees, measured "
+        f"{math.degrees(drive.measured):+.1f}")
+
+
+#: What the pilot does beside a task's steps, after the step named (module -> command -> do).
+BESIDE_STEPS: Dict[str, Dict[str, Callable[[TaskRun], None]]] = {
+    "drc_drive": {"turn_right": lambda run: steer_by_slider(run, 25)},
+}
+
+
+def tasks_in_turn(modules: Sequence[str]) -> None:
+    """``tasks MODULE...``: the README's "every DRC task in one session": each task once by
+    its buttons, after the test said ``go MODULE`` (the robot taken to its station), the
+    module stopped, then ``TASK MODULE done``."""
+    listen()
+    for module in modules:
+        wait_word(f"go {module}", 300)
+        task = TaskRun(module)
+        task.start()
+        task.run(after=BESIDE_STEPS.get(module))
+        # "stop when done, then the next station": its joints are the next task's
+        click(task.task.switch_buttons["stop"], f"{module} stop", task.task)
+        wait(lambda: task.task.state == "stopped", 60, f"{module} stopped")
+        say(f"TASK {module} done")
     say("DONE")
 
 
@@ -842,7 +921,7 @@ def link_down() -> None:
     from walkman.gym.lifecycle import State, lifecycle_of_status
 
     names = sys.argv[3:5]
-    threading.Thread(target=read_stdin, daemon=True).start()
+    listen()
     victim, other = (widget(name) for name in names)
     for name, shown in zip(names, (victim, other)):
         wait(lambda: shown.presence == "running", 60, f"{name}'s status")
@@ -914,5 +993,6 @@ if __name__ == "__main__":
      "camera": camera, "wall": wall_task, "terrain": terrain,
      "valve": lambda: task_runs("drc_valve", int(sys.argv[3])),
      "task": lambda: task_runs(sys.argv[3], int(sys.argv[4])),
+     "tasks": lambda: tasks_in_turn(sys.argv[3:]),
      "link": link_down}[sys.argv[1]]()
     window.close_link()

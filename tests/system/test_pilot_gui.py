@@ -22,7 +22,7 @@ import re
 import shutil
 import signal
 import sys
-from typing import Sequence
+from typing import Dict, List, Sequence
 
 import pytest
 
@@ -30,7 +30,8 @@ from system.display import display_env, private_display
 from system.processes import ROSCORE_READY, Proc
 from system.topology import REPO, Pc, Topology, hal_component, task_component
 from walkman.model.description import STANDING_PELVIS_HEIGHT
-from walkman.model.mjcf import TERRAIN_STEP
+from walkman.model.mjcf import (PLUG_HALF, PLUG_SOCKETS, PLUG_TABLE_TOP, SOCKET_INNER,
+                                 TERRAIN_STEP)
 from walkman.modules.walking import CROUCH
 from tests.system.conftest import dump_outputs_if_failed
 
@@ -124,14 +125,14 @@ def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
 
 
 @contextlib.contextmanager
-def clicked_on_drc(tmp_path, display, request, link, module: str, phase: str, *hal: str,
-                   unused: Sequence[str] = ()):
-    """A task clicked through a PI (driver phase ``phase``) on the drc topology, its two PCs
-    on the emulated hosts over the DRC link (1 Mbit/s, 50 ms, 5 % loss), the HAL started
-    with ``hal``, without the rosbag recorder and the ``unused`` components: yields the
-    topology and the PI's process once it said DONE."""
+def pi_on_drc(tmp_path, display, request, link, modules: Sequence[str], phase: str,
+              *hal: str, args: Sequence[str] = (), unused: Sequence[str] = ()):
+    """A PI (driver phase ``phase`` with ``args``) on the drc topology with the task
+    ``modules``, its two PCs on the emulated hosts over the DRC link (1 Mbit/s, 50 ms, 5 %
+    loss), the HAL started with ``hal``, without the rosbag recorder and the ``unused``
+    components: yields the topology and the PI's process once the PI is started."""
     topology = Topology("drc", tmp_path / "drc", link=link, profile="drc",
-                        extra=[hal_component(*hal), task_component(module)])
+                        extra=[hal_component(*hal), *map(task_component, modules)])
     for name in ("rosbag", *unused):
         del topology.table[name]
     out = tmp_path / "screens"
@@ -140,15 +141,86 @@ def clicked_on_drc(tmp_path, display, request, link, module: str, phase: str, *h
         topology.start_name_servers()
         topology.start_all(list(topology.table))
         topology.wait_ready(180)
-        pi = start_pi(topology.pilot, display, phase, out)
-        pi.wait_for(r"DONE|FAIL", 600)
-        assert "FAIL" not in pi.output(), pi.output()
-        yield topology, pi
+        yield topology, start_pi(topology.pilot, display, phase, out, *args)
     finally:
         shutil.copytree(out, REPO / "out" / f"pilot-gui-{phase}", dirs_exist_ok=True)
         for pc in topology.unique_pcs():
             dump_outputs_if_failed(request, pc.processes.values())
         topology.close()
+
+
+@contextlib.contextmanager
+def clicked_on_drc(tmp_path, display, request, link, module: str, phase: str, *hal: str,
+                   unused: Sequence[str] = ()):
+    """A task clicked through a PI on the drc topology (:func:`pi_on_drc`): yields the
+    topology and the PI's process once it said DONE."""
+    with pi_on_drc(tmp_path, display, request, link, [module], phase, *hal,
+                   unused=unused) as (topology, pi):
+        pi.wait_for(r"DONE|FAIL", 600)
+        assert "FAIL" not in pi.output(), pi.output()
+        yield topology, pi
+
+
+def scene(topology: Topology, *joints: str) -> Dict[str, List[float]]:
+    """The simulator's ground truth for each scene joint asked, read on the robot PC (a free
+    body's: x, y, z and the cosine of its tilt)."""
+    out = topology.robot.run([PYTHON, "-m", "tests.modules.scene", *joints],
+                             timeout=60).output()
+    return {words[0]: [float(w) for w in words[1:] if w != "upright"]
+            for words in map(str.split, out.splitlines()) if words[:1] and words[0] in joints}
+
+
+def take_the_robot_to(topology: Topology, station: str) -> None:
+    """What the README's robot shell does between tasks: ``echo "set station NAME" |
+    yarp-lite rpc /walkman/rpc:i``, then the HAL says the robot is there."""
+    rpc = topology.robot.start(f"station_{station}",
+                               [PYTHON, "-m", "yarp_lite", "rpc", "/walkman/rpc:i"], stdin=True)
+    rpc.send(f"set station {station}\n")
+    rpc.close_stdin()
+    assert rpc.wait(60) == 0 and "[ok]" in rpc.output(), rpc.output()
+    topology.process("hal").wait_for(rf"HAL: the robot is at station {station}\b", 30)
+
+
+@pytest.mark.requires("root")
+def test_drive_door_and_plug_by_clicks_in_one_session_as_the_readme_walks_through(
+        tmp_path, display, request, emulated_link):
+    """Issue 32: the README's "every DRC task in one session" on the drc topology over the
+    emulated DRC link: the PI clicks drc_drive's, drc_door's and drc_plug's steps (the wheel
+    also steered by drc_drive's slider, Fig. 14), the robot taken from station to station
+    between them on the robot PC's rpc port; the simulated world says what each did -- the
+    wheel at the slider's angle, the door open past 30 degrees, the plug standing in the
+    other socket."""
+    tasks = (("drc_drive", "car"), ("drc_door", "door"), ("drc_plug", "plug"))
+    with pi_on_drc(tmp_path, display, request, emulated_link, [m for m, _ in tasks], "tasks",
+                   "--station", "car", args=[m for m, _ in tasks]) as (topology, pi):
+        pi.wait_for(r"UP after|FAIL", 120)
+        steering = scene(topology, "steering")["steering"][0]
+        for module, station in tasks:
+            if station != "car":
+                take_the_robot_to(topology, station)
+            pi.send(f"go {module}\n")
+            pi.wait_for(rf"TASK {module} done|FAIL", 600)
+            assert "FAIL" not in pi.output(), pi.output()
+            if module == "drc_drive":               # the wheel where the slider said
+                slider = pi.wait_for(r"STEP steered by the slider to ([+-]\d+) degrees", 1)
+                turned = scene(topology, "steering")["steering"][0] - steering
+                assert turned == pytest.approx(math.radians(int(slider.group(1))), abs=0.1), \
+                    (turned, slider.group(0))
+            elif module == "drc_door":
+                door = scene(topology, "door")["door"][0]
+                assert math.degrees(door) > 30, door
+            else:
+                x, y, z, upright = scene(topology, "plug")["plug"]
+                inside = SOCKET_INNER - PLUG_HALF[0] + 0.002    # its walls leave this play
+                assert math.hypot(x - PLUG_SOCKETS["b"][0], y - PLUG_SOCKETS["b"][1]) < \
+                    inside, (x, y)
+                assert z == pytest.approx(PLUG_TABLE_TOP + PLUG_HALF[2], abs=0.01), z
+                assert upright > math.cos(math.radians(10)), upright
+        gateway = topology.process("gateway").output()
+        for module, command in (("drc_drive", "accelerate"), ("drc_door", "open"),
+                                ("drc_plug", "insert")):   # the timed ones, after the count
+            assert re.search(rf"gateway: sent to /{module}/command:i: \(?{command}\b",
+                             gateway), gateway[-3000:]
 
 
 @pytest.mark.requires("root")
