@@ -840,7 +840,8 @@ def task_runs(module: str, count: int) -> None:
 
 def steer_by_slider(run: TaskRun, degrees: int) -> None:
     """drc_drive's steering slider (Figure 14) set and ``steer`` clicked: the wheel turns
-    from where the module measures it to the slider's angle, and is measured there."""
+    from where the module measures it to the slider's angle, and is measured there; then
+    the test, told so, reads the wheel in the world and says ``looked``."""
     drive = run.task
     wait(lambda: drive.measured is not None, 30, "the wheel's measured angle")
     drive.slider.setValue(degrees)
@@ -852,6 +853,7 @@ def steer_by_slider(run: TaskRun, degrees: int) -> None:
          f"the wheel measured within 5 degrees of {degrees:+d}")
     say(f"STEP steered by the slider to {degrees:+d} degrees, measured "
         f"{math.degrees(drive.measured):+.1f}")
+    wait_word("looked", 120)              # the test reads the wheel in the world meanwhile
 
 
 #: What the pilot does beside a task's steps, after the step named (module -> command -> do).

@@ -188,8 +188,8 @@ def test_drive_door_and_plug_by_clicks_in_one_session_as_the_readme_walks_throug
     emulated DRC link: the PI clicks drc_drive's, drc_door's and drc_plug's steps (the wheel
     also steered by drc_drive's slider, Fig. 14), the robot taken from station to station
     between them on the robot PC's rpc port; the simulated world says what each did -- the
-    wheel at the slider's angle, the door open past 30 degrees, the plug standing in the
-    other socket."""
+    wheel at the slider's angle (and at the angle the widget shows measured) once steered,
+    and still there once the hand let it go; the door open past 30 degrees, the plug standing in the other socket."""
     tasks = (("drc_drive", "car"), ("drc_door", "door"), ("drc_plug", "plug"))
     with pi_on_drc(tmp_path, display, request, emulated_link, [m for m, _ in tasks], "tasks",
                    "--station", "car", args=[m for m, _ in tasks]) as (topology, pi):
@@ -199,23 +199,31 @@ def test_drive_door_and_plug_by_clicks_in_one_session_as_the_readme_walks_throug
             if station != "car":
                 take_the_robot_to(topology, station)
             pi.send(f"go {module}\n")
+            if module == "drc_drive":     # the wheel where the slider said, as the PI shows
+                slider = pi.wait_for(r"STEP steered by the slider to ([+-]\d+) degrees, "
+                                     r"measured ([+-][\d.]+)|FAIL", 600)
+                assert "FAIL" not in pi.output(), pi.output()
+                turned = scene(topology, "steering")["steering"][0] - steering
+                pi.send("looked\n")
+                wanted, shown = (math.radians(float(v)) for v in slider.groups())
+                assert turned == pytest.approx(wanted, abs=0.1), (turned, slider.group(0))
+                assert turned == pytest.approx(shown, abs=0.1), (turned, slider.group(0))
             pi.wait_for(rf"TASK {module} done|FAIL", 600)
             assert "FAIL" not in pi.output(), pi.output()
-            if module == "drc_drive":               # the wheel where the slider said
-                slider = pi.wait_for(r"STEP steered by the slider to ([+-]\d+) degrees", 1)
-                turned = scene(topology, "steering")["steering"][0] - steering
-                assert turned == pytest.approx(math.radians(int(slider.group(1))), abs=0.1), \
-                    (turned, slider.group(0))
-            elif module == "drc_door":
+            if module == "drc_door":
                 door = scene(topology, "door")["door"][0]
                 assert math.degrees(door) > 30, door
-            else:
+            elif module == "drc_plug":
                 x, y, z, upright = scene(topology, "plug")["plug"]
                 inside = SOCKET_INNER - PLUG_HALF[0] + 0.002    # its walls leave this play
                 assert math.hypot(x - PLUG_SOCKETS["b"][0], y - PLUG_SOCKETS["b"][1]) < \
                     inside, (x, y)
                 assert z == pytest.approx(PLUG_TABLE_TOP + PLUG_HALF[2], abs=0.01), z
                 assert upright > math.cos(math.radians(10)), upright
+            else:           # pressing the throttle and letting go did not turn it
+                end = scene(topology, "steering")["steering"][0] - steering
+                assert end == pytest.approx(turned, abs=0.1), \
+                    f"the wheel at {end:.3f} rad after the task, {turned:.3f} once steered"
         gateway = topology.process("gateway").output()
         for module, command in (("drc_drive", "accelerate"), ("drc_door", "open"),
                                 ("drc_plug", "insert")):   # the timed ones, after the count
