@@ -213,7 +213,21 @@ KNOWN: Tuple[Known, ...] = (
     Known("tests/system/test_pilot_gui.py::"
           "test_the_wall_task_by_clicks_cuts_the_circle_in_the_world",
           "'approach is disabled' right after 'reach -> reached' (fc2; not found, the driver "
-          "now says the widget's state)"),
+          "now says the widget's state); 'reach is disabled', the PI's drc_wall 'not running "
+          "(last: ready)', heard 10.8 s ago, the link not down (fc68 of the seventh "
+          "2026-11-28 session, load 20-31 beside the 30 %-loss stop_all test's two PCs: the "
+          "pilot bridge dropped 100 stale /battery messages, the robot PC's loops starving "
+          "its bridge and the radio stage; open)"),
+    Known("tests/bridge/test_udp_channel.py::"
+          "test_adaptive_repairs_follow_the_loss_the_receiver_reports",
+          "the mean completeness of frames 10-40 at 30 % loss 0.919, not >= 0.98 (fc68 of the "
+          "seventh 2026-11-28 session, under load: the loss reports and the repair level "
+          "follow the machine's timing; open)"),
+    Known("tests/system/test_pilot_gui.py::"
+          "test_drive_door_and_plug_by_clicks_in_one_session_as_the_readme_walks_through",
+          "the wheel at 12.5 degrees after the task for the slider's 25, the widget showing "
+          "25.5 measured (its first flake hunt, 1 of 3 beside two burners); the wheel is now "
+          "read at the moment it is steered and again after the task; where it drifted, open"),
     Known("tests/bridge/test_tcp_channel.py::"
           "test_an_unacknowledged_event_is_followed_by_empty_frames_and_a_periodic_one_is_not",
           "its 3-s wait for the nudges beside two burners (fc6; 15 s since: 7c633c2); no "
