@@ -14,6 +14,19 @@ a second such test, on another worker or in another pytest run on the machine, w
 A slot is an exclusive ``flock`` on a file under the system's temporary folder: the kernel
 releases it when its holder dies, so a killed run never leaves a slot taken.
 
+A test marked ``two_pcs`` starts both PCs of the drc topology -- a simulated robot with its
+modules, both bridges, the emulated radio and the pilot's side -- and judges what a pilot
+would see on time: a status no older than its widget's bound, a stop that reaches every
+module.  The robot PC's real-time threads run above its bridge (as on the real robot), and
+here above the *pilot* PC's bridge too, which a real pilot PC never shares a CPU with; a
+second topology doubles that load.  Fresh-clone run fc68 (2026-11-28): the PI's wall task
+read ``drc_wall`` as "not running", its status 10.8 s stale, while the 30 %-loss stop-all
+test ran its own two PCs on the other worker (load 20-31 on 2 cores; the pilot's bridge
+dropped 100 stale ``/battery`` messages).  So such tests hold one of ``slots()`` machine-wide
+``two_pcs`` slots, as free-standing robots do theirs (another lock file, so a test may hold
+both: the robot slot is always taken first, and no test waits for one while holding the
+other the other way round).
+
 A test marked ``alone`` goes further: it has the machine to itself (:func:`machine_share`).
 The PI's terrain course walks a free-standing robot through the drc topology -- both PCs,
 the emulated link and a PI rendering its 3-D view, all on the one machine -- and on a slow
@@ -42,11 +55,17 @@ def slots(cores: Optional[int] = None) -> int:
     return max(1, (cores if cores is not None else os.cpu_count() or 1) // 2)
 
 
+#: The kinds of slot: each a set of lock files of its own (``<kind>-<index>.lock``).
+ROBOT = "slot"
+TWO_PCS = "two-pcs"
+
+
 @contextmanager
 def robot_slot(folder: Path = SLOT_FOLDER, count: Optional[int] = None,
-               preferred: int = 0) -> Iterator[float]:
-    """Hold a free slot for the block; yields how long it waited (s).  With every slot
-    taken it blocks on slot ``preferred`` (mod the count) until its holder lets go."""
+               preferred: int = 0, kind: str = ROBOT) -> Iterator[float]:
+    """Hold a free slot of ``kind`` for the block; yields how long it waited (s).  With
+    every slot taken it blocks on slot ``preferred`` (mod the count) until its holder lets
+    go."""
     count = slots() if count is None else count
     if count < 1:
         raise ValueError(f"a machine has at least one robot slot, not {count}")
@@ -54,7 +73,7 @@ def robot_slot(folder: Path = SLOT_FOLDER, count: Optional[int] = None,
     began = time.monotonic()
     # Read-only is enough for flock: a slot file another user made (CI as root, then a
     # developer) still serves.
-    handles = [os.open(folder / f"slot-{index}.lock", os.O_RDONLY | os.O_CREAT, 0o666)
+    handles = [os.open(folder / f"{kind}-{index}.lock", os.O_RDONLY | os.O_CREAT, 0o666)
                for index in range(count)]
     held = None
     try:

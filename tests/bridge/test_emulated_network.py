@@ -22,12 +22,14 @@ import pytest
 
 from bridge.emulation import EmulatedLink, EmulationError
 from bridge.radio_model import MAX_FRAME, QUEUE_MIN_FRAMES
+from bridge.radio_stage import STAGE_PRIORITY
 from bridge_harness import HERE, PYTHON, TwoPCs
 from harness import Proc, wait_until
 from system.processes import WaitTimeout, fifo_priorities
 from pilot_side import (bridge_status, executed, send, switch, wait_nothing_in_flight,
                         wait_shown)
-from walkman.realtime import BRIDGE_PRIORITY
+from walkman.realtime import (BRIDGE_PRIORITY, CONTROL_PRIORITY, HAL_BACKGROUND_PRIORITY,
+                              HAL_PRIORITY, PATH_PRIORITY)
 
 pytestmark = pytest.mark.requires("root")
 
@@ -208,12 +210,25 @@ def test_the_radio_refuses_impossible_settings(link):
     assert link.settings()["rate"] == 9600.0 and link.settings()["loss"] == 0.0  # unchanged
 
 
-def test_down_ends_the_radio_stage(link):
+def radio_stage_pid(link) -> int:
+    """The one process in the link's namespace: the radio stage."""
     listed = subprocess.run(["ip", "netns", "pids", link.namespace("link")],
                             capture_output=True, text=True, check=True).stdout.split()
-    assert len(listed) == 1
+    assert len(listed) == 1, listed
     stage = int(listed[0])
     assert "bridge.radio_stage" in open(f"/proc/{stage}/cmdline").read()
+    return stage
+
+
+def test_the_radio_stage_runs_above_the_robots_loops(link):
+    """The radio is a device of its own: no robot thread may hold its frames back."""
+    assert fifo_priorities(radio_stage_pid(link)) == [STAGE_PRIORITY]
+    assert STAGE_PRIORITY > max(HAL_PRIORITY, PATH_PRIORITY, CONTROL_PRIORITY,
+                                HAL_BACKGROUND_PRIORITY, BRIDGE_PRIORITY)
+
+
+def test_down_ends_the_radio_stage(link):
+    stage = radio_stage_pid(link)
     link.down()
     wait_until(lambda: not os.path.exists(f"/proc/{stage}"), 10, message="the stage gone")
     assert not link.exists() and not link.control_path.exists()

@@ -93,6 +93,7 @@ def arm(reader: Proc, what: int = 0) -> List[float]:
     return []
 
 
+@pytest.mark.two_pcs
 def test_a_cut_link_pauses_the_module_that_asked_and_the_hal_holds_the_robot(pcs, lite, link):
     link.apply("drc", loss=0)
     pcs.start_name_servers()

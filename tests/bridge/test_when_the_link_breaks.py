@@ -128,6 +128,7 @@ def latest_state(pcs, module: str) -> str:
     return echo.output()
 
 
+@pytest.mark.two_pcs
 def test_a_stop_all_at_30_percent_loss_holds_every_module_and_the_hal(tmp_path, lite, link,
                                                                        monkeypatch):
     config = tmp_path / "bridge.xml"

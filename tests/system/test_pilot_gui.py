@@ -78,6 +78,7 @@ def start_pi(pc: Pc, display: str, phase: str, out, *args: str, name: str = "",
                     stdin=True)
 
 
+@pytest.mark.two_pcs
 def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
         drc, display, tmp_path):
     out = tmp_path / "screens"
@@ -181,6 +182,7 @@ def take_the_robot_to(topology: Topology, station: str) -> None:
     topology.process("hal").wait_for(rf"HAL: the robot is at station {station}\b", 30)
 
 
+@pytest.mark.two_pcs
 @pytest.mark.requires("root")
 def test_drive_door_and_plug_by_clicks_in_one_session_as_the_readme_walks_through(
         tmp_path, display, request, emulated_link):
@@ -231,6 +233,7 @@ def test_drive_door_and_plug_by_clicks_in_one_session_as_the_readme_walks_throug
                              gateway), gateway[-3000:]
 
 
+@pytest.mark.two_pcs
 @pytest.mark.requires("root")
 def test_the_wall_task_by_clicks_cuts_the_circle_in_the_world(tmp_path, display, request,
                                                              emulated_link):
@@ -349,6 +352,7 @@ def look_at_hops(x: str, sender: Proc, sending_gateway: Proc, receiving_gateway:
     return f"look_at {x}:\n" + "\n".join(lines)
 
 
+@pytest.mark.two_pcs
 def test_two_pilot_pcs_see_each_others_commands_and_a_pi_survives_restarts(
         drc, second_pilot_pc, display, tmp_path):
     """Two PIs on two pilot PCs (one gateway each, one pilot YARP name server): each

@@ -80,6 +80,7 @@ def step(pi, pattern: str, timeout: float) -> str:
     return line
 
 
+@pytest.mark.two_pcs
 def test_the_widgets_tell_a_cut_link_from_a_dead_module(display, drc_hosts, emulated_link,
                                                          tmp_path):
     # the display first: it outlives the PI, which the topology stops

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from robot_slots import robot_slot, slots
+from robot_slots import ROBOT, TWO_PCS, robot_slot, slots
 
 TESTS = Path(__file__).resolve().parents[1]
 HOLDER = """
@@ -53,8 +53,8 @@ def wait_for(predicate, what: str, timeout: float = 30.0) -> None:
         time.sleep(0.01)
 
 
-def free(folder: Path, index: int) -> bool:
-    with open(folder / f"slot-{index}.lock", "a+") as handle:
+def free(folder: Path, index: int, kind: str = ROBOT) -> bool:
+    with open(folder / f"{kind}-{index}.lock", "a+") as handle:
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -177,3 +177,15 @@ def test_a_test_alone_waits_for_the_shared_ones_and_goes_before_any_that_come_la
         for child in children:
             if child.poll() is None:
                 child.kill()
+
+
+
+def test_a_two_pcs_slot_and_a_robot_slot_are_held_apart(tmp_path):
+    """A free-standing test beside a two-PC one: each kind has lock files of its own, so
+    holding one never waits on the other, while a second holder of the same kind would."""
+    with robot_slot(tmp_path, count=1):
+        with robot_slot(tmp_path, count=1, kind=TWO_PCS) as waited:
+            assert waited < 5
+            assert not free(tmp_path, 0) and not free(tmp_path, 0, TWO_PCS)
+        assert free(tmp_path, 0, TWO_PCS) and not free(tmp_path, 0)
+    assert free(tmp_path, 0)
