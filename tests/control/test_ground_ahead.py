@@ -3,17 +3,19 @@
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import replace
 from pathlib import Path
 from typing import Callable, Dict, List
 
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given, settings, strategies as st
 
-from walkman.control.ground_ahead import (CROSS_REACH, HEEL_MARGIN, MAX_RISE,
-                                          SOLE_HALF_LENGTH, STRIDE, TOE_MARGIN, GroundError,
-                                          Pose, Surface, first_leg, footsteps_from_cloud,
+from walkman.control.ground_ahead import (CROSS_REACH, FOOTPRINT_INSET, HEEL_MARGIN, MAX_RISE,
+                                          SOLE_HALF_LENGTH, SOLE_HALF_WIDTH, STRAY_SHARE,
+                                          STRIDE, TOE_MARGIN, GroundError, Pose, Surface,
+                                          first_leg, footing_problem, footsteps_from_cloud,
                                           place, profile)
 
 FLOOR = -1.03          # the soles' height in the pelvis frame, standing
@@ -157,17 +159,39 @@ def test_a_camera_that_reads_the_ground_2_cm_high_places_the_same_footsteps():
     assert np.allclose(np.array(true), np.array(biased), atol=0.004)
 
 
-def test_a_ramp_is_one_surface_whose_slope_pitches_the_soles():
+def test_a_ramp_is_a_surface_of_its_own_whose_slope_pitches_the_soles():
+    """The floor runs on into the ramp without a jump: one line through both misses each
+    by 2 cm (a sole pitched by their mean lands on its heel on the floor, on its toes on
+    the ramp).  The run is cut at the bend: the floor, level, and the ramp, 10 degrees."""
     slope = math.tan(math.radians(10))
     ground = lambda x: FLOOR + max(0.0, x - 0.7) * slope   # noqa: E731
     surfaces = profile(cloud(ground, x_to=1.6), 0.0, -0.1, 1.6)
-    assert len(surfaces) == 1 and surfaces[0].end == pytest.approx(1.6, abs=0.02)
-    # one straight line cannot follow the bend at the ramp's foot: the fit is a mean
-    steep = profile(cloud(ground, x_to=1.6), 0.0, 0.75, 1.6)
-    assert steep[0].pitch == pytest.approx(-math.radians(10), abs=0.01)
-    steps = place(steep, {s: (0.75 + p[0], *p[1:]) for s, p in
-                          {k: (0.0, *v[1:]) for k, v in SOLES.items()}.items()}, 0.4)
-    assert all(step[4] == pytest.approx(-math.radians(10), abs=0.01) for step in steps)
+    assert [(round(s.start, 2), round(s.end, 2)) for s in surfaces] == [(0.24, 0.7), (0.7, 1.6)]
+    assert [s.pitch for s in surfaces] == pytest.approx([0.0, -math.radians(10)], abs=0.01)
+    steps = place(surfaces, SOLES, 1.0)
+    check_walk(steps, surfaces)
+    on_the_ramp = [step for step in steps if step[0] - SOLE_HALF_LENGTH > 0.7]
+    assert on_the_ramp and all(step[4] == pytest.approx(-math.radians(10), abs=0.01)
+                               for step in on_the_ramp)
+    assert all(step[4] == pytest.approx(0.0, abs=0.01) for step in steps
+               if step[0] + SOLE_HALF_LENGTH <= 0.7)
+    # each footstep lands flat on the ground it is placed on (theory, 3)
+    from_cloud = footsteps_from_cloud(cloud(ground, x_to=2.2), SOLES, 1.0)
+    assert np.allclose(np.array(from_cloud), np.array(steps), atol=0.005)
+
+
+@given(bend=st.floats(0.4, 1.2), degrees=st.floats(-12, 12), distance=st.floats(0.3, 1.5))
+def test_any_bend_is_walked_with_every_sole_flat_on_the_ground_or_refused(bend, degrees,
+                                                                         distance):
+    """Floor, then a slope up or down from ``bend``: the footing check (theory, 3) finds no
+    sole off its ground -- one line through both would pitch them wrong."""
+    slope = math.tan(math.radians(degrees))
+    ground = lambda x: FLOOR + max(0.0, x - bend) * slope   # noqa: E731
+    points = cloud(ground, x_to=3.0)
+    try:
+        footsteps_from_cloud(points, SOLES, distance)
+    except GroundError as exc:           # never a sole planned off the ground it lands on
+        assert exc.footstep is None, str(exc)
 
 
 @pytest.mark.parametrize("ground, distance, problem", [
@@ -211,3 +235,102 @@ def test_any_kerb_is_walked_within_the_rules_or_refused_with_a_reason(start, len
         heights = [step[2] for step in steps]
         assert max(abs(b - a) for a, b in zip([FLOOR] + heights, heights)) <= MAX_RISE + 0.006
         assert max(b[0] - a[0] for a, b in zip(steps, steps[1:])) <= CROSS_REACH + 1e-9
+
+
+def with_block(points: np.ndarray, x: float, y: float, size: float, height: float,
+               depth: float = 0.0) -> np.ndarray:
+    """``points`` where ground inside the square (``size`` a side, centred at x, y) is
+    raised by ``height`` (debris; negative: a hole), or beyond ``y`` when ``size`` is 0
+    (higher or lower ground to the left from ``x`` on: a side edge)."""
+    points = points.copy()
+    if size:
+        inside = (np.abs(points[:, 0] - x) <= size / 2) & (np.abs(points[:, 1] - y) <= size / 2)
+    else:
+        inside = (points[:, 0] >= x) & (points[:, 1] >= y)
+    points[inside, 2] += height
+    return points
+
+
+def footprint_share(points: np.ndarray, step: Pose, raised: np.ndarray) -> float:
+    """The share of a footstep's judged outline (inset) whose points were raised."""
+    inside = (np.abs(points[:, 0] - step[0]) <= SOLE_HALF_LENGTH - FOOTPRINT_INSET) & \
+        (np.abs(points[:, 1] - step[1]) <= SOLE_HALF_WIDTH - FOOTPRINT_INSET)
+    return float(raised[inside].mean()) if inside.any() else 0.0
+
+
+def test_debris_under_a_sole_beside_the_walking_line_is_refused_before_a_foot_lifts():
+    """The strip between the feet sees flat floor; the left sole's own ground holds a
+    4-cm block: the walk is refused, naming the footstep, its side, where and how high."""
+    flat = cloud(lambda x: FLOOR)
+    assert len(footsteps_from_cloud(flat, SOLES, 1.2)) > 4
+    # the block is outside the strip the surfaces are taken from (|y| <= 0.10)
+    assert len(profile(with_block(flat, 0.75, 0.145, 0.06, 0.04), 0.0, -0.1, 2.2)) == 1
+    with pytest.raises(GroundError, match=r"footstep \d+ \(left, 0\.\d\d m ahead\): \d+% of the "
+                       r"ground seen under the sole stands up to 4 cm above where it would "
+                       r"land: debris.*place the footsteps by hand"):
+        footsteps_from_cloud(with_block(flat, 0.75, 0.145, 0.06, 0.04), SOLES, 1.2)
+    # short of the block, the walk is made
+    assert footsteps_from_cloud(with_block(flat, 0.75, 0.145, 0.06, 0.04), SOLES, 0.3)
+
+
+@pytest.mark.parametrize("height, problem", [
+    (0.05, r"stands up to 5 cm above where it would land: debris, or higher ground beside an "
+           r"edge"),
+    (-0.10, r"the ground falls away 10 cm under \d+% of the sole: an edge beside or under it"),
+])
+def test_a_side_edge_under_the_left_soles_is_refused(height, problem):
+    """From 0.5 m on, the ground left of y = 0.14 is higher (or lower): the left soles
+    would land half on it."""
+    edged = with_block(cloud(lambda x: FLOOR), 0.5, 0.135, 0.0, height)
+    with pytest.raises(GroundError, match=r"footstep \d+ \(left, .*" + problem):
+        footsteps_from_cloud(edged, SOLES, 1.2)
+
+
+def test_the_robots_own_feet_are_not_debris():
+    """Looking down, the camera sees the feet where they stand, 8 cm high: the first
+    footsteps overlap those outlines, and are not refused for them."""
+    flat = cloud(lambda x: FLOOR, x_to=2.2)
+    feet = []
+    for sole in SOLES.values():
+        fx, fy = np.meshgrid(np.arange(sole[0] - 0.13, sole[0] + 0.131, 0.01),
+                             np.arange(sole[1] - 0.07, sole[1] + 0.07, 0.01))
+        feet.append(np.column_stack([fx.ravel(), fy.ravel(), np.full(fx.size, FLOOR + 0.08)]))
+    seen = np.concatenate([flat, *feet])
+    steps = footsteps_from_cloud(seen, SOLES, 1.0)
+    assert steps == footsteps_from_cloud(flat, SOLES, 1.0)
+    assert "debris" in footing_problem(seen, steps[0])       # the feet, were they not left out
+
+
+def test_a_footprint_the_camera_barely_sees_is_not_judged():
+    sparse = with_block(cloud(lambda x: FLOOR), 0.75, 0.145, 0.06, 0.04)
+    step = (0.75, 0.11, FLOOR, 0.0, 0.0, 0.0)
+    assert "debris" in footing_problem(sparse, step)
+    near = np.abs(sparse[:, 0] - 0.75) < 0.05               # 5 x 4 points left under it
+    assert footing_problem(sparse[~near | (np.arange(len(sparse)) % 10 == 0)], step) == ""
+
+
+@settings(derandomize=True, max_examples=60)
+@given(x=st.floats(0.3, 1.5), y=st.floats(-0.2, 0.2), size=st.floats(0.03, 0.12),
+       height=st.floats(0.02, 0.08))
+def test_debris_is_refused_exactly_where_a_sole_would_land_on_it(x, y, size, height):
+    """Any block on flat ground: walked with every sole's outline (bar a stray share) clear
+    of it, or refused.  A block beside the strip between the feet is refused by the
+    footstep whose sole lands on it; one in the strip is ground seen, and may be taken for
+    a kerb, the floor's tilt or the camera's error (all refused, on the safe side)."""
+    flat = cloud(lambda x: FLOOR)
+    littered = with_block(flat, x, y, size, height)
+    raised = littered[:, 2] > flat[:, 2] + 0.01
+    try:
+        steps = footsteps_from_cloud(littered, SOLES, 1.5)
+    except GroundError as exc:
+        if abs(y) - size / 2 < 0.10:        # in the strip: ground seen, whatever it is taken for
+            return
+        assert exc.footstep is not None, str(exc)
+        found = re.search(r"footstep (\d+) \((left|right), ", str(exc))
+        assert found and int(found.group(1)) == exc.footstep, str(exc)
+        step = place(profile(littered, 0.0, -0.1, 2.53), SOLES, 1.5)[exc.footstep - 1]
+        assert (step[1] > 0) == (found.group(2) == "left")
+        assert footprint_share(littered, step, raised) > STRAY_SHARE, (step, str(exc))
+        return
+    assert all(footprint_share(littered, step, raised) <= STRAY_SHARE + 0.01
+               for step in steps), steps

@@ -22,7 +22,7 @@ from tests.modules.walker import (LOWEST_PELVIS, MAX_TILT, both_feet_loaded, cam
                                   ramp_down_course,
                                   sole_heights, soles_in_pelvis_frame, terrain_course, tilt,
                                   upright, walk_through, walker)
-from walkman.control.ground_ahead import first_leg, footsteps_from_cloud
+from walkman.control.ground_ahead import GroundError, first_leg, footsteps_from_cloud
 from walkman.model.mjcf import TERRAIN_RAMP, TERRAIN_STEP
 from walkman.modules import walking
 from yarp_lite.bottle import Bottle
@@ -293,6 +293,56 @@ def test_the_terrain_course_by_footsteps_placed_from_the_head_camera_s_cloud(tmp
     assert min(heels) > end, (heels, plans)        # off the platform, on the floor beyond it
     assert min(margins) > 0.02, list(zip(margins, plans))   # the ZMP never near the edge
     assert not [w for w in module.warnings if "foothold" in w], module.warnings
+
+
+def looked_down_at(station: str, folder):
+    """The robot standing at ``station``, the head bent all the way down (as for the terrain
+    course): the world, the walking module, the soles and the camera's cloud (pelvis frame)."""
+    world, module = walker(station)
+    backend = world.backend
+    backend.set_references([backend.index["NeckPitchj"]], [1.04])
+    world.step(1.0)
+    soles = dict(zip(("left", "right"), map(tuple, soles_in_pelvis_frame(backend))))
+    return world, module, soles, cloud_in_pelvis_frame(backend, folder)
+
+
+@pytest.mark.parametrize("station, side, problem", [
+    ("debris", "right", r"stands up to [3-5] cm above where it would land: debris"),
+    ("kerb_side", "left", r"the ground falls away 5 cm under \d+% of the sole: an edge beside"),
+])
+def test_a_sole_that_would_land_on_debris_or_over_a_side_edge_is_refused_before_a_step(
+        tmp_path, station, side, problem):
+    """Issue 32's rough ground, what the strip between the feet does not show: at station
+    ``debris`` a 4-cm block lies in the right foot's lane, at ``kerb_side`` the kerb's side
+    edge runs under the left one's.  The footsteps from the head camera's cloud are refused,
+    naming the footstep, before any is sent; the robot stands where it was."""
+    world, module, soles, cloud = looked_down_at(station, tmp_path)
+    with pytest.raises(GroundError, match=rf"footstep \d \({side}, 0\.\d\d m ahead\): .*"
+                                          rf"{problem}.*place the footsteps by hand") as refused:
+        footsteps_from_cloud(cloud, soles, 1.0)
+    assert refused.value.footstep is not None
+    assert module.state == "idle" and sole_heights(world.backend) == pytest.approx((0, 0),
+                                                                                    abs=0.005)
+
+
+def test_onto_the_ramp_by_footsteps_placed_from_the_head_camera_s_cloud(tmp_path):
+    """The floor runs on into the ramp without an edge: the look from station ``ramp``
+    finds the bend at its foot (two surfaces, level and 10 degrees), and the leg goes on
+    over it (from the bend the camera sees only the slope, not where it begins): the feet
+    come together at the foot and step onto the ramp, each sole pitched like it."""
+    world, module, soles, cloud = looked_down_at("ramp", tmp_path)
+    leg = first_leg(footsteps_from_cloud(cloud, soles, 1.0))
+    pitches = [round(step[4], 2) for step in leg]
+    assert pitches[0] == pytest.approx(0.0, abs=0.01), leg
+    assert pitches[-1] == pitches[-2] == pytest.approx(-TERRAIN_RAMP[3], abs=0.02), leg
+    margin = walk_through(world, module, footsteps(*leg))
+    world.step(1.0)
+    assert upright(world.backend) and both_feet_loaded(world.backend)
+    assert margin > 0.02, (margin, leg)
+    on = [sole[4] for sole in soles_in_pelvis_frame(world.backend)]
+    assert on == pytest.approx([-TERRAIN_RAMP[3]] * 2, abs=0.03), on
+    assert min(sole_heights(world.backend)) > 0.01      # both on the ramp, off the floor
+    assert not module.warnings, module.warnings
 
 
 def test_the_pi_s_way_to_the_pelvis_frame_agrees_with_the_simulator_s_camera(tmp_path):

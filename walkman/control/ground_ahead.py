@@ -36,7 +36,17 @@ them from what the camera sees.  Pure: points in, footsteps or a refusal out.
 
 :func:`footsteps_from_cloud` is both, from a whole cloud: the strip between the soles'
 lines, without what is far above or below them (looking down, the camera sees the
-robot's own knees).
+robot's own knees) or over the feet where they stand (their own tops, 8 cm up) -- and then
+
+3. :func:`footing_problem` -- each footstep against what the camera sees under its own
+   sole, not the strip between the feet: the points inside its outline (inset by
+   :data:`FOOTPRINT_INSET`: an edge's bin is 0-2 cm beyond the toes) must lie on the sole's plane within :data:`CLEARANCE`.  More than
+   :data:`STRAY_SHARE` of them above it is something the sole would land on (debris beside
+   the walking line, or higher ground beside an edge); below it, ground that falls away
+   under part of the sole (a side edge).  A footprint seen by fewer than
+   :data:`MIN_FOOTPRINT_POINTS` is not judged (the camera does not see next to the feet;
+   the strip's ground is taken to go on there, as under them).  The first footstep found
+   wanting refuses the walk, before any foot lifts: where it is, how high, which way.
 
 What it will not do is said, with where: an edge higher than the legs climb, a
 surface too short to stand on, a far side beyond a step's reach, ground not seen.
@@ -62,8 +72,14 @@ MIN_POINTS = 3
 GAP_BINS = 2
 #: m: the most two neighbouring bins of one surface differ (a 10-degree ramp: 0.35 cm)
 JUMP = 0.012
-#: m: the sole's half length
+#: m: a run of bins further than this from its line bends (a ramp's foot: one line through
+#: 0.4 m of floor and 0.6 m of 10-degree ramp misses both by 2 cm); it is cut in straight
+#: pieces, none shorter than MIN_PIECE_BINS
+BEND = 0.008
+MIN_PIECE_BINS = 5
+#: m: the sole's half length and half width
 SOLE_HALF_LENGTH = Sole.half_length
+SOLE_HALF_WIDTH = Sole.half_width
 #: m: a sole's toes short of a surface's seen end, its heel past a seen start.  A bin that
 #: holds an edge is in neither surface, so the real edge is 0-2 cm (:data:`BIN`) beyond
 #: what is seen: the toes end 0-2 cm short of it, the heel lands 4-6 cm past it
@@ -82,6 +98,8 @@ MAX_UNSEEN = 0.30
 MAX_OFFSET = 0.03
 #: m: ground seen this close to the toes at another height is an edge right there
 EDGE_AT_TOES = 0.05
+#: rad: ground pitched this much other than the soles stand bends between them and it
+MAX_BEND_PITCH = 0.05
 #: m: a stride that would leave less than this before an edge or the goal goes all the way
 MIN_STEP = 0.03
 #: m: points further above or below the soles are no ground a foot could reach (the
@@ -95,11 +113,31 @@ TOGETHER = 0.006
 #: fall 2.6 cm at 10 degrees; the kerb's is 5)
 MIN_DROP = 0.03
 
+#: m: a point inside a footstep's outline further than this above or below its sole's
+#: plane is not ground the sole lands flat on (the lowest debris block is 2 cm high; the
+#: simulated camera's points lie within 0.5 cm, a stereo camera's within about 1 cm)
+CLEARANCE = 0.015
+#: the share of a footprint's points that may be off the plane (stray points, a kerb's face)
+STRAY_SHARE = 0.05
+#: m: the footprint judged, inset from the sole's outline on every side
+FOOTPRINT_INSET = 0.01
+#: points a footprint needs to be judged at all
+MIN_FOOTPRINT_POINTS = 12
+#: m: around the soles where the feet stand now, points are the robot's own feet and shins
+#: -- but ahead, only just past the toes: what lies there is the ground a step goes onto
+OWN_FOOT_MARGIN = 0.03
+OWN_TOES_MARGIN = 0.005
+
 Pose = Tuple[float, float, float, float, float, float]   # x y z roll pitch yaw
 
 
 class GroundError(ValueError):
-    """Footsteps cannot be placed on the ground seen; the text says where and why."""
+    """Footsteps cannot be placed on the ground seen; the text says where and why, and
+    ``footstep`` which of the footsteps placed (1 on) the ground under it refused, if one."""
+
+    def __init__(self, text: str, footstep: Optional[int] = None) -> None:
+        super().__init__(text)
+        self.footstep = footstep
 
 
 @dataclass(frozen=True)
@@ -162,11 +200,44 @@ def profile(points: np.ndarray, line_y: float, x_from: float, x_to: float,
                 min(level(runs[i - 1]), level(runs[i + 1])) < level(run) < \
                 max(level(runs[i - 1]), level(runs[i + 1])):
             continue                 # a kerb's face seen edge-on: heights in between
-        xs = x_from + (np.array(run) + 0.5) * BIN
-        slope, intercept = np.polyfit(xs, [heights[k] for k in run], 1) if len(run) > 1 \
-            else (0.0, heights[run[0]])
-        surfaces.append(Surface(start, end, float(intercept + slope * start), float(slope)))
+        for piece in _straight_pieces(run, heights, x_from):
+            start, end = x_from + piece[0] * BIN, x_from + (piece[-1] + 1) * BIN
+            slope, intercept = _line(piece, heights, x_from)
+            surfaces.append(Surface(start, end, intercept + slope * start, slope))
     return surfaces
+
+
+def _line(run: List[int], heights: Sequence[Optional[float]],
+          x_from: float) -> Tuple[float, float]:
+    """(slope, height at x = 0) of the line through the bins ``run``."""
+    if len(run) < 2:
+        return 0.0, float(heights[run[0]])  # type: ignore[arg-type]
+    xs = x_from + (np.array(run) + 0.5) * BIN
+    slope, intercept = np.polyfit(xs, [heights[k] for k in run], 1)
+    return float(slope), float(intercept)
+
+
+def _straight_pieces(run: List[int], heights: Sequence[Optional[float]],
+                     x_from: float) -> List[List[int]]:
+    """``run`` cut where it bends (a ramp's foot or top): pieces of at least
+    :data:`MIN_PIECE_BINS` bins, each within :data:`BEND` of its own line, cut where two
+    lines fit best."""
+    if len(run) < 2 * MIN_PIECE_BINS:
+        return [run]
+    xs = x_from + (np.array(run) + 0.5) * BIN
+    zs = np.array([heights[k] for k in run], dtype=float)
+    slope, intercept = _line(run, heights, x_from)
+    if float(np.max(np.abs(zs - (intercept + slope * xs)))) <= BEND:
+        return [run]
+    best, cut = math.inf, 0
+    for k in range(MIN_PIECE_BINS, len(run) - MIN_PIECE_BINS + 1):
+        error = sum(float(np.sum((zs[part] - np.polyval(np.polyfit(xs[part], zs[part], 1),
+                                                          xs[part])) ** 2))
+                    for part in (slice(0, k), slice(k, None)))
+        if error < best:
+            best, cut = error, k
+    return _straight_pieces(run[:cut], heights, x_from) + \
+        _straight_pieces(run[cut:], heights, x_from)
 
 
 @dataclass
@@ -182,6 +253,13 @@ def place(surfaces: Sequence[Surface], soles: Dict[str, Pose],
     """Footsteps (sole poses in the pelvis frame, the feet taking turns, the rear one first)
     that walk the feet ``distance`` m ahead along the pelvis's x over ``surfaces``, ending
     side by side; :class:`GroundError` when the ground does not allow it."""
+    return _place(surfaces, soles, distance)[0]
+
+
+def _place(surfaces: Sequence[Surface], soles: Dict[str, Pose],
+           distance: float) -> Tuple[List[Pose], float]:
+    """:func:`place`, and how far the soles stand above the ground seen (the camera's
+    error, which the footsteps' heights take out)."""
     if not surfaces:
         raise GroundError("no ground seen ahead of the feet")
     if not 0.0 < distance <= 5.0:
@@ -202,12 +280,23 @@ def place(surfaces: Sequence[Surface], soles: Dict[str, Pose],
     back = min(first.start, here - SOLE_HALF_LENGTH)
     under = replace(first, start=back, z0=first.z(back))
     offset = float(np.mean([soles[s][2] - under.z(soles[s][0]) for s in soles]))
-    if abs(offset) <= MAX_OFFSET:
+    # ... unless it slopes other than the soles stand: then it bends somewhere out of sight
+    own_pitch = float(np.mean([pose[4] for pose in soles.values()]))
+    bent = abs(first.pitch - own_pitch) > MAX_BEND_PITCH
+    if abs(offset) <= MAX_OFFSET and not bent:
         surfaces = [under, *ahead[1:]]
-    elif first.start - toes <= EDGE_AT_TOES:
-        own = float(np.mean([pose[2] for pose in soles.values()]))
-        surfaces = [Surface(here - SOLE_HALF_LENGTH, first.start, own, 0.0), *ahead]
+    elif first.start - toes <= EDGE_AT_TOES:            # the edge, or the bend, at the toes
+        own = Surface(here - SOLE_HALF_LENGTH, min(first.start, toes), 0.0,
+                      -math.tan(own_pitch))
+        sole = next(iter(soles.values()))
+        surfaces = [replace(own, z0=sole[2] - own.z(sole[0])), *ahead]
         offset = 0.0
+    elif bent:
+        raise GroundError(f"the ground seen {first.start - toes:.2f} m ahead of the toes slopes "
+                          f"{math.degrees(-first.pitch):+.0f} degrees where the feet stand at "
+                          f"{math.degrees(-own_pitch):+.0f}: where the slope begins is out of "
+                          f"sight; look from before it (a leg goes on over a bend) or place "
+                          f"the footsteps by hand")
     else:
         raise GroundError(f"the ground seen {first.start - toes:.2f} m ahead of the toes is "
                           f"{-offset * 100:+.0f} cm from the soles' own: an edge out of sight "
@@ -239,7 +328,7 @@ def place(surfaces: Sequence[Surface], soles: Dict[str, Pose],
         mover.x, mover.surface = x, index
         steps.append((x, mover.y, landing.z(x) + offset, 0.0, landing.pitch, 0.0))
         mover = stand
-    return steps
+    return steps, offset
 
 
 def _across(surfaces: Sequence[Surface], stand: _Foot) -> Tuple[float, int]:
@@ -275,9 +364,46 @@ def footsteps_from_cloud(points: np.ndarray, soles: Dict[str, Pose],
     height = float(np.mean([pose[2] for pose in soles.values()]))
     line = float(np.mean([pose[1] for pose in soles.values()]))
     near = points[np.abs(points[:, 2] - height) <= BAND]
+    for sole in soles.values():              # the robot's own feet (and shins), looked down at
+        behind = sole[0] - near[:, 0] > SOLE_HALF_LENGTH + OWN_FOOT_MARGIN
+        ahead = near[:, 0] - sole[0] > SOLE_HALF_LENGTH + OWN_TOES_MARGIN
+        beside = np.abs(near[:, 1] - sole[1]) > SOLE_HALF_WIDTH + OWN_FOOT_MARGIN
+        near = near[behind | ahead | beside]
     x_from = min(pose[0] for pose in soles.values()) - SOLE_HALF_LENGTH
     x_to = max(pose[0] for pose in soles.values()) + distance + BEYOND
-    return place(profile(near, line, x_from, x_to), soles, distance)
+    steps, offset = _place(profile(near, line, x_from, x_to), soles, distance)
+    here = min(pose[0] for pose in soles.values())
+    for number, step in enumerate(steps, 1):
+        problem = footing_problem(near, step, offset)
+        if problem:
+            side = "left" if step[1] > line else "right"
+            raise GroundError(f"footstep {number} ({side}, {step[0] - here:.2f} m ahead): "
+                              f"{problem}; place the footsteps by hand", footstep=number)
+    return steps
+
+
+def footing_problem(points: np.ndarray, step: Pose, offset: float = 0.0) -> str:
+    """What is wrong with the ground the camera sees under the sole of ``step`` (a pose
+    in the pelvis frame, its height ``offset`` above the cloud's), "" if nothing: see the
+    module's theory, 3."""
+    x, y, z, _, pitch, _ = step
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    inside = (np.abs(points[:, 0] - x) <= SOLE_HALF_LENGTH - FOOTPRINT_INSET) & \
+        (np.abs(points[:, 1] - y) <= SOLE_HALF_WIDTH - FOOTPRINT_INSET)
+    under = points[inside]
+    if len(under) < MIN_FOOTPRINT_POINTS:
+        return ""
+    # the sole's plane, in the cloud's heights: it rises ahead by the pitch (walking's sign)
+    rise = under[:, 2] - (z - offset - math.tan(pitch) * (under[:, 0] - x))
+    above, below = rise[rise > CLEARANCE], rise[rise < -CLEARANCE]
+    if len(above) > STRAY_SHARE * len(under):
+        return (f"{len(above) / len(under):.0%} of the ground seen under the sole stands up "
+                f"to {float(np.percentile(above, 90)) * 100:.0f} cm above where it would land: "
+                f"debris, or higher ground beside an edge")
+    if len(below) > STRAY_SHARE * len(under):
+        return (f"the ground falls away {-float(np.percentile(below, 10)) * 100:.0f} cm under "
+                f"{len(below) / len(under):.0%} of the sole: an edge beside or under it")
+    return ""
 
 
 def first_leg(steps: Sequence[Pose]) -> List[Pose]:
@@ -288,11 +414,15 @@ def first_leg(steps: Sequence[Pose]) -> List[Pose]:
     drop is best seen from *before* it: from its edge the body hides the first 0.2 m beyond
     the toes (the PI's look from a kerb's far edge saw the floor only from 0.10 m on, and
     the footsteps down were refused), so the leg goes on over a drop, the second foot
-    beside the first, placed by the look that found it."""
+    beside the first, placed by the look that found it.  So it does over a bend (a ramp's
+    foot or top): from the bend the camera sees only the slope beyond, not where it
+    begins."""
     for end in range(2, len(steps) + 1):
         if abs(steps[end - 1][0] - steps[end - 2][0]) >= TOGETHER:
             continue
         if end < len(steps) and steps[end][2] < steps[end - 1][2] - MIN_DROP:
             continue                                  # together at a drop: on over it
+        if end < len(steps) and abs(steps[end][4] - steps[end - 1][4]) > MAX_BEND_PITCH:
+            continue                                  # together at a bend: on over it
         return list(steps[:end])
     return list(steps)

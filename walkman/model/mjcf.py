@@ -88,11 +88,14 @@ TERRAIN_DEBRIS = ((-5.55, 1.15, 0.3, 0.05, 0.03, 0.02), (-5.30, 1.30, -0.6, 0.08
                   (-5.05, 1.05, 1.1, 0.04, 0.04, 0.03), (-4.80, 1.25, 0.2, 0.10, 0.015, 0.01))
 #: Where the robot can start: station -> (x, y, yaw) of the pelvis in the world, standing on
 #: the floor -- or on ground as high as :data:`STATION_GROUND` says (``ramp_top``: on the
-#: ramp's landing, facing down the ramp, the toes 10 cm from the landing's edge).
+#: ramp's landing, facing down the ramp, the toes 10 cm from the landing's edge).  ``debris``
+#: faces down the debris lane, a 4-cm block 0.45 m ahead in the right foot's way;
+#: ``kerb_side`` stands beside the step, its side edge (y = 0.5) under the left foot's lane.
 STATIONS = {"valve": (0.0, 0.0, 0.0), "car": (0.0, -2.5, 0.0), "door": (0.34, 2.25, 0.0),
             "door_far": (-0.16, 2.25, 0.0), "yard": (-3.0, 0.0, 0.0), "plug": (0.0, -5.0, 0.0),
             "wall": (0.0, -7.5, 0.0), "terrain": (-6.0, 0.0, 0.0),
             "ramp": (-6.0, -1.2, 0.0),
+            "debris": (-6.0, 1.2, 0.0), "kerb_side": (-6.0, 0.42, 0.0),
             "ramp_top": (TERRAIN_RAMP[1] + TERRAIN_RAMP[2] * math.cos(TERRAIN_RAMP[3]) + 0.26,
                          TERRAIN_RAMP[0], math.pi)}
 #: The height (m) of the ground a station stands on, where it is not the floor.
