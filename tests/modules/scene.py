@@ -81,7 +81,7 @@ def follow(world: World, joint: str) -> None:
 
 
 def main(args: List[str]) -> None:
-    """Print ``base_x X base_yaw YAW``, ``base_z Z tilt T`` (m, rad) then ``JOINT VALUE``
+    """Print ``base_x X base_y Y base_yaw YAW``, ``base_z Z tilt T`` (m, rad) then ``JOINT VALUE``
     for each joint asked (``JOINT X Y Z upright COS`` for a free body's: the plug, the
     drill); ``--follow JOINT``: that joint's every value (:func:`follow`)."""
     world = World("/probe/world:i")
@@ -89,8 +89,8 @@ def main(args: List[str]) -> None:
         if args[:1] == ["--follow"] and len(args) == 2:
             follow(world, args[1])
         joints = args
-        x, _, z, yaw = world.base()
-        print("base_x", x, "base_yaw", yaw)
+        x, y, z, yaw = world.base()
+        print("base_x", x, "base_y", y, "base_yaw", yaw)
         print("base_z", z, "tilt", world.tilt())
         for joint in joints:
             if world.model.joint(joint).type == mujoco.mjtJoint.mjJNT_FREE:    # a loose part

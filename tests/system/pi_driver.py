@@ -879,6 +879,34 @@ def tasks_in_turn(modules: Sequence[str]) -> None:
     say("DONE")
 
 
+def unsupported(module: str) -> None:
+    """``unsupported MODULE``: a task with the harness off, as the paper's robot did it --
+    walking started and paused (it balances the legs, standing), then the task by its
+    buttons (:class:`TaskRun`), then walking stopped: it comes to rest standing."""
+    walking = widget("walking")
+    wait(lambda: walking.state is not None, 60, "walking's status")
+    wait_sendable("walking")
+    click(walking.switch_buttons["start"], "walking start", walking)
+    wait(lambda: walking.state == "idle", 30, "walking idle")
+    pump(2.0)                                      # the knees bend (CROUCH_TIME 1.5 s)
+    click(walking.switch_buttons["pause"], "walking pause", walking)
+    wait(lambda: walking.state == "paused", 30, "walking paused")
+    say("STEP walking balancing, paused")
+    listen()
+    task = TaskRun(module)
+    task.start()
+    # the robot crouched where walking left it: the pilot places the object where the 3-D
+    # view shows it from there (the test reads it in the world and says ``pose ...``)
+    pose = task.steps[0][0]
+    values = [float(word) for word in said("pose", 120).split()]
+    for field, value in zip(task.task.fields[pose], values):
+        field.setValue(value)
+    say(f"STEP {pose} set to {values}")
+    task.run()
+    say(f"STEP {module} done standing unsupported")
+    say("DONE")
+
+
 def said(word: str, timeout: float) -> str:
     """Pump the GUI until the test writes a line starting with ``word``; the rest of it."""
     end = time.monotonic() + timeout
@@ -996,5 +1024,6 @@ if __name__ == "__main__":
      "valve": lambda: task_runs("drc_valve", int(sys.argv[3])),
      "task": lambda: task_runs(sys.argv[3], int(sys.argv[4])),
      "tasks": lambda: tasks_in_turn(sys.argv[3:]),
+     "unsupported": lambda: unsupported(sys.argv[3]),
      "link": link_down}[sys.argv[1]]()
     window.close_link()

@@ -30,8 +30,8 @@ from system.display import display_env, private_display
 from system.processes import ROSCORE_READY, Proc
 from system.topology import REPO, Pc, Topology, hal_component, task_component
 from walkman.model.description import STANDING_PELVIS_HEIGHT
-from walkman.model.mjcf import (PLUG_HALF, PLUG_SOCKETS, PLUG_TABLE_TOP, SOCKET_INNER,
-                                 TERRAIN_STEP)
+from walkman.model.mjcf import (PILOT_POSES, PLUG_HALF, PLUG_SOCKETS, PLUG_TABLE_TOP,
+                                 SOCKET_INNER, STATIONS, TERRAIN_STEP)
 from walkman.modules.walking import CROUCH
 from tests.system.conftest import dump_outputs_if_failed
 
@@ -64,9 +64,8 @@ def drc(tmp_path, request):
 
 
 def valve_angle(topology) -> float:
-    out = topology.robot.run([PYTHON, "-m", "tests.modules.scene", "valve"], timeout=60).output()
-    words = out.split()
-    return float(words[words.index("valve") + 1])
+    """The valve's angle (rad) in the simulated world."""
+    return scene(topology, "valve")["valve"][0]
 
 
 def start_pi(pc: Pc, display: str, phase: str, out, *args: str, name: str = "",
@@ -169,6 +168,19 @@ def scene(topology: Topology, *joints: str) -> Dict[str, List[float]]:
                              timeout=60).output()
     return {words[0]: [float(w) for w in words[1:] if w != "upright"]
             for words in map(str.split, out.splitlines()) if words[:1] and words[0] in joints}
+
+
+def robot_base(topology: Topology) -> Dict[str, float]:
+    """The simulator's free base, read on the robot PC: ``base_x``, ``base_y``,
+    ``base_yaw``, ``base_z`` and ``tilt`` (m, rad)."""
+    out = topology.robot.run([PYTHON, "-m", "tests.modules.scene"], timeout=60).output()
+    words = " ".join(line for line in out.splitlines() if line.startswith("base_")).split()
+    return {name: float(value) for name, value in zip(words[::2], words[1::2])}
+
+
+def standing_crouched(base: Dict[str, float]) -> bool:
+    """Upright, the pelvis where walking's crouch holds it above the floor."""
+    return abs(base["base_z"] - (STANDING_PELVIS_HEIGHT - CROUCH)) < 0.04 and base["tilt"] < 0.1
 
 
 def take_the_robot_to(topology: Topology, station: str) -> None:
@@ -285,16 +297,46 @@ def test_the_terrain_course_by_clicks_with_footsteps_placed_in_the_3d_view(tmp_p
         if on_camera:         # then the leg from the camera: along the kerb and down
             assert "STEP footsteps from the camera 0.6:" in pi.output(), pi.output()
             assert pi.output().count("STEP walking footsteps done") == 2, pi.output()
-        out = topology.robot.run([PYTHON, "-m", "tests.modules.scene"], timeout=60).output()
-        base = re.search(r"base_x (\S+) base_yaw (\S+)\s+base_z (\S+) tilt (\S+)", out)
-        assert base, out
-        x, yaw, z, tilt = map(float, base.groups())
-        step_end = TERRAIN_STEP[1]
-        assert x > step_end + 0.1, out                  # the pelvis past the far edge
-        assert abs(z - (STANDING_PELVIS_HEIGHT - CROUCH)) < 0.04, out   # on the floor, up
-        assert tilt < 0.1 and abs(yaw) < 0.1, out
+        base = robot_base(topology)
+        assert base["base_x"] > TERRAIN_STEP[1] + 0.1, base      # the pelvis past the far edge
+        assert standing_crouched(base) and abs(base["base_yaw"]) < 0.1, base  # on the floor
         gateway = topology.process("gateway").output()
         assert re.search(r"gateway: sent to /walking/command:i: \(?footsteps\b", gateway), \
+            gateway[-3000:]
+
+
+@pytest.mark.requires("root")
+@pytest.mark.free_standing
+@pytest.mark.alone
+def test_the_valve_turned_by_clicks_standing_unsupported(tmp_path, display, request,
+                                                         emulated_link):
+    """Issue 32: an arm task through the PI with the harness off, on the drc topology over
+    the emulated DRC link.  Walking is started and paused from its widget -- it balances
+    the legs -- and drc_valve's steps are clicked: the world says the valve turned a
+    quarter and the robot stood upright throughout (the HAL's free base, read after)."""
+    with pi_on_drc(tmp_path, display, request, emulated_link, ["walking", "drc_valve"],
+                   "unsupported", "--station", "valve", "--harness", "off",
+                   args=["drc_valve"], unused=("perception",)) as (topology, pi):
+        before = valve_angle(topology)
+        pi.wait_for(r"STEP walking balancing, paused|FAIL", 300)
+        assert "FAIL" not in pi.output(), pi.output()
+        # the valve where the crouched robot sees it, what the perception pilot would place:
+        # the README's pose (from the pelvis standing at the station) moved by where the
+        # pelvis is now
+        base = robot_base(topology)
+        assert standing_crouched(base), base
+        numbers = [float(word) for word in PILOT_POSES["valve"].split()[1:]]
+        x, y, _ = STATIONS["valve"]
+        moved = [numbers[0] + x - base["base_x"], numbers[1] + y - base["base_y"],
+                 numbers[2] + STANDING_PELVIS_HEIGHT - base["base_z"], *numbers[3:]]
+        pi.send("pose " + " ".join(f"{v:.3f}" for v in moved) + "\n")
+        pi.wait_for(r"DONE|FAIL", 600)
+        assert "FAIL" not in pi.output(), pi.output()
+        turned = valve_angle(topology) - before
+        assert math.isclose(turned, math.pi / 2, rel_tol=0.15), turned
+        assert standing_crouched(robot_base(topology)), robot_base(topology)
+        gateway = topology.process("gateway").output()
+        assert re.search(r"gateway: sent to /drc_valve/command:i: \(?turn\b", gateway), \
             gateway[-3000:]
 
 
