@@ -162,7 +162,10 @@ KNOWN: Tuple[Known, ...] = (
           "undecodable bytes are shown escaped since; in fc54-fc56 of the fifth 2026-11-28 "
           "session (a machine 2.5 times slower, three workers on two cores, load 66-82) "
           "walking's loop stalled 120 ms and its heartbeat 5 s, and it was killed: one "
-          "worker per core since (8cbde49)"),
+          "worker per core since (8cbde49); the guard tripped standing on the kerb after "
+          "step_up again, ZMP -0.0 cm, the loop's longest tick 17 ms 2 s before (fc71 of the "
+          "eighth 2026-11-28 session, beside two burners; passed beside them right after): "
+          "open"),
     Known("tests/walkman/test_gym_hal.py::"
           "test_the_robot_says_when_each_state_round_arrives",
           "no rounds from the chain-by-chain reader within 10 s (fc54 and fc57 of the fifth "
