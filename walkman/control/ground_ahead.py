@@ -13,9 +13,11 @@ them from what the camera sees.  Pure: points in, footsteps or a refusal out.
    :data:`JUMP` of the last two: a bin that holds both
    sides of an edge, half kerb and half floor, would otherwise bridge it) are *surfaces*, each
    fitted with a line (a ramp's slope is its pitch); a jump or an unseen stretch
-   ends one.  A run shorter than a sole between two edges, at a height between its
-   neighbours', is a kerb's face seen edge-on and is dropped; any other short run
-   stays a surface (floor seen before a dip is still floor), one no foot lands on.
+   ends one, and a run that bends (the floor running on into a ramp) is cut where two
+   lines fit it best, into pieces within :data:`BEND` of their own lines.  A run shorter
+   than a sole between two edges, at a height between its neighbours', is a kerb's face
+   seen edge-on and is dropped; any other short run stays a surface (floor seen before a
+   dip is still floor), one no foot lands on.
 2. :func:`place` -- the feet take turns along the line, each sole landing whole on
    one surface: its toes no further than the surface's seen end, its heel at least
    :data:`HEEL_MARGIN` past the seen start of one it crosses onto (the edge itself is
@@ -29,10 +31,11 @@ them from what the camera sees.  Pure: points in, footsteps or a refusal out.
    taken relative to the surface under the feet, so a camera's height error cancels.
    The camera does not see under the toes: the first surface seen is taken to go on
    back under the feet if it begins within :data:`MAX_UNSEEN` of the toes and lies
-   within :data:`MAX_OFFSET` of the soles' height.  Seen within :data:`EDGE_AT_TOES` of
-   the toes at another height, it is an edge right there (the feet at a kerb's far
-   edge); further, an edge may hide in the stretch not seen, and the footsteps are
-   refused.
+   within :data:`MAX_OFFSET` of the soles' height and slopes as they stand (within
+   :data:`MAX_BEND_PITCH`).  Seen within :data:`EDGE_AT_TOES` of the toes at another
+   height or slope, it is an edge or a bend right there (the feet at a kerb's far edge, or
+   at a ramp's foot); further, an edge or a bend may hide in the stretch not seen, and the
+   footsteps are refused.
 
 :func:`footsteps_from_cloud` is both, from a whole cloud: the strip between the soles'
 lines, without what is far above or below them (looking down, the camera sees the
@@ -40,7 +43,8 @@ robot's own knees) or over the feet where they stand (their own tops, 8 cm up) -
 
 3. :func:`footing_problem` -- each footstep against what the camera sees under its own
    sole, not the strip between the feet: the points inside its outline (inset by
-   :data:`FOOTPRINT_INSET`: an edge's bin is 0-2 cm beyond the toes) must lie on the sole's plane within :data:`CLEARANCE`.  More than
+   :data:`FOOTPRINT_INSET`: an edge's bin is 0-2 cm beyond the toes) must lie on the
+   sole's plane within :data:`CLEARANCE`.  More than
    :data:`STRAY_SHARE` of them above it is something the sole would land on (debris beside
    the walking line, or higher ground beside an edge); below it, ground that falls away
    under part of the sole (a side edge).  A footprint seen by fewer than
