@@ -334,3 +334,82 @@ def test_debris_is_refused_exactly_where_a_sole_would_land_on_it(x, y, size, hei
         return
     assert all(footprint_share(littered, step, raised) <= STRAY_SHARE + 0.01
                for step in steps), steps
+
+
+def test_a_cable_across_the_floor_bends_nothing():
+    """A 1-cm strip 2 cm wide across the way is no bend: one bin's bump is smoothed away
+    (cut around it, the floor became a 6-degree piece too short to step onto)."""
+    cable = lambda x: FLOOR + (0.01 if 0.9 <= x < 0.92 else 0.0)   # noqa: E731
+    assert all(abs(s.pitch) < 0.02 for s in profile(cloud(cable), 0.0, -0.1, 2.2))
+    assert len(footsteps_from_cloud(cloud(cable), SOLES, 1.5)) > 8
+
+
+@pytest.mark.parametrize("depth", [0.25, 0.35, 1.0])
+def test_a_drop_beside_the_walking_line_is_refused_however_deep(depth):
+    """The ground beyond y = 0.105 falls away from 0.5 m on: the left soles would land half
+    over it -- refused, even deeper than the strip's band (a platform's edge)."""
+    with pytest.raises(GroundError, match=rf"footstep \d+ \(left, .* falls away {depth * 100:.0f} "
+                                          r"cm under"):
+        footsteps_from_cloud(with_block(cloud(lambda x: FLOOR), 0.5, 0.105, 0.0, -depth),
+                             SOLES, 1.2)
+
+
+def test_on_a_kerb_top_with_its_far_edge_near_the_toes_the_walk_goes_down():
+    """Standing on a kerb, its far edge 4-5 cm past the toes: the kerb's top seen is two
+    bins, whose slope is noise -- not a bend (the feet would have been sent onto a 4-cm
+    surface); the feet go down past the edge."""
+    top = {side: (pose[0], pose[1], FLOOR + 0.05, 0.0, 0.0, 0.0) for side, pose in SOLES.items()}
+    for seed in range(4):
+        points = cloud(lambda x: FLOOR + (0.05 if x - 0.3 < 0.20 else 0.0), x_to=2.5, seed=seed)
+        points[:, 0] -= 0.3
+        steps = footsteps_from_cloud(points, top, 0.8)
+        assert steps[-1][2] == pytest.approx(FLOOR, abs=0.006), (seed, steps)
+
+
+def test_a_slope_seen_beyond_level_feet_is_refused_unless_seen_at_the_toes():
+    """From a ramp's foot the camera sees the slope, not where it begins: taken to run on
+    under the level feet, the first footsteps were pitched into the floor."""
+    slope = math.tan(math.radians(10))
+    ramp = lambda x: FLOOR + max(0.0, x - 0.2) * slope            # noqa: E731
+    points = cloud(ramp)
+    with pytest.raises(GroundError, match=r"slopes \+10 degrees where the feet stand at "
+                                          r"[+-]0: where the slope begins is out of sight"):
+        footsteps_from_cloud(points[points[:, 0] > 0.45], SOLES, 1.0)
+    # seen from the toes on (0.16 m): the bend is there, and the feet step onto the slope
+    seen = cloud(lambda x: FLOOR + (x - 0.25) * slope)
+    seen[:, 0] -= 0.08                                   # the ramp from 0.17 m on
+    steps = footsteps_from_cloud(seen, SOLES, 1.0)
+    assert steps[0][4] == pytest.approx(-math.radians(10), abs=0.02), steps
+
+
+def test_ground_seen_from_the_toes_is_stepped_onto_without_a_shuffle():
+    """A kerb that begins at the toes, seen from there: the feet stand at its edge, so the
+    first footstep is onto it (the edge's surface once ended where the kerb was first seen,
+    and the feet shuffled 2-5 cm toward it, look after look)."""
+    toes = SOLES["left"][0] + SOLE_HALF_LENGTH
+    points = cloud(lambda x: FLOOR + 0.05, x_to=2.2)
+    points[:, 0] += toes + 0.03 - 0.25                       # first seen 3 cm past the toes
+    steps = footsteps_from_cloud(points, SOLES, 0.6)
+    assert steps[0][2] == pytest.approx(FLOOR + 0.05, abs=0.006), steps
+
+
+def test_a_leg_goes_on_over_a_ramp_s_foot_but_not_up_a_kerb_with_a_sloped_top():
+    slope = math.tan(math.radians(10))
+    ramp = lambda x: FLOOR + max(0.0, x - 0.6) * slope            # noqa: E731
+    leg = first_leg(footsteps_from_cloud(cloud(ramp), SOLES, 1.2))
+    assert leg[-1][4] == pytest.approx(-math.radians(10), abs=0.02), leg   # onto the ramp
+    tilted = lambda x: FLOOR + (0.05 + (x - 0.6) * math.tan(math.radians(6)) if x >= 0.6  # noqa: E731
+                                else 0.0)
+    leg = first_leg(footsteps_from_cloud(cloud(tilted, faces=[0.6]), SOLES, 1.2))
+    assert all(step[2] == pytest.approx(FLOOR, abs=0.006) for step in leg), leg  # at its foot
+
+
+def test_a_noisy_camera_s_flat_floor_is_walked_and_its_debris_still_found():
+    """Points 8 mm off at one sigma (a stereo camera's): the clearance grows with the noise
+    measured on the strip, so the floor is not refused; a 4-cm block still is."""
+    rng = np.random.default_rng(7)
+    noisy = cloud(lambda x: FLOOR)
+    noisy[:, 2] += rng.normal(0, 0.008, len(noisy))
+    assert len(footsteps_from_cloud(noisy, SOLES, 1.5)) > 8
+    with pytest.raises(GroundError, match="debris"):
+        footsteps_from_cloud(with_block(noisy, 0.75, 0.145, 0.08, 0.06), SOLES, 1.2)

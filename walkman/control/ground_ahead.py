@@ -119,8 +119,10 @@ MIN_DROP = 0.03
 
 #: m: a point inside a footstep's outline further than this above or below its sole's
 #: plane is not ground the sole lands flat on (the lowest debris block is 2 cm high; the
-#: simulated camera's points lie within 0.5 cm, a stereo camera's within about 1 cm)
+#: simulated camera's points lie within 0.5 cm) -- or further than NOISE_SIGMAS times the
+#: camera's own noise, measured on the strip (a stereo camera's: about 1 cm)
 CLEARANCE = 0.015
+NOISE_SIGMAS = 4.0
 #: the share of a footprint's points that may be off the plane (stray points, a kerb's face)
 STRAY_SHARE = 0.05
 #: m: the footprint judged, inset from the sole's outline on every side
@@ -223,25 +225,35 @@ def _line(run: List[int], heights: Sequence[Optional[float]],
 
 def _straight_pieces(run: List[int], heights: Sequence[Optional[float]],
                      x_from: float) -> List[List[int]]:
-    """``run`` cut where it bends (a ramp's foot or top): pieces of at least
-    :data:`MIN_PIECE_BINS` bins, each within :data:`BEND` of its own line, cut where two
-    lines fit best."""
+    """``run`` cut where it bends (a ramp's foot or top) into pieces of at least
+    :data:`MIN_PIECE_BINS` bins, each within :data:`BEND` of its own line, each cut where
+    two lines fit best -- or whole, if it cannot be cut so (a bump, a cable across the
+    floor: no bend; the footing check judges a sole on it).  Heights are judged through a
+    median of three bins, so one bin's bump bends nothing."""
     if len(run) < 2 * MIN_PIECE_BINS:
-        return [run]
-    xs = x_from + (np.array(run) + 0.5) * BIN
-    zs = np.array([heights[k] for k in run], dtype=float)
-    slope, intercept = _line(run, heights, x_from)
-    if float(np.max(np.abs(zs - (intercept + slope * xs)))) <= BEND:
-        return [run]
-    best, cut = math.inf, 0
-    for k in range(MIN_PIECE_BINS, len(run) - MIN_PIECE_BINS + 1):
-        error = sum(float(np.sum((zs[part] - np.polyval(np.polyfit(xs[part], zs[part], 1),
-                                                          xs[part])) ** 2))
-                    for part in (slice(0, k), slice(k, None)))
-        if error < best:
-            best, cut = error, k
-    return _straight_pieces(run[:cut], heights, x_from) + \
-        _straight_pieces(run[cut:], heights, x_from)
+        return [run]                          # too short to hold two pieces
+    raw = np.array([heights[k] for k in run], dtype=float)
+    smooth = np.array([np.median(raw[max(0, i - 1):i + 2]) for i in range(len(raw))])
+    pieces = _cut(x_from + (np.array(run) + 0.5) * BIN, smooth, 0, len(run))
+    return [run[a:b] for a, b in pieces] if pieces else [run]
+
+
+def _cut(xs: np.ndarray, zs: np.ndarray, begin: int, end: int) -> Optional[List[Tuple[int, int]]]:
+    """The pieces ``[a, b)`` of ``begin..end`` each within :data:`BEND` of its line, cut
+    where two lines fit best; None if some piece cannot be made so."""
+    def fit(a: int, b: int) -> Tuple[float, float]:
+        """(squared error, largest miss) of one line through ``a..b``."""
+        line = np.polyval(np.polyfit(xs[a:b], zs[a:b], 1), xs[a:b])
+        return float(np.sum((zs[a:b] - line) ** 2)), float(np.max(np.abs(zs[a:b] - line)))
+
+    if fit(begin, end)[1] <= BEND:
+        return [(begin, end)]
+    if end - begin < 2 * MIN_PIECE_BINS:
+        return None
+    cut = min(range(begin + MIN_PIECE_BINS, end - MIN_PIECE_BINS + 1),
+              key=lambda k: fit(begin, k)[0] + fit(k, end)[0])
+    before, after = _cut(xs, zs, begin, cut), _cut(xs, zs, cut, end)
+    return before + after if before is not None and after is not None else None
 
 
 @dataclass
@@ -282,10 +294,16 @@ def _place(surfaces: Sequence[Surface], soles: Dict[str, Pose],
     # far edge); further, an edge may hide anywhere in the stretch not seen
     first = ahead[0]
     back = min(first.start, here - SOLE_HALF_LENGTH)
+    own_pitch = float(np.mean([pose[4] for pose in soles.values()]))
+    short = first.end - first.start < MIN_PIECE_BINS * BIN   # its slope is a few bins' noise
+    if short:
+        middle = (first.start + first.end) / 2
+        first = Surface(first.start, first.end, first.z(middle) - math.tan(-own_pitch) *
+                        (middle - first.start), math.tan(-own_pitch))
+        ahead = [first, *ahead[1:]]
     under = replace(first, start=back, z0=first.z(back))
     offset = float(np.mean([soles[s][2] - under.z(soles[s][0]) for s in soles]))
     # ... unless it slopes other than the soles stand: then it bends somewhere out of sight
-    own_pitch = float(np.mean([pose[4] for pose in soles.values()]))
     bent = abs(first.pitch - own_pitch) > MAX_BEND_PITCH
     if abs(offset) <= MAX_OFFSET and not bent:
         surfaces = [under, *ahead[1:]]
@@ -363,22 +381,22 @@ def footsteps_from_cloud(points: np.ndarray, soles: Dict[str, Pose],
                          distance: float) -> List[Pose]:
     """From a cloud in the pelvis frame to footsteps, the whole way: the strip along the
     line between the soles, from their heels to :data:`BEYOND` past the goal, without what
-    lies more than :data:`BAND` above or below them."""
+    lies more than :data:`BAND` above or below them; then each footstep's own ground,
+    up to :data:`BAND` above the soles (higher, in the PI's looks, are the robot's own
+    knees, 57 cm up over the first footstep) and however far below (a drop)."""
     points = np.asarray(points, dtype=float).reshape(-1, 3)
+    points = _without_own_feet(points[np.isfinite(points).all(axis=1)], soles)
     height = float(np.mean([pose[2] for pose in soles.values()]))
     line = float(np.mean([pose[1] for pose in soles.values()]))
-    near = points[np.abs(points[:, 2] - height) <= BAND]
-    for sole in soles.values():              # the robot's own feet (and shins), looked down at
-        behind = sole[0] - near[:, 0] > SOLE_HALF_LENGTH + OWN_FOOT_MARGIN
-        ahead = near[:, 0] - sole[0] > SOLE_HALF_LENGTH + OWN_TOES_MARGIN
-        beside = np.abs(near[:, 1] - sole[1]) > SOLE_HALF_WIDTH + OWN_FOOT_MARGIN
-        near = near[behind | ahead | beside]
+    reachable = points[points[:, 2] - height <= BAND]
+    near = reachable[reachable[:, 2] - height >= -BAND]
     x_from = min(pose[0] for pose in soles.values()) - SOLE_HALF_LENGTH
     x_to = max(pose[0] for pose in soles.values()) + distance + BEYOND
     steps, offset = _place(profile(near, line, x_from, x_to), soles, distance)
+    clearance = max(CLEARANCE, NOISE_SIGMAS * camera_noise(near, line, x_from, x_to))
     here = min(pose[0] for pose in soles.values())
     for number, step in enumerate(steps, 1):
-        problem = footing_problem(near, step, offset)
+        problem = footing_problem(reachable, step, offset, clearance)
         if problem:
             side = "left" if step[1] > line else "right"
             raise GroundError(f"footstep {number} ({side}, {step[0] - here:.2f} m ahead): "
@@ -386,10 +404,40 @@ def footsteps_from_cloud(points: np.ndarray, soles: Dict[str, Pose],
     return steps
 
 
-def footing_problem(points: np.ndarray, step: Pose, offset: float = 0.0) -> str:
+def _without_own_feet(points: np.ndarray, soles: Dict[str, Pose]) -> np.ndarray:
+    """``points`` but those over the feet where they stand (their tops, the shins): up to
+    :data:`OWN_FOOT_MARGIN` around each sole, only :data:`OWN_TOES_MARGIN` past its toes."""
+    for sole in soles.values():
+        behind = sole[0] - points[:, 0] > SOLE_HALF_LENGTH + OWN_FOOT_MARGIN
+        ahead = points[:, 0] - sole[0] > SOLE_HALF_LENGTH + OWN_TOES_MARGIN
+        beside = np.abs(points[:, 1] - sole[1]) > SOLE_HALF_WIDTH + OWN_FOOT_MARGIN
+        points = points[behind | ahead | beside]
+    return points
+
+
+def camera_noise(points: np.ndarray, line_y: float, x_from: float, x_to: float,
+                 half_width: float = STRIP_HALF_WIDTH) -> float:
+    """The camera's height noise (m, one sigma) on the strip's ground: the median absolute
+    deviation of the points from their bins' medians (edges and strays do not move it)."""
+    inside = (np.abs(points[:, 1] - line_y) <= half_width) & (points[:, 0] >= x_from) & \
+        (points[:, 0] < x_to)
+    strip = points[inside]
+    if len(strip) < MIN_POINTS:
+        return 0.0
+    index = ((strip[:, 0] - x_from) / BIN).astype(int)
+    deviations = []
+    for k in np.unique(index):
+        z = strip[index == k, 2]
+        if z.size >= MIN_POINTS:
+            deviations.append(np.abs(z - np.median(z)))
+    return 1.4826 * float(np.median(np.concatenate(deviations))) if deviations else 0.0
+
+
+def footing_problem(points: np.ndarray, step: Pose, offset: float = 0.0,
+                    clearance: float = CLEARANCE) -> str:
     """What is wrong with the ground the camera sees under the sole of ``step`` (a pose
     in the pelvis frame, its height ``offset`` above the cloud's), "" if nothing: see the
-    module's theory, 3."""
+    module's theory, 3.  ``clearance``: how far off the sole's plane a point may lie."""
     x, y, z, _, pitch, _ = step
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     inside = (np.abs(points[:, 0] - x) <= SOLE_HALF_LENGTH - FOOTPRINT_INSET) & \
@@ -399,7 +447,7 @@ def footing_problem(points: np.ndarray, step: Pose, offset: float = 0.0) -> str:
         return ""
     # the sole's plane, in the cloud's heights: it rises ahead by the pitch (walking's sign)
     rise = under[:, 2] - (z - offset - math.tan(pitch) * (under[:, 0] - x))
-    above, below = rise[rise > CLEARANCE], rise[rise < -CLEARANCE]
+    above, below = rise[rise > clearance], rise[rise < -clearance]
     if len(above) > STRAY_SHARE * len(under):
         return (f"{len(above) / len(under):.0%} of the ground seen under the sole stands up "
                 f"to {float(np.percentile(above, 90)) * 100:.0f} cm above where it would land: "
@@ -426,7 +474,16 @@ def first_leg(steps: Sequence[Pose]) -> List[Pose]:
             continue
         if end < len(steps) and steps[end][2] < steps[end - 1][2] - MIN_DROP:
             continue                                  # together at a drop: on over it
-        if end < len(steps) and abs(steps[end][4] - steps[end - 1][4]) > MAX_BEND_PITCH:
+        if end < len(steps) and abs(steps[end][4] - steps[end - 1][4]) > MAX_BEND_PITCH and \
+                _along_the_slope(steps[end - 1], steps[end]):
             continue                                  # together at a bend: on over it
         return list(steps[:end])
     return list(steps)
+
+
+def _along_the_slope(before: Pose, after: Pose) -> bool:
+    """Whether the step from ``before`` to ``after`` rises or drops no more than the slopes
+    they stand on account for (a bend), not by a kerb's height on top of them."""
+    run = after[0] - before[0]
+    slope = max(abs(math.tan(before[4])), abs(math.tan(after[4])))
+    return abs(after[2] - before[2]) <= slope * run + MIN_DROP / 3
