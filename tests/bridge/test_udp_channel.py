@@ -276,33 +276,47 @@ class LossySocket:
         return getattr(self._sock, name)
 
 
+#: s a frame's datagrams are gathered for in the repair test: long, so that only the repairs
+#: decide a frame's completeness.  At 0.4 s the adaptive route's mean fell to 0.92 and 0.89 in
+#: two suite runs (fc68, fc72) but never in 32 runs alone, beside two CPU burners or beside
+#: two real-time busy loops (2026-11-29); what held a frame's datagrams back in the suite is
+#: not known, so a failure prints both sides' counts.
+REPAIR_GATHER = 2.0
+
+
 @pytest.mark.parametrize("route, least", [(CAMERA_AUTO, 0.98), (CAMERA_FEC, 0.0)])
 def test_adaptive_repairs_follow_the_loss_the_receiver_reports(route, least):
     port_a, port_b = free_port(), free_port()
     received = []
     a = UdpChannel(peer="127.0.0.1", port=port_a, peer_port=port_b, routes=[route],
-                   gather=0.4, on_message=lambda k, v: None)
+                   gather=REPAIR_GATHER, on_message=lambda k, v: None)
     b = UdpChannel(peer="127.0.0.1", port=port_b, peer_port=port_a, routes=[route],
-                   gather=0.4, on_message=lambda k, v: received.append(v.completeness))
+                   gather=REPAIR_GATHER,
+                   on_message=lambda k, v: received.append((v.completeness, time.monotonic())))
     a._sock = LossySocket(a._sock, 0.3, seed=11)
     keyed_pair(a, b)
     a.start()
     b.start()
     try:
+        posted = []
         for frame in range(40):
             count = len(received)
+            posted.append(time.monotonic())
             a.post(route.key, IMAGE)
-            wait_until(lambda: len(received) > count, 5, message=f"frame {frame}")
+            wait_until(lambda: len(received) > count, 10, message=f"frame {frame}")
             time.sleep(0.05)
         flow = a.stats.flows[route.label]
-        later = received[10:]        # the first reports arrive within the first frames
-        mean = sum(later) / len(later)
+        later = [completeness for completeness, _ in received[10:]]   # the first reports
+        mean = sum(later) / len(later)                                # come with the first frames
+        told = (f"completeness and delivery (s after posting): "
+                f"{[(round(c, 3), round(t - p, 3)) for (c, t), p in zip(received, posted)]}; "
+                f"sender {a.stats}; receiver {b.stats}")
         if route.adaptive:
-            assert 0.25 < a.stats.peer_loss < 0.35 and a.stats.fec_loss_bound > 0.25
-            assert flow.repairs_sent > 0.6 * len(RasterCodec().encode(IMAGE)) * flow.sent
-            assert mean >= least, received
+            assert 0.25 < a.stats.peer_loss < 0.35 and a.stats.fec_loss_bound > 0.25, told
+            assert flow.repairs_sent > 0.6 * len(RasterCodec().encode(IMAGE)) * flow.sent, told
+            assert mean >= least, told
         else:   # a fixed 0.5 is not enough at 30 % for groups of 32: the test can fail
-            assert mean < 0.98, received
+            assert mean < 0.98, told
     finally:
         a.stop()
         b.stop()
