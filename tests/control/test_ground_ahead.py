@@ -380,6 +380,9 @@ def test_a_slope_seen_beyond_level_feet_is_refused_unless_seen_at_the_toes():
     seen[:, 0] -= 0.08                                   # the ramp from 0.17 m on
     steps = footsteps_from_cloud(seen, SOLES, 1.0)
     assert steps[0][4] == pytest.approx(-math.radians(10), abs=0.02), steps
+    # the slope starts at the feet's own height: a camera reading 2 cm high is cancelled
+    biased = footsteps_from_cloud(seen + [0.0, 0.0, 0.02], SOLES, 1.0)
+    assert np.allclose(np.array(biased), np.array(steps), atol=0.004), (biased, steps)
 
 
 def test_ground_seen_from_the_toes_is_stepped_onto_without_a_shuffle():

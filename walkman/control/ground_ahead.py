@@ -311,8 +311,14 @@ def _place(surfaces: Sequence[Surface], soles: Dict[str, Pose],
         own = Surface(here - SOLE_HALF_LENGTH, min(first.start, toes), 0.0,
                       -math.tan(own_pitch))
         sole = next(iter(soles.values()))
-        surfaces = [replace(own, z0=sole[2] - own.z(sole[0])), *ahead]
-        offset = 0.0
+        bend = bent and abs(sole[2] - own.z(sole[0]) - first.z0 + own.z(own.end)) <= MAX_OFFSET
+        if bend:      # no jump: the feet's ground meets the slope's start, a camera's error off
+            own = replace(own, z0=first.z0 - own.z(own.end))
+            offset = float(np.mean([pose[2] - own.z(pose[0]) for pose in soles.values()]))
+        else:         # an edge: how high the feet stand above its foot is not seen
+            own = replace(own, z0=sole[2] - own.z(sole[0]))
+            offset = 0.0
+        surfaces = [own, *ahead]
     elif bent:
         raise GroundError(f"the ground seen {first.start - toes:.2f} m ahead of the toes slopes "
                           f"{math.degrees(-first.pitch):+.0f} degrees where the feet stand at "
