@@ -518,17 +518,23 @@ def walk(command: str, fields=(), expected: str = "") -> None:
         (f" with the warning {expected!r}" if expected else ""))
 
 
-def terrain() -> None:
-    """The rough-ground course by clicks (issue 32): start walking, go to the step, step up,
-    two footsteps placed in the 3-D view (the second dragged beside the first), on to the
-    far edge (with ``PI_CAMERA_FOOTSTEPS=1``: the head bent down and footsteps from the
-    camera's cloud), step down."""
+def start_walking():
+    """walking's widget, once walking is started from it and the knees are bent."""
     walking = widget("walking")
     wait(lambda: walking.state is not None, 60, "walking's status")
     wait_sendable("walking")
     click(walking.switch_buttons["start"], "walking start", walking)
     wait(lambda: walking.state == "idle", 30, "walking idle")
     pump(2.0)                                      # the knees bend (CROUCH_TIME 1.5 s)
+    return walking
+
+
+def terrain() -> None:
+    """The rough-ground course by clicks (issue 32): start walking, go to the step, step up,
+    two footsteps placed in the 3-D view (the second dragged beside the first), on to the
+    far edge (with ``PI_CAMERA_FOOTSTEPS=1``: the head bent down and footsteps from the
+    camera's cloud), step down."""
+    walking = start_walking()
     say("STEP walking started")
     walk("go_straight", [0.12])
     walk("step_up", [0.05, 0.33])
@@ -881,14 +887,9 @@ def tasks_in_turn(modules: Sequence[str]) -> None:
 
 def unsupported(module: str) -> None:
     """``unsupported MODULE``: a task with the harness off, as the paper's robot did it --
-    walking started and paused (it balances the legs, standing), then the task by its
-    buttons (:class:`TaskRun`), then walking stopped: it comes to rest standing."""
-    walking = widget("walking")
-    wait(lambda: walking.state is not None, 60, "walking's status")
-    wait_sendable("walking")
-    click(walking.switch_buttons["start"], "walking start", walking)
-    wait(lambda: walking.state == "idle", 30, "walking idle")
-    pump(2.0)                                      # the knees bend (CROUCH_TIME 1.5 s)
+    walking started and paused (it balances the legs, standing, and stays so), then the
+    task by its buttons (:class:`TaskRun`)."""
+    walking = start_walking()
     click(walking.switch_buttons["pause"], "walking pause", walking)
     wait(lambda: walking.state == "paused", 30, "walking paused")
     say("STEP walking balancing, paused")
