@@ -164,16 +164,23 @@ class Surface:
         return -math.atan(self.slope)
 
 
-def profile(points: np.ndarray, line_y: float, x_from: float, x_to: float,
-            half_width: float = STRIP_HALF_WIDTH) -> List[Surface]:
-    """The surfaces along the walking line ``y = line_y`` from ``x_from`` to ``x_to``."""
+def _strip_bins(points: np.ndarray, line_y: float, x_from: float, x_to: float,
+                half_width: float) -> Tuple[np.ndarray, np.ndarray, int]:
+    """The finite points of the strip along ``y = line_y`` from ``x_from`` to ``x_to``,
+    each one's bin, and how many bins there are."""
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     points = points[np.isfinite(points).all(axis=1)]
     inside = (np.abs(points[:, 1] - line_y) <= half_width) & (points[:, 0] >= x_from) & \
         (points[:, 0] < x_to)
     strip = points[inside]
     count = max(1, int(math.ceil((x_to - x_from) / BIN)))
-    index = np.minimum(((strip[:, 0] - x_from) / BIN).astype(int), count - 1)
+    return strip, np.minimum(((strip[:, 0] - x_from) / BIN).astype(int), count - 1), count
+
+
+def profile(points: np.ndarray, line_y: float, x_from: float, x_to: float,
+            half_width: float = STRIP_HALF_WIDTH) -> List[Surface]:
+    """The surfaces along the walking line ``y = line_y`` from ``x_from`` to ``x_to``."""
+    strip, index, count = _strip_bins(points, line_y, x_from, x_to, half_width)
     heights: List[Optional[float]] = []
     for k in range(count):
         z = strip[index == k, 2]
@@ -425,12 +432,7 @@ def camera_noise(points: np.ndarray, line_y: float, x_from: float, x_to: float,
                  half_width: float = STRIP_HALF_WIDTH) -> float:
     """The camera's height noise (m, one sigma) on the strip's ground: the median absolute
     deviation of the points from their bins' medians (edges and strays do not move it)."""
-    inside = (np.abs(points[:, 1] - line_y) <= half_width) & (points[:, 0] >= x_from) & \
-        (points[:, 0] < x_to)
-    strip = points[inside]
-    if len(strip) < MIN_POINTS:
-        return 0.0
-    index = ((strip[:, 0] - x_from) / BIN).astype(int)
+    strip, index, _ = _strip_bins(points, line_y, x_from, x_to, half_width)
     deviations = []
     for k in np.unique(index):
         z = strip[index == k, 2]
