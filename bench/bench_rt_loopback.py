@@ -13,9 +13,10 @@ the run, then put back).
 Measured on the 2-core CI machine (2026-11-29, a fresh-clone test run with its two burners
 beside it, 10-15 s per row): as-is, max 2.3-27 ms (9.2, 9.2, 18.7, 26.9, 5.6, 2.3) and up to
 16 trips over 5 ms; ksoftirqd at FIFO 51, max 2.9-4.7 ms, none over 5 ms; at FIFO 45 (below
-the loops), max 7.1 ms.  The walking loop's longest tick before a balance trip on the kerb
-(fc71) was 17 ms.  Whether raising ksoftirqd keeps the free-standing robot on time in the
-suite is not measured yet, and nothing here changes it: the bench sets it for its run only.
+the loops), max 7.1 ms.  The bench sets it for its run only; nothing else changes it.  The
+robot's 50-60 ms stalls in the suite (fc74: the physics loop 52 ms, walking's 59 ms) came
+from elsewhere: two robots' real-time threads over the kernel's budget on a CPU
+(``bench/bench_rt_budget.py``).
 
 Usage: ``.venv/bin/python bench/bench_rt_loopback.py [--seconds 15] [--burners 2]
 [--policy as-is --policy fifo:51]``.

@@ -1,18 +1,21 @@
-"""Free-standing robots take turns on a machine: the ``free_standing`` mark.
+"""Robots take turns on a machine: the ``free_standing``, ``two_pcs`` and ``alone`` marks.
 
 Theory of operation.  A simulated robot with the harness off balances on its own feet: its
 physics (SCHED_FIFO 60), the threads that carry its states (55) and its walking loop (50)
-must run on time, and they do beside any amount of normal-priority load.  Beside a *second*
-robot they do not: the other robot's physics and port threads are real-time too, at the
-same or higher priorities, and on a two-core machine the two preempt each other's loops
-(ticks of 33 ms were logged when a walk tripped its balance guard beside another robot,
-fresh-clone runs fc15, fc16 and the run of 2026-11-27).  A real Walk-Man has a computer to
-itself; the suite's three workers do not.  So a test marked ``free_standing`` holds one of
-``slots()`` machine-wide slots -- one per two cores -- from its setup to its teardown, and
-a second such test, on another worker or in another pytest run on the machine, waits for it.
-
-A slot is an exclusive ``flock`` on a file under the system's temporary folder: the kernel
-releases it when its holder dies, so a killed run never leaves a slot taken.
+must run on time, and they do beside any amount of normal-priority load -- up to a point
+the kernel sets.  Linux (6.12 and later: the "fair server") gives normal tasks 50 ms in
+every second on a CPU whose real-time threads would otherwise starve them, and it takes
+those 50 ms *at once*: a FIFO thread busy 97 % of a CPU beside one normal busy loop stalls
+56 ms once a second; at 90 % it never stalls beyond 3.5 ms (``bench/bench_rt_budget.py``).
+A free-standing robot's real-time threads take about one of this machine's two cores
+(physics 35-45 %, walking's loop 30-37 %, the state ports 20 %, measured per thread while
+it walks); a second robot's -- a free-standing one, or the harnessed robot of a two-PC
+topology with its radio stage at 70 -- takes 0.3-1 core more, and a CPU then crosses the
+budget.  Fresh-clone run fc74 (2026-11-28, quiet): the walking robot's physics stalled
+52 ms and its loop 59 ms, and the balance guard tripped; ticks of 33 ms were logged beside
+another robot in fc15, fc16 and the run of 2026-11-27.  A real Walk-Man has a computer to
+itself; the suite's two workers do not.  So a test marked ``free_standing`` has the machine
+to itself, as ``alone`` does (:func:`machine_share`).
 
 A test marked ``two_pcs`` starts both PCs of the drc topology -- a simulated robot with its
 modules, both bridges, the emulated radio and the pilot's side -- and judges what a pilot
@@ -23,17 +26,15 @@ second topology doubles that load.  Fresh-clone run fc68 (2026-11-28): the PI's 
 read ``drc_wall`` as "not running", its status 10.8 s stale, while the 30 %-loss stop-all
 test ran its own two PCs on the other worker (load 20-31 on 2 cores; the pilot's bridge
 dropped 100 stale ``/battery`` messages).  So such tests hold one of ``slots()`` machine-wide
-``two_pcs`` slots, as free-standing robots do theirs (another lock file, so a test may hold
-both: the robot slot is always taken first, and no test waits for one while holding the
-other the other way round).
+``two_pcs`` slots (:func:`two_pcs_slot`), one per two cores.
 
-A test marked ``alone`` goes further: it has the machine to itself (:func:`machine_share`).
-The PI's terrain course walks a free-standing robot through the drc topology -- both PCs,
-the emulated link and a PI rendering its 3-D view, all on the one machine -- and on a slow
-2-core machine (a control tick of 0.4-0.6 ms median in bench/bench_tasks.py) the other
-worker's topology beside it, real-time robot threads of its own, left the walking loop
-stalled 20-30 ms at a time: the balance guard tripped in 1 of 3 runs beside one CPU burner
-and in the suite's runs, never in 4 quiet ones.  Every other test holds the machine shared.
+A test marked ``alone`` has the machine to itself (:func:`machine_share`): the PI's courses
+with the harness off walk a free-standing robot through the drc topology -- both PCs, the
+emulated link and a PI rendering its 3-D view, all on the one machine.  Every other test
+holds the machine shared.
+
+A slot, like the machine, is a ``flock`` on a file under the system's temporary folder: the
+kernel releases it when its holder dies, so a killed run never leaves one taken.
 """
 
 from __future__ import annotations
@@ -44,36 +45,39 @@ import tempfile
 import time
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator, Optional
+from typing import Iterable, Iterator, Optional
 
 #: Where the slots' lock files live (machine-wide: every pytest run on the machine shares them).
 SLOT_FOLDER = Path(tempfile.gettempdir()) / "walkman-free-standing-robots"
 
 
 def slots(cores: Optional[int] = None) -> int:
-    """How many free-standing robots the machine runs at once: one per two cores."""
+    """How many two-PC topologies the machine runs at once: one per two cores."""
     return max(1, (cores if cores is not None else os.cpu_count() or 1) // 2)
 
 
-#: The kinds of slot: each a set of lock files of its own (``<kind>-<index>.lock``).
-ROBOT = "slot"
-TWO_PCS = "two-pcs"
+#: The marks that give a test the machine to itself.
+MACHINE_TO_ITSELF = frozenset({"alone", "free_standing"})
+
+
+def machine_to_itself(marks: Iterable[str]) -> bool:
+    """Whether a test with these marks runs with the machine to itself."""
+    return not MACHINE_TO_ITSELF.isdisjoint(marks)
 
 
 @contextmanager
-def robot_slot(folder: Path = SLOT_FOLDER, count: Optional[int] = None,
-               preferred: int = 0, kind: str = ROBOT) -> Iterator[float]:
-    """Hold a free slot of ``kind`` for the block; yields how long it waited (s).  With
-    every slot taken it blocks on slot ``preferred`` (mod the count) until its holder lets
-    go."""
+def two_pcs_slot(folder: Path = SLOT_FOLDER, count: Optional[int] = None,
+                 preferred: int = 0) -> Iterator[float]:
+    """Hold a free two-PC slot for the block; yields how long it waited (s).  With every
+    slot taken it blocks on slot ``preferred`` (mod the count) until its holder lets go."""
     count = slots() if count is None else count
     if count < 1:
-        raise ValueError(f"a machine has at least one robot slot, not {count}")
+        raise ValueError(f"a machine has at least one two-PC slot, not {count}")
     shared_folder(folder)
     began = time.monotonic()
     # Read-only is enough for flock: a slot file another user made (CI as root, then a
     # developer) still serves.
-    handles = [os.open(folder / f"{kind}-{index}.lock", os.O_RDONLY | os.O_CREAT, 0o666)
+    handles = [os.open(folder / f"two-pcs-{index}.lock", os.O_RDONLY | os.O_CREAT, 0o666)
                for index in range(count)]
     held = None
     try:
