@@ -186,12 +186,16 @@ KNOWN: Tuple[Known, ...] = (
           "the guard tripped at a 0.3-cm ZMP margin, the HAL on time (fc22; the trip now logs "
           "the loop's longest tick: e497490); again at 0.1 cm after a 33-ms tick (2026-11-27 "
           "fc2): free-standing robots take turns (d98a2bb); at -0.2 cm after a 59-ms tick "
-          "0.6 s before, walked 0.25 of 0.4 m (fc74 of the eighth 2026-11-28 session, quiet: "
-          "open; bench/bench_rt_loopback.py's ksoftirqd is the lead)"),
+          "0.6 s before, walked 0.25 of 0.4 m (fc74 of the eighth 2026-11-28 session, quiet); "
+          "its physics had stalled 52 ms too: a second robot's real-time threads beside it "
+          "pushed a CPU over the kernel's real-time budget (bench/bench_rt_budget.py), and "
+          "free-standing robots have the machine to themselves since"),
     Known("tests/nodekit/test_connections.py::"
           "test_a_round_with_many_missing_asks_the_name_server_once",
           "['list', 'query', 'query'] for ['list', 'query'] (fc74 of the eighth 2026-11-28 "
-          "session, quiet): a second query in one round, not explained yet: open"),
+          "session, quiet): the second was the ports' registration keeper asking about "
+          "/keeper/out8 through the same client (the server's log); held off during the "
+          "count since"),
     Known("tests/system/test_tasks_via_gateway.py::test_the_drive_task_through_rosservice",
           "'throttle pressed' not seen in 10 s of probes (fc22; watched throughout: 41555e4)"),
     Known("tests/interop/test_controlboard_oracle.py::"
