@@ -17,6 +17,7 @@ from walkman.control.ground_ahead import (CROSS_REACH, FOOTPRINT_INSET, HEEL_MAR
                                           STRIDE, TOE_MARGIN, GroundError, Pose, Surface,
                                           first_leg, footing_problem, footsteps_from_cloud,
                                           place, profile)
+from walkman.control.ground_ahead import _without_own_feet
 
 FLOOR = -1.03          # the soles' height in the pelvis frame, standing
 SOLES: Dict[str, Pose] = {"left": (0.03, 0.11, FLOOR, 0.0, 0.0, 0.0),
@@ -299,6 +300,27 @@ def test_the_robots_own_feet_are_not_debris():
     steps = footsteps_from_cloud(seen, SOLES, 1.0)
     assert steps == footsteps_from_cloud(flat, SOLES, 1.0)
     assert "debris" in footing_problem(seen, steps[0])       # the feet, were they not left out
+
+
+def test_a_turned_sole_is_judged_on_its_own_outline():
+    """A footstep turned 90 degrees lies across the way: a block under its toes is refused,
+    one beside it (inside the outline it would have facing ahead) is not."""
+    flat = cloud(lambda x: FLOOR)
+    step = (0.75, 0.11, FLOOR, 0.0, 0.0, math.pi / 2)
+    assert footing_problem(flat, step) == ""
+    assert "debris" in footing_problem(with_block(flat, 0.75, 0.11 + 0.09, 0.05, 0.04), step)
+    assert footing_problem(with_block(flat, 0.75 + 0.09, 0.11, 0.05, 0.04), step) == ""
+
+
+def test_a_turned_foot_where_it_stands_is_left_out_along_its_own_outline():
+    """The top of a foot turned 90 degrees reaches 13 cm to its left; ground 12 cm to its
+    right is no longer under it."""
+    sole = (0.03, 0.11, FLOOR, 0.0, 0.0, math.pi / 2)
+    fx, fy = np.meshgrid(np.arange(-0.07, 0.071, 0.01), np.arange(-0.13, 0.131, 0.01))
+    top = np.column_stack([0.03 + fx.ravel(), 0.11 + fy.ravel(), np.full(fx.size, FLOOR + 0.08)])
+    beside = np.array([[0.03 + 0.12, 0.11, FLOOR]])
+    kept = _without_own_feet(np.concatenate([top, beside]), {"left": sole})
+    assert kept.tolist() == beside.tolist()
 
 
 def test_a_footprint_the_camera_barely_sees_is_not_judged():

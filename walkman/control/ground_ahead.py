@@ -417,13 +417,21 @@ def footsteps_from_cloud(points: np.ndarray, soles: Dict[str, Pose],
     return steps
 
 
+def _in_sole_frame(points: np.ndarray, sole: Pose) -> Tuple[np.ndarray, np.ndarray]:
+    """How far each point lies ahead of the sole's centre along its yaw, and to its left."""
+    dx, dy = points[:, 0] - sole[0], points[:, 1] - sole[1]
+    cos, sin = math.cos(sole[5]), math.sin(sole[5])
+    return cos * dx + sin * dy, cos * dy - sin * dx
+
+
 def _without_own_feet(points: np.ndarray, soles: Dict[str, Pose]) -> np.ndarray:
     """``points`` but those over the feet where they stand (their tops, the shins): up to
     :data:`OWN_FOOT_MARGIN` around each sole, only :data:`OWN_TOES_MARGIN` past its toes."""
     for sole in soles.values():
-        behind = sole[0] - points[:, 0] > SOLE_HALF_LENGTH + OWN_FOOT_MARGIN
-        ahead = points[:, 0] - sole[0] > SOLE_HALF_LENGTH + OWN_TOES_MARGIN
-        beside = np.abs(points[:, 1] - sole[1]) > SOLE_HALF_WIDTH + OWN_FOOT_MARGIN
+        along, across = _in_sole_frame(points, sole)
+        behind = -along > SOLE_HALF_LENGTH + OWN_FOOT_MARGIN
+        ahead = along > SOLE_HALF_LENGTH + OWN_TOES_MARGIN
+        beside = np.abs(across) > SOLE_HALF_WIDTH + OWN_FOOT_MARGIN
         points = points[behind | ahead | beside]
     return points
 
@@ -446,15 +454,16 @@ def footing_problem(points: np.ndarray, step: Pose, offset: float = 0.0,
     """What is wrong with the ground the camera sees under the sole of ``step`` (a pose
     in the pelvis frame, its height ``offset`` above the cloud's), "" if nothing: see the
     module's theory, 3.  ``clearance``: how far off the sole's plane a point may lie."""
-    x, y, z, _, pitch, _ = step
+    z, pitch = step[2], step[4]
     points = np.asarray(points, dtype=float).reshape(-1, 3)
-    inside = (np.abs(points[:, 0] - x) <= SOLE_HALF_LENGTH - FOOTPRINT_INSET) & \
-        (np.abs(points[:, 1] - y) <= SOLE_HALF_WIDTH - FOOTPRINT_INSET)
+    along, across = _in_sole_frame(points, step)
+    inside = (np.abs(along) <= SOLE_HALF_LENGTH - FOOTPRINT_INSET) & \
+        (np.abs(across) <= SOLE_HALF_WIDTH - FOOTPRINT_INSET)
     under = points[inside]
     if len(under) < MIN_FOOTPRINT_POINTS:
         return ""
     # the sole's plane, in the cloud's heights: it rises ahead by the pitch (walking's sign)
-    rise = under[:, 2] - (z - offset - math.tan(pitch) * (under[:, 0] - x))
+    rise = under[:, 2] - (z - offset - math.tan(pitch) * along[inside])
     above, below = rise[rise > clearance], rise[rise < -clearance]
     if len(above) > STRAY_SHARE * len(under):
         return (f"{len(above) / len(under):.0%} of the ground seen under the sole stands up "
