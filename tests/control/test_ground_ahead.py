@@ -10,11 +10,11 @@ from typing import Callable, Dict, List
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 
-from walkman.control.ground_ahead import (CROSS_REACH, FOOTPRINT_INSET, HEEL_MARGIN, MAX_RISE,
-                                          SOLE_HALF_LENGTH, SOLE_HALF_WIDTH, STRAY_SHARE,
-                                          STRIDE, TOE_MARGIN, GroundError, Pose, Surface,
+from walkman.control.ground_ahead import (CLUMP_POINTS, CROSS_REACH, FOOTPRINT_INSET,
+                                          HEEL_MARGIN, MAX_RISE, SOLE_HALF_LENGTH,
+                                          SOLE_HALF_WIDTH, STRAY_SHARE, STRIDE, TOE_MARGIN, GroundError, Pose, Surface,
                                           first_leg, footing_problem, footsteps_from_cloud,
                                           place, profile)
 from walkman.control.ground_ahead import _without_own_feet
@@ -259,6 +259,13 @@ def footprint_share(points: np.ndarray, step: Pose, raised: np.ndarray) -> float
     return float(raised[inside].mean()) if inside.any() else 0.0
 
 
+def raised_under(points: np.ndarray, step: Pose, raised: np.ndarray) -> int:
+    """How many of a footstep's judged points (inset, yaw 0) were raised."""
+    inside = (np.abs(points[:, 0] - step[0]) <= SOLE_HALF_LENGTH - FOOTPRINT_INSET) & \
+        (np.abs(points[:, 1] - step[1]) <= SOLE_HALF_WIDTH - FOOTPRINT_INSET)
+    return int(raised[inside].sum())
+
+
 def test_debris_under_a_sole_beside_the_walking_line_is_refused_before_a_foot_lifts():
     """The strip between the feet sees flat floor; the left sole's own ground holds a
     4-cm block: the walk is refused, naming the footstep, its side, where and how high."""
@@ -323,6 +330,23 @@ def test_a_turned_foot_where_it_stands_is_left_out_along_its_own_outline():
     assert kept.tolist() == beside.tolist()
 
 
+def test_a_stone_too_small_for_the_stray_share_is_refused():
+    """A 3.5-cm stone under the left sole is 4 % of its points, under the stray share; its
+    points are packed together, not scattered as strays are."""
+    flat = cloud(lambda x: FLOOR)
+    stone = with_block(flat, 0.755, 0.14, 0.035, 0.03)
+    step = (0.75, 0.11, FLOOR, 0.0, 0.0, 0.0)
+    raised = stone[:, 2] > flat[:, 2] + 0.01
+    assert 0 < footprint_share(stone, step, raised) < STRAY_SHARE
+    assert re.fullmatch(r"\d points seen together under the sole, [23] cm across, stand up to 3 "
+                        r"cm above where it would land: a stone or debris",
+                        footing_problem(stone, step))
+    scattered = flat.copy()
+    inside = np.flatnonzero((np.abs(flat[:, 0] - 0.75) < 0.11) & (np.abs(flat[:, 1] - 0.11) < 0.05))
+    scattered[inside[::len(inside) // 4][:4], 2] += 0.03    # as many strays, far apart
+    assert footing_problem(scattered, step) == ""
+
+
 def test_a_footprint_the_camera_barely_sees_is_not_judged():
     sparse = with_block(cloud(lambda x: FLOOR), 0.75, 0.145, 0.06, 0.04)
     step = (0.75, 0.11, FLOOR, 0.0, 0.0, 0.0)
@@ -334,6 +358,7 @@ def test_a_footprint_the_camera_barely_sees_is_not_judged():
 @settings(derandomize=True, max_examples=60)
 @given(x=st.floats(0.3, 1.5), y=st.floats(-0.2, 0.2), size=st.floats(0.03, 0.12),
        height=st.floats(0.02, 0.08))
+@example(x=0.755, y=0.155, size=0.04, height=0.03)   # a stone under the stray share
 def test_debris_is_refused_exactly_where_a_sole_would_land_on_it(x, y, size, height):
     """Any block on flat ground: walked with every sole's outline (bar a stray share) clear
     of it, or refused.  A block beside the strip between the feet is refused by the
@@ -352,10 +377,18 @@ def test_debris_is_refused_exactly_where_a_sole_would_land_on_it(x, y, size, hei
         assert found and int(found.group(1)) == exc.footstep, str(exc)
         step = place(profile(littered, 0.0, -0.1, 2.53), SOLES, 1.5)[exc.footstep - 1]
         assert (step[1] > 0) == (found.group(2) == "left")
-        assert footprint_share(littered, step, raised) > STRAY_SHARE, (step, str(exc))
+        assert footprint_share(littered, step, raised) > STRAY_SHARE or \
+            raised_under(littered, step, raised) >= CLUMP_POINTS, (step, str(exc))
         return
     assert all(footprint_share(littered, step, raised) <= STRAY_SHARE + 0.01
                for step in steps), steps
+    # nor a stone 4 cm along and 3 cm across under any sole: a row of 4 points at least
+    for step in steps:
+        along, across = (min(x + size / 2, step[0] + SOLE_HALF_LENGTH - FOOTPRINT_INSET) -
+                         max(x - size / 2, step[0] - SOLE_HALF_LENGTH + FOOTPRINT_INSET),
+                         min(y + size / 2, step[1] + SOLE_HALF_WIDTH - FOOTPRINT_INSET) -
+                         max(y - size / 2, step[1] - SOLE_HALF_WIDTH + FOOTPRINT_INSET))
+        assert along < 0.04 or across < 0.03, (step, along, across)
 
 
 def test_a_cable_across_the_floor_bends_nothing():

@@ -46,8 +46,9 @@ robot's own knees) or over the feet where they stand (their own tops, 8 cm up) -
    :data:`FOOTPRINT_INSET`: an edge's bin is 0-2 cm beyond the toes) must lie on the
    sole's plane within :data:`CLEARANCE`.  More than
    :data:`STRAY_SHARE` of them above it is something the sole would land on (debris beside
-   the walking line, or higher ground beside an edge); below it, ground that falls away
-   under part of the sole (a side edge).  A footprint seen by fewer than
+   the walking line, or higher ground beside an edge); so are :data:`CLUMP_POINTS` of them
+   above it packed within :data:`CLUMP_RADIUS` (a stone too small for the share); below
+   it, ground that falls away under part of the sole (a side edge).  A footprint seen by fewer than
    :data:`MIN_FOOTPRINT_POINTS` is not judged (the camera does not see next to the feet;
    the strip's ground is taken to go on there, as under them).  The first footstep found
    wanting refuses the walk, before any foot lifts: where it is, how high, which way.
@@ -125,6 +126,12 @@ CLEARANCE = 0.015
 NOISE_SIGMAS = 4.0
 #: the share of a footprint's points that may be off the plane (stray points, a kerb's face)
 STRAY_SHARE = 0.05
+#: ... but this many points above it within this radius of one of them are a stone, however
+#: small a share of the footprint (a 3.5-cm block is 3 % of a sole's points; the camera sees
+#: 0.4-0.5 points per cm2 0.3-0.5 m ahead, so a 4-cm stone shows about five): stray points
+#: of a camera's noise are scattered, not packed
+CLUMP_POINTS = 4
+CLUMP_RADIUS = 0.025
 #: m: the footprint judged, inset from the sole's outline on every side
 FOOTPRINT_INSET = 0.01
 #: points a footprint needs to be judged at all
@@ -469,10 +476,30 @@ def footing_problem(points: np.ndarray, step: Pose, offset: float = 0.0,
         return (f"{len(above) / len(under):.0%} of the ground seen under the sole stands up "
                 f"to {float(np.percentile(above, 90)) * 100:.0f} cm above where it would land: "
                 f"debris, or higher ground beside an edge")
+    clump = _clump(under[rise > clearance, :2])
+    if clump is not None:
+        return (f"{len(clump)} points seen together under the sole, "
+                f"{_extent(clump) * 100:.0f} cm across, stand up to "
+                f"{float(rise.max()) * 100:.0f} cm above where it would land: a stone or debris")
     if len(below) > STRAY_SHARE * len(under):
         return (f"the ground falls away {-float(np.percentile(below, 10)) * 100:.0f} cm under "
                 f"{len(below) / len(under):.0%} of the sole: an edge beside or under it")
     return ""
+
+
+def _clump(raised: np.ndarray) -> Optional[np.ndarray]:
+    """The most points of ``raised`` (x, y) within :data:`CLUMP_RADIUS` of one of them, if
+    they are :data:`CLUMP_POINTS` or more: something solid, not the camera's strays."""
+    if len(raised) < CLUMP_POINTS:
+        return None
+    near = np.linalg.norm(raised[:, None, :] - raised[None, :, :], axis=2) <= CLUMP_RADIUS
+    densest = int(np.argmax(near.sum(axis=1)))
+    return raised[near[densest]] if near[densest].sum() >= CLUMP_POINTS else None
+
+
+def _extent(points: np.ndarray) -> float:
+    """The largest distance (m) between two of ``points`` (x, y)."""
+    return float(np.linalg.norm(points[:, None, :] - points[None, :, :], axis=2).max())
 
 
 def first_leg(steps: Sequence[Pose]) -> List[Pose]:
