@@ -347,6 +347,19 @@ def test_a_stone_too_small_for_the_stray_share_is_refused():
     assert footing_problem(scattered, step) == ""
 
 
+@pytest.mark.parametrize("x, refused", [(0.75, True), (0.30, False)])
+def test_a_box_taller_than_the_legs_reach_is_refused_where_it_is_no_knee(x, refused):
+    """Points 40 cm up under a footstep 0.6 m ahead are a box; 0.14 m past the toes, where
+    looking down the camera sees the robot's own knees, they are left out."""
+    flat = cloud(lambda x: FLOOR)
+    boxed = with_block(flat, x, 0.145, 0.06, 0.40)
+    if refused:
+        with pytest.raises(GroundError, match=r"footstep \d+ \(left, .*stands up to 40 cm "):
+            footsteps_from_cloud(boxed, SOLES, 1.2)
+    else:
+        assert footsteps_from_cloud(boxed, SOLES, 1.2) == footsteps_from_cloud(flat, SOLES, 1.2)
+
+
 def test_a_footprint_the_camera_barely_sees_is_not_judged():
     sparse = with_block(cloud(lambda x: FLOOR), 0.75, 0.145, 0.06, 0.04)
     step = (0.75, 0.11, FLOOR, 0.0, 0.0, 0.0)

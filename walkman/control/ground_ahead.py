@@ -110,6 +110,10 @@ MIN_STEP = 0.03
 #: m: points further above or below the soles are no ground a foot could reach (the
 #: robot's own knees and hands, looked down at; a wall)
 BAND = 0.3
+#: m: how far past the front toes the robot's own body is seen, looking down (the PI's look
+#: from the kerb's top saw the knees 0.06-0.08 m past them, 0.5 m up); beyond, a point
+#: higher than :data:`BAND` under a footstep is an obstacle, not the robot
+OWN_BODY_REACH = 0.25
 #: m: how far beyond the goal the ground is looked at (the last steps need their footing)
 BEYOND = 1.0
 #: m: two soles this close along the line stand together
@@ -402,21 +406,24 @@ def footsteps_from_cloud(points: np.ndarray, soles: Dict[str, Pose],
     """From a cloud in the pelvis frame to footsteps, the whole way: the strip along the
     line between the soles, from their heels to :data:`BEYOND` past the goal, without what
     lies more than :data:`BAND` above or below them; then each footstep's own ground,
-    up to :data:`BAND` above the soles (higher, in the PI's looks, are the robot's own
-    knees, 57 cm up over the first footstep) and however far below (a drop)."""
+    however far below the soles (a drop) and up to :data:`BAND` above them near the feet
+    (higher, in the PI's looks, are the robot's own knees, 50 cm up over the first
+    footstep), however high beyond :data:`OWN_BODY_REACH` past the toes (a tall box)."""
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     points = _without_own_feet(points[np.isfinite(points).all(axis=1)], soles)
     height = float(np.mean([pose[2] for pose in soles.values()]))
     line = float(np.mean([pose[1] for pose in soles.values()]))
-    reachable = points[points[:, 2] - height <= BAND]
-    near = reachable[reachable[:, 2] - height >= -BAND]
+    toes = max(pose[0] for pose in soles.values()) + SOLE_HALF_LENGTH
+    judged = points[(points[:, 2] - height <= BAND) |
+                    (points[:, 0] > toes + OWN_BODY_REACH)]
+    near = points[np.abs(points[:, 2] - height) <= BAND]
     x_from = min(pose[0] for pose in soles.values()) - SOLE_HALF_LENGTH
     x_to = max(pose[0] for pose in soles.values()) + distance + BEYOND
     steps, offset = _place(profile(near, line, x_from, x_to), soles, distance)
     clearance = max(CLEARANCE, NOISE_SIGMAS * camera_noise(near, line, x_from, x_to))
     here = min(pose[0] for pose in soles.values())
     for number, step in enumerate(steps, 1):
-        problem = footing_problem(reachable, step, offset, clearance)
+        problem = footing_problem(judged, step, offset, clearance)
         if problem:
             side = "left" if step[1] > line else "right"
             raise GroundError(f"footstep {number} ({side}, {step[0] - here:.2f} m ahead): "
