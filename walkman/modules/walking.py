@@ -220,6 +220,8 @@ class Module(TaskModule):
         self.deflection = np.zeros(len(self.legs))
         self.posture = q.copy()   # for the CoM: the legs as commanded, the rest as measured
         self.margin: Optional[float] = None
+        #: the ZMP (None: no foot loaded) and the soles' planar poses, the last tick's
+        self.support: Tuple[Optional[np.ndarray], Dict[str, Planar]] = (None, {})
         self.wrenches: Dict[str, np.ndarray] = {}
         self.com_velocity = np.zeros(2)
         self.roll_pitch = (0.0, 0.0)
@@ -348,7 +350,23 @@ class Module(TaskModule):
                                      self.sole_shape)
         if zmp is not None:
             self.margin = support_margin(zmp, soles, contacts, self.sole_shape)
+        self.support = (zmp, soles)
         return tilt
+
+    def support_text(self) -> str:
+        """Each foot's load and centre of pressure, and the ZMP, in its own sole's frame (cm,
+        x toward the toes, y to the left): which edge a balance trip was at."""
+        zmp, soles = self.support
+        parts = []
+        for side in SIDES:
+            wrench = self.wrenches.get(side)
+            local = None if wrench is None else foot_zmp(wrench, self.sole_shape)
+            load = "no contact" if local is None else \
+                f"{local[2]:.0f} N, CoP {local[0] * 100:+.1f} {local[1] * 100:+.1f}"
+            where = "" if zmp is None else \
+                "; ZMP {:+.1f} {:+.1f}".format(*(to_local(soles[side], zmp) * 100))
+            parts.append(f"{side}: {load}{where}")
+        return "; ".join(parts) + " (cm in each sole's frame)"
 
     def track(self, paused: bool = False) -> None:
         """One tick of the walk (``paused``: standing for another module, see run_paused)."""
@@ -524,9 +542,9 @@ class Module(TaskModule):
         if problem is not None:
             when, gap = max(self.tick_gaps, key=lambda tick: tick[1], default=(now, 0.0))
             log.warning("%s: balance guard: %s; the loop's longest tick in the last %.1f s: "
-                        "%.0f ms, %.2f s ago", self.name, problem,
+                        "%.0f ms, %.2f s ago; %s", self.name, problem,
                         now - self.tick_gaps[0][0] if self.tick_gaps else 0.0, gap * 1000,
-                        now - when)
+                        now - when, self.support_text())
             if self.plan.walking:
                 self.warn(f"balance: {problem}; stopping the walk and standing")
                 self.plan.cancel(now)
