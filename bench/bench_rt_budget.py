@@ -7,14 +7,14 @@ otherwise starve them (before 6.12, RT throttling at ``sched_rt_runtime_us`` did
 It takes those 50 ms *at once*.  A robot's loops are real-time threads; when together they
 keep a CPU busy above the budget, every one of them stops for up to 50 ms, once a second.
 
-This bench runs one SCHED_FIFO 60 thread on CPU 0 that works ``duty`` of every 2-ms period
-and sleeps the rest, beside a normal-priority busy loop on the same CPU, and prints its
-longest tick (the time from one period's start to the next) and how many ticks took over
-10 ms, per duty.
+This bench runs one SCHED_FIFO 60 thread on one CPU that works ``duty`` of every 2-ms
+period and sleeps to the next, beside a normal-priority busy loop on the same CPU, and
+prints the share of the time it worked, its longest tick (from one period's start to the
+next) and how many ticks took over 10 ms, per duty.
 
-Measured on the 2-core CI machine (2026-11-29, Linux 6.18, otherwise idle): duty 0.5, 0.8,
-0.9: longest tick 2.2-4.5 ms, none over 10 ms; duty 0.97 and 0.99: 56 ms, 6 ticks over
-10 ms in 6 s.  ``sched_rt_runtime_us = -1`` changed nothing (the fair server is not RT
+Measured on the 2-core CI machine (2026-11-29, Linux 6.18): working 0.50, 0.80 and 0.90 of
+the time, the longest tick 3.0-5.2 ms, none over 10 ms; working 0.956-0.974, 54-56 ms, four
+ticks over 10 ms in 4 s (a fresh-clone test run beside it; idle, the same: 56 ms).  ``sched_rt_runtime_us = -1`` changed nothing (the fair server is not RT
 throttling).  A free-standing robot's real-time threads take about one core (physics
 35-45 %, walking's loop 30-37 %, state ports 20 %); a second robot's beside it take a CPU
 over the budget: fc74's walking robot stalled 52 ms (physics) and 59 ms (loop) and
@@ -27,12 +27,13 @@ Usage (root, for SCHED_FIFO): ``.venv/bin/python bench/bench_rt_budget.py [--sec
 from __future__ import annotations
 
 import argparse
+import math
 import multiprocessing
 import os
 import sys
 import time
 from pathlib import Path
-from typing import List, Optional
+from typing import List, Optional, Tuple
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -41,7 +42,7 @@ from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 PRIORITY = 60               # the HAL's physics loop
 PERIOD = 0.002              # the robot's 500-Hz loops
-CPU = 0
+CPU = min(os.sched_getaffinity(0))      # the first CPU this process may use
 DUTIES = (0.5, 0.8, 0.9, 0.95, 0.97, 0.99)
 
 
@@ -51,36 +52,46 @@ def _burn() -> None:
         pass
 
 
-def ticks(duty: float, seconds: float) -> List[float]:
-    """The periods (s) of a FIFO loop on CPU 0 busy ``duty`` of each 2 ms, for ``seconds``;
-    run in a child so its class and affinity end with it."""
+def ticks(duty: float, seconds: float) -> Tuple[List[float], float]:
+    """The periods (s) of a FIFO loop on ``CPU`` that works ``duty`` of each 2 ms and sleeps
+    to the next period's start, for ``seconds``, and the share of the time it worked; run
+    in a child so its class and affinity end with it."""
     os.sched_setaffinity(0, {CPU})
     os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(PRIORITY))
     periods: List[float] = []
-    last = time.monotonic()
-    end = last + seconds
-    while last < end:
+    busy = 0.0
+    start = last = time.monotonic()
+    due = start
+    while last < start + seconds:
         began = time.monotonic()
         while time.monotonic() - began < duty * PERIOD:
             pass
-        time.sleep(max(0.0, (1.0 - duty) * PERIOD - 0.00007))   # ~70 us: the sleep's own cost
+        busy += time.monotonic() - began
+        due = max(due + PERIOD, began)      # late: the next period starts now
+        time.sleep(max(0.0, due - time.monotonic()))
         now = time.monotonic()
         periods.append(now - last)
         last = now
-    return periods
+    return periods, busy / (last - start)
 
 
 def _child(duty: float, seconds: float, out) -> None:
     out.send(ticks(duty, seconds))
 
 
-def measure(duty: float, seconds: float) -> List[float]:
+def measure(duty: float, seconds: float) -> Tuple[List[float], float]:
+    """:func:`ticks` in a child process; a child that fails says why, not a hang."""
     parent, child = multiprocessing.Pipe(duplex=False)
     runner = multiprocessing.Process(target=_child, args=(duty, seconds, child))
     runner.start()
-    periods = parent.recv()
-    runner.join()
-    return periods
+    child.close()           # ours: the child's end closes with it, and recv() sees it
+    try:
+        return parent.recv()
+    except EOFError:
+        runner.join()
+        raise SystemExit(f"the measuring child failed (exit code {runner.exitcode})") from None
+    finally:
+        runner.join()
 
 
 def _rt_runtime() -> str:
@@ -101,24 +112,26 @@ def main(argv: Optional[List[str]] = None) -> int:
     for duty in duties:
         if not 0.0 < duty < 1.0:
             parser.error(f"--duty takes a share between 0 and 1, not {duty}")
-    if options.seconds <= 0:
+    if not 0 < options.seconds < math.inf:
         parser.error(f"--seconds must be positive, not {options.seconds}")
     try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(PRIORITY))
         os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
     except PermissionError:
-        parser.error("needs SCHED_FIFO (root or CAP_SYS_NICE)")
+        parser.error(f"needs SCHED_FIFO {PRIORITY} (root or CAP_SYS_NICE)")
     say_machine()
     print(f"sched_rt_runtime_us {_rt_runtime()}; a FIFO {PRIORITY} loop of 2 ms on CPU {CPU} "
           f"beside a normal busy loop there, {options.seconds:g} s per row")
     burner = multiprocessing.Process(target=_burn, daemon=True)
     burner.start()
     try:
-        print(f"{'duty':>6} {'ticks':>6} {'median ms':>10} {'max ms':>8} {'> 10 ms':>8}")
+        print(f"{'duty':>6} {'worked':>7} {'ticks':>6} {'median ms':>10} {'max ms':>8} "
+              f"{'> 10 ms':>8}")
         for duty in duties:
-            periods = sorted(measure(duty, options.seconds))
+            periods, worked = measure(duty, options.seconds)
+            periods.sort()
             n = len(periods)
-            print(f"{duty:>6.2f} {n:>6} {periods[n // 2] * 1e3:>10.3f} "
+            print(f"{duty:>6.2f} {worked:>7.3f} {n:>6} {periods[n // 2] * 1e3:>10.3f} "
                   f"{periods[-1] * 1e3:>8.1f} {sum(p > 0.010 for p in periods):>8}",
                   flush=True)
     finally:

@@ -5,8 +5,8 @@ physics (SCHED_FIFO 60), the threads that carry its states (55) and its walking 
 must run on time, and they do beside any amount of normal-priority load -- up to a point
 the kernel sets.  Linux (6.12 and later: the "fair server") gives normal tasks 50 ms in
 every second on a CPU whose real-time threads would otherwise starve them, and it takes
-those 50 ms *at once*: a FIFO thread busy 97 % of a CPU beside one normal busy loop stalls
-56 ms once a second; at 90 % it never stalls beyond 3.5 ms (``bench/bench_rt_budget.py``).
+those 50 ms *at once*: a FIFO thread busy 96 % of a CPU beside one normal busy loop stalls
+54-56 ms once a second; at 90 % never beyond 5 ms (``bench/bench_rt_budget.py``).
 A free-standing robot's real-time threads take about one of this machine's two cores
 (physics 35-45 %, walking's loop 30-37 %, the state ports 20 %, measured per thread while
 it walks); a second robot's -- a free-standing one, or the harnessed robot of a two-PC

@@ -345,16 +345,42 @@ def test_a_stone_too_small_for_the_stray_share_is_refused():
     inside = np.flatnonzero((np.abs(flat[:, 0] - 0.75) < 0.11) & (np.abs(flat[:, 1] - 0.11) < 0.05))
     scattered[inside[::len(inside) // 4][:4], 2] += 0.03    # as many strays, far apart
     assert footing_problem(scattered, step) == ""
+    # the height said is the stone's own, not a stray's elsewhere under the sole
+    stray = np.array([[0.66, 0.08, FLOOR + 0.25]] +          # (with ground seen beside it,
+                     [[0.66 + 0.005 * i, 0.09, FLOOR] for i in range(4)])   # under 5 %)
+    assert "stand up to 3 cm above" in footing_problem(np.concatenate([stone, stray]), step)
 
 
-@pytest.mark.parametrize("x, refused", [(0.75, True), (0.30, False)])
-def test_a_box_taller_than_the_legs_reach_is_refused_where_it_is_no_knee(x, refused):
+def test_a_dense_noisy_camera_s_strays_and_a_patch_of_bad_pixels_are_no_stone():
+    """A camera four times as dense as the simulated one, its heights heavy-tailed (1 cm):
+    its strays come packed by density alone, but among many ground points; four mismatched
+    pixels 1 mm apart are no stone either."""
+    rng = np.random.default_rng(7)
+    step = (0.75, 0.11, FLOOR, 0.0, 0.0, 0.0)
+    clearance = 0.04                                    # 4 sigma of the camera's noise
+    refused = 0
+    for _ in range(40):
+        xy = np.column_stack([rng.uniform(0.62, 0.88, 1300), rng.uniform(0.04, 0.18, 1300)])
+        z = FLOOR + 0.01 * rng.standard_t(3, len(xy))
+        refused += footing_problem(np.column_stack([xy, z]), step, clearance=clearance) != ""
+    assert refused == 0
+    ground = np.column_stack([xy, np.full(len(xy), FLOOR)])
+    patch = np.array([[0.75 + 0.001 * i, 0.12, FLOOR + 0.05] for i in range(4)])
+    assert footing_problem(np.concatenate([ground, patch]), step) == ""
+
+
+@pytest.mark.parametrize("x, height, refused", [(0.75, 0.40, True), (0.30, 0.40, False),
+                                               (0.75, 0.85, False)])
+def test_a_box_taller_than_the_legs_reach_is_refused_where_it_is_no_knee(x, height, refused):
     """Points 40 cm up under a footstep 0.6 m ahead are a box; 0.14 m past the toes, where
-    looking down the camera sees the robot's own knees, they are left out."""
+    looking down the camera sees the robot's own knees, they are left out, and so are
+    points 85 cm up further on (the hands, or what they hold)."""
     flat = cloud(lambda x: FLOOR)
-    boxed = with_block(flat, x, 0.145, 0.06, 0.40)
+    boxed = with_block(flat, x, 0.145, 0.06, height)
     if refused:
-        with pytest.raises(GroundError, match=r"footstep \d+ \(left, .*stands up to 40 cm "):
+        with pytest.raises(GroundError, match=r"footstep \d+ \(left, .*stands up to 40 cm "
+                                              r"above where it would land: an obstacle taller "
+                                              r"than a step"):
             footsteps_from_cloud(boxed, SOLES, 1.2)
     else:
         assert footsteps_from_cloud(boxed, SOLES, 1.2) == footsteps_from_cloud(flat, SOLES, 1.2)

@@ -114,6 +114,9 @@ BAND = 0.3
 #: from the kerb's top saw the knees 0.06-0.08 m past them, 0.5 m up); beyond, a point
 #: higher than :data:`BAND` under a footstep is an obstacle, not the robot
 OWN_BODY_REACH = 0.25
+#: m: ... and only up to this high: above, the hands hang (0.7-0.9 m up, and what they
+#: hold, ahead of the toes), or something the legs pass under
+OBSTACLE_TOP = 0.6
 #: m: how far beyond the goal the ground is looked at (the last steps need their footing)
 BEYOND = 1.0
 #: m: two soles this close along the line stand together
@@ -136,6 +139,10 @@ STRAY_SHARE = 0.05
 #: of a camera's noise are scattered, not packed
 CLUMP_POINTS = 4
 CLUMP_RADIUS = 0.025
+#: ... the share of all the points within that radius that must be raised, and how far
+#: apart (m) the raised ones must reach
+CLUMP_MAJORITY = 0.5
+CLUMP_EXTENT = 0.015
 #: m: the footprint judged, inset from the sole's outline on every side
 FOOTPRINT_INSET = 0.01
 #: points a footprint needs to be judged at all
@@ -408,14 +415,16 @@ def footsteps_from_cloud(points: np.ndarray, soles: Dict[str, Pose],
     lies more than :data:`BAND` above or below them; then each footstep's own ground,
     however far below the soles (a drop) and up to :data:`BAND` above them near the feet
     (higher, in the PI's looks, are the robot's own knees, 50 cm up over the first
-    footstep), however high beyond :data:`OWN_BODY_REACH` past the toes (a tall box)."""
+    footstep), up to :data:`OBSTACLE_TOP` beyond :data:`OWN_BODY_REACH` past the toes (a
+    tall box; higher are the robot's hands)."""
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     points = _without_own_feet(points[np.isfinite(points).all(axis=1)], soles)
     height = float(np.mean([pose[2] for pose in soles.values()]))
     line = float(np.mean([pose[1] for pose in soles.values()]))
     toes = max(pose[0] for pose in soles.values()) + SOLE_HALF_LENGTH
-    judged = points[(points[:, 2] - height <= BAND) |
-                    (points[:, 0] > toes + OWN_BODY_REACH)]
+    above = points[:, 2] - height
+    judged = points[(above <= BAND) |
+                    ((points[:, 0] > toes + OWN_BODY_REACH) & (above <= OBSTACLE_TOP))]
     near = points[np.abs(points[:, 2] - height) <= BAND]
     x_from = min(pose[0] for pose in soles.values()) - SOLE_HALF_LENGTH
     x_to = max(pose[0] for pose in soles.values()) + distance + BEYOND
@@ -480,28 +489,42 @@ def footing_problem(points: np.ndarray, step: Pose, offset: float = 0.0,
     rise = under[:, 2] - (z - offset - math.tan(pitch) * along[inside])
     above, below = rise[rise > clearance], rise[rise < -clearance]
     if len(above) > STRAY_SHARE * len(under):
+        top = float(np.percentile(above, 90))
         return (f"{len(above) / len(under):.0%} of the ground seen under the sole stands up "
-                f"to {float(np.percentile(above, 90)) * 100:.0f} cm above where it would land: "
-                f"debris, or higher ground beside an edge")
-    clump = _clump(under[rise > clearance, :2])
+                f"to {top * 100:.0f} cm above where it would land: " +
+                ("an obstacle taller than a step" if top > BAND else
+                 "debris, or higher ground beside an edge"))
+    clump = _clump(under[:, :2], rise > clearance)
     if clump is not None:
-        return (f"{len(clump)} points seen together under the sole, "
-                f"{_extent(clump) * 100:.0f} cm across, stand up to "
-                f"{float(rise.max()) * 100:.0f} cm above where it would land: a stone or debris")
+        return (f"{int(clump.sum())} points seen together under the sole, "
+                f"{_extent(under[clump, :2]) * 100:.0f} cm across, stand up to "
+                f"{float(rise[clump].max()) * 100:.0f} cm above where it would land: a stone "
+                f"or debris")
     if len(below) > STRAY_SHARE * len(under):
         return (f"the ground falls away {-float(np.percentile(below, 10)) * 100:.0f} cm under "
                 f"{len(below) / len(under):.0%} of the sole: an edge beside or under it")
     return ""
 
 
-def _clump(raised: np.ndarray) -> Optional[np.ndarray]:
-    """The most points of ``raised`` (x, y) within :data:`CLUMP_RADIUS` of one of them, if
-    they are :data:`CLUMP_POINTS` or more: something solid, not the camera's strays."""
-    if len(raised) < CLUMP_POINTS:
+def _clump(points: np.ndarray, raised: np.ndarray) -> Optional[np.ndarray]:
+    """Which of ``points`` (x, y) are a stone: the raised ones within :data:`CLUMP_RADIUS` of
+    a raised one, if they are :data:`CLUMP_POINTS` or more, most of all the points seen
+    around it (a camera's strays are scattered among the ground's points, however dense the
+    cloud), and :data:`CLUMP_EXTENT` across or more (not one mismatched patch of pixels);
+    None if no such group."""
+    centres = np.flatnonzero(raised)
+    if len(centres) < CLUMP_POINTS:
         return None
-    near = np.linalg.norm(raised[:, None, :] - raised[None, :, :], axis=2) <= CLUMP_RADIUS
-    densest = int(np.argmax(near.sum(axis=1)))
-    return raised[near[densest]] if near[densest].sum() >= CLUMP_POINTS else None
+    near = np.linalg.norm(points[centres, None, :] - points[None, :, :], axis=2) <= CLUMP_RADIUS
+    raised_near = near & raised[None, :]
+    counts = raised_near.sum(axis=1)
+    for index in np.argsort(-counts):
+        if counts[index] < CLUMP_POINTS:
+            return None
+        if counts[index] > CLUMP_MAJORITY * near[index].sum() and \
+                _extent(points[raised_near[index]]) >= CLUMP_EXTENT:
+            return raised_near[index]
+    return None
 
 
 def _extent(points: np.ndarray) -> float:

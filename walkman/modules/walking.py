@@ -336,6 +336,7 @@ class Module(TaskModule):
         self.roll_pitch = (roll, pitch)
         tilt = math.hypot(roll, pitch)
         self.margin = None
+        self.support = (None, {})
         self.wrenches = {side: w for side, w in wrenches.items() if len(w) >= 6}
         if len(self.wrenches) < len(SIDES):
             return tilt
@@ -361,7 +362,7 @@ class Module(TaskModule):
         for side in SIDES:
             wrench = self.wrenches.get(side)
             local = None if wrench is None else foot_zmp(wrench, self.sole_shape)
-            load = "no contact" if local is None else \
+            load = "no reading" if wrench is None else "no contact" if local is None else \
                 f"{local[2]:.0f} N, CoP {local[0] * 100:+.1f} {local[1] * 100:+.1f}"
             where = "" if zmp is None else \
                 "; ZMP {:+.1f} {:+.1f}".format(*(to_local(soles[side], zmp) * 100))
