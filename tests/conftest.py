@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import os
 import sys
@@ -35,7 +34,7 @@ sys.path.append(str(Path(__file__).resolve().parent))
 from harness import (YarpWorld, dump_outputs_if_failed, lite_implementation,  # noqa: E402
                      missing_reference, real_implementation)
 from requirements import apply_marks  # noqa: E402
-from robot_slots import machine_share, machine_to_itself, two_pcs_slot  # noqa: E402
+from robot_slots import machine_share, machine_to_itself  # noqa: E402
 
 
 def pytest_configure(config):
@@ -46,7 +45,7 @@ def pytest_configure(config):
                             "real time; it has the machine to itself, as 'alone' "
                             "(tests/robot_slots.py)")
     config.addinivalue_line("markers", "two_pcs: starts both PCs of a topology with a "
-                            "simulated robot; such tests take turns on a machine "
+                            "simulated robot; it has the machine to itself, as 'alone' "
                             "(tests/robot_slots.py)")
     config.addinivalue_line("markers", "alone: has the machine to itself while it runs; "
                             "every other test waits (tests/robot_slots.py)")
@@ -73,19 +72,13 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item, nextitem):
-    """Every test holds the machine, shared, or to itself when marked ``alone`` or
-    ``free_standing``; a ``two_pcs`` test holds a slot of that kind too, from its setup to
-    its teardown.  The waits, if any, are in the JUnit report's properties
-    (tests/robot_slots.py)."""
+    """Every test holds the machine, shared, or to itself when marked ``alone``,
+    ``free_standing`` or ``two_pcs``, from its setup to its teardown.  The waits, if any,
+    are in the JUnit report's properties (tests/robot_slots.py)."""
     alone = machine_to_itself(mark.name for mark in item.iter_markers())
-    with contextlib.ExitStack() as held:
-        waited = held.enter_context(machine_share(alone))
+    with machine_share(alone) as waited:
         if alone:
             item.user_properties.append(("waited_for_the_machine_s", round(waited, 1)))
-        worker = int(os.environ.get("PYTEST_XDIST_WORKER", "gw0").lstrip("gw") or 0)
-        if item.get_closest_marker("two_pcs") is not None:
-            waited = held.enter_context(two_pcs_slot(preferred=worker))
-            item.user_properties.append(("waited_for_a_two_pcs_slot_s", round(waited, 1)))
         yield
 
 

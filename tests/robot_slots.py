@@ -20,21 +20,21 @@ to itself, as ``alone`` does (:func:`machine_share`).
 A test marked ``two_pcs`` starts both PCs of the drc topology -- a simulated robot with its
 modules, both bridges, the emulated radio and the pilot's side -- and judges what a pilot
 would see on time: a status no older than its widget's bound, a stop that reaches every
-module.  The robot PC's real-time threads run above its bridge (as on the real robot), and
-here above the *pilot* PC's bridge too, which a real pilot PC never shares a CPU with; a
-second topology doubles that load.  Fresh-clone run fc68 (2026-11-28): the PI's wall task
-read ``drc_wall`` as "not running", its status 10.8 s stale, while the 30 %-loss stop-all
-test ran its own two PCs on the other worker (load 20-31 on 2 cores; the pilot's bridge
-dropped 100 stale ``/battery`` messages).  So such tests hold one of ``slots()`` machine-wide
-``two_pcs`` slots (:func:`two_pcs_slot`), one per two cores.
+module.  Every thread of those PCs but the PI's runs real-time (the bridges at 5, the
+modules' readers at 10, the radio at 70): 1.1-1.5 CPUs of the two, sampled per thread.
+Beside another topology it is over the budget: fc68 (2026-11-28) read ``drc_wall`` as "not
+running", its status 10.8 s stale, while another two-PC test ran on the other worker, and
+fc76 (2026-11-29, two CPU burners) logged the HAL's physics stalled 52-54 ms while the PI
+drove, and the steering wheel ended 15 degrees from where the slider had put it.  Such tests
+first took turns among themselves (one slot per two cores); they now have the machine to
+themselves as well.
 
-A test marked ``alone`` has the machine to itself (:func:`machine_share`): the PI's courses
-with the harness off walk a free-standing robot through the drc topology -- both PCs, the
-emulated link and a PI rendering its 3-D view, all on the one machine.  Every other test
-holds the machine shared.
+A test marked ``alone`` has the machine to itself too: the PI's courses with the harness off
+walk a free-standing robot through the drc topology.  Every other test holds the machine
+shared (:func:`machine_share`).
 
-A slot, like the machine, is a ``flock`` on a file under the system's temporary folder: the
-kernel releases it when its holder dies, so a killed run never leaves one taken.
+The machine is a ``flock`` on a file under the system's temporary folder: the kernel releases
+it when its holder dies, so a killed run never leaves it taken.
 """
 
 from __future__ import annotations
@@ -45,58 +45,19 @@ import tempfile
 import time
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterable, Iterator, Optional
+from typing import Iterable, Iterator
 
-#: Where the slots' lock files live (machine-wide: every pytest run on the machine shares them).
+#: Where the machine's lock files live (machine-wide: every pytest run on the machine shares them).
 SLOT_FOLDER = Path(tempfile.gettempdir()) / "walkman-free-standing-robots"
 
 
-def slots(cores: Optional[int] = None) -> int:
-    """How many two-PC topologies the machine runs at once: one per two cores."""
-    return max(1, (cores if cores is not None else os.cpu_count() or 1) // 2)
-
-
 #: The marks that give a test the machine to itself.
-MACHINE_TO_ITSELF = frozenset({"alone", "free_standing"})
+MACHINE_TO_ITSELF = frozenset({"alone", "free_standing", "two_pcs"})
 
 
 def machine_to_itself(marks: Iterable[str]) -> bool:
     """Whether a test with these marks runs with the machine to itself."""
     return not MACHINE_TO_ITSELF.isdisjoint(marks)
-
-
-@contextmanager
-def two_pcs_slot(folder: Path = SLOT_FOLDER, count: Optional[int] = None,
-                 preferred: int = 0) -> Iterator[float]:
-    """Hold a free two-PC slot for the block; yields how long it waited (s).  With every
-    slot taken it blocks on slot ``preferred`` (mod the count) until its holder lets go."""
-    count = slots() if count is None else count
-    if count < 1:
-        raise ValueError(f"a machine has at least one two-PC slot, not {count}")
-    shared_folder(folder)
-    began = time.monotonic()
-    # Read-only is enough for flock: a slot file another user made (CI as root, then a
-    # developer) still serves.
-    handles = [os.open(folder / f"two-pcs-{index}.lock", os.O_RDONLY | os.O_CREAT, 0o666)
-               for index in range(count)]
-    held = None
-    try:
-        for handle in handles:
-            try:
-                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                continue
-            held = handle
-            break
-        if held is None:
-            held = handles[preferred % count]
-            fcntl.flock(held, fcntl.LOCK_EX)
-        yield time.monotonic() - began
-    finally:
-        if held is not None:
-            fcntl.flock(held, fcntl.LOCK_UN)
-        for handle in handles:
-            os.close(handle)
 
 
 def shared_folder(folder: Path) -> None:
