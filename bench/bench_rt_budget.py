@@ -14,8 +14,8 @@ next) and how many ticks took over 10 ms, per duty.
 
 Measured on the 2-core CI machine (2026-11-29, Linux 6.18): working 0.50, 0.80 and 0.90 of
 the time, the longest tick 3.0-5.2 ms, none over 10 ms; working 0.956-0.974, 54-56 ms, four
-ticks over 10 ms in 4 s (a fresh-clone test run beside it; idle, the same: 56 ms).  ``sched_rt_runtime_us = -1`` changed nothing (the fair server is not RT
-throttling).  A free-standing robot's real-time threads take about one core (physics
+ticks over 10 ms in 4 s (a fresh-clone test run beside it; idle, the same: 56 ms).
+``sched_rt_runtime_us = -1`` changed nothing (the fair server is not RT throttling).  A free-standing robot's real-time threads take about one core (physics
 35-45 %, walking's loop 30-37 %, state ports 20 %); a second robot's beside it take a CPU
 over the budget: fc74's walking robot stalled 52 ms (physics) and 59 ms (loop) and
 tripped its balance guard.  Hence tests/robot_slots.py.

@@ -14,7 +14,8 @@ from hypothesis import example, given, settings, strategies as st
 
 from walkman.control.ground_ahead import (CLUMP_POINTS, CROSS_REACH, FOOTPRINT_INSET,
                                           HEEL_MARGIN, MAX_RISE, SOLE_HALF_LENGTH,
-                                          SOLE_HALF_WIDTH, STRAY_SHARE, STRIDE, TOE_MARGIN, GroundError, Pose, Surface,
+                                          SOLE_HALF_WIDTH, STRAY_SHARE, STRIDE, TOE_MARGIN,
+                                          GroundError, Pose, Surface,
                                           first_leg, footing_problem, footsteps_from_cloud,
                                           place, profile)
 from walkman.control.ground_ahead import _without_own_feet
@@ -252,18 +253,22 @@ def with_block(points: np.ndarray, x: float, y: float, size: float, height: floa
     return points
 
 
-def footprint_share(points: np.ndarray, step: Pose, raised: np.ndarray) -> float:
-    """The share of a footstep's judged outline (inset) whose points were raised."""
+def raised_in_outline(points: np.ndarray, step: Pose, raised: np.ndarray) -> np.ndarray:
+    """``raised`` for the points inside a footstep's judged outline (inset, yaw 0)."""
     inside = (np.abs(points[:, 0] - step[0]) <= SOLE_HALF_LENGTH - FOOTPRINT_INSET) & \
         (np.abs(points[:, 1] - step[1]) <= SOLE_HALF_WIDTH - FOOTPRINT_INSET)
-    return float(raised[inside].mean()) if inside.any() else 0.0
+    return raised[inside]
+
+
+def footprint_share(points: np.ndarray, step: Pose, raised: np.ndarray) -> float:
+    """The share of a footstep's judged outline whose points were raised."""
+    under = raised_in_outline(points, step, raised)
+    return float(under.mean()) if under.size else 0.0
 
 
 def raised_under(points: np.ndarray, step: Pose, raised: np.ndarray) -> int:
-    """How many of a footstep's judged points (inset, yaw 0) were raised."""
-    inside = (np.abs(points[:, 0] - step[0]) <= SOLE_HALF_LENGTH - FOOTPRINT_INSET) & \
-        (np.abs(points[:, 1] - step[1]) <= SOLE_HALF_WIDTH - FOOTPRINT_INSET)
-    return int(raised[inside].sum())
+    """How many of a footstep's judged points were raised."""
+    return int(raised_in_outline(points, step, raised).sum())
 
 
 def test_debris_under_a_sole_beside_the_walking_line_is_refused_before_a_foot_lifts():
@@ -342,7 +347,8 @@ def test_a_stone_too_small_for_the_stray_share_is_refused():
                         r"cm above where it would land: a stone or debris",
                         footing_problem(stone, step))
     scattered = flat.copy()
-    inside = np.flatnonzero((np.abs(flat[:, 0] - 0.75) < 0.11) & (np.abs(flat[:, 1] - 0.11) < 0.05))
+    inside = np.flatnonzero((np.abs(flat[:, 0] - 0.75) < 0.11) &
+                            (np.abs(flat[:, 1] - 0.11) < 0.05))
     scattered[inside[::len(inside) // 4][:4], 2] += 0.03    # as many strays, far apart
     assert footing_problem(scattered, step) == ""
     # the height said is the stone's own, not a stray's elsewhere under the sole

@@ -425,7 +425,7 @@ def footsteps_from_cloud(points: np.ndarray, soles: Dict[str, Pose],
     above = points[:, 2] - height
     judged = points[(above <= BAND) |
                     ((points[:, 0] > toes + OWN_BODY_REACH) & (above <= OBSTACLE_TOP))]
-    near = points[np.abs(points[:, 2] - height) <= BAND]
+    near = points[np.abs(above) <= BAND]
     x_from = min(pose[0] for pose in soles.values()) - SOLE_HALF_LENGTH
     x_to = max(pose[0] for pose in soles.values()) + distance + BEYOND
     steps, offset = _place(profile(near, line, x_from, x_to), soles, distance)
