@@ -154,6 +154,30 @@ def test_the_pis_look_from_the_kerbs_top_places_the_steps_down_its_far_side():
         footsteps_from_cloud(points, soles, 0.4)
 
 
+def test_the_pis_look_at_the_debris_lane_is_refused_naming_what_lies_in_the_way():
+    """Station ``debris`` through the PI: a block of the lane lies across the walking line
+    between the feet, 0.37 m ahead.  The strip's profile sees it as a 2-cm surface 4 cm up
+    with the floor on both sides -- not ground to stand on, not an edge to climb: refused as
+    something lying there, with its size and where."""
+    points, soles = pi_look("pi-look-at-debris.npz")
+    for distance in (0.3, 1.0):
+        with pytest.raises(GroundError, match=r"^something [3-5] cm high and [1-4] cm long lies "
+                                              r"on the walking line 0\.3\d m ahead.*\(debris\?\)"):
+            footsteps_from_cloud(points, soles, distance)
+
+
+@pytest.mark.parametrize("rise, what", [(0.04, "something 4 cm high and 2 cm long"),
+                                        (-0.04, "a dip 4 cm deep and 2 cm long")])
+def test_a_short_bump_or_dip_with_level_ground_beyond_is_named_not_called_a_surface(rise,
+                                                                                  what):
+    """A block, a cable, a groove across the way: shorter than a sole, the ground beyond it
+    as high as the feet's.  Longer, it is a surface too short for a sole (a low platform:
+    the test above)."""
+    surfaces = profile(cloud(kerb(0.6, 0.62, rise)), 0.0, -0.1, 2.2)
+    with pytest.raises(GroundError, match=rf"^{what} lies on the walking line 0\.57 m ahead"):
+        place(surfaces, SOLES, 1.0)
+
+
 def test_a_camera_that_reads_the_ground_2_cm_high_places_the_same_footsteps():
     true = place(profile(cloud(kerb(0.6, 1.4, 0.05)), 0.0, -0.1, 2.2), SOLES, 1.8)
     biased = place(profile(cloud(kerb(0.6, 1.4, 0.05)) + [0, 0, 0.02], 0.0, -0.1, 2.2),

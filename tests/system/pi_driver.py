@@ -581,6 +581,10 @@ def terrain() -> None:
     say("DONE")
 
 
+#: The cloud :func:`finer_ground` asks for: 80 x 30 points of the picture's lower half.
+FINER_POINTS = 80 * 30
+
+
 def finer_ground(finer: bool = True) -> None:
     """The cloud the DRC link carries is 40 x 30 points: rows 6 cm apart on the kerb, too
     coarse to place a sole by.  The pilot asks perception for twice the resolution, and only
@@ -612,24 +616,59 @@ def look_down(gaze) -> None:
     wait(lambda: gaze.state == "tracking", 30, "gaze_control looking at the ground")
 
 
+def footsteps_from_the_camera(distance: float, refusal_expected: bool = False):
+    """Click walking's "footsteps from the camera" for ``distance`` m, on a cloud taken after
+    the head and the feet came to rest (saved beside the screenshots, for a look at why):
+    the widget.  A refusal fails, unless expected."""
+    walking = widget("walking")
+    # clouds rendered before perception took the finer ground's settings are still on their
+    # way over the slow link (one arrived 1.3 s after it was taken, 40 x 30 points: its
+    # coarse rows refused the ground as sloping 5 degrees); then one taken while the head
+    # may still have been moving, and a new one
+    for _ in range(2):
+        seen = window.cloud.stamp_ns if window.cloud is not None else 0
+        wait(lambda: window.cloud is not None and window.cloud.stamp_ns > seen and
+             window.cloud.points == FINER_POINTS, 30,
+             f"a new cloud of {FINER_POINTS} points from the head camera")
+    walking.camera_distance.setValue(distance)
+    np.savez(OUT / f"camera-leg-{distance}.npz", xyz=window.cloud.xyz,
+             posture=np.asarray(window.preview.posture, float))
+    click(walking.camera_button, f"footsteps from the camera ({distance} m)",
+          None if refusal_expected else walking)
+    return walking
+
+
 def camera_leg(distance: float) -> None:
     """Footsteps from the camera (walking's widget), then sent: the leg to where the feet
-    next stand together.  The cloud is one taken after the head and the feet came to rest."""
-    walking = widget("walking")
-    for _ in range(2):          # a frame taken while the head was still moving, then a new one
-        seen = window.cloud.stamp_ns if window.cloud is not None else 0
-        wait(lambda: window.cloud is not None and window.cloud.stamp_ns > seen, 30,
-             "a new cloud from the head camera")
-    walking.camera_distance.setValue(distance)
-    np.savez(OUT / f"camera-leg-{distance}.npz", xyz=window.cloud.xyz,   # for a look at why
-             posture=np.asarray(window.preview.posture, float))
-    click(walking.camera_button, f"footsteps from the camera ({distance} m)", walking)
+    next stand together."""
+    walking = footsteps_from_the_camera(distance)
     if not walking.footsteps:
         fail("no footsteps from the camera, and no word why")
     placed = [[round(v, 3) for v in walking.footsteps[name][:3]] for name in walking.ordered()]
     say(f"STEP footsteps from the camera {distance}: {placed}")
     finer_ground(False)
     walk("footsteps")
+
+
+def debris() -> None:
+    """Footsteps from the camera refused (issue 32): at station ``debris`` a 4-cm block lies
+    in the right foot's lane.  The pilot starts walking, bends the head down, asks for the
+    finer ground and clicks: no footstep is placed, walking's warnings say which footstep
+    and why, and nothing is sent."""
+    start_walking()
+    look_down(start_gaze())
+    finer_ground()
+    walking = footsteps_from_the_camera(0.6, refusal_expected=True)
+    wait(lambda: walking.warnings.count() > 0 and
+         "footsteps from the camera" in walking.warnings.item(0).text(), 10,
+         "walking's warning why the camera's footsteps were refused")
+    placed = [name for name in window.view3d.markers if name.startswith("footstep")]
+    if walking.footsteps or placed:
+        fail(f"footsteps placed although refused: {walking.footsteps} {placed}")
+    say(f"STEP refused: {walking.warnings.item(0).text()}")
+    screenshot_of("terrain-camera-refused.png", walking)
+    finer_ground(False)
+    say("DONE")
 
 
 def scene_follows() -> None:
@@ -1021,7 +1060,7 @@ if __name__ == "__main__":
     wait(lambda: window.ros_up, 60, "the PI's ROS node")
     say(f"UP after {window.ready_after:.2f} s")
     {"first": first, "second": second, "latency": latency, "peer": peer,
-     "camera": camera, "wall": wall_task, "terrain": terrain,
+     "camera": camera, "wall": wall_task, "terrain": terrain, "debris": debris,
      "valve": lambda: task_runs("drc_valve", int(sys.argv[3])),
      "task": lambda: task_runs(sys.argv[3], int(sys.argv[4])),
      "tasks": lambda: tasks_in_turn(sys.argv[3:]),

@@ -308,6 +308,40 @@ def test_the_terrain_course_by_clicks_with_footsteps_placed_in_the_3d_view(tmp_p
 @pytest.mark.requires("root")
 @pytest.mark.free_standing
 @pytest.mark.alone
+def test_footsteps_from_the_camera_onto_debris_are_refused_in_the_pi_before_any_is_sent(
+        tmp_path, display, request, emulated_link):
+    """Issue 32, what the strip between the feet does not show, through the PI on the drc
+    topology (the cloud over the emulated DRC link, 80 x 30 points of the picture's lower
+    half) with the harness off: at station ``debris`` a 4-cm block lies in the right foot's
+    lane, its corner on the walking line.  The pilot's click on "footsteps from the camera"
+    places none and walking's widget says what lies where; nothing reaches walking and the
+    robot stands where it was (``docs/terrain-camera-refused.png``)."""
+    with clicked_on_drc(tmp_path, display, request, emulated_link, "walking", "debris",
+                        "--station", "debris", "--harness", "off") as (topology, pi):
+        refused = re.search(r"STEP refused: (.*)", pi.output())
+        assert refused, pi.output()
+        # the block under the right foot's second or third footstep, or (the strip's median
+        # raised by the block's corner) on the walking line between the feet: the camera's
+        # rows fall on the block differently as the robot sways (five looks in a row gave
+        # all three); each names what and where
+        assert re.search(r"not sent: no footsteps from the camera: (footstep \d \(right, "
+                         r"0\.[34]\d m ahead\): \d+% of the ground seen under the sole stands up "
+                         r"to [3-5] cm above where it would land: debris|something [3-5] cm "
+                         r"high and \d cm long lies on the walking line 0\.[34]\d m ahead.*"
+                         r"\(debris\?\))", refused[1]), refused[1]
+        gateway = topology.process("gateway").output()
+        assert re.search(r"gateway: sent to /perception/command:i: \(?set_region\b", gateway)
+        assert not re.search(r"sent to /walking/command:i: \(?footsteps\b", gateway), \
+            gateway[-3000:]
+        base = robot_base(topology)
+        x, y, _ = STATIONS["debris"]
+        assert standing_crouched(base) and math.hypot(base["base_x"] - x,
+                                                      base["base_y"] - y) < 0.03, base
+
+
+@pytest.mark.requires("root")
+@pytest.mark.free_standing
+@pytest.mark.alone
 def test_the_valve_turned_by_clicks_standing_unsupported(tmp_path, display, request,
                                                          emulated_link):
     """Issue 32: an arm task through the PI with the harness off, on the drc topology over

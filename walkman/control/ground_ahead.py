@@ -371,7 +371,7 @@ def _place(surfaces: Sequence[Surface], soles: Dict[str, Pose],
         if x <= mover.x + 0.005:
             if stand.x < min(last, goal) - 0.005 or goal <= stand.x + 0.005:
                 break                                         # side by side at the goal
-            x, index = _across(surfaces, stand)               # together at the edge: over
+            x, index = _across(surfaces, stand, here)         # together at the edge: over
         landing = surfaces[index]
         rise = landing.z(x) - surfaces[mover.surface].z(mover.x)
         if abs(rise) > MAX_RISE + 1e-9:
@@ -384,9 +384,10 @@ def _place(surfaces: Sequence[Surface], soles: Dict[str, Pose],
     return steps, offset
 
 
-def _across(surfaces: Sequence[Surface], stand: _Foot) -> Tuple[float, int]:
+def _across(surfaces: Sequence[Surface], stand: _Foot, here: float) -> Tuple[float, int]:
     """Where the moving foot lands past the edge the standing foot is at: its heel
-    :data:`HEEL_MARGIN` past it and on ground seen, the next surface's first footing."""
+    :data:`HEEL_MARGIN` past it and on ground seen, the next surface's first footing
+    (``here``: where the feet stand now, what a refusal says how far ahead from)."""
     after = stand.surface + 1
     edge = surfaces[stand.surface].end
     if after >= len(surfaces):
@@ -402,7 +403,19 @@ def _across(surfaces: Sequence[Surface], stand: _Foot) -> Tuple[float, int]:
                           f"{landing.start - edge:.2f} m beyond it: a step reaches "
                           f"{CROSS_REACH:.2f} m")
     if x > landing.end - SOLE_HALF_LENGTH - TOE_MARGIN:
-        raise GroundError(f"the surface {landing.start - stand.x:.2f} m ahead is "
+        beyond = surfaces[after + 1] if after + 1 < len(surfaces) else None
+        if landing.end - landing.start < 2 * SOLE_HALF_LENGTH and beyond is not None and \
+                abs(beyond.z(beyond.start) - surfaces[stand.surface].z(edge)) <= JUMP:
+            # shorter than a sole, the ground as high on both sides: a thing lying there
+            rise = landing.z((landing.start + landing.end) / 2) - surfaces[stand.surface].z(edge)
+            what, guess = (f"something {rise * 100:.0f} cm high", "debris?") if rise > 0 \
+                else (f"a dip {-rise * 100:.0f} cm deep", "a groove?")
+            raise GroundError(f"{what} and {(landing.end - landing.start) * 100:.0f} cm long "
+                              f"lies on the walking line {landing.start - here:.2f} m "
+                              f"ahead, the ground beyond it level with the feet's ({guess}): "
+                              f"footsteps from the camera do not step over it; place the "
+                              f"footsteps by hand")
+        raise GroundError(f"the surface {landing.start - here:.2f} m ahead is "
                           f"{landing.end - landing.start:.2f} m long: too short for a sole "
                           f"and its margins")
     return x, after
