@@ -156,26 +156,42 @@ def test_the_pis_look_from_the_kerbs_top_places_the_steps_down_its_far_side():
 
 def test_the_pis_look_at_the_debris_lane_is_refused_naming_what_lies_in_the_way():
     """Station ``debris`` through the PI: a block of the lane lies across the walking line
-    between the feet, 0.37 m ahead.  The strip's profile sees it as a 2-cm surface 4 cm up
+    between the feet, 0.37 m ahead.  The strip's profile sees it as a 2-cm surface 3-4 cm up
     with the floor on both sides -- not ground to stand on, not an edge to climb: refused as
     something lying there, with its size and where."""
     points, soles = pi_look("pi-look-at-debris.npz")
     for distance in (0.3, 1.0):
-        with pytest.raises(GroundError, match=r"^something [3-5] cm high and [1-4] cm long lies "
-                                              r"on the walking line 0\.3\d m ahead.*\(debris\?\)"):
+        with pytest.raises(GroundError, match=r"^something [34] cm high and 2 cm long lies on "
+                                              r"the walking line 0\.37 m ahead.*\(debris\?\)"):
             footsteps_from_cloud(points, soles, distance)
 
 
-@pytest.mark.parametrize("rise, what", [(0.04, "something 4 cm high and 2 cm long"),
-                                        (-0.04, "a dip 4 cm deep and 2 cm long")])
-def test_a_short_bump_or_dip_with_level_ground_beyond_is_named_not_called_a_surface(rise,
+@pytest.mark.parametrize("ground, what", [
+    (kerb(0.6, 0.62, 0.04), "something 4 cm high and 2 cm long lies on the walking line 0.57 m"),
+    (kerb(0.6, 0.62, -0.04), "a dip 4 cm deep and 2 cm long lies on the walking line 0.57 m"),
+    # the ground beyond 2 cm higher than the feet's: a short surface between two edges
+    (lambda x: FLOOR + (0.05 if 0.6 <= x < 0.7 else 0.02 if x >= 0.7 else 0.0),
+     "the surface 0.57 m ahead is 0.10 m long: too short for a sole"),
+])
+def test_a_short_bump_or_dip_with_level_ground_beyond_is_named_not_called_a_surface(ground,
                                                                                   what):
     """A block, a cable, a groove across the way: shorter than a sole, the ground beyond it
-    as high as the feet's.  Longer, it is a surface too short for a sole (a low platform:
-    the test above)."""
-    surfaces = profile(cloud(kerb(0.6, 0.62, rise)), 0.0, -0.1, 2.2)
-    with pytest.raises(GroundError, match=rf"^{what} lies on the walking line 0\.57 m ahead"):
-        place(surfaces, SOLES, 1.0)
+    as high as the feet's.  With ground at another height beyond, or longer than a sole (a
+    low platform: ``test_what_cannot_be_walked_is_refused_with_where``), it is a surface too
+    short for a sole."""
+    with pytest.raises(GroundError, match="^" + re.escape(what)):
+        place(profile(cloud(ground), 0.0, -0.1, 2.2), SOLES, 1.0)
+
+
+def test_a_patch_of_floor_seen_between_two_stretches_not_seen_is_no_dip():
+    """The floor seen only in a 4-cm patch (the stretches before and after it not seen): the
+    patch is no lower than the feet's ground -- not named as something lying there."""
+    points = cloud(lambda x: FLOOR)
+    points = points[((points[:, 0] < 0.58) | (points[:, 0] >= 0.66)) &
+                    ((points[:, 0] < 0.70) | (points[:, 0] >= 0.78))]
+    with pytest.raises(GroundError) as refused:
+        place(profile(points, 0.0, -0.1, 2.2), SOLES, 1.0)
+    assert "a dip" not in str(refused.value) and "something" not in str(refused.value)
 
 
 def test_a_camera_that_reads_the_ground_2_cm_high_places_the_same_footsteps():

@@ -38,7 +38,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Callable, Dict, List, Optional, Sequence
+from typing import Any, Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 from python_qt_binding.QtCore import Qt
@@ -616,7 +616,7 @@ def look_down(gaze) -> None:
     wait(lambda: gaze.state == "tracking", 30, "gaze_control looking at the ground")
 
 
-def footsteps_from_the_camera(distance: float, refusal_expected: bool = False):
+def footsteps_from_the_camera(distance: float, refusal_expected: bool = False) -> Any:
     """Click walking's "footsteps from the camera" for ``distance`` m, on a cloud taken after
     the head and the feet came to rest (saved beside the screenshots, for a look at why):
     the widget.  A refusal fails, unless expected."""
@@ -659,7 +659,7 @@ def debris() -> None:
     look_down(start_gaze())
     finer_ground()
     walking = footsteps_from_the_camera(0.6, refusal_expected=True)
-    wait(lambda: walking.warnings.count() > 0 and
+    wait(lambda: walking.footsteps or walking.warnings.count() > 0 and
          "footsteps from the camera" in walking.warnings.item(0).text(), 10,
          "walking's warning why the camera's footsteps were refused")
     placed = [name for name in window.view3d.markers if name.startswith("footstep")]

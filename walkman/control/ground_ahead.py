@@ -389,35 +389,36 @@ def _across(surfaces: Sequence[Surface], stand: _Foot, here: float) -> Tuple[flo
     :data:`HEEL_MARGIN` past it and on ground seen, the next surface's first footing
     (``here``: where the feet stand now, what a refusal says how far ahead from)."""
     after = stand.surface + 1
-    edge = surfaces[stand.surface].end
+    standing = surfaces[stand.surface]
+    edge = standing.end
     if after >= len(surfaces):
-        raise GroundError(f"no ground seen beyond {edge - stand.x + SOLE_HALF_LENGTH:.2f} m "
-                          f"ahead of the feet: the footsteps end at the edge")
+        raise GroundError(f"no ground seen beyond {edge - here:.2f} m ahead of the feet: the "
+                          f"footsteps end at the edge")
     landing = surfaces[after]
     # the heel on ground seen, and 4 cm past the edge, which lies in the bin after the
     # standing surface's seen end (a drop's shadow, ground the kerb hides from the camera,
     # may already put the first ground seen further)
     x = max(landing.start, edge + BIN + HEEL_MARGIN) + SOLE_HALF_LENGTH
     if x - stand.x > CROSS_REACH:
-        raise GroundError(f"the ground past the edge {edge - stand.x:.2f} m ahead begins "
+        raise GroundError(f"the ground past the edge {edge - here:.2f} m ahead begins "
                           f"{landing.start - edge:.2f} m beyond it: a step reaches "
                           f"{CROSS_REACH:.2f} m")
     if x > landing.end - SOLE_HALF_LENGTH - TOE_MARGIN:
+        length = landing.end - landing.start
+        middle = (landing.start + landing.end) / 2
+        rise = landing.z(middle) - standing.z(middle)       # over the feet's ground, continued
         beyond = surfaces[after + 1] if after + 1 < len(surfaces) else None
-        if landing.end - landing.start < 2 * SOLE_HALF_LENGTH and beyond is not None and \
-                abs(beyond.z(beyond.start) - surfaces[stand.surface].z(edge)) <= JUMP:
-            # shorter than a sole, the ground as high on both sides: a thing lying there
-            rise = landing.z((landing.start + landing.end) / 2) - surfaces[stand.surface].z(edge)
+        if length < 2 * SOLE_HALF_LENGTH and abs(rise) > JUMP and beyond is not None and \
+                abs(beyond.z(beyond.start) - standing.z(beyond.start)) <= JUMP:
+            # shorter than a sole, the feet's ground going on beyond it: a thing lying there
             what, guess = (f"something {rise * 100:.0f} cm high", "debris?") if rise > 0 \
                 else (f"a dip {-rise * 100:.0f} cm deep", "a groove?")
-            raise GroundError(f"{what} and {(landing.end - landing.start) * 100:.0f} cm long "
-                              f"lies on the walking line {landing.start - here:.2f} m "
-                              f"ahead, the ground beyond it level with the feet's ({guess}): "
-                              f"footsteps from the camera do not step over it; place the "
-                              f"footsteps by hand")
-        raise GroundError(f"the surface {landing.start - here:.2f} m ahead is "
-                          f"{landing.end - landing.start:.2f} m long: too short for a sole "
-                          f"and its margins")
+            raise GroundError(f"{what} and {length * 100:.0f} cm long lies on the walking "
+                              f"line {landing.start - here:.2f} m ahead, the ground beyond it "
+                              f"level with the feet's ({guess}): footsteps from the camera do "
+                              f"not step over it; place the footsteps by hand")
+        raise GroundError(f"the surface {landing.start - here:.2f} m ahead is {length:.2f} m "
+                          f"long: too short for a sole and its margins")
     return x, after
 
 
