@@ -363,26 +363,12 @@ class PilotWindow(QMainWindow):
         return self._kinematics
 
     def footsteps_from_camera(self, distance: float) -> Tuple[List[Tuple[float, ...]], str]:
-        """Footsteps ``distance`` m ahead, placed on what the head camera's last cloud shows
-        (:func:`walkman.control.ground_ahead.footsteps_from_cloud`): the cloud taken to the
-        pelvis frame by the robot's last joint state, as ``/tf`` would; ([], why) if not."""
-        from walkman.control.ground_ahead import GroundError, footsteps_from_cloud
-        from walkman.head_camera import FRAME, optical_to
+        """Footsteps ``distance`` m ahead, placed on what the head camera's last cloud shows,
+        by the robot's last joint state (:mod:`pilot.camera_footsteps`); ([], why) if not."""
+        from pilot.camera_footsteps import footsteps_from_camera
 
-        soles = self.soles()
-        if soles is None:
-            return [], "the feet's posture is not known yet (no joint state from the robot)"
-        cloud = self.cloud
-        if cloud is None or cloud.xyz is None:
-            return [], "no point cloud from the head camera yet (is perception running?)"
-        if cloud.frame not in ("", FRAME):
-            return [], f"the cloud is in {cloud.frame}, not {FRAME}"
-        points = optical_to(cloud.xyz, *self.kinematics().pose(self.preview.posture,
-                                                               "multisense_frame"))
-        try:
-            return footsteps_from_cloud(points, soles, distance), ""
-        except GroundError as exc:
-            return [], f"no footsteps from the camera: {exc}"
+        return footsteps_from_camera(self.cloud, self.preview.posture, self.kinematics(),
+                                     distance, time.time())
 
     def _state_of(self, module: str) -> Optional[str]:
         return next((w.state for w in self.module_widgets.get(module, [])
