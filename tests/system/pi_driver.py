@@ -659,17 +659,19 @@ def debris() -> None:
     look_down(start_gaze())
     finer_ground()
     walking = footsteps_from_the_camera(0.6, refusal_expected=True)
+
+    def shown() -> List[str]:
+        return [walking.warnings.item(k).text() for k in range(walking.warnings.count())]
+
     def refusal() -> str:
         """walking's warning why (a warning the robot sent since may stand above it)."""
-        shown = [walking.warnings.item(k).text() for k in range(walking.warnings.count())]
-        return next((text for text in shown if "no footsteps from the camera" in text), "")
+        return next((text for text in shown() if "no footsteps from the camera" in text), "")
 
     try:
         wait(lambda: walking.footsteps or refusal(), 10,
              "walking's warning why the camera's footsteps were refused")
     finally:
-        say("WARNINGS " + " | ".join(walking.warnings.item(k).text()
-                                     for k in range(walking.warnings.count())))
+        say("WARNINGS " + " | ".join(shown()))
     placed = [name for name in window.view3d.markers if name.startswith("footstep")]
     if walking.footsteps or placed:
         fail(f"footsteps placed although refused: {walking.footsteps} {placed}")
