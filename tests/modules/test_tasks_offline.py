@@ -16,6 +16,7 @@ from walkman.hal.sim import SimBackend
 from walkman.model.mjcf import PILOT_POSES
 from walkman.model.mjcf import DRILL_GRIP, PLUG_HALF, PLUG_SOCKETS, PLUG_TABLE_TOP, SOCKET_INNER
 from walkman.modules import drc_door, drc_drive, drc_plug, drc_valve, drc_wall, task
+from tests.modules.walker import free_body
 
 WHEEL, DOOR, VALVE = PILOT_POSES["car"], PILOT_POSES["door"], PILOT_POSES["valve"]
 
@@ -218,12 +219,6 @@ def test_the_valve_hand_backs_off_to_the_reach_depth_only_as_far_as_needed():
     assert np.linalg.norm(grip - reach) < 0.02
 
 
-def plug_position(world) -> np.ndarray:
-    plant = world.backend.plant
-    adr = plant.m.joint("plug").qposadr[0]
-    return np.array(plant.d.qpos[adr:adr + 3])
-
-
 def test_the_plug_is_pulled_moved_and_seated_in_the_other_socket():
     """The surprise task on simulated time: the plug stands in socket b at the end, and an
     insert before the plug is over a socket is refused without a motion."""
@@ -232,7 +227,7 @@ def test_the_plug_is_pulled_moved_and_seated_in_the_other_socket():
     for command, state in (("reach", "reached"), ("approach", "approached"),
                            ("grasp", "grasped"), ("pull", "pulled")):
         module.do(command, state)
-    assert plug_position(world)[2] > PLUG_TABLE_TOP + PLUG_HALF[2] + 0.07
+    assert free_body(world, "plug")[:3][2] > PLUG_TABLE_TOP + PLUG_HALF[2] + 0.07
     module.command("insert")                       # not over a socket yet: refused
     world.step(0.1)
     assert module.state == "pulled" and any("insert" in w for w in module.warnings)
@@ -240,17 +235,10 @@ def test_the_plug_is_pulled_moved_and_seated_in_the_other_socket():
                            ("ungrasp", "ungrasped"), ("move_away", "moved_away")):
         module.do(command, state)
     world.step(0.5)
-    x, y, z = plug_position(world)
+    x, y, z = free_body(world, "plug")[:3]
     assert np.hypot(x - PLUG_SOCKETS["b"][0], y - PLUG_SOCKETS["b"][1]) < \
         SOCKET_INNER - PLUG_HALF[0] + 0.002                 # inside its walls
     assert z == pytest.approx(PLUG_TABLE_TOP + PLUG_HALF[2], abs=0.01)
-
-
-def free_body(world, joint: str) -> np.ndarray:
-    """A free body's position and orientation (x y z, qw qx qy qz) in the world."""
-    plant = world.backend.plant
-    adr = plant.m.joint(joint).qposadr[0]
-    return np.array(plant.d.qpos[adr:adr + 7])
 
 
 def test_the_drill_cuts_the_circle_out_of_the_wall_and_goes_back_on_its_table():

@@ -5,7 +5,8 @@ the free-floating base upright all the way; pause and stop finish the step and s
 standing is survived, a larger one is warned about before the robot falls; bad walks are
 refused.  As processes (HAL, module, pilot over YARP): a metre walked with a pause on the way,
 a turn and a side step, pushes through the HAL's rpc port (one survived, one toppling that is
-warned about first), the paper's door sequence and the valve turned, standing unsupported."""
+warned about first), the paper's door sequence and the valve turned, standing unsupported;
+offline, the wall and plug tasks standing unsupported with walking paused."""
 
 import logging
 import math
@@ -18,13 +19,15 @@ import pytest
 
 from harness import wait_until
 from tests.modules.walker import (LOWEST_PELVIS, MAX_TILT, both_feet_loaded, camera_cloud,
-                                  cloud_in_pelvis_frame, footsteps, ramp_course,
-                                  ramp_down_course,
+                                  cloud_in_pelvis_frame, footsteps, free_body, ramp_course,
+                                  ramp_down_course, seen_from_the_crouched_pelvis,
                                   sole_heights, soles_in_pelvis_frame, terrain_course, tilt,
                                   upright, walk_through, walker)
+from walkman.control.balance import SAFE_MARGIN
 from walkman.control.ground_ahead import GroundError, first_leg, footsteps_from_cloud
-from walkman.model.mjcf import TERRAIN_RAMP, TERRAIN_STEP
-from walkman.modules import walking
+from walkman.model.mjcf import (DRILL_GRIP, PILOT_POSES, PLUG_HALF, PLUG_SOCKETS,
+                                PLUG_TABLE_TOP, SOCKET_INNER, TERRAIN_RAMP, TERRAIN_STEP)
+from walkman.modules import drc_plug, drc_wall, walking
 from yarp_lite.bottle import Bottle
 from yarp_lite.rpc import RpcClient
 
@@ -423,6 +426,39 @@ def test_a_step_the_legs_cannot_make_is_refused_with_a_warning_before_a_foot_lif
         assert module.state == "idle" and warning in module.warnings[-1], module.warnings
     assert np.abs(world.backend.positions() - before).max() < 0.01
     assert both_feet_loaded(world.backend)
+
+
+@pytest.mark.parametrize("task", ["wall", "plug"])
+def test_the_wall_and_plug_tasks_standing_unsupported_with_walking_paused(task):
+    """Issue 32: walking paused balances the legs while drc_wall (or drc_plug) has the waist
+    and the arms, the harness off.  The pose is what the perception pilot places for the
+    crouched robot: the README's, given from the pelvis standing in the harness, puts the
+    hand 9 cm low -- into the table (the robot pushed back to its heels, 0.5 cm from the
+    feet's edge) -- and the circle 9 cm below the wall's (26 degrees cut, 10.8 cm off)."""
+    world, walk = walker(task)
+    walk.switch("pause")
+    world.step(0.5)
+    module = world.add({"wall": drc_wall.Module, "plug": drc_plug.Module}[task], f"drc_{task}")
+    assert module.switch("start")
+    world.step(0.05)
+    x, y, z, _ = world.backend.plant.base_pose()
+    pose = seen_from_the_crouched_pelvis(task, x, y, z)
+    command = PILOT_POSES[task].split()[0]
+    module.do(f"{command} " + " ".join(f"{v:.3f}" for v in pose), "ready", 1)
+    steps = drc_wall.TASK_STEPS if task == "wall" else drc_plug.TASK_STEPS
+    for step, state in steps:
+        module.do(step, state, 40)
+        assert upright(world.backend) and walk.thread.margin > SAFE_MARGIN, step
+    assert not any("balance" in warning for warning in walk.warnings), walk.warnings
+    if task == "wall":
+        drywall = world.backend.plant.drywall
+        assert drywall.cut_out and drywall.largest_miss < 0.015, drywall.summary()
+        assert free_body(world, "drill")[:3] == pytest.approx(DRILL_GRIP, abs=0.01)
+    else:
+        x, y, z = free_body(world, "plug")[:3]
+        assert math.hypot(x - PLUG_SOCKETS["b"][0], y - PLUG_SOCKETS["b"][1]) < \
+            SOCKET_INNER - PLUG_HALF[0] + 0.002                 # inside its walls
+        assert z == pytest.approx(PLUG_TABLE_TOP + PLUG_HALF[2], abs=0.01)
 
 
 # -- as processes --------------------------------------------------------------------------

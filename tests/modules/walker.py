@@ -17,7 +17,7 @@ import numpy as np
 from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import SimBackend
 from walkman.model.description import STANDING_PELVIS_HEIGHT
-from walkman.model.mjcf import TERRAIN_COURSE, TERRAIN_RAMP
+from walkman.model.mjcf import PILOT_POSES, STATIONS, TERRAIN_COURSE, TERRAIN_RAMP
 from walkman.modules import walking
 
 #: The pelvis walks CROUCH below its standing height; lower than this (m) it has fallen.
@@ -34,6 +34,13 @@ def walker(station: str = "yard") -> Tuple[OfflineWorld, OfflineModule]:
     module.switch("start")
     world.step(walking.CROUCH_TIME + 0.5)
     return world, module
+
+
+def free_body(world: OfflineWorld, joint: str) -> np.ndarray:
+    """A free body's position and orientation (x y z, qw qx qy qz) in the world."""
+    plant = world.backend.plant
+    adr = plant.m.joint(joint).qposadr[0]
+    return np.array(plant.d.qpos[adr:adr + 7])
 
 
 def tilt(backend) -> float:
@@ -85,6 +92,21 @@ def soles_in_pelvis_frame(backend) -> Tuple[np.ndarray, np.ndarray]:
         soles.append(np.array([x, y, z, math.atan2(r[2, 1], r[2, 2]), -math.asin(r[2, 0]),
                                math.atan2(r[1, 0], r[0, 0])]))
     return soles[0], soles[1]
+
+
+def seen_from_the_crouched_pelvis(task: str, x: float, y: float, z: float) -> List[float]:
+    """The README's pose numbers for ``task`` (given from the pelvis standing at the
+    station, the harness holding it) moved by where the pelvis is now (``x y z`` in the
+    world, the robot facing as the station does): what the perception pilot places for a
+    robot that walking crouched.  Every point moves -- the object's, and the wall's circle
+    centre (walldatasent's CX CY CZ); plugdatasent's DX DY is an offset and stays."""
+    numbers = [float(word) for word in PILOT_POSES[task].split()[1:]]
+    station_x, station_y, _ = STATIONS[task]
+    shift = (station_x - x, station_y - y, STANDING_PELVIS_HEIGHT - z)
+    for first in (0, 6) if task == "wall" else (0,):
+        for axis, amount in enumerate(shift):
+            numbers[first + axis] += amount
+    return numbers
 
 
 def footsteps(*soles: Sequence[float]) -> str:

@@ -30,9 +30,10 @@ from system.display import display_env, private_display
 from system.processes import ROSCORE_READY, Proc
 from system.topology import REPO, Pc, Topology, hal_component, task_component
 from walkman.model.description import STANDING_PELVIS_HEIGHT
-from walkman.model.mjcf import (PILOT_POSES, PLUG_HALF, PLUG_SOCKETS, PLUG_TABLE_TOP,
-                                 SOCKET_INNER, STATIONS, TERRAIN_STEP)
+from walkman.model.mjcf import (DRILL_GRIP, PILOT_POSES, PLUG_HALF, PLUG_SOCKETS,
+                                 PLUG_TABLE_TOP, SOCKET_INNER, STATIONS, TERRAIN_STEP)
 from walkman.modules.walking import CROUCH
+from tests.modules.walker import seen_from_the_crouched_pelvis
 from tests.system.conftest import dump_outputs_if_failed
 
 PYTHON = sys.executable
@@ -228,12 +229,7 @@ def test_drive_door_and_plug_by_clicks_in_one_session_as_the_readme_walks_throug
                 door = scene(topology, "door")["door"][0]
                 assert math.degrees(door) > 30, door
             elif module == "drc_plug":
-                x, y, z, upright = scene(topology, "plug")["plug"]
-                inside = SOCKET_INNER - PLUG_HALF[0] + 0.002    # its walls leave this play
-                assert math.hypot(x - PLUG_SOCKETS["b"][0], y - PLUG_SOCKETS["b"][1]) < \
-                    inside, (x, y)
-                assert z == pytest.approx(PLUG_TABLE_TOP + PLUG_HALF[2], abs=0.01), z
-                assert upright > math.cos(math.radians(10)), upright
+                plug_in_the_other_socket(topology)
             else:           # pressing the throttle and letting go did not turn it
                 end = scene(topology, "steering")["steering"][0] - steering
                 assert end == pytest.approx(turned, abs=0.1), \
@@ -340,38 +336,69 @@ def test_footsteps_from_the_camera_onto_debris_are_refused_in_the_pi_before_any_
                                                       base["base_y"] - y) < 0.03, base
 
 
+def valve_turned_a_quarter(topology: Topology, before: float) -> None:
+    turned = valve_angle(topology) - before
+    assert math.isclose(turned, math.pi / 2, rel_tol=0.15), turned
+
+
+def circle_cut_and_drill_back(topology: Topology, before: float) -> None:
+    """The HAL's drywall says the circle is cut out; the drill stands on its table again."""
+    world = topology.process("hal")
+    cut = world.wait_for(r"drywall: the circle is cut out \(360 degrees, largest miss "
+                         r"([\d.]+) cm\)", 10)
+    assert float(cut.group(1)) < 1.5, cut.group(0)
+    x, y, z, upright = scene(topology, "drill")["drill"]
+    assert math.dist((x, y, z), DRILL_GRIP) < 0.01, (x, y, z)
+    assert upright > math.cos(math.radians(5)), upright
+
+
+def plug_in_the_other_socket(topology: Topology, before: float = 0.0) -> None:
+    x, y, z, upright = scene(topology, "plug")["plug"]
+    inside = SOCKET_INNER - PLUG_HALF[0] + 0.002    # its walls leave this play
+    assert math.hypot(x - PLUG_SOCKETS["b"][0], y - PLUG_SOCKETS["b"][1]) < inside, (x, y)
+    assert z == pytest.approx(PLUG_TABLE_TOP + PLUG_HALF[2], abs=0.01), z
+    assert upright > math.cos(math.radians(10)), upright
+
+
+#: Each arm task standing unsupported: the timed command that does the work (it must have
+#: crossed the gateway from the PI), and what the world must say after (given the valve's
+#: angle before).
+UNSUPPORTED_TASKS = {"valve": ("turn", valve_turned_a_quarter),
+                     "wall": ("cut", circle_cut_and_drill_back),
+                     "plug": ("insert", plug_in_the_other_socket)}
+
+
 @pytest.mark.requires("root")
 @pytest.mark.free_standing
 @pytest.mark.alone
-def test_the_valve_turned_by_clicks_standing_unsupported(tmp_path, display, request,
-                                                         emulated_link):
-    """Issue 32: an arm task through the PI with the harness off, on the drc topology over
+@pytest.mark.parametrize("task", list(UNSUPPORTED_TASKS))
+def test_an_arm_task_by_clicks_standing_unsupported(task, tmp_path, display, request,
+                                                    emulated_link):
+    """Issue 32: each arm task through the PI with the harness off, on the drc topology over
     the emulated DRC link.  Walking is started and paused from its widget -- it balances
-    the legs -- and drc_valve's steps are clicked: the world says the valve turned a
-    quarter and the robot stood upright throughout (the HAL's free base, read after)."""
-    with pi_on_drc(tmp_path, display, request, emulated_link, ["walking", "drc_valve"],
-                   "unsupported", "--station", "valve", "--harness", "off",
-                   args=["drc_valve"], unused=("perception",)) as (topology, pi):
-        before = valve_angle(topology)
+    the legs -- and the task's steps are clicked: the world says the task is done (the
+    valve turned a quarter; the circle cut out of the drywall and the drill back on its
+    table; the plug in the other socket) and the robot stood upright throughout (the HAL's
+    free base, read after)."""
+    module = f"drc_{task}"
+    work, done = UNSUPPORTED_TASKS[task]
+    with pi_on_drc(tmp_path, display, request, emulated_link, ["walking", module],
+                   "unsupported", "--station", task, "--harness", "off",
+                   args=[module], unused=("perception",)) as (topology, pi):
+        before = valve_angle(topology) if task == "valve" else 0.0
         pi.wait_for(r"STEP walking balancing, paused|FAIL", 300)
         assert "FAIL" not in pi.output(), pi.output()
-        # the valve where the crouched robot sees it, what the perception pilot would place:
-        # the README's pose (from the pelvis standing at the station) moved by where the
-        # pelvis is now
         base = robot_base(topology)
         assert standing_crouched(base), base
-        numbers = [float(word) for word in PILOT_POSES["valve"].split()[1:]]
-        x, y, _ = STATIONS["valve"]
-        moved = [numbers[0] + x - base["base_x"], numbers[1] + y - base["base_y"],
-                 numbers[2] + STANDING_PELVIS_HEIGHT - base["base_z"], *numbers[3:]]
-        pi.send("pose " + " ".join(f"{v:.3f}" for v in moved) + "\n")
+        pose = seen_from_the_crouched_pelvis(task, base["base_x"], base["base_y"],
+                                             base["base_z"])
+        pi.send("pose " + " ".join(f"{v:.3f}" for v in pose) + "\n")
         pi.wait_for(r"DONE|FAIL", 600)
         assert "FAIL" not in pi.output(), pi.output()
-        turned = valve_angle(topology) - before
-        assert math.isclose(turned, math.pi / 2, rel_tol=0.15), turned
+        done(topology, before)
         assert standing_crouched(robot_base(topology)), robot_base(topology)
         gateway = topology.process("gateway").output()
-        assert re.search(r"gateway: sent to /drc_valve/command:i: \(?turn\b", gateway), \
+        assert re.search(rf"gateway: sent to /{module}/command:i: \(?{work}\b", gateway), \
             gateway[-3000:]
 
 
