@@ -6,7 +6,7 @@ standing is survived, a larger one is warned about before the robot falls; bad w
 refused.  As processes (HAL, module, pilot over YARP): a metre walked with a pause on the way,
 a turn and a side step, pushes through the HAL's rpc port (one survived, one toppling that is
 warned about first), the paper's door sequence and the valve turned, standing unsupported;
-offline, the wall and plug tasks standing unsupported with walking paused."""
+offline, the door, wall and plug tasks standing unsupported with walking paused."""
 
 import logging
 import math
@@ -27,7 +27,7 @@ from walkman.control.balance import SAFE_MARGIN
 from walkman.control.ground_ahead import GroundError, first_leg, footsteps_from_cloud
 from walkman.model.mjcf import (DRILL_GRIP, PILOT_POSES, PLUG_HALF, PLUG_SOCKETS,
                                 PLUG_TABLE_TOP, SOCKET_INNER, TERRAIN_RAMP, TERRAIN_STEP)
-from walkman.modules import drc_plug, drc_wall, walking
+from walkman.modules import drc_door, drc_plug, drc_wall, walking
 from yarp_lite.bottle import Bottle
 from yarp_lite.rpc import RpcClient
 
@@ -428,29 +428,33 @@ def test_a_step_the_legs_cannot_make_is_refused_with_a_warning_before_a_foot_lif
     assert both_feet_loaded(world.backend)
 
 
-@pytest.mark.parametrize("task", ["wall", "plug"])
-def test_the_wall_and_plug_tasks_standing_unsupported_with_walking_paused(task):
-    """Issue 32: walking paused balances the legs while drc_wall (or drc_plug) has the waist
-    and the arms, the harness off.  The pose is what the perception pilot places for the
-    crouched robot: the README's, given from the pelvis standing in the harness, puts the
-    hand 9 cm low -- into the table (the robot pushed back to its heels, 0.5 cm from the
-    feet's edge) -- and the circle 9 cm below the wall's (26 degrees cut, 10.8 cm off)."""
+@pytest.mark.parametrize("task", ["door", "wall", "plug"])
+def test_the_door_wall_and_plug_tasks_standing_unsupported_with_walking_paused(task):
+    """Issue 32: walking paused balances the legs while drc_door (drc_wall, drc_plug) has
+    the waist and the arms, the harness off.  The pose is what the perception pilot places
+    for the crouched robot: the README's, given from the pelvis standing in the harness,
+    puts the hand 9 cm low -- into the plug's table (the robot pushed back onto its heels,
+    0.5 cm from the feet's edge) -- and the circle 9 cm below the wall's (26 degrees cut,
+    10.8 cm off)."""
     world, walk = walker(task)
     walk.switch("pause")
     world.step(0.5)
-    module = world.add({"wall": drc_wall.Module, "plug": drc_plug.Module}[task], f"drc_{task}")
+    tasks = {"door": drc_door, "wall": drc_wall, "plug": drc_plug}
+    module = world.add(tasks[task].Module, f"drc_{task}")
     assert module.switch("start")
     world.step(0.05)
     x, y, z, _ = world.backend.plant.base_pose()
     pose = seen_from_the_crouched_pelvis(task, x, y, z)
     command = PILOT_POSES[task].split()[0]
     module.do(f"{command} " + " ".join(f"{v:.3f}" for v in pose), "ready", 1)
-    steps = drc_wall.TASK_STEPS if task == "wall" else drc_plug.TASK_STEPS
-    for step, state in steps:
+    for step, state in tasks[task].TASK_STEPS:
         module.do(step, state, 40)
         assert upright(world.backend) and walk.thread.margin > SAFE_MARGIN, step
     assert not any("balance" in warning for warning in walk.warnings), walk.warnings
-    if task == "wall":
+    if task == "door":
+        plant = world.backend.plant
+        assert math.degrees(plant.d.qpos[plant.m.joint("door").qposadr[0]]) > 30
+    elif task == "wall":
         drywall = world.backend.plant.drywall
         assert drywall.cut_out and drywall.largest_miss < 0.015, drywall.summary()
         assert free_body(world, "drill")[:3] == pytest.approx(DRILL_GRIP, abs=0.01)

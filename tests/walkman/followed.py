@@ -1,6 +1,8 @@
 """A task module on the simulated robot and its preview shadow, given the same commands
 (tests/walkman/test_preview.py, tests/pilot/test_preview_gate.py)."""
 
+from typing import Optional
+
 import numpy as np
 
 from walkman.gym.offline import OfflineWorld
@@ -11,8 +13,10 @@ from walkman.hal.sim import SimBackend
 class Followed:
     """A module on the simulated robot and its shadow, given the same commands."""
 
-    def __init__(self, station: str, module_class, name: str) -> None:
-        self.world = OfflineWorld(SimBackend(station=station))
+    def __init__(self, station: str, module_class, name: str,
+                 world: Optional[OfflineWorld] = None) -> None:
+        """At ``station`` in the harness, or in ``world`` (a robot standing as it is there)."""
+        self.world = world or OfflineWorld(SimBackend(station=station))
         self.module = self.world.add(module_class, name)
         assert self.module.switch("start")
         self.world.step(0.05)

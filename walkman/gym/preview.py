@@ -17,12 +17,14 @@ decision is the module's own code and IK.
   refusal, said before anything leaves.  Otherwise the motion it started is
   followed to its end: each Cartesian motion is solved by the module's IK at
   ``PATH_SAMPLES`` points along it, each on from the last one's posture, as the
-  module's loop tracks it (no random restarts); joint motions and hand goals
-  are taken as they are, and chained motions (``then``) one after the other.
-  A point the IK cannot reach within 1 cm refuses the command, saying where --
-  but for a contact motion (a foot pressing a pedal: its goal lies inside what
-  it pushes), which the module ends with its trajectory wherever it stopped.  The shadow is put back as it
-  was afterwards: a preview never changes what a later one computes.
+  module's loop tracks it; joint motions and hand goals are taken as they
+  are, and chained motions (``then``) one after the other.  A point the IK
+  cannot reach within 1 cm from there is solved again from seeded restarts (a
+  local minimum of the tracking posture is not "out of reach"); one that still
+  misses refuses the command, saying where -- but for a contact motion (a foot
+  pressing a pedal: its goal lies inside what it pushes), which the module ends
+  with its trajectory wherever it stopped.  The shadow is put back as it was
+  afterwards: a preview never changes what a later one computes.
 
 The result is a posture for the whole body: the 3-D view draws it as a ghost
 while the timed button counts down.  A shadow that started after the part's
@@ -51,9 +53,17 @@ log = logging.getLogger("walkman.preview")
 MAX_PHASES = 16          # chained motions followed before the preview gives up
 PATH_SAMPLES = 12        # points of a Cartesian motion solved on the way to its end
 #: IK iterations per point: the module's loop gives the stretch between two points many
-#: ticks of 20 (walkman.modules.task), the preview two ticks' worth, so a refusal
-#: costs tens of milliseconds, not the solver's full 200 iterations.
+#: ticks of 20 (walkman.modules.task), the preview two ticks' worth, so a preview costs
+#: milliseconds.
 SAMPLE_ITERATIONS = 40
+#: A point those leave more than 1 cm off is solved again with the solver's whole budget and
+#: this many seeded restarts before it is called out of reach, the path going on from there:
+#: from the tracking posture alone, a robot crouched at the door (walking paused, the
+#: harness off) had its turn and open refused 1.1-1.7 cm short -- a local minimum of the
+#: first samples, carried along -- where the module's loop opened the door 53 degrees (one
+#: restart was not enough there, two were).  A refusal costs more for it (bench_preview.py:
+#: the valve's 3/4 turn refused in 39 ms, 3 ms before); a path within reach costs nothing.
+REACH_RESTARTS = 4
 
 
 class KinematicBackend(Backend):
@@ -237,10 +247,15 @@ class Shadow:
         for sample in samples:
             position, rotation = trajectory.at(
                 trajectory.t0 + trajectory.duration * sample / PATH_SAMPLES)
-            result = thread.ik.solve(effector.frame, position,
-                                     rotation if thread.full_pose else None, q,
-                                     effector.joints, offset=effector.offset, restarts=0,
-                                     rest=thread.rest, max_iterations=SAMPLE_ITERATIONS)
+            target = rotation if thread.full_pose else None
+            result = thread.ik.solve(effector.frame, position, target, q, effector.joints,
+                                     offset=effector.offset, restarts=0, rest=thread.rest,
+                                     max_iterations=SAMPLE_ITERATIONS)
+            if not thread.contact and result.position_error > ACTION_TOLERANCE:
+                # out of reach, or only a local minimum of the tracking posture?
+                result = thread.ik.solve(effector.frame, position, target, q,
+                                         effector.joints, offset=effector.offset,
+                                         restarts=REACH_RESTARTS, rest=thread.rest)
             q[moved] = result.q[moved]
             if not thread.contact and result.position_error > ACTION_TOLERANCE:
                 where = "at the end" if sample == PATH_SAMPLES else \
