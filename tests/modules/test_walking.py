@@ -437,7 +437,7 @@ def test_the_door_wall_and_plug_tasks_standing_unsupported_with_walking_paused(t
     0.5 cm from the feet's edge) -- and the circle 9 cm below the wall's (26 degrees cut,
     10.8 cm off)."""
     world, walk = walker(task)
-    walk.switch("pause")
+    assert walk.switch("pause")
     world.step(0.5)
     tasks = {"door": drc_door, "wall": drc_wall, "plug": drc_plug}
     module = world.add(tasks[task].Module, f"drc_{task}")

@@ -43,11 +43,12 @@ def test_a_turn_previewed_ends_where_the_hand_really_ends(valve):
 def test_the_door_s_turn_and_open_are_previewed_for_a_robot_crouched_there_unsupported():
     """The harness off, walking paused balancing, the pelvis 9 cm lower than the harness
     holds it: from the measured posture, the first points of the turn fall in a local
-    minimum of the tracking IK, 1.5-1.7 cm off, which the chained points carried on -- the
+    minimum of the tracking IK, 1.5-1.7 cm off (the module's own reference posture gives the
+    same), which the chained points carried on -- the
     preview refused turn and open that the module's loop makes (the door opens 53 degrees).
     A point that misses is solved again with restarts before it is called out of reach."""
     world, walking = walker("door")
-    walking.switch("pause")
+    assert walking.switch("pause")
     world.step(0.5)
     door = Followed("door", drc_door.Module, "drc_door", world=world)
     x, y, z, _ = world.backend.plant.base_pose()

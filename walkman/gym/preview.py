@@ -59,7 +59,7 @@ SAMPLE_ITERATIONS = 40
 #: A point those leave more than 1 cm off is solved again with the solver's whole budget and
 #: this many seeded restarts before it is called out of reach, the path going on from there:
 #: from the tracking posture alone, a robot crouched at the door (walking paused, the
-#: harness off) had its turn and open refused 1.1-1.7 cm short -- a local minimum of the
+#: harness off) had its turn and open refused 1.0-1.7 cm short -- a local minimum of the
 #: first samples, carried along -- where the module's loop opened the door 53 degrees (one
 #: restart was not enough there, two were).  A refusal costs more for it (bench_preview.py:
 #: the valve's 3/4 turn refused in 39 ms, 3 ms before); a path within reach costs nothing.
@@ -235,8 +235,11 @@ class Shadow:
 
     def _follow_path(self, q: np.ndarray) -> str:
         """Move ``q`` (in place) along the effector's trajectory as the module's loop tracks
-        it: each point's posture on from the last one's, no random restarts (a turn that passes
-        where the hand cannot go would stall there on the robot).  A contact motion is judged
+        it: each point's posture on from the last one's; a point missed from there is solved
+        again from seeded restarts, and only a point those miss too refuses (a turn that
+        passes where the hand cannot go would stall there on the robot).  The module's loop
+        has no restarts: a path the restarts get through and its tracking would not is
+        accepted, and the ghost goes on from the restart's posture.  A contact motion is judged
         by its end alone: on the way it presses into what it pushes (a pedal), where no
         posture reaches, and the module ends with its trajectory wherever it stopped.
         Returns where the path leaves the IK's reach, or ''."""
