@@ -34,7 +34,7 @@ sys.path.append(str(Path(__file__).resolve().parent))
 from harness import (YarpWorld, dump_outputs_if_failed, lite_implementation,  # noqa: E402
                      missing_reference, real_implementation)
 from requirements import apply_marks  # noqa: E402
-from robot_slots import machine_share, machine_to_itself  # noqa: E402
+from robot_slots import Share, arranged, machine_share, no_real_time, share_of  # noqa: E402
 
 
 def pytest_configure(config):
@@ -49,6 +49,9 @@ def pytest_configure(config):
                             "(tests/robot_slots.py)")
     config.addinivalue_line("markers", "alone: has the machine to itself while it runs; "
                             "every other test waits (tests/robot_slots.py)")
+    config.addinivalue_line("markers", "real_time: starts programs with real-time threads "
+                            "(a HAL) from a folder whose tests otherwise start none "
+                            "(tests/robot_slots.py)")
 
 
 #: Folders in the order their tests run, those that start whole topologies first, then those
@@ -57,27 +60,43 @@ def pytest_configure(config):
 #: put tests/system last, and its longest test started in the final minutes of a run).
 HEAVY_FIRST = ("system", "modules", "bridge", "interop", "packaging", "walkman", "bench",
                "pilot", "integration")
+TESTS = Path(__file__).resolve().parent
+
+
+def folder_of(item) -> str:
+    """The folder of tests/ an item lives in ("unit", "system", ...)."""
+    return Path(str(item.fspath)).resolve().relative_to(TESTS).parts[0]
+
+
+def share_of_item(item) -> Share:
+    return share_of((mark.name for mark in item.iter_markers()), folder_of(item))
 
 
 def pytest_collection_modifyitems(config, items):
-    """The heaviest folders first, each in its usual order (the same on every worker)."""
-    root = Path(__file__).resolve().parent
-
+    """The heaviest folders first, each in its usual order, then arranged by the share of
+    the machine each test holds (tests/robot_slots.py); the same on every worker."""
     def rank(item) -> int:
-        folder = Path(str(item.fspath)).resolve().relative_to(root).parts[0]
+        folder = folder_of(item)
         return HEAVY_FIRST.index(folder) if folder in HEAVY_FIRST else len(HEAVY_FIRST)
 
     items.sort(key=rank)
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    items[:] = arranged(items, share_of_item, workers)
 
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item, nextitem):
-    """Every test holds the machine, shared, or to itself when marked ``alone``,
-    ``free_standing`` or ``two_pcs``, from its setup to its teardown.  The waits, if any,
+    """Every test that runs real-time threads holds the machine, shared, or to itself when
+    marked ``alone``, ``free_standing`` or ``two_pcs``, from its setup to its teardown; one
+    that runs none holds nothing and runs with ``WALKMAN_NO_RT`` set.  The waits, if any,
     are in the JUnit report's properties (tests/robot_slots.py)."""
-    alone = machine_to_itself(mark.name for mark in item.iter_markers())
-    with machine_share(alone) as waited:
-        if alone:
+    share = share_of_item(item)
+    if share is Share.NONE:
+        with no_real_time():
+            yield
+        return
+    with machine_share(share is Share.ALONE) as waited:
+        if share is Share.ALONE:
             item.user_properties.append(("waited_for_the_machine_s", round(waited, 1)))
         yield
 

@@ -30,8 +30,19 @@ first took turns among themselves (one slot per two cores); they now have the ma
 themselves as well.
 
 A test marked ``alone`` has the machine to itself too: the PI's courses with the harness off
-walk a free-standing robot through the drc topology.  Every other test holds the machine
-shared (:func:`machine_share`).
+walk a free-standing robot through the drc topology.
+
+"To itself" means: beside no other real-time thread.  Normal-priority load cannot delay a
+FIFO thread -- the robot tests pass beside two CPU burners -- so a test that runs no
+real-time thread takes no share of the machine (:data:`Share.NONE`) and runs beside a test
+alone as a burner would: the tests of :data:`NO_REAL_TIME_FOLDERS` (codecs, trajectories,
+yarp_lite and real YARP processes, the PI's widgets offscreen, ROS nodes), unless marked
+``real_time`` (they start a HAL).  While such a test runs, ``WALKMAN_NO_RT`` is set
+(:func:`no_real_time`): what it starts, and what it runs in-process, stays at normal priority
+even if it was wrongly left unmarked.  Every other test holds the machine shared.  The suite
+begins with the tests alone on one worker while the other runs those that hold nothing
+(:func:`arranged`): on 2 cores the light tests no longer wait out the minutes the PI's
+click tests take.
 
 The machine is a ``flock`` on a file under the system's temporary folder: the kernel releases
 it when its holder dies, so a killed run never leaves it taken.
@@ -39,13 +50,14 @@ it when its holder dies, so a killed run never leaves it taken.
 
 from __future__ import annotations
 
+import enum
 import fcntl
 import os
 import tempfile
 import time
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterable, Iterator
+from typing import Callable, Iterable, Iterator, List, Sequence, TypeVar
 
 #: Where the machine's lock files live (machine-wide: every pytest run on the machine shares them).
 SLOT_FOLDER = Path(tempfile.gettempdir()) / "walkman-free-standing-robots"
@@ -53,11 +65,69 @@ SLOT_FOLDER = Path(tempfile.gettempdir()) / "walkman-free-standing-robots"
 
 #: The marks that give a test the machine to itself.
 MACHINE_TO_ITSELF = frozenset({"alone", "free_standing", "two_pcs"})
+#: Folders of tests/ whose tests start no simulated robot, GYM module or bridge -- the only
+#: programs with real-time threads (walkman/realtime.py).
+NO_REAL_TIME_FOLDERS = frozenset({"unit", "control", "fuzz", "integration", "interop",
+                                  "pilot", "nodekit", "rosnodes"})
+#: The mark of a test there that does start one (a HAL, to speak to it as a YARP robot).
+REAL_TIME_MARK = "real_time"
+
+
+class Share(enum.Enum):
+    """How much of the machine a test holds while it runs."""
+    ALONE = "alone"      # beside no other test that runs real-time threads
+    SHARED = "shared"    # beside other shared tests: it runs real-time threads
+    NONE = "none"        # nothing: it runs none, beside anything
 
 
 def machine_to_itself(marks: Iterable[str]) -> bool:
     """Whether a test with these marks runs with the machine to itself."""
     return not MACHINE_TO_ITSELF.isdisjoint(marks)
+
+
+def share_of(marks: Iterable[str], folder: str) -> Share:
+    """The share of the machine a test in ``folder`` (of tests/) with these marks holds."""
+    marks = set(marks)
+    if machine_to_itself(marks):
+        return Share.ALONE
+    if folder in NO_REAL_TIME_FOLDERS and REAL_TIME_MARK not in marks:
+        return Share.NONE
+    return Share.SHARED
+
+
+Item = TypeVar("Item")
+
+
+def arranged(items: Sequence[Item], share: Callable[[Item], Share], workers: int) -> List[Item]:
+    """``items`` in the order the suite runs them on ``workers`` (each class in its order).
+
+    pytest-xdist's work stealing first hands each worker a contiguous part of the list, of
+    ``len(items) // workers`` tests.  The first part begins with the tests alone, then the
+    shared ones; the next with the tests that hold nothing, so that another worker runs
+    them while the first has the machine to itself; the shared tests left over come last.
+    """
+    alone = [item for item in items if share(item) is Share.ALONE]
+    shared = [item for item in items if share(item) is Share.SHARED]
+    free = [item for item in items if share(item) is Share.NONE]
+    if workers < 2:
+        return alone + shared + free
+    first = max(len(items) // workers - len(alone), 0)
+    return alone + shared[:first] + free + shared[first:]
+
+
+@contextmanager
+def no_real_time() -> Iterator[None]:
+    """``WALKMAN_NO_RT`` set for the block (walkman/realtime.py): the programs started in it,
+    which inherit the environment, and the code it runs in this process keep normal priority."""
+    before = os.environ.get("WALKMAN_NO_RT")
+    os.environ["WALKMAN_NO_RT"] = "1"
+    try:
+        yield
+    finally:
+        if before is None:
+            del os.environ["WALKMAN_NO_RT"]
+        else:
+            os.environ["WALKMAN_NO_RT"] = before
 
 
 def shared_folder(folder: Path) -> None:

@@ -25,7 +25,8 @@ from yarp_lite.bottle_text import parse
 from yarp_lite.buffered_port import BufferedPort
 from yarp_lite.nameclient import NameClient
 
-pytestmark = pytest.mark.requires("reference", "reference_devices")
+#: The HAL and a GYM module run real-time threads (tests/robot_slots.py).
+pytestmark = [pytest.mark.requires("reference", "reference_devices"), pytest.mark.real_time]
 
 PYTHON = sys.executable
 CPP_CLIENT = Path(__file__).parents[1] / "walkman" / "cpp" / "remote_controlboard_client.cpp"

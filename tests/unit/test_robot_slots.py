@@ -1,5 +1,5 @@
 """tests/robot_slots.py: a test alone, free-standing or with two PCs has the machine to itself,
-machine-wide; a dead holder frees it."""
+machine-wide; a dead holder frees it; a test that runs no real-time thread holds nothing."""
 
 from __future__ import annotations
 
@@ -13,7 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from robot_slots import machine_share, machine_to_itself
+from robot_slots import (NO_REAL_TIME_FOLDERS, Share, arranged, machine_share, machine_to_itself,
+                         no_real_time, share_of)
+from walkman.realtime import realtime_refused
 
 TESTS = Path(__file__).resolve().parents[1]
 def trying(code: str) -> subprocess.Popen:
@@ -128,3 +130,48 @@ def test_a_robot_on_its_own_feet_or_two_pcs_have_the_machine_to_themselves(marks
     1.1-1.5: beside another robot's, a CPU crosses the kernel's real-time budget and the
     fair server stalls them 50 ms at once."""
     assert machine_to_itself(iter(marks)) is alone
+
+
+@pytest.mark.parametrize("marks, folder, share", [
+    ({"two_pcs"}, "system", Share.ALONE), ({"alone"}, "unit", Share.ALONE),
+    (set(), "system", Share.SHARED), (set(), "walkman", Share.SHARED),
+    (set(), "bridge", Share.SHARED), ({"requires"}, "packaging", Share.SHARED),
+    ({"requires", "real_time"}, "interop", Share.SHARED),
+    (set(), "unit", Share.NONE), ({"requires"}, "interop", Share.NONE),
+    (set(), "pilot", Share.NONE)])
+def test_a_test_that_runs_no_real_time_thread_holds_nothing(marks, folder, share):
+    assert share_of(iter(marks), folder) is share
+
+
+def test_the_folders_said_to_run_no_real_time_thread_exist():
+    assert all((TESTS / folder).is_dir() for folder in NO_REAL_TIME_FOLDERS)
+
+
+def test_the_second_worker_begins_with_the_tests_that_hold_nothing():
+    """xdist's work stealing hands worker 0 the first len // 2 tests, worker 1 the rest."""
+    kinds = {"a": Share.ALONE, "s": Share.SHARED, "n": Share.NONE}
+    items = [f"{kind}{i}" for i, kind in enumerate("snasnsssnnasss")]
+    order = arranged(items, lambda item: kinds[item[0]], 2)
+    assert sorted(order) == sorted(items)
+    first, second = order[:len(items) // 2], order[len(items) // 2:]
+    assert first == ["a2", "a10", "s0", "s3", "s5", "s6", "s7"]
+    assert second == ["n1", "n4", "n8", "n9", "s11", "s12", "s13"]
+    assert arranged(items, lambda item: kinds[item[0]], 1) == \
+        ["a2", "a10", "s0", "s3", "s5", "s6", "s7", "s11", "s12", "s13", "n1", "n4", "n8", "n9"]
+
+
+def test_more_tests_alone_than_a_worker_s_part_still_come_first():
+    kinds = {"a": Share.ALONE, "s": Share.SHARED, "n": Share.NONE}
+    order = arranged(["n0", "a1", "a2", "s3", "a4"], lambda item: kinds[item[0]], 2)
+    assert order == ["a1", "a2", "a4", "n0", "s3"]
+
+
+def test_while_a_test_holds_nothing_no_thread_of_it_or_its_programs_becomes_real_time():
+    before = os.environ.get("WALKMAN_NO_RT")
+    with no_real_time():
+        assert realtime_refused(10) is not None
+        child = subprocess.run([sys.executable, "-c",
+                                "import os; print(os.environ.get('WALKMAN_NO_RT'))"],
+                               capture_output=True, text=True, check=True)
+        assert child.stdout.strip() == "1"
+    assert os.environ.get("WALKMAN_NO_RT") == before
