@@ -30,6 +30,10 @@ export WALKMAN_REQUIRE_XVFB=1
 # the folders heaviest first (tests/conftest.py) pairs one stream of topologies with lighter
 # tests; starting the longest tests first on every worker (tried in e42e00d) ran four
 # topologies at once, the load average reached 38 and the suite took 15 min.
+# The tests that run no real-time thread (codecs, yarp_lite and real YARP processes, the PI's
+# widgets, ROS nodes) hold nothing and run beside the tests that have the machine to
+# themselves, as CPU burners would: one worker begins with those tests, the other with
+# the tests alone (tests/robot_slots.py).
 workers=${WALKMAN_TEST_WORKERS:-$(nproc)}
 parallel=()
 if [[ $workers -gt 1 ]]; then parallel=(-n "$workers" --dist worksteal); fi
