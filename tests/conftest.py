@@ -52,6 +52,9 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "real_time: starts programs with real-time threads "
                             "(a HAL) from a folder whose tests otherwise start none "
                             "(tests/robot_slots.py)")
+    config.addinivalue_line("markers", "offline: runs the robot on simulated time in this "
+                            "process: no real-time thread, none in what it starts "
+                            "(tests/robot_slots.py)")
 
 
 #: Folders in the order their tests run, those that start whole topologies first, then those

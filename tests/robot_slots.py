@@ -37,7 +37,8 @@ FIFO thread -- the robot tests pass beside two CPU burners -- so a test that run
 real-time thread takes no share of the machine (:data:`Share.NONE`) and runs beside a test
 alone as a burner would: the tests of :data:`NO_REAL_TIME_FOLDERS` (codecs, trajectories,
 yarp_lite and real YARP processes, the PI's widgets offscreen, ROS nodes), unless marked
-``real_time`` (they start a HAL).  While such a test runs, ``WALKMAN_NO_RT`` is set
+``real_time`` (they start a HAL), and the tests marked ``offline`` (a robot on simulated
+time in the test's own process).  While such a test runs, ``WALKMAN_NO_RT`` is set
 (:func:`no_real_time`): what it starts, and what it runs in-process, stays at normal priority
 even if it was wrongly left unmarked.  Every other test holds the machine shared.  The suite
 begins with the tests alone on one worker while the other runs those that hold nothing
@@ -71,6 +72,10 @@ NO_REAL_TIME_FOLDERS = frozenset({"unit", "control", "fuzz", "integration", "int
                                   "pilot", "nodekit", "rosnodes"})
 #: The mark of a test there that does start one (a HAL, to speak to it as a YARP robot).
 REAL_TIME_MARK = "real_time"
+#: The mark of a test elsewhere that starts none: it runs the robot on simulated time in
+#: its own process (walkman.gym.offline), where nothing is real-time (a helper program it
+#: starts, such as the head camera's renderer, runs at normal priority).
+OFFLINE_MARK = "offline"
 
 
 class Share(enum.Enum):
@@ -90,7 +95,7 @@ def share_of(marks: Iterable[str], folder: str) -> Share:
     marks = set(marks)
     if machine_to_itself(marks):
         return Share.ALONE
-    if folder in NO_REAL_TIME_FOLDERS and REAL_TIME_MARK not in marks:
+    if OFFLINE_MARK in marks or (folder in NO_REAL_TIME_FOLDERS and REAL_TIME_MARK not in marks):
         return Share.NONE
     return Share.SHARED
 

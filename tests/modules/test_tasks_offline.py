@@ -18,6 +18,9 @@ from walkman.model.mjcf import DRILL_GRIP, PLUG_HALF, PLUG_SOCKETS, PLUG_TABLE_T
 from walkman.modules import drc_door, drc_drive, drc_plug, drc_valve, drc_wall, task
 from tests.modules.walker import free_body
 
+#: The robot on simulated time in this process: no real-time thread (tests/robot_slots.py).
+pytestmark = pytest.mark.offline
+
 WHEEL, DOOR, VALVE = PILOT_POSES["car"], PILOT_POSES["door"], PILOT_POSES["valve"]
 
 

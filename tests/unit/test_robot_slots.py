@@ -138,7 +138,8 @@ def test_a_robot_on_its_own_feet_or_two_pcs_have_the_machine_to_themselves(marks
     (set(), "bridge", Share.SHARED), ({"requires"}, "packaging", Share.SHARED),
     ({"requires", "real_time"}, "interop", Share.SHARED),
     (set(), "unit", Share.NONE), ({"requires"}, "interop", Share.NONE),
-    (set(), "pilot", Share.NONE)])
+    (set(), "pilot", Share.NONE), ({"offline"}, "modules", Share.NONE),
+    ({"offline", "free_standing"}, "modules", Share.ALONE)])
 def test_a_test_that_runs_no_real_time_thread_holds_nothing(marks, folder, share):
     assert share_of(iter(marks), folder) is share
 

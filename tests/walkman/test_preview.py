@@ -17,6 +17,9 @@ from walkman.model.mjcf import PILOT_POSES
 from walkman.modules import drc_door, drc_valve, drc_wall
 from walkman.modules.task import GRIP
 
+#: The robot on simulated time in this process: no real-time thread (tests/robot_slots.py).
+pytestmark = pytest.mark.offline
+
 KINEMATICS = Kinematics()
 
 
