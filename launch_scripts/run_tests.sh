@@ -31,9 +31,9 @@ export WALKMAN_REQUIRE_XVFB=1
 # tests; starting the longest tests first on every worker (tried in e42e00d) ran four
 # topologies at once, the load average reached 38 and the suite took 15 min.
 # The tests that run no real-time thread (codecs, yarp_lite and real YARP processes, the PI's
-# widgets, ROS nodes) hold nothing and run beside the tests that have the machine to
-# themselves, as CPU burners would: one worker begins with those tests, the other with
-# the tests alone (tests/robot_slots.py).
+# widgets, ROS nodes, the robot offline on simulated time) hold nothing and run beside the
+# tests that have the machine to themselves, as CPU burners would: one worker begins with
+# those tests, the other with the tests alone (tests/robot_slots.py).
 workers=${WALKMAN_TEST_WORKERS:-$(nproc)}
 parallel=()
 if [[ $workers -gt 1 ]]; then parallel=(-n "$workers" --dist worksteal); fi

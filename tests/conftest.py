@@ -34,7 +34,8 @@ sys.path.append(str(Path(__file__).resolve().parent))
 from harness import (YarpWorld, dump_outputs_if_failed, lite_implementation,  # noqa: E402
                      missing_reference, real_implementation)
 from requirements import apply_marks  # noqa: E402
-from robot_slots import Share, arranged, machine_share, no_real_time, share_of  # noqa: E402
+from robot_slots import (Share, arranged, machine_share, no_real_time,  # noqa: E402
+                         one_share_per_fixture, share_of)
 
 
 def pytest_configure(config):
@@ -75,6 +76,7 @@ def share_of_item(item) -> Share:
     return share_of((mark.name for mark in item.iter_markers()), folder_of(item))
 
 
+@pytest.hookimpl(trylast=True)     # after -k, -m and --deselect: the parts are of what runs
 def pytest_collection_modifyitems(config, items):
     """The heaviest folders first, each in its usual order, then arranged by the share of
     the machine each test holds (tests/robot_slots.py); the same on every worker."""
@@ -82,6 +84,15 @@ def pytest_collection_modifyitems(config, items):
         folder = folder_of(item)
         return HEAVY_FIRST.index(folder) if folder in HEAVY_FIRST else len(HEAVY_FIRST)
 
+    try:
+        one_share_per_fixture(
+            (f"{definition.baseid}::{name}", item.nodeid, share_of_item(item))
+            for item in items
+            for name, definitions in item._fixtureinfo.name2fixturedefs.items()
+            for definition in definitions[-1:]
+            if definition.scope != "function" and definition.baseid)  # ours, not pytest's
+    except ValueError as error:
+        raise pytest.UsageError(str(error)) from None
     items.sort(key=rank)
     workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
     items[:] = arranged(items, share_of_item, workers)

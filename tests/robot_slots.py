@@ -32,18 +32,22 @@ themselves as well.
 A test marked ``alone`` has the machine to itself too: the PI's courses with the harness off
 walk a free-standing robot through the drc topology.
 
-"To itself" means: beside no other real-time thread.  Normal-priority load cannot delay a
-FIFO thread -- the robot tests pass beside two CPU burners -- so a test that runs no
-real-time thread takes no share of the machine (:data:`Share.NONE`) and runs beside a test
-alone as a burner would: the tests of :data:`NO_REAL_TIME_FOLDERS` (codecs, trajectories,
+"To itself" means: beside no other real-time thread.  Normal-priority load stalls a FIFO
+thread only where the CPU's real-time load nears the budget, which one robot's does not (the
+robot tests pass beside two CPU burners; loopback floods delay its packets through
+``ksoftirqd``, 2-27 ms, ``bench/bench_rt_loopback.py``, as the burners' runs already
+saw), so a test that runs no real-time thread takes no share of the machine
+(:data:`Share.NONE`) and runs beside a test alone as a burner would: the tests of :data:`NO_REAL_TIME_FOLDERS` (codecs, trajectories,
 yarp_lite and real YARP processes, the PI's widgets offscreen, ROS nodes), unless marked
 ``real_time`` (they start a HAL), and the tests marked ``offline`` (a robot on simulated
-time in the test's own process).  While such a test runs, ``WALKMAN_NO_RT`` is set
+time in the test's own process; a test alone is alone whatever else it is marked).  While such a test runs, ``WALKMAN_NO_RT`` is set
 (:func:`no_real_time`): what it starts, and what it runs in-process, stays at normal priority
 even if it was wrongly left unmarked.  Every other test holds the machine shared.  The suite
 begins with the tests alone on one worker while the other runs those that hold nothing
 (:func:`arranged`): on 2 cores the light tests no longer wait out the minutes the PI's
-click tests take.
+click tests take.  A fixture wider than a test serves tests of one share only
+(:func:`one_share_per_fixture`): set up under one test's ``WALKMAN_NO_RT``, it would start
+programs without real-time threads for another that needs them, or the reverse.
 
 The machine is a ``flock`` on a file under the system's temporary folder: the kernel releases
 it when its holder dies, so a killed run never leaves it taken.
@@ -58,7 +62,7 @@ import tempfile
 import time
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Callable, Iterable, Iterator, List, Sequence, TypeVar
+from typing import Callable, Dict, Iterable, Iterator, List, Sequence, Tuple, TypeVar
 
 #: Where the machine's lock files live (machine-wide: every pytest run on the machine shares them).
 SLOT_FOLDER = Path(tempfile.gettempdir()) / "walkman-free-standing-robots"
@@ -106,10 +110,12 @@ Item = TypeVar("Item")
 def arranged(items: Sequence[Item], share: Callable[[Item], Share], workers: int) -> List[Item]:
     """``items`` in the order the suite runs them on ``workers`` (each class in its order).
 
-    pytest-xdist's work stealing first hands each worker a contiguous part of the list, of
-    ``len(items) // workers`` tests.  The first part begins with the tests alone, then the
-    shared ones; the next with the tests that hold nothing, so that another worker runs
-    them while the first has the machine to itself; the shared tests left over come last.
+    pytest-xdist's work stealing first hands each worker a contiguous part of the list
+    (``len // workers`` tests for whichever worker is ready first, then an even share of
+    the rest; every worker collects the same list, ``PYTEST_XDIST_WORKER_COUNT`` set).  The
+    first part begins with the tests alone, then the shared ones; the next with the tests
+    that hold nothing, so that another worker runs them while the first has the machine to
+    itself; the shared tests left over come last.  One worker (or none): alone, shared, free.
     """
     alone = [item for item in items if share(item) is Share.ALONE]
     shared = [item for item in items if share(item) is Share.SHARED]
@@ -118,6 +124,19 @@ def arranged(items: Sequence[Item], share: Callable[[Item], Share], workers: int
         return alone + shared + free
     first = max(len(items) // workers - len(alone), 0)
     return alone + shared[:first] + free + shared[first:]
+
+
+def one_share_per_fixture(uses: Iterable[Tuple[str, str, Share]]) -> None:
+    """Raise ValueError naming each fixture wider than a test (``(fixture, test, share)``
+    for each use) that serves tests of more than one share."""
+    shares: Dict[str, Dict[Share, str]] = {}
+    for fixture, test, share in uses:
+        shares.setdefault(fixture, {}).setdefault(share, test)
+    mixed = [f"{fixture} serves {', '.join(f'{test} ({share.value})' for share, test in tests.items())}"
+             for fixture, tests in shares.items() if len(tests) > 1]
+    if mixed:
+        raise ValueError("a fixture wider than a test must serve tests of one share of the "
+                         "machine (tests/robot_slots.py): " + "; ".join(mixed))
 
 
 @contextmanager

@@ -8,13 +8,15 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
+from typing import List, Optional
 
 import pytest
 
 from robot_slots import (NO_REAL_TIME_FOLDERS, Share, arranged, machine_share, machine_to_itself,
-                         no_real_time, share_of)
+                         no_real_time, one_share_per_fixture, share_of)
 from walkman.realtime import realtime_refused
 
 TESTS = Path(__file__).resolve().parents[1]
@@ -167,12 +169,39 @@ def test_more_tests_alone_than_a_worker_s_part_still_come_first():
     assert order == ["a1", "a2", "a4", "n0", "s3"]
 
 
-def test_while_a_test_holds_nothing_no_thread_of_it_or_its_programs_becomes_real_time():
-    before = os.environ.get("WALKMAN_NO_RT")
+def test_while_a_test_holds_nothing_no_thread_of_it_or_its_programs_becomes_real_time(
+        monkeypatch):
+    """Run as a test that holds nothing, this test already has WALKMAN_NO_RT: taken away
+    first, so that only no_real_time can set it.  The grant is asked in a thread of its
+    own, which ends: were it granted, no thread of the worker would stay real-time."""
+    monkeypatch.delenv("WALKMAN_NO_RT", raising=False)
+
+    def refusal() -> Optional[str]:
+        answer: List[Optional[str]] = []
+        asker = threading.Thread(target=lambda: answer.append(realtime_refused(10)))
+        asker.start()
+        asker.join()
+        return answer[0]
+
     with no_real_time():
-        assert realtime_refused(10) is not None
+        assert refusal() == "WALKMAN_NO_RT is set"
         child = subprocess.run([sys.executable, "-c",
                                 "import os; print(os.environ.get('WALKMAN_NO_RT'))"],
                                capture_output=True, text=True, check=True)
         assert child.stdout.strip() == "1"
-    assert os.environ.get("WALKMAN_NO_RT") == before
+    assert "WALKMAN_NO_RT" not in os.environ
+    monkeypatch.setenv("WALKMAN_NO_RT", "before")
+    with no_real_time():
+        pass
+    assert os.environ["WALKMAN_NO_RT"] == "before"
+
+
+def test_a_fixture_wider_than_a_test_serves_tests_of_one_share():
+    one_share_per_fixture([("m.py::robot", "m.py::a", Share.SHARED),
+                           ("m.py::robot", "m.py::b", Share.SHARED),
+                           ("n.py::cloud", "n.py::c", Share.NONE)])
+    with pytest.raises(ValueError, match=r"m.py::robot serves m.py::a \(shared\), "
+                                         r"m.py::c \(none\)"):
+        one_share_per_fixture([("m.py::robot", "m.py::a", Share.SHARED),
+                               ("m.py::robot", "m.py::b", Share.SHARED),
+                               ("m.py::robot", "m.py::c", Share.NONE)])
