@@ -35,19 +35,20 @@ walk a free-standing robot through the drc topology.
 "To itself" means: beside no other real-time thread.  Normal-priority load stalls a FIFO
 thread only where the CPU's real-time load nears the budget, which one robot's does not (the
 robot tests pass beside two CPU burners; loopback floods delay its packets through
-``ksoftirqd``, 2-27 ms, ``bench/bench_rt_loopback.py``, as the burners' runs already
-saw), so a test that runs no real-time thread takes no share of the machine
-(:data:`Share.NONE`) and runs beside a test alone as a burner would: the tests of :data:`NO_REAL_TIME_FOLDERS` (codecs, trajectories,
-yarp_lite and real YARP processes, the PI's widgets offscreen, ROS nodes), unless marked
-``real_time`` (they start a HAL), and the tests marked ``offline`` (a robot on simulated
-time in the test's own process; a test alone is alone whatever else it is marked).  While such a test runs, ``WALKMAN_NO_RT`` is set
-(:func:`no_real_time`): what it starts, and what it runs in-process, stays at normal priority
-even if it was wrongly left unmarked.  Every other test holds the machine shared.  The suite
-begins with the tests alone on one worker while the other runs those that hold nothing
-(:func:`arranged`): on 2 cores the light tests no longer wait out the minutes the PI's
-click tests take.  A fixture wider than a test serves tests of one share only
-(:func:`one_share_per_fixture`): set up under one test's ``WALKMAN_NO_RT``, it would start
-programs without real-time threads for another that needs them, or the reverse.
+``ksoftirqd``, 2-27 ms, ``bench/bench_rt_loopback.py``, as the burners' runs already saw).
+So a test that runs no real-time thread takes no share of the machine (:data:`Share.NONE`)
+and runs beside a test alone as a burner would: the tests of :data:`NO_REAL_TIME_FOLDERS`
+(codecs, trajectories, yarp_lite and real YARP processes, the PI's widgets offscreen, ROS
+nodes), unless marked ``real_time`` (they start a HAL), and the tests marked ``offline`` (a
+robot on simulated time in the test's own process; a test alone is alone whatever else it
+is marked).  While such a test runs, ``WALKMAN_NO_RT`` is set (:func:`no_real_time`): what
+it starts, and what it runs in-process, stays at normal priority even if it was wrongly left
+unmarked.  Every other test holds the machine shared.  The suite begins with the tests alone
+on one worker while the other runs those that hold nothing (:func:`arranged`): on 2 cores
+the light tests no longer wait out the minutes the PI's click tests take.  A fixture wider
+than a test serves tests of one share only (:func:`one_share_per_fixture`): set up under one
+test's ``WALKMAN_NO_RT``, it would start programs without real-time threads for another
+that needs them, or the reverse.
 
 The machine is a ``flock`` on a file under the system's temporary folder: the kernel releases
 it when its holder dies, so a killed run never leaves it taken.
@@ -99,7 +100,8 @@ def share_of(marks: Iterable[str], folder: str) -> Share:
     marks = set(marks)
     if machine_to_itself(marks):
         return Share.ALONE
-    if OFFLINE_MARK in marks or (folder in NO_REAL_TIME_FOLDERS and REAL_TIME_MARK not in marks):
+    if OFFLINE_MARK in marks or (folder in NO_REAL_TIME_FOLDERS
+                                 and REAL_TIME_MARK not in marks):
         return Share.NONE
     return Share.SHARED
 
@@ -132,7 +134,8 @@ def one_share_per_fixture(uses: Iterable[Tuple[str, str, Share]]) -> None:
     shares: Dict[str, Dict[Share, str]] = {}
     for fixture, test, share in uses:
         shares.setdefault(fixture, {}).setdefault(share, test)
-    mixed = [f"{fixture} serves {', '.join(f'{test} ({share.value})' for share, test in tests.items())}"
+    mixed = [f"{fixture} serves " + ", ".join(f"{test} ({share.value})"
+                                              for share, test in tests.items())
              for fixture, tests in shares.items() if len(tests) > 1]
     if mixed:
         raise ValueError("a fixture wider than a test must serve tests of one share of the "
