@@ -119,9 +119,10 @@ def arranged(items: Sequence[Item], share: Callable[[Item], Share], workers: int
     that hold nothing, so that another worker runs them while the first has the machine to
     itself; the shared tests left over come last.  One worker (or none): alone, shared, free.
     """
-    alone = [item for item in items if share(item) is Share.ALONE]
-    shared = [item for item in items if share(item) is Share.SHARED]
-    free = [item for item in items if share(item) is Share.NONE]
+    kinds: Dict[Share, List[Item]] = {kind: [] for kind in Share}
+    for item in items:
+        kinds[share(item)].append(item)
+    alone, shared, free = kinds[Share.ALONE], kinds[Share.SHARED], kinds[Share.NONE]
     if workers < 2:
         return alone + shared + free
     first = max(len(items) // workers - len(alone), 0)
