@@ -15,6 +15,13 @@ interrupted and tears down) and prints the figures so far; the burners are alway
     .venv/bin/python tests/flake_hunt.py --runs 20 --burners 2 TESTID...
     .venv/bin/python tests/flake_hunt.py --known            # every test a fresh clone failed
     .venv/bin/python tests/flake_hunt.py --process-level --list
+    .venv/bin/python tests/flake_hunt.py --junit out/fresh-clones/*.xml   # rounds of the suite
+
+A round of the whole suite runs every test once, the way CI does (both workers, the machine's
+shares): ``--junit`` counts each test's runs and failures over the JUnit reports of such rounds
+(``tests/fresh_clone_run.sh`` writes one per fresh clone) instead of running anything, which
+is how every process-level test reaches 20 runs in hours, not days.  A report's suite name
+says what ran beside it (``burners=2``).
 
 Exit status: 0 every run passed, 1 a run failed (or was stopped), 2 misuse.
 The report goes to ``out/flake-hunt-<time>/report.md`` with the output of every failing run.
@@ -36,6 +43,7 @@ import subprocess
 import sys
 import time
 import types
+import xml.etree.ElementTree as ElementTree
 from collections import Counter
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
@@ -311,6 +319,81 @@ def ci_environment(script: str) -> Dict[str, str]:
     return {name: (shlex.split(value) or [""])[0] for name, value in found}
 
 
+class Round(NamedTuple):
+    """One JUnit report of a suite run: where it came from and what it came to."""
+    path: Path
+    conditions: str       # the report's suite name: what ran beside it, e.g. "burners=2"
+    started: str
+    seconds: float
+    runs: List[Run]
+
+
+_WORST = [Outcome.PASSED, Outcome.SKIPPED, Outcome.ERROR, Outcome.FAILED]
+
+
+def test_id(classname: str, name: str, is_file: Callable[[str], bool]) -> str:
+    """A JUnit testcase's pytest node id: ``tests.a.test_b`` + ``t[x]`` -> ``tests/a/test_b.py::t[x]``
+    (a class inside the file stays after ``::``, found by which prefix is a file)."""
+    parts = classname.split(".")
+    for cut in range(len(parts), 0, -1):
+        path = "/".join(parts[:cut]) + ".py"
+        if is_file(path):
+            return "::".join([path, *parts[cut:], name])
+    return "::".join(["/".join(parts) + ".py", name])
+
+
+def junit_round(path: Path, text: str, is_file: Callable[[str], bool]) -> Round:
+    """The runs one JUnit report records, a test's entries merged (a tear-down's error can
+    come as an entry of its own) into its worst outcome; ValueError if it is not a report."""
+    try:
+        root = ElementTree.fromstring(text)
+    except ElementTree.ParseError as error:
+        raise ValueError(f"{path}: not XML ({error})") from None
+    suites = [root] if root.tag == "testsuite" else root.findall("testsuite")
+    if root.tag not in ("testsuite", "testsuites") or not suites:
+        raise ValueError(f"{path}: not a JUnit report (root <{root.tag}>, no <testsuite>)")
+    merged: Dict[str, Run] = {}
+    for suite in suites:
+        for case in suite.iter("testcase"):
+            test = test_id(case.get("classname", ""), case.get("name", ""), is_file)
+            outcome, summary = Outcome.PASSED, ""
+            for kind, found in (("failure", Outcome.FAILED), ("error", Outcome.ERROR),
+                                ("skipped", Outcome.SKIPPED)):
+                element = case.find(kind)
+                if element is not None and _WORST.index(found) > _WORST.index(outcome):
+                    message = (element.get("message") or element.text or kind).strip()
+                    outcome, summary = found, message.splitlines()[0][:300] if message else kind
+            seconds = float(case.get("time") or 0)
+            before = merged.get(test)
+            if before is not None:
+                seconds += before.seconds
+                if _WORST.index(before.outcome) >= _WORST.index(outcome):
+                    outcome, summary = before.outcome, before.summary
+            merged[test] = Run(test, 1, outcome, seconds, summary, path if outcome.failing
+                               else None)
+    first = suites[0]
+    return Round(path, first.get("name", ""), first.get("timestamp", ""),
+                 sum(float(suite.get("time") or 0) for suite in suites), list(merged.values()))
+
+
+def rounds_table(rounds: Sequence[Round]) -> str:
+    rows = [["report", "beside", "started", "minutes", "tests", "failing"]]
+    for one in rounds:
+        rows.append([str(one.path), "?" if one.conditions in ("", "pytest") else one.conditions, one.started[:19],
+                     f"{one.seconds / 60:.1f}", str(len(one.runs)),
+                     str(sum(run.outcome.failing for run in one.runs))])
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip()
+                     for row in rows)
+
+
+def counts_line(tallies: Sequence[Tally]) -> str:
+    """How many tests ran how often, fewest first: ``1754 tests: 3 x 1740, 2 x 14``."""
+    often = Counter(entry.runs for entry in tallies)
+    return (f"{len(tallies)} tests, {sum(e.failures for e in tallies)} failing runs; runs each: "
+            + ", ".join(f"{runs} x {count}" for runs, count in sorted(often.items())))
+
+
 @dataclass
 class Tally:
     test: str
@@ -529,11 +612,14 @@ def parse_args(argv: Optional[Sequence[str]]) -> argparse.Namespace:
     parser.add_argument("--timeout", type=float, default=900,
                         help="seconds before a run counts as a failure (900)")
     parser.add_argument("--list", action="store_true", help="print the tests and stop")
+    parser.add_argument("--junit", nargs="+", action="extend", type=Path, metavar="REPORT",
+                        help="run nothing: count the runs JUnit reports of suite rounds "
+                             "record (of the TESTIDs, given before it, or of every test)")
     parser.add_argument("--out", type=Path, default=REPO / "out",
                         help="where out/flake-hunt-<time>/ goes (out/)")
     args = parser.parse_args(argv)
-    if not (args.tests or args.known or args.process_level):
-        parser.error("name tests to hunt, or --known, or --process-level")
+    if not (args.tests or args.known or args.process_level or args.junit):
+        parser.error("name tests to hunt, or --known, or --process-level, or --junit")
     if args.runs < 1 or args.burners < 0 or args.timeout <= 0:
         parser.error("--runs must be at least 1, --burners at least 0, --timeout positive")
     args.error = parser.error
@@ -554,6 +640,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except ValueError as error:
         args.error(f"pytest cannot collect these tests:\n{error}")
     tests = list(dict.fromkeys(tests))
+    if args.junit:
+        return tally_rounds(args.junit, tests, args.error)
     if args.list:
         print("\n".join(tests))
         return 0
@@ -580,6 +668,26 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
            started, (load_before, os.getloadavg()[0]))
     print(f"\nreport: {out_dir / 'report.md'}")
     return 1 if stopped or any(entry.failures for entry in tallies) else 0
+
+
+def tally_rounds(paths: Sequence[Path], tests: Sequence[str],
+                 error: Callable[[str], None]) -> int:
+    """``--junit``: the rounds, then each failing test's row and how often each test ran."""
+    rounds = []
+    for path in paths:
+        try:
+            rounds.append(junit_round(path, path.read_text(errors="replace"),
+                                      lambda name: (REPO / name).is_file()))
+        except (OSError, ValueError) as why:
+            error(str(why))
+    runs = [run for one in rounds for run in one.runs if not tests or run.test in tests]
+    tallies = tally(runs, tests)
+    print(rounds_table(rounds) + "\n")
+    failing = [entry for entry in tallies if entry.failures]
+    if failing:
+        print(table(failing) + "\n")
+    print(counts_line(tallies))
+    return 1 if failing else 0
 
 
 # -- pytest plugin: --process-level ---------------------------------------------------------

@@ -108,3 +108,72 @@ def test_misuse_is_told_and_exits_2(capsys):
             flake_hunt.parse_args(argv)
         assert stopped.value.code == 2
     assert "--known" in capsys.readouterr().err
+
+
+def test_a_junit_testcase_is_named_by_its_node_id():
+    files = {"tests/a/test_b.py"}.__contains__
+    assert flake_hunt.test_id("tests.a.test_b", "t[x.y-1]", files) == "tests/a/test_b.py::t[x.y-1]"
+    assert flake_hunt.test_id("tests.a.test_b.TestC", "t", files) == "tests/a/test_b.py::TestC::t"
+    assert flake_hunt.test_id("tests.gone", "t", files) == "tests/gone.py::t"
+
+
+ROUND_TESTS = """\
+import pytest
+
+@pytest.fixture
+def breaks_on_the_way_out():
+    yield
+    raise RuntimeError("tear-down broke")
+
+def test_passes(): pass
+def test_fails(): assert 1 == 2, "one is not two"
+def test_skips(): pytest.skip("needs root")
+def test_passes_then_its_tear_down_fails(breaks_on_the_way_out): pass
+@pytest.mark.parametrize("x", ["a.b", "c"])
+def test_each(x): assert x != "c"
+"""
+
+
+def test_a_round_is_what_pytest_s_own_junit_report_records(tmp_path):
+    (tmp_path / "tests").mkdir()
+    (tmp_path / "tests" / "test_round.py").write_text(ROUND_TESTS)
+    report = tmp_path / "round.xml"
+    subprocess.run([flake_hunt.sys.executable, "-m", "pytest", "-q", "-p", "no:randomly",
+                    "-p", "no:cacheprovider", "-o", "junit_suite_name=burners=2",
+                    f"--junitxml={report}", "tests"], cwd=tmp_path, capture_output=True)
+    found = flake_hunt.junit_round(report, report.read_text(),
+                                   lambda name: (tmp_path / name).is_file())
+    assert found.conditions == "burners=2" and found.seconds > 0
+    outcomes = {run.test.split("::")[1]: run.outcome for run in found.runs}
+    assert outcomes == {"test_passes": Outcome.PASSED, "test_fails": Outcome.FAILED,
+                        "test_skips": Outcome.SKIPPED,
+                        "test_passes_then_its_tear_down_fails": Outcome.ERROR,
+                        "test_each[a.b]": Outcome.PASSED, "test_each[c]": Outcome.FAILED}
+    why = {run.test.split("::")[1]: run.summary for run in found.runs}
+    assert "one is not two" in why["test_fails"] and "tear-down broke" in why[
+        "test_passes_then_its_tear_down_fails"]
+    assert all(run.test.startswith("tests/test_round.py::") for run in found.runs)
+
+
+def test_a_file_that_is_not_a_junit_report_is_refused_by_name(tmp_path):
+    for text, says in (("not xml", "not XML"), ("<html/>", "not a JUnit report")):
+        with pytest.raises(ValueError, match=says) as refused:
+            flake_hunt.junit_round(tmp_path / "r.xml", text, lambda name: False)
+        assert "r.xml" in str(refused.value)
+
+
+def test_rounds_add_up_per_test_and_the_counts_say_who_ran_less(tmp_path):
+    def report(*cases: str) -> str:
+        return ('<testsuites><testsuite name="burners=0" time="60">' + "".join(cases)
+                + "</testsuite></testsuites>")
+    ok = '<testcase classname="tests.test_x" name="{}" time="1"/>'
+    bad = '<testcase classname="tests.test_x" name="{}" time="1"><failure message="m"/></testcase>'
+    rounds = [flake_hunt.junit_round(tmp_path / f"{n}.xml", text, lambda name: True)
+              for n, text in enumerate([report(ok.format("t1"), ok.format("t2")),
+                                        report(ok.format("t1"), bad.format("t2")),
+                                        report(ok.format("t1"))])]
+    tallies = tally([run for one in rounds for run in one.runs])
+    assert [(entry.test, entry.runs, entry.failures) for entry in tallies] == [
+        ("tests/test_x.py::t1", 3, 0), ("tests/test_x.py::t2", 2, 1)]
+    assert flake_hunt.counts_line(tallies) == "2 tests, 1 failing runs; runs each: 2 x 1, 3 x 1"
+    assert "1.0" in flake_hunt.rounds_table(rounds).splitlines()[1]
