@@ -18,10 +18,10 @@ interrupted and tears down) and prints the figures so far; the burners are alway
     .venv/bin/python tests/flake_hunt.py --junit out/fresh-clones/*.xml   # rounds of the suite
 
 A round of the whole suite runs every test once, the way CI does (both workers, the machine's
-shares): ``--junit`` counts each test's runs and failures over the JUnit reports of such rounds
-(``tests/fresh_clone_run.sh`` writes one per fresh clone) instead of running anything, which
-is how every process-level test reaches 20 runs in hours, not days.  A report's suite name
-says what ran beside it (``burners=2``).
+shares): ``--junit`` counts each test's runs and failures over the JUnit reports of such
+rounds instead of running anything, which is how every process-level test reaches 20 runs in
+hours, not days.  ``tests/fresh_clone_run.sh`` writes one report per fresh clone, its suite
+name saying what ran beside it (``burners=2``); ``docs/fresh-clones/`` keeps them, gzipped.
 
 Exit status: 0 every run passed, 1 a run failed (or was stopped), 2 misuse.
 The report goes to ``out/flake-hunt-<time>/report.md`` with the output of every failing run.
@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import enum
+import gzip
 import inspect
 import os
 import re
@@ -332,8 +333,9 @@ _WORST = [Outcome.PASSED, Outcome.SKIPPED, Outcome.ERROR, Outcome.FAILED]
 
 
 def test_id(classname: str, name: str, is_file: Callable[[str], bool]) -> str:
-    """A JUnit testcase's pytest node id: ``tests.a.test_b`` + ``t[x]`` -> ``tests/a/test_b.py::t[x]``
-    (a class inside the file stays after ``::``, found by which prefix is a file)."""
+    """A JUnit testcase's pytest node id: ``tests.a.test_b`` and ``t[x]`` make
+    ``tests/a/test_b.py::t[x]`` (a class inside the file stays after ``::``, found by which
+    prefix is a file)."""
     parts = classname.split(".")
     for cut in range(len(parts), 0, -1):
         path = "/".join(parts[:cut]) + ".py"
@@ -379,8 +381,9 @@ def junit_round(path: Path, text: str, is_file: Callable[[str], bool]) -> Round:
 def rounds_table(rounds: Sequence[Round]) -> str:
     rows = [["report", "beside", "started", "minutes", "tests", "failing"]]
     for one in rounds:
-        rows.append([str(one.path), "?" if one.conditions in ("", "pytest") else one.conditions, one.started[:19],
-                     f"{one.seconds / 60:.1f}", str(len(one.runs)),
+        beside = "?" if one.conditions in ("", "pytest") else one.conditions
+        rows.append([str(one.path), beside, one.started[:19], f"{one.seconds / 60:.1f}",
+                     str(len(one.runs)),
                      str(sum(run.outcome.failing for run in one.runs))])
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
     return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip()
@@ -676,9 +679,11 @@ def tally_rounds(paths: Sequence[Path], tests: Sequence[str],
     rounds = []
     for path in paths:
         try:
-            rounds.append(junit_round(path, path.read_text(errors="replace"),
-                                      lambda name: (REPO / name).is_file()))
-        except (OSError, ValueError) as why:
+            data = path.read_bytes()
+            text = (gzip.decompress(data) if path.suffix == ".gz" else data).decode(
+                "utf-8", "replace")
+            rounds.append(junit_round(path, text, lambda name: (REPO / name).is_file()))
+        except (OSError, ValueError, EOFError) as why:
             error(str(why))
     runs = [run for one in rounds for run in one.runs if not tests or run.test in tests]
     tallies = tally(runs, tests)
@@ -687,6 +692,11 @@ def tally_rounds(paths: Sequence[Path], tests: Sequence[str],
     if failing:
         print(table(failing) + "\n")
     print(counts_line(tallies))
+    conditions = sorted({one.conditions for one in rounds})
+    for beside in conditions if len(conditions) > 1 else ():
+        of = [run for one in rounds if one.conditions == beside for run in one.runs
+              if not tests or run.test in tests]
+        print(f"  beside {beside or '?'}: " + counts_line(tally(of, tests)))
     return 1 if failing else 0
 
 
