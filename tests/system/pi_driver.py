@@ -16,8 +16,10 @@ pose fields, and after the test says ``restarted`` (roscore and bridge restarted
 under it) the PI shows the module again, librviz takes the new bridge's cloud,
 the PI sends ``look_at X+0.1`` and draws the robot), ``camera`` (the camera tab in
 the lab, no bridge: frames with a black sky and a cloud without depth there read
-100 %, nothing hatched), ``wall`` (the wall task by clicks, start to home), ``terrain`` (the rough-ground
-course by walking's clicks and two footsteps placed and dragged in the 3-D view), ``valve COUNT`` (for bench/bench_valve_topologies.py: the
+100 %, nothing hatched), ``wall`` (the wall task by clicks, start to home),
+``terrain [camera]`` (the rough-ground course by walking's clicks and two footsteps placed
+and dragged in the 3-D view; ``camera``: the rest of the way on footsteps from the head
+camera's cloud), ``valve COUNT`` (for bench/bench_valve_topologies.py: the
 whole valve task COUNT times by clicks, printing ``TIMED run command state click-time
 shown-time`` per step and ``SHOWN time state stamp`` for every status the task widget
 showed, ``stamp`` the gateway's receipt; after each run but the last it waits for the
@@ -529,13 +531,16 @@ def start_walking():
     return walking
 
 
-def terrain() -> None:
+def terrain(on_camera: bool) -> None:
     """The rough-ground course by clicks (issue 32): start walking, go to the step, step up,
     two footsteps placed in the 3-D view (the second dragged beside the first), on to the
-    far edge (with ``PI_CAMERA_FOOTSTEPS=1``: the head bent down and footsteps from the
-    camera's cloud), step down."""
+    far edge and step down -- or (``on_camera``) along the kerb and down its far side on
+    footsteps from the camera's cloud, the head bent down, perception paused but for the
+    look."""
     walking = start_walking()
     say("STEP walking started")
+    if on_camera:
+        perception(pause=True)        # not needed until the look from the kerb's top
     walk("go_straight", [0.12])
     walk("step_up", [0.05, 0.33])
     if os.environ.get("PI_STEP_DOWN_EARLY"):
@@ -563,10 +568,11 @@ def terrain() -> None:
     walk("footsteps")
     # on along the kerb and down its far side on footsteps placed from the head camera's
     # cloud: the head bent down by gaze_control, a leg to the far edge, a look again, down
-    if os.environ.get("PI_CAMERA_FOOTSTEPS"):
-        # on to the far edge on footsteps from the head camera's cloud (not in the suite's
-        # run: beside two burners the walk tripped the balance guard in 2 of 7 runs, ZMP
-        # 0.4-0.6 cm from the feet's edge on the kerb's flat top; quiet, it passed)
+    if on_camera:
+        # on to the far edge on footsteps from the head camera's cloud (beside two burners
+        # the walk tripped the balance guard in 2 of 7 runs, ZMP 0.4-0.6 cm from the feet's
+        # edge on the kerb's flat top, while perception rendered beside the walking loop)
+        perception(pause=False)
         look_down(start_gaze())
         finer_ground()
         # along the kerb and down its far side, placed by one look from the kerb's top
@@ -605,6 +611,20 @@ def finer_ground(finer: bool = True) -> None:
         wait(lambda: f"{numbers[-2]}x{numbers[-1]}" in camera.status_label.text() or
              f"{numbers[-2]} {numbers[-1]}" in camera.status_label.text(), 30,
              f"perception says {command} {numbers}")
+
+
+def perception(pause: bool) -> None:
+    """Pause (or resume) perception from its widget, as a pilot does while the robot walks:
+    a camera render costs the robot PC's CPU what its walking loop needs."""
+    camera = widget("perception")
+    wait(lambda: camera.state == ("streaming" if pause else "paused"), 60,
+         f"perception {'streaming' if pause else 'paused'}")
+    wait_sendable("perception")
+    verb = "pause" if pause else "resume"
+    click(camera.switch_buttons[verb], f"perception {verb}", camera)
+    wait(lambda: camera.state == ("paused" if pause else "streaming"), 20,
+         f"perception {verb}d")
+    say(f"STEP perception {verb}d")
 
 
 def look_down(gaze) -> None:
@@ -646,8 +666,9 @@ def camera_leg(distance: float) -> None:
         fail("no footsteps from the camera, and no word why")
     placed = [[round(v, 3) for v in walking.footsteps[name][:3]] for name in walking.ordered()]
     say(f"STEP footsteps from the camera {distance}: {placed}")
-    finer_ground(False)
+    perception(pause=True)      # its renders and the cloud's sending off the walking loop's CPU
     walk("footsteps")
+    perception(pause=False)
 
 
 def debris() -> None:
@@ -1070,7 +1091,8 @@ if __name__ == "__main__":
     wait(lambda: window.ros_up, 60, "the PI's ROS node")
     say(f"UP after {window.ready_after:.2f} s")
     {"first": first, "second": second, "latency": latency, "peer": peer,
-     "camera": camera, "wall": wall_task, "terrain": terrain, "debris": debris,
+     "camera": camera, "wall": wall_task,
+     "terrain": lambda: terrain(sys.argv[3:] == ["camera"]), "debris": debris,
      "valve": lambda: task_runs("drc_valve", int(sys.argv[3])),
      "task": lambda: task_runs(sys.argv[3], int(sys.argv[4])),
      "tasks": lambda: tasks_in_turn(sys.argv[3:]),
