@@ -21,7 +21,12 @@ processes fell short or tripped its guard (issue 31).  A module's other threads 
 every module's loop: the robot's threads are never preempted by a module's, so a lock one
 of them holds comes back at once.  A module's lifecycle hooks (``custom_init`` loading a
 model for seconds) run in its control thread at ``BACKGROUND_PRIORITY``
-(:func:`at_priority`): only the periodic loop is above the rest of the machine.  A
+(:func:`at_priority`): only the periodic loop is above the rest of the machine -- and only
+the loop of a module that moves the robot (a ``ControlThread``): the others' loops (the head
+camera's renders, 20-100 ms of CPU each) run at normal priority, below every real-time
+thread (at ``CONTROL_PRIORITY`` a render runs on its CPU until it is done, and a balancing
+robot's loop that waits for that CPU cannot preempt it: likely the 14-ms ticks before a
+balance trip on the kerb).  A
 bridge's threads run at ``BRIDGE_PRIORITY``, below all of those: on a robot PC loaded by
 other programs (two busy loops and a PI rendering the 3-D view, in a test) the link to the
 pilot went silent for 2-4 s at a time and the modules' link-loss policies paused them.
@@ -73,6 +78,17 @@ def realtime_refused(priority: int) -> Optional[str]:
 def make_realtime(priority: int) -> bool:
     """Give the calling thread SCHED_FIFO ``priority``; False where not permitted."""
     return realtime_refused(priority) is None
+
+
+def make_normal() -> bool:
+    """Run the calling thread at normal priority (``SCHED_OTHER``); returns False, as
+    :func:`make_realtime` does for a thread that is not real-time."""
+    if hasattr(os, "sched_setscheduler"):
+        try:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        except OSError:
+            pass
+    return False
 
 
 def make_process_realtime(priority: int = BACKGROUND_PRIORITY) -> bool:

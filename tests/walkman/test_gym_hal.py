@@ -489,6 +489,24 @@ def test_the_threads_between_sense_and_move_run_with_real_time_priority(lite_wor
         pilot.close()
 
 
+@pytest.mark.requires("root")
+def test_a_module_that_moves_no_joint_runs_its_loop_below_every_real_time_thread(lite_world):
+    """perception renders in its loop, 20-100 ms of CPU a frame.  At the control loops'
+    priority a render runs on its CPU to the end, and a balancing robot's loop waiting for
+    that CPU cannot preempt it (likely the 14-ms ticks before a trip on the kerb): a loop
+    that moves no joint is not on the sense -> move path, and runs at normal priority; its
+    port threads stay real-time."""
+    from system.processes import descendants, fifo_priorities
+    from walkman.realtime import BACKGROUND_PRIORITY, CONTROL_PRIORITY
+
+    module = start_module(lite_world, "perception")
+    module.wait_for("ready for the pilot", timeout=60)
+    runner = [pid for pid in descendants(module.popen.pid)
+              if BACKGROUND_PRIORITY in fifo_priorities(pid)]
+    assert len(runner) == 1, "no real-time module process"
+    assert CONTROL_PRIORITY not in fifo_priorities(runner[0]), fifo_priorities(runner[0])
+
+
 def test_a_module_asked_with_sigusr1_prints_every_thread_s_stack(lite_world):
     """``kill -USR1`` to the supervisor: where each thread of the module process is (the
     watchdog waiting for the pilot, the control loop), the module running on."""

@@ -63,7 +63,8 @@ from walkman.gym.thread import ControlThread, GenericThread
 from walkman.gym.transitions import Lifecycle, Outcome
 from walkman.hal.protocol import HalProtocolError, HalUsageError
 from walkman.realtime import (BACKGROUND_PRIORITY, CONTROL_PRIORITY, SWITCH_INTERVAL,
-                              at_priority, make_process_realtime, make_realtime)
+                              at_priority, make_normal, make_process_realtime,
+                              make_realtime)
 from yarp_lite.errors import NetworkError
 from yarp_lite.nameclient import NameClient
 
@@ -154,7 +155,10 @@ class ControlLoop(threading.Thread):
 
     def run(self) -> None:
         runner = self.runner
-        self.realtime = make_realtime(CONTROL_PRIORITY)
+        # Only a loop on the sense -> move path is real-time (realtime.py): one that moves no
+        # joint (perception's renders) runs below every robot's thread.
+        moves_the_robot = getattr(runner.module_class, "needs_robot", False)
+        self.realtime = make_realtime(CONTROL_PRIORITY) if moves_the_robot else make_normal()
         self.schedule = TickSchedule(runner.thread.thread_period, lambda: runner.robot)
         paused_too = runner.thread.runs_while_paused()
         while not self.exit:
