@@ -395,7 +395,8 @@ def rounds_table(rounds: Sequence[Round]) -> str:
 
 
 def counts_line(tallies: Sequence[Tally]) -> str:
-    """How many tests ran how often, fewest first: ``1754 tests: 3 x 1740, 2 x 14``."""
+    """The failing runs, and how many tests ran how often, fewest runs first:
+    ``1754 tests, 0 failing runs; runs each: 2 x 14, 3 x 1740``."""
     often = Counter(entry.runs for entry in tallies)
     return (f"{len(tallies)} tests, {sum(e.failures for e in tallies)} failing runs; runs each: "
             + ", ".join(f"{runs} x {count}" for runs, count in sorted(often.items())))
