@@ -5,10 +5,20 @@
 on ``ROS_PACKAGE_PATH``, so ``rosmsg show walkman_msgs/Status`` and
 ``rostopic pub /gaze_control/switch walkman_msgs/Switch ...`` work from any shell.
 Skips the work when the generated files are newer than the definitions.
+
+Every ROS program of ours calls :func:`ensure_importable` as it starts, and a launcher starts
+them all at once: the generation holds a lock (``flock`` on a file beside the output), so a
+program never imports a file another one is half-way through writing.  A process that had
+the output folder on ``sys.path`` before it existed (``PYTHONPATH`` from
+``walkman_env.sh`` on a fresh checkout) remembers that folder as empty until the import
+system's caches are invalidated: the gateway's ROS thread then died with "No module named
+'walkman_msgs'" and the gateway never came up.
 """
 
 from __future__ import annotations
 
+import fcntl
+import importlib
 import sys
 from pathlib import Path
 from typing import List
@@ -21,9 +31,9 @@ SHARE = REPO / "build" / "ros" / "share"
 SEARCH = {"std_msgs": Path("/usr/share/std_msgs/msg")}
 
 
-def _stale(kind: str) -> List[Path]:
+def _stale(kind: str, output: Path) -> List[Path]:
     sources = sorted((SOURCE / kind).glob(f"*.{kind}"))
-    target = OUTPUT / PACKAGE / kind
+    target = output / PACKAGE / kind
     newest = max((p.stat().st_mtime for p in sources), default=0)
     built = [target / f"_{p.stem}.py" for p in sources]
     if all(b.exists() and b.stat().st_mtime >= newest for b in built) and \
@@ -32,8 +42,16 @@ def _stale(kind: str) -> List[Path]:
     return sources
 
 
-def generate(force: bool = False) -> bool:
-    """Generate what is out of date; True when something was written."""
+def generate(force: bool = False, output: Path = OUTPUT) -> bool:
+    """Generate what is out of date into ``output``; True when something was written.
+    One process at a time: the others wait, then find it up to date."""
+    output.mkdir(parents=True, exist_ok=True)
+    with open(output / ".generating.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)    # released when the file closes, or the holder dies
+        return _generate(force, output)
+
+
+def _generate(force: bool, output: Path) -> bool:
     import genpy.generator
     import genpy.genpy_main
 
@@ -45,10 +63,10 @@ def generate(force: bool = False) -> bool:
     includes = [f"-I{PACKAGE}:{SOURCE / 'msg'}"] + [f"-I{n}:{p}" for n, p in SEARCH.items()]
     for kind, generator in (("msg", genpy.generator.MsgGenerator()),
                             ("srv", genpy.generator.SrvGenerator())):
-        sources = sorted((SOURCE / kind).glob(f"*.{kind}")) if force else _stale(kind)
+        sources = sorted((SOURCE / kind).glob(f"*.{kind}")) if force else _stale(kind, output)
         if not sources:
             continue
-        target = OUTPUT / PACKAGE / kind
+        target = output / PACKAGE / kind
         target.mkdir(parents=True, exist_ok=True)
         base = ["gen", "-p", PACKAGE, "-o", str(target), *includes]
         for argv in (base + [str(p) for p in sources], base + ["--initpy"]):
@@ -58,7 +76,7 @@ def generate(force: bool = False) -> bool:
                 if exit_.code:
                     raise SystemExit(f"nodekit.msgs: genpy failed on {kind} ({exit_.code})")
         wrote = True
-    package_init = OUTPUT / PACKAGE / "__init__.py"
+    package_init = output / PACKAGE / "__init__.py"
     if not package_init.exists():
         package_init.write_text("")
     _declare_dependencies()
@@ -81,11 +99,13 @@ def _declare_dependencies() -> None:
             link.symlink_to(path)
 
 
-def ensure_importable() -> None:
-    """Make ``import walkman_msgs`` work in this process (generating if needed)."""
-    generate()
-    if str(OUTPUT) not in sys.path:
-        sys.path.insert(0, str(OUTPUT))
+def ensure_importable(output: Path = OUTPUT) -> None:
+    """Make ``import walkman_msgs`` work in this process (generating into ``output`` if
+    needed)."""
+    generate(output=output)
+    if str(output) not in sys.path:
+        sys.path.insert(0, str(output))
+    importlib.invalidate_caches()   # a folder seen missing before is looked at again
 
 
 if __name__ == "__main__":
