@@ -364,13 +364,9 @@ def camera_under_control() -> None:
     """The head camera is a GYM module (issue 32): from its Generic Widget the pilot pauses
     and resumes it, and sets its rate to 0 (running, no pictures) and to 2 Hz again."""
     camera, view = widget("perception"), window.camera
-    wait(lambda: camera.state == "streaming", 30, "perception streaming")
-    wait_sendable("perception")
-    click(camera.switch_buttons["pause"], "perception pause", camera)
-    wait(lambda: camera.state == "paused", 20, "perception paused")
+    perception(pause=True)
     frames_stop(view, "the pause")
-    click(camera.switch_buttons["resume"], "perception resume", camera)
-    wait(lambda: camera.state == "streaming", 20, "perception streaming after resume")
+    perception(pause=False)
     frames_come(view, "the resume")
     say("STEP camera paused and resumed from its widget")
     shown = ""
