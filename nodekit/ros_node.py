@@ -144,6 +144,9 @@ class RosNode:
         self._stop = threading.Event()
         self._on_ready: List[Callable[[], None]] = []
         self._on_again: List[Callable[[], None]] = []
+        self._on_failed: List[Callable[[str], None]] = []
+        #: why the node's ROS side did not open (a ready action raised), else ""
+        self.failed = ""
         self._adopted: Dict[str, str] = {}     # roscpp node name -> its XML-RPC URI
         self._master_pid: Optional[int] = None
         self._thread = threading.Thread(target=self._run, name="ros node", daemon=True)
@@ -153,6 +156,12 @@ class RosNode:
 
     def when_ready(self, action: Callable[[], None]) -> None:
         self._on_ready.append(action)
+
+    def when_failed(self, action: Callable[[str], None]) -> None:
+        """``action(why)`` runs if a :meth:`when_ready` action raised: the node's topics
+        and services are not up, and will not be (a program that cannot serve without them
+        says so and ends, rather than wait forever for a thread that is gone)."""
+        self._on_failed.append(action)
 
     def when_registered_again(self, action: Callable[[], None]) -> None:
         """``action`` runs after each master restart, once our topics are registered again
@@ -192,7 +201,11 @@ class RosNode:
         self._master_pid = self._pid()
         log.info("ROS node %s registered with %s", rospy.get_name(), rosgraph.get_master_uri())
         for action in self._on_ready:
-            action()
+            try:
+                action()
+            except Exception as exc:  # noqa: BLE001 -- told, then the owner decides
+                self._fail(action, exc)
+                return
         self.ready.set()
         while not self._stop.wait(1.0):
             pid = self._pid()
@@ -202,6 +215,14 @@ class RosNode:
                     self._master_pid = pid
                     for action in self._on_again:
                         action()
+
+    def _fail(self, action: Callable[[], None], exc: Exception) -> None:
+        self.failed = (f"{getattr(action, '__qualname__', action)} raised "
+                       f"{type(exc).__name__}: {exc}")
+        log.error("the ROS side of %s did not open: %s", self.name, self.failed,
+                  exc_info=True)
+        for failed in self._on_failed:
+            failed(self.failed)
 
     def _pid(self) -> Optional[int]:
         import rosgraph

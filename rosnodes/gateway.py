@@ -374,7 +374,13 @@ class Gateway:
 
         self.ros_node = RosNode(self.node_name)
         self.ros_node.when_ready(self._open_ros)
+        self.ros_node.when_failed(self._ros_failed)
         self.ros_node.start()
+
+    def _ros_failed(self, why: str) -> None:
+        """No topics, no services: a gateway without its ROS side serves no pilot."""
+        self.error = f"its ROS side did not open: {why}"
+        self.finished.set()
 
     def _other_gateway(self) -> Optional[str]:
         """The URI of a live gateway already serving our modules on this roscore, if any."""

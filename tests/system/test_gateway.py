@@ -137,6 +137,21 @@ def test_a_second_gateway_on_the_same_roscore_refuses_instead_of_doubling_comman
                message="the command executed exactly once")
 
 
+def test_a_gateway_whose_ros_side_cannot_open_says_why_and_ends(make_pc, config):
+    """Its ROS thread failing (here the generated messages unimportable, as on a checkout
+    whose messages were not yet generated) used to leave a gateway running that never
+    served: it ends with the reason instead, so its launcher sees it."""
+    pc = make_pc()
+    pc.start_name_servers()
+    broken = ("import sys; sys.modules['walkman_msgs.srv'] = None; "
+              "from rosnodes.gateway import main; sys.exit(main(sys.argv[1:]))")
+    tool = pc.run([PYTHON, "-c", broken, "--config", str(config)], timeout=60)
+    assert tool.popen.returncode == 2, tool.output()
+    assert re.search(r"walkman-pilot-gateway: its ROS side did not open: Gateway\._open_ros "
+                     r"raised ModuleNotFoundError: .*walkman_msgs\.srv", tool.output()), \
+        tool.output()
+
+
 def test_a_switch_sent_before_the_module_is_connected_waits_for_it(make_pc, config, counter):
     """Just after start-up the pilot's first command may beat the connection keeper:
     it is delivered once the connection is made, not dropped."""
