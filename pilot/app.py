@@ -179,6 +179,7 @@ class PilotWindow(QMainWindow):
         outer = QVBoxLayout(central)
         self.banner = QLabel("connecting to the pilot roscore...")
         self.banner.setObjectName("banner")
+        self.banner.setWordWrap(True)     # a long reason never widens the window past the screen
         top = QHBoxLayout()
         top.addWidget(self.banner, 1)
         # In every layout: one click holds the whole robot (HAL and every module).
@@ -442,6 +443,13 @@ class PilotWindow(QMainWindow):
     def _dispatch(self, event: Any) -> None:
         if isinstance(event, events.StopEvent):
             self._on_stop(event)
+            return
+        if isinstance(event, events.RosEvent) and event.failed:
+            self.ros_up = False       # its widgets' sends are refused ("not connected")
+            self.banner.setText(f"{self.name}: its ROS side did not open, nothing can be "
+                                f"sent -- {event.failed}")
+            self.banner.setStyleSheet("color: #c00000; font-weight: bold;")
+            log.error("pilot: %s cannot pilot: its ROS side did not open", self.name)
             return
         if isinstance(event, events.RosEvent):
             self.ros_up = event.up

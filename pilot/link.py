@@ -184,6 +184,7 @@ class StopEvent:
 class RosEvent:
     up: bool
     again: bool = False   # the master restarted and our topics are registered again
+    failed: str = ""      # why the link's topics did not open (nothing can be sent)
 
 
 @dataclass(frozen=True)
@@ -258,6 +259,7 @@ class PilotLink:
         self._ros = RosNode(self.name)
         self._ros.when_ready(self._open_topics)
         self._ros.when_registered_again(lambda: self.post(RosEvent(True, again=True)))
+        self._ros.when_failed(lambda why: self.post(RosEvent(False, failed=why)))
         self._ros.start()
         threading.Thread(target=self._open_bridge_status, name="pilot bridge status",
                          daemon=True).start()

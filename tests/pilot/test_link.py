@@ -65,6 +65,40 @@ def test_the_pi_link_sends_on_its_real_topics_only_to_a_listener(tmp_path):
         world.close()
 
 
+#: The link in a process whose generated messages cannot be imported: it says why it is down.
+FAILING_LINK_PROCESS = """
+import queue, sys
+sys.modules["walkman_msgs.msg"] = None
+from pilot.link import PilotLink, RosEvent
+events = queue.Queue()
+link = PilotLink("pi_test", ["gaze_control"],
+                 post=lambda event: events.put(event) if isinstance(event, RosEvent) else None)
+link.start()
+event = events.get(timeout=60)
+print("event:", event.up, event.failed, flush=True)
+print("refused:", link.command("gaze_control", "look_at", [1.0, 0.2, 0.1]), flush=True)
+"""
+
+
+def test_a_pi_link_whose_topics_cannot_open_tells_the_window_why(tmp_path):
+    world = YarpWorld(tmp_path / "yarp", lite_implementation())
+    ros_port = free_port()
+    env = {**world.env, **ros_environment(tmp_path, ros_port)}
+    try:
+        world.start_server()
+        world.start(["roscore", "-p", str(ros_port)], "roscore", env=env) \
+            .wait_for(ROSCORE_READY, 60)
+        link = world.start([sys.executable, "-c", FAILING_LINK_PROCESS], "pilot link", env=env)
+        said = link.wait_for(r"event: (\w+) (.*)", timeout=90)
+        assert said.group(1) == "False", link.output()
+        assert said.group(2).startswith("PilotLink._open_topics raised ModuleNotFoundError"), \
+            link.output()
+        assert "walkman_msgs.msg" in said.group(2)
+        assert "not connected" in link.wait_for(r"refused: (.*)", timeout=30).group(1)
+    finally:
+        world.close()
+
+
 class Publisher:
     def __init__(self, connections: int) -> None:
         self.connections = connections
