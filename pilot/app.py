@@ -450,6 +450,8 @@ class PilotWindow(QMainWindow):
                                 f"sent -- {event.failed}")
             self.banner.setStyleSheet("color: #c00000; font-weight: bold;")
             log.error("pilot: %s cannot pilot: its ROS side did not open", self.name)
+            if self.view3d is not None:
+                self.view3d.cannot_start("this PI's ROS side did not open")
             return
         if isinstance(event, events.RosEvent):
             self.ros_up = event.up

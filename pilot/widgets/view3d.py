@@ -96,6 +96,11 @@ class View3D(QWidget):
         self.supervisor.start()
         self._say("3-D view: starting librviz")
 
+    def cannot_start(self, why: str) -> None:
+        """The render process will not start (this PI's ROS side did not open): say why in
+        the view's place instead of waiting for the roscore."""
+        self._say(f"3-D view: not started -- {why}")
+
     @property
     def child_pid(self) -> Optional[int]:
         """The render process now running (embedded or not yet)."""
