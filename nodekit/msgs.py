@@ -45,8 +45,12 @@ def _stale(kind: str, output: Path) -> List[Path]:
 def generate(force: bool = False, output: Path = OUTPUT) -> bool:
     """Generate what is out of date into ``output``; True when something was written.
     One process at a time: the others wait, then find it up to date."""
-    output.mkdir(parents=True, exist_ok=True)
-    with open(output / ".generating.lock", "w") as lock:
+    try:
+        output.mkdir(parents=True, exist_ok=True)
+        lock = open(output / ".generating.lock", "w")
+    except OSError:     # a read-only install: up to date, or _generate says what it cannot
+        return _generate(force, output)
+    with lock:
         fcntl.flock(lock, fcntl.LOCK_EX)    # released when the file closes, or the holder dies
         return _generate(force, output)
 

@@ -1,8 +1,12 @@
 """nodekit.msgs: the generated walkman_msgs import in every program, however they start."""
 
+import os
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
+
+import pytest
 
 from nodekit.msgs import REPO
 
@@ -47,3 +51,29 @@ def test_programs_started_at_once_on_a_fresh_checkout_all_import_them(tmp_path):
         assert program.returncode == 0, out
         assert "imported walkman_msgs/Status" in out
     assert sum("generated True" in out for out in outs) == 1, outs
+
+
+READ_ONLY_PROGRAM = """
+import os, sys
+from pathlib import Path
+from nodekit.msgs import generate
+output = Path(sys.argv[1])
+generate(output=output)
+os.remove(output / ".generating.lock")
+os.chmod(output, 0o555)
+os.setuid(65534)                      # nobody: the folder is not ours to write
+print("up to date:", generate(output=output), flush=True)
+"""
+
+
+@pytest.mark.requires("root")
+def test_messages_installed_read_only_still_import_for_another_user():
+    """An install its users cannot write (no lock file can be made there) is used as it
+    is when it is up to date."""
+    with tempfile.TemporaryDirectory() as folder:      # pytest's tmp_path is root's alone
+        os.chmod(folder, 0o755)
+        result = subprocess.run([sys.executable, "-c", READ_ONLY_PROGRAM, f"{folder}/lib"],
+                                cwd=REPO, capture_output=True, text=True, timeout=120)
+        os.chmod(f"{folder}/lib", 0o755)               # for the clean-up
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "up to date: False" in result.stdout
