@@ -130,7 +130,10 @@ KNOWN: Tuple[Known, ...] = (
     Known("tests/bridge/test_rogue_host.py::test_a_rogue_on_the_radio_gets_nothing_executed",
           "the pilot's 250 commands (25 s) ended before the attacks did (fc15 of 2026-11-28, "
           "beside the PI start loop and a flake hunt: load up to 29); the pilot commands until "
-          "told since"),
+          "told since.  Then the injected frame counted malformed, not forged, beside two "
+          "burners (fc98 of 2026-12-02): the rogue injected late, over the pilot's own next "
+          "segment; the test takes either refusal since (both drop the connection, execute "
+          "nothing)"),
     Known("tests/modules/test_drc_drive.py::test_steer_and_accelerate",
           "the status's measured wheel angle 0.13 rad short of the world's: the status before "
           "the wheel settled (fc14 of 2026-11-28, beside the PI start loop; waits for the "
@@ -262,10 +265,6 @@ KNOWN: Tuple[Known, ...] = (
           "its 3-s wait for the nudges beside two burners (fc6; 15 s since: 7c633c2); no "
           "nudge in 15 s (2026-11-27 fc3): an event riding with the periodic frame was not "
           "awaited, a product defect (2559128)"),
-    Known("tests/bridge/test_rogue_host.py::test_a_rogue_on_the_radio_gets_nothing_executed",
-          "the injected frame counted malformed, not forged, beside two burners (fc98): the "
-          "rogue injected late, over the pilot's own next segment; the test now takes either "
-          "refusal (the robot dropped the connection and executed nothing in both)"),
 )
 
 
