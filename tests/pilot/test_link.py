@@ -11,6 +11,8 @@ from __future__ import annotations
 import sys
 from typing import List
 
+import pytest
+
 from harness import YarpWorld, free_port, lite_implementation
 from pilot.link import PilotLink, _Sender
 from nodekit.msgs import ensure_importable
@@ -40,7 +42,10 @@ link.close()
 """
 
 
-def test_the_pi_link_sends_on_its_real_topics_only_to_a_listener(tmp_path):
+@pytest.fixture
+def ros_world(tmp_path):
+    """``(world, env)``: a YARP name server and a real roscore, and the environment that
+    finds both; closed after the test, even on failure."""
     world = YarpWorld(tmp_path / "yarp", lite_implementation())
     ros_port = free_port()
     env = {**world.env, **ros_environment(tmp_path, ros_port)}
@@ -48,21 +53,26 @@ def test_the_pi_link_sends_on_its_real_topics_only_to_a_listener(tmp_path):
         world.start_server()
         world.start(["roscore", "-p", str(ros_port)], "roscore", env=env) \
             .wait_for(ROSCORE_READY, 60)
-        link = world.start([sys.executable, "-c", LINK_PROCESS], "pilot link", stdin=True,
-                           env=env)
-        refused = link.wait_for(r"refused: (.*)", timeout=90).group(1)
-        assert "no gateway listens to /gaze_control/command" in refused
-        echo = world.start(["rostopic", "echo", "-n", "1", "/gaze_control/command"],
-                           "rostopic echo", env=env)
-        link.popen.stdin.write("go\n")
-        link.popen.stdin.flush()
-        assert link.wait_for(r"sent: (.*)", timeout=60).group(1).strip() == ""
-        echo.wait_for(r"command: \"?look_at", timeout=30)
-        assert "pi_test" in echo.output() and "1.0" in echo.output()
-        link.popen.stdin.write("done\n")
-        link.popen.stdin.flush()
+        yield world, env
     finally:
         world.close()
+
+
+def test_the_pi_link_sends_on_its_real_topics_only_to_a_listener(ros_world):
+    world, env = ros_world
+    link = world.start([sys.executable, "-c", LINK_PROCESS], "pilot link", stdin=True,
+                       env=env)
+    refused = link.wait_for(r"refused: (.*)", timeout=90).group(1)
+    assert "no gateway listens to /gaze_control/command" in refused
+    echo = world.start(["rostopic", "echo", "-n", "1", "/gaze_control/command"],
+                       "rostopic echo", env=env)
+    link.popen.stdin.write("go\n")
+    link.popen.stdin.flush()
+    assert link.wait_for(r"sent: (.*)", timeout=60).group(1).strip() == ""
+    echo.wait_for(r"command: \"?look_at", timeout=30)
+    assert "pi_test" in echo.output() and "1.0" in echo.output()
+    link.popen.stdin.write("done\n")
+    link.popen.stdin.flush()
 
 
 #: The link in a process whose generated messages cannot be imported: it says why it is down.
@@ -80,23 +90,15 @@ print("refused:", link.command("gaze_control", "look_at", [1.0, 0.2, 0.1]), flus
 """
 
 
-def test_a_pi_link_whose_topics_cannot_open_tells_the_window_why(tmp_path):
-    world = YarpWorld(tmp_path / "yarp", lite_implementation())
-    ros_port = free_port()
-    env = {**world.env, **ros_environment(tmp_path, ros_port)}
-    try:
-        world.start_server()
-        world.start(["roscore", "-p", str(ros_port)], "roscore", env=env) \
-            .wait_for(ROSCORE_READY, 60)
-        link = world.start([sys.executable, "-c", FAILING_LINK_PROCESS], "pilot link", env=env)
-        said = link.wait_for(r"event: (\w+) (.*)", timeout=90)
-        assert said.group(1) == "False", link.output()
-        assert said.group(2).startswith("PilotLink._open_topics raised ModuleNotFoundError"), \
-            link.output()
-        assert "walkman_msgs.msg" in said.group(2)
-        assert "not connected" in link.wait_for(r"refused: (.*)", timeout=30).group(1)
-    finally:
-        world.close()
+def test_a_pi_link_whose_topics_cannot_open_tells_the_window_why(ros_world):
+    world, env = ros_world
+    link = world.start([sys.executable, "-c", FAILING_LINK_PROCESS], "pilot link", env=env)
+    said = link.wait_for(r"event: (\w+) (.*)", timeout=90)
+    assert said.group(1) == "False", link.output()
+    assert said.group(2).startswith("PilotLink._open_topics raised ModuleNotFoundError"), \
+        link.output()
+    assert "walkman_msgs.msg" in said.group(2)
+    assert "not connected" in link.wait_for(r"refused: (.*)", timeout=30).group(1)
 
 
 class Publisher:
