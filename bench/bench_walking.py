@@ -2,6 +2,7 @@
 
     .venv/bin/python bench/bench_walking.py            # everything (about 5 minutes)
     .venv/bin/python bench/bench_walking.py --quick    # the walks only
+    .venv/bin/python bench/bench_walking.py --rough --contact soft firm   # the courses, both
 
 The walking module runs offline (walkman.gym.offline: its own code on simulated time,
 MuJoCo at 1 kHz, the harness off).  Per command, from a fresh robot standing: the speed
@@ -13,7 +14,10 @@ sideways in mid-walk.  Survived: upright (tilt < 0.1 rad, pelvis not sunk) 4 s a
 The rough-ground courses (tests/modules/walker.py): up a 5-cm step, along it and down
 (station ``terrain``); onto a 10-degree ramp, up it and onto its top (station ``ramp``), and
 back down from the top (station ``ramp_top``): each command's time and smallest ZMP margin,
-each course's speed.
+each course's speed; then the step and the ramp on footsteps the head camera places, look
+by look.  ``--contact`` runs the courses on each of the simulator's contact models
+(walkman.hal.sim.CONTACT_MODELS: ``soft``, MuJoCo's defaults, where a loaded sole creeps
+down a slope, and ``firm``), side by side.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import List, Optional, Tuple
@@ -31,10 +36,11 @@ from bench_tasks import timed_ticks
 from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ beside bench/
-from tests.modules.walker import (ramp_course, ramp_down_course,  # noqa: E402
-                                  terrain_course, tilt, upright, walker)
+from tests.modules.walker import (camera_course, ramp_course,  # noqa: E402
+                                  ramp_down_course, terrain_course, tilt, upright, walker)
 from walkman.gym.offline import OfflineModule, OfflineWorld
-from walkman.hal.sim import SimBackend
+from walkman.hal.sim import CONTACT_MODELS, SimBackend
+from walkman.model.mjcf import TERRAIN_RAMP, TERRAIN_STEP
 from walkman.modules import walking
 
 COMMANDS = [("go_straight 1.0", 0, 1.0), ("go_straight -0.5", 0, -0.5), ("turn 0.8", 3, 0.8),
@@ -77,29 +83,48 @@ def walk(command: str, axis: int, amount: float) -> Tuple[str, List[float]]:
     return row, costs
 
 
-def rough_ground() -> List[str]:
+def by_camera(goal: float):
+    """A course on the camera's footsteps to world x ``goal``, as the tests walk it."""
+    def course(world, module):
+        with tempfile.TemporaryDirectory() as folder:
+            legs, plans = camera_course(world, module, goal, Path(folder))
+        return [(f"look {number}: {len(plan)} steps", margin, seconds)
+                for number, ((_, margin, seconds), plan) in enumerate(zip(legs, plans), 1)]
+    return course
+
+
+_, RAMP_FOOT, RAMP_LENGTH, RAMP_SLOPE = TERRAIN_RAMP
+COURSES = (("terrain", "terrain", terrain_course), ("ramp", "ramp", ramp_course),
+           ("ramp down", "ramp_top", ramp_down_course),
+           ("terrain by camera", "terrain", by_camera(TERRAIN_STEP[1] + 0.40)),
+           ("ramp by camera", "ramp",
+            by_camera(RAMP_FOOT + RAMP_LENGTH * math.cos(RAMP_SLOPE) + 0.30)))
+
+
+def rough_ground(contact: str = "soft") -> List[str]:
     """The rough-ground courses (tests/modules/walker.py): the 5-cm step of station
-    ``terrain`` and the 10-degree ramp of station ``ramp``, up and (``ramp_top``) down: per
-    command its time and smallest ZMP margin, then each course's speed."""
+    ``terrain`` and the 10-degree ramp of station ``ramp``, up and (``ramp_top``) down, by
+    commands, then the step and the ramp by the camera's footsteps: per command its time and
+    smallest ZMP margin, then each course's speed and balance trips."""
     rows = []
-    for station, course in (("terrain", terrain_course), ("ramp", ramp_course),
-                            ("ramp_top", ramp_down_course)):
-        world, module = walker(station)
+    for label, station, course in COURSES:
+        world, module = walker(station, contact)
         start = np.array(world.backend.plant.base_pose()[:2])
         try:
             legs = course(world, module)
         except AssertionError as exc:      # the base not upright: fell
-            rows.append(f"{station} course: FELL ({str(exc)[:120]})")
+            rows.append(f"{label} course ({contact}): FELL ({str(exc)[:120]})")
             continue
         for command, margin, seconds in legs:
             rows.append(f"  {command[:18]:18s} {seconds:5.1f} s  smallest ZMP margin "
                         f"{margin * 100:4.1f} cm")
         distance = float(np.linalg.norm(np.array(world.backend.plant.base_pose()[:2]) - start))
         seconds = sum(leg[2] for leg in legs)
-        rows.append(f"{station} course: {distance:.2f} m in {seconds:.1f} s "
+        trips = sum("balance:" in warning for warning in module.warnings)
+        rows.append(f"{label} course ({contact}): {distance:.2f} m in {seconds:.1f} s "
                     f"({distance / seconds:.3f} m/s), smallest ZMP margin "
-                    f"{min(leg[1] for leg in legs) * 100:.1f} cm, standing at the end"
-                    f"{'; ' + module.warnings[-1] if module.warnings else ''}")
+                    f"{min(leg[1] for leg in legs) * 100:.1f} cm, {trips} balance trip(s), "
+                    f"{'standing' if upright(world.backend) else 'FALLEN'} at the end")
     return rows
 
 
@@ -132,8 +157,20 @@ def largest_push(direction: Tuple[float, float, float], while_walking: bool = Fa
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="the walks only, no pushes")
+    parser.add_argument("--rough", action="store_true",
+                        help="the rough-ground courses only (no walks, no pushes)")
+    parser.add_argument("--contact", nargs="+", choices=sorted(CONTACT_MODELS),
+                        default=["soft"], metavar="MODEL",
+                        help="the contact model(s) to run the courses on: "
+                             f"{', '.join(CONTACT_MODELS)} (default: soft)")
     options = parser.parse_args()
     say_machine()
+    if options.rough:
+        for contact in options.contact:
+            for row in rough_ground(contact):
+                print(row, flush=True)
+        say_machine("after")
+        return 0
     print(f"{'command':18s} {'speed':>10s} {'error':>11s} {'':18s} {'tilt °':>6s} "
           f"{'ZMP margin cm':>7s}")
     ticks: List[float] = []
@@ -144,8 +181,9 @@ def main() -> int:
     ms = np.array(ticks) * 1e3
     print(f"control tick: median {np.median(ms):.2f} ms, p99 {np.percentile(ms, 99):.2f} ms, "
           f"max {ms.max():.2f} ms (budget 2 ms at 500 Hz; the module runs at 100 Hz)")
-    for row in rough_ground():
-        print(row, flush=True)
+    for contact in options.contact:
+        for row in rough_ground(contact):
+            print(row, flush=True)
     if not options.quick:
         started = time.perf_counter()
         for label, direction, moving in (("standing, sideways", (0.0, 1.0, 0.0), False),

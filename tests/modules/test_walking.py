@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 from harness import wait_until
-from tests.modules.walker import (LOWEST_PELVIS, MAX_TILT, both_feet_loaded, camera_cloud,
+from tests.modules.walker import (LOOKING_DOWN, LOWEST_PELVIS, MAX_TILT, both_feet_loaded,
+                                  camera_cloud, camera_course,
                                   cloud_in_pelvis_frame, footsteps, free_body, ramp_course,
                                   ramp_down_course, seen_from_the_crouched_pelvis,
                                   sole_heights, soles_in_pelvis_frame, terrain_course, tilt,
@@ -294,24 +295,9 @@ def test_the_terrain_course_by_footsteps_placed_from_the_head_camera_s_cloud(tmp
     world, module = walker("terrain")
     backend = world.backend
     _, end, height = TERRAIN_STEP
-    # the head bent all the way down (1.05 rad): from 0.2 m ahead of the toes, the floor
-    # before the kerb is in view (at 0.5 rad, from 1 m; then the feet's own ground is not
-    # seen, and the footsteps are refused)
-    backend.set_references([backend.index["NeckPitchj"]], [1.04])
-    world.step(1.0)
-    goal = end + 0.40                  # world x: the soles' centres well past the far edge
-    margins, plans = [], []
-    for _ in range(8):
-        soles = dict(zip(("left", "right"), map(tuple, soles_in_pelvis_frame(backend))))
-        here = min(float(backend.plant.d.body(f"{side}_foot").xpos[0]) for side in "lr") + \
-            walking.SOLE[0]
-        if goal - here < 0.05:
-            break
-        steps = footsteps_from_cloud(cloud_in_pelvis_frame(backend, tmp_path), soles,
-                                     goal - here)
-        leg = first_leg(steps)                          # to the next edge, or the goal
-        plans.append([round(step[0], 2) for step in leg])
-        margins.append(walk_through(world, module, footsteps(*leg)))
+    # the soles' centres well past the far edge
+    legs, plans = camera_course(world, module, end + 0.40, tmp_path)
+    margins = [margin for _, margin, _ in legs]
     world.step(1.0)
     assert upright(backend) and both_feet_loaded(backend), plans
     assert sole_heights(backend) == pytest.approx((0.0, 0.0), abs=0.005), plans
@@ -326,7 +312,7 @@ def looked_down_at(station: str, folder):
     course): the world, the walking module, the soles and the camera's cloud (pelvis frame)."""
     world, module = walker(station)
     backend = world.backend
-    backend.set_references([backend.index["NeckPitchj"]], [1.04])
+    backend.set_references([backend.index["NeckPitchj"]], [LOOKING_DOWN])
     world.step(1.0)
     soles = dict(zip(("left", "right"), map(tuple, soles_in_pelvis_frame(backend))))
     return world, module, soles, cloud_in_pelvis_frame(backend, folder)

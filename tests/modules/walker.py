@@ -14,6 +14,7 @@ from typing import List, Sequence, Tuple
 
 import numpy as np
 
+from walkman.control.ground_ahead import first_leg, footsteps_from_cloud
 from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import SimBackend
 from walkman.model.description import STANDING_PELVIS_HEIGHT
@@ -26,8 +27,8 @@ SOLE_ABOVE_FLOOR = 0.0994   # m: a foot body's height standing on the floor (its
 MAX_TILT = 0.1  # rad of the free base: more is not walking upright
 
 
-def walker(station: str = "yard") -> Tuple[OfflineWorld, OfflineModule]:
-    backend = SimBackend(station=station, harness="off")
+def walker(station: str = "yard", contact: str = "soft") -> Tuple[OfflineWorld, OfflineModule]:
+    backend = SimBackend(station=station, harness="off", contact=contact)
     world = OfflineWorld(backend)
     world.step(0.5)
     module = world.add(walking.Module, "walking")
@@ -214,3 +215,34 @@ def camera_cloud(backend, folder: Path) -> Tuple[np.ndarray, np.ndarray]:
 def cloud_in_pelvis_frame(backend, folder: Path) -> np.ndarray:
     """What the head camera sees now, in the pelvis frame (:func:`camera_cloud`)."""
     return camera_cloud(backend, folder)[1]
+
+
+#: rad: the head bent all the way down for the courses on the camera's footsteps: from
+#: 0.2 m ahead of the toes, the ground before a kerb is in view (at 0.5 rad, from 1 m; then
+#: the feet's own ground is not seen, and the footsteps are refused)
+LOOKING_DOWN = 1.04
+
+
+def camera_course(world, module, goal: float, folder: Path,
+                  looks: int = 8) -> Tuple[List[Leg], List[List[float]]]:
+    """Walk on footsteps the camera places (walkman.control.ground_ahead), a leg at a time
+    (each cut where the feet next stand together: at an edge, or the goal): look, place,
+    walk, look again, until the soles' centres are within 5 cm of world x ``goal`` ahead.
+    Returns each leg (:func:`timed_walk`) and its footsteps' x (pelvis frame, rounded)."""
+    backend = world.backend
+    backend.set_references([backend.index["NeckPitchj"]], [LOOKING_DOWN])
+    world.step(1.0)
+    legs: List[Leg] = []
+    plans: List[List[float]] = []
+    for _ in range(looks):
+        soles = dict(zip(("left", "right"), map(tuple, soles_in_pelvis_frame(backend))))
+        here = min(float(backend.plant.d.body(f"{side}_foot").xpos[0]) for side in "lr") + \
+            walking.SOLE[0]
+        if goal - here < 0.05:
+            break
+        steps = footsteps_from_cloud(cloud_in_pelvis_frame(backend, folder), soles,
+                                     goal - here)
+        leg = first_leg(steps)
+        plans.append([round(step[0], 2) for step in leg])
+        legs.append(timed_walk(world, module, footsteps(*leg)))
+    return legs, plans

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 
 import mujoco
+import numpy as np
 import pinocchio as pin
 import pytest
 
@@ -142,3 +143,50 @@ def test_a_push_moves_the_free_robot_and_bad_pushes_are_refused():
         backend.step()
     assert backend.plant.d.cvel[body][4] > 0.1       # the pelvis moves sideways (+y)
     assert not backend.plant.d.xfrc_applied.any()    # and the push is over
+
+
+#: A sole (the robot's foot box, its friction and condim) carrying the robot's weight on the
+#: terrain's 10-degree slope, in MuJoCo at the scene's time step.
+_SOLE_ON_A_SLOPE = """
+<mujoco>
+  <option timestep="0.001" integrator="implicitfast"/>
+  <default><geom friction="1.0 0.02 0.001" condim="3"/></default>
+  <worldbody>
+    <geom name="slope" type="plane" size="2 2 0.1" euler="0 -10 0"/>
+    <body name="sole" pos="0 0 0.03" euler="0 -10 0">
+      <freejoint/>
+      <geom type="box" size="0.13 0.07 0.025" mass="100"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def _creep(contact: str) -> float:
+    """How fast (mm/s) the loaded sole slides down the slope, settled, on ``contact``."""
+    from walkman.hal.sim import use_contact
+
+    model = mujoco.MjModel.from_xml_string(_SOLE_ON_A_SLOPE)
+    use_contact(model, contact)
+    data = mujoco.MjData(model)
+    mujoco.mj_step(model, data, 500)                  # settled on the slope
+    start = data.body("sole").xpos.copy()
+    mujoco.mj_step(model, data, 2000)
+    return float(np.linalg.norm(data.body("sole").xpos - start)) / 2.0 * 1000
+
+
+def test_a_loaded_sole_creeps_down_a_slope_on_soft_contact_and_holds_on_firm():
+    """Why the two contact models (walkman.hal.sim.CONTACT_MODELS): well inside the friction
+    cone (tan 10 degrees = 0.18 of friction 1), MuJoCo's default soft friction lets a
+    sole slide as it holds, as the robot's soles do down the ramp (5 mm/s standing there,
+    the controller's own motion on top); firm holds it."""
+    soft, firm = _creep("soft"), _creep("firm")
+    assert soft > 0.5, soft          # mm/s (0.9 measured): 3 cm a minute, where a sole holds
+    assert firm < soft / 4, (soft, firm)                    # 0.15 measured
+
+
+def test_an_unknown_contact_model_is_refused_before_the_scene_loads():
+    from walkman.hal.sim import SimBackend
+
+    with pytest.raises(ValueError, match="unknown contact model 'icy': one of soft, firm"):
+        SimBackend(contact="icy")

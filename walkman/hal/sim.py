@@ -48,15 +48,43 @@ PUSH_TIME = 0.1        # s a push lasts
 MAX_PUSH = 500.0       # N*s: the largest impulse the simulator accepts
 MAX_PUSH_FORCE = 5000.0  # N: and the largest force (a short push is a hard one)
 HARNESS_MODES = ("locked", "trolley", "off")
+#: How soles hold on the ground.  ``soft``: MuJoCo's defaults (pyramidal friction cones,
+#: friction as soft as the normal contact), what the world runs on.  A loaded sole then
+#: creeps where a real one would hold: 5 mm/s down the 10-degree ramp, standing (the walk
+#: frame's plan drifts from the world, the landing at the ramp's top comes 2 cm high).
+#: ``firm``: elliptic cones with friction ``impratio`` times stiffer than the normal
+#: contact (MuJoCo's own advice against slip): 0.9 mm/s there, the sole's normal
+#: compliance unchanged.  Walking is tuned on ``soft``; ``bench/bench_walking.py
+#: --contact`` compares the courses on both.
+CONTACT_MODELS: Dict[str, Tuple[int, float]] = {
+    "soft": (int(mujoco.mjtCone.mjCONE_PYRAMIDAL), 1.0),
+    "firm": (int(mujoco.mjtCone.mjCONE_ELLIPTIC), 3.0),
+}
+
+
+def check_contact(contact: str) -> None:
+    """Refuse a contact model that is not one of :data:`CONTACT_MODELS`."""
+    if contact not in CONTACT_MODELS:
+        raise ValueError(f"unknown contact model {contact!r}: one of "
+                         f"{', '.join(CONTACT_MODELS)}")
+
+
+def use_contact(model: mujoco.MjModel, contact: str) -> None:
+    """Set ``model``'s friction cones and impedance ratio to the contact model ``contact``."""
+    check_contact(contact)
+    model.opt.cone, model.opt.impratio = CONTACT_MODELS[contact]
 
 
 class MujocoPlant:
     """The MuJoCo model and data, with whole-body index maps (shared by both backends)."""
 
     def __init__(self, model: Robot, scene: bool = True, harness: str = "locked",
-                 path: Optional[Path] = None, station: str = "valve") -> None:
+                 path: Optional[Path] = None, station: str = "valve",
+                 contact: str = "soft") -> None:
+        check_contact(contact)
         self.robot = model
         self.m = mujoco.MjModel.from_xml_path(str(path or (SCENE_PATH if scene else MJCF_PATH)))
+        use_contact(self.m, contact)
         self.d = mujoco.MjData(self.m)
         mujoco.mj_resetDataKeyframe(self.m, self.d, 0)
         names = model.joint_names
@@ -232,9 +260,11 @@ class SimBackend(Backend):
     """MuJoCo at 1 kHz with compliant position servos."""
 
     def __init__(self, model: Optional[Robot] = None, scene: bool = True, harness: str = "locked",
-                 thermal_speedup: float = 1.0, station: str = "valve") -> None:
+                 thermal_speedup: float = 1.0, station: str = "valve",
+                 contact: str = "soft") -> None:
         super().__init__(model or walkman())
-        self.plant = MujocoPlant(self.model, scene=scene, harness=harness, station=station)
+        self.plant = MujocoPlant(self.model, scene=scene, harness=harness, station=station,
+                                 contact=contact)
         self.dt = float(self.plant.m.opt.timestep)
         self.thermal = ThermalModel(len(self.joint_names), speedup=thermal_speedup)
         self._torque_mode = np.zeros(len(self.joint_names), dtype=bool)
