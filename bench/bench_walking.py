@@ -32,10 +32,10 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
-from bench_tasks import timed_ticks
-from host import say_machine  # noqa: E402  (bench/ is the script's folder)
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ beside bench/
+# this checkout first (tests/ beside bench/, and its walkman over any the venv installed)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from bench_tasks import timed_ticks  # noqa: E402  (bench/ is the script's folder)
+from host import say_machine  # noqa: E402
 from tests.modules.walker import (camera_course, ramp_course,  # noqa: E402
                                   ramp_down_course, terrain_course, tilt, upright, walker)
 from walkman.gym.offline import OfflineModule, OfflineWorld
