@@ -38,6 +38,7 @@ from bench_tasks import timed_ticks  # noqa: E402  (bench/ is the script's folde
 from host import say_machine  # noqa: E402
 from tests.modules.walker import (camera_course, ramp_course,  # noqa: E402
                                   ramp_down_course, terrain_course, tilt, upright, walker)
+from walkman.control.ground_ahead import GroundError
 from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import CONTACT_MODELS, SimBackend
 from walkman.model.mjcf import TERRAIN_RAMP, TERRAIN_STEP
@@ -114,6 +115,9 @@ def rough_ground(contact: str = "soft") -> List[str]:
             legs = course(world, module)
         except AssertionError as exc:      # the base not upright: fell
             rows.append(f"{label} course ({contact}): FELL ({str(exc)[:120]})")
+            continue
+        except GroundError as exc:         # the camera's footsteps refused, before a step
+            rows.append(f"{label} course ({contact}): REFUSED ({exc})")
             continue
         for command, margin, seconds in legs:
             rows.append(f"  {command[:18]:18s} {seconds:5.1f} s  smallest ZMP margin "
