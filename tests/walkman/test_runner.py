@@ -529,6 +529,59 @@ def test_a_quitting_runner_tells_its_supervisor_before_it_closes_its_ports(make_
         os.close(read_fd)
 
 
+class HangsInRun(GenericThread):
+    """run() that does not give control back until the test lets it."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.hanging, self.release = threading.Event(), threading.Event()
+
+    def custom_init(self) -> bool:
+        return True
+
+    def run(self) -> None:
+        self.hanging.set()
+        self.release.wait(TIMEOUT)
+
+
+def test_a_quit_that_run_ignores_is_still_told_to_the_supervisor(make_runner, monkeypatch):
+    """Not told, the ports' slow closing (over 5 s on a loaded PC) read as a lost heartbeat and
+    the supervisor started a fresh module that nobody would quit (CI of 2026-12-02)."""
+    runner = make_runner(HangsInRun)
+    module = runner.thread
+    read_fd, runner.heartbeat_fd = os.pipe()
+    try:
+        runner.switch("start")
+        assert module.hanging.wait(TIMEOUT)
+        monkeypatch.setattr(runner_module, "HOOK_TIMEOUT", 0.2)  # run() holds on: a hang
+        runner.switch("quit")
+        assert runner.quit_requested and runner.exit_code == runner_module.EXIT_QUIT
+        assert runner.finish(runner.exit_code) is True  # stuck: the process must _exit
+        assert QUITTING in os.read(read_fd, 1024)
+    finally:
+        module.release.set()
+        os.close(read_fd)
+
+
+def test_a_stop_that_run_ignores_is_not_a_quit(make_runner, monkeypatch):
+    """The supervisor restarts that one, stopped: no QUITTING."""
+    runner = make_runner(HangsInRun)
+    module = runner.thread
+    read_fd, runner.heartbeat_fd = os.pipe()
+    try:
+        runner.switch("start")
+        assert module.hanging.wait(TIMEOUT)
+        monkeypatch.setattr(runner_module, "HOOK_TIMEOUT", 0.2)
+        runner.switch("stop")
+        assert runner.exit_code == runner_module.EXIT_ESCALATED
+        runner._heartbeat()
+        assert runner.finish(runner.exit_code) is True
+        assert QUITTING not in os.read(read_fd, 1024)
+    finally:
+        module.release.set()
+        os.close(read_fd)
+
+
 def test_each_numbered_switch_is_receipted_accepted_or_refused_with_why(make_runner):
     from walkman.gym.command_life import CommandState, Receipt
     from yarp_lite.bottle_text import parse

@@ -115,3 +115,37 @@ def test_a_module_closing_after_a_quit_is_given_the_quit_grace_not_the_heartbeat
 def test_a_module_that_ends_within_the_quit_grace_gives_its_own_exit(short_timeouts):
     seconds, code = watched(beats=2, then=QUITTING + b".", child_lives=1.2)
     assert code == 0 and seconds < 1.5 + 1.2, seconds
+
+
+def test_stacks_are_asked_only_of_a_module_that_has_beaten(short_timeouts):
+    """A module still importing has no SIGUSR1 handler: the signal would kill it (and the
+    supervisor start another) instead of printing anything."""
+    import signal
+    watcher = Supervisor([])
+    watcher.child = subprocess.Popen(["sleep", "60"])
+    sent: list = []
+    watcher.child.send_signal = sent.append
+    try:
+        watcher.show_stacks(signal.SIGUSR1, None)
+        assert sent == []
+        read_fd, write_fd = os.pipe()
+        os.write(write_fd, b".")
+        os.close(write_fd)                       # one beat, then the pipe ends...
+        watcher.child_beats = False
+        threading.Timer(0.3, os.kill, (watcher.child.pid, signal.SIGKILL)).start()  # the child too
+        watcher._watch(read_fd)
+        os.close(read_fd)
+        assert watcher.child_beats
+    finally:
+        if watcher.child.poll() is None:
+            os.kill(watcher.child.pid, signal.SIGKILL)
+        watcher.child.wait()
+    watcher.child = subprocess.Popen(["sleep", "60"])
+    watcher.child.send_signal = sent.append
+    watcher.child_beats = True
+    try:
+        watcher.show_stacks(signal.SIGUSR1, None)
+        assert sent == [signal.SIGUSR1]
+    finally:
+        os.kill(watcher.child.pid, signal.SIGKILL)
+        watcher.child.wait()

@@ -540,6 +540,18 @@ class ModuleRunner:
         stopped, that nobody had asked for (fc14 of 2026-11-28)."""
         self._heartbeat(QUITTING)
 
+    def finish(self, code: int) -> bool:
+        """End the module: a quit is told to the supervisor before the ports close, also one
+        whose ``run()`` never gave control back -- that one was not told, its ports took over
+        5 s to close beside a loaded suite, and the supervisor, hearing no beat, started a
+        fresh module nobody would ever quit (CI of 2026-12-02).  Returns whether a thread is
+        stuck in ``run()`` (the process must ``os._exit``, not wait for it)."""
+        stuck = self.loop.request is not None  # the control thread never took its last hook
+        if code == EXIT_QUIT:
+            self.say_quitting()
+        self.close()  # unregister the ports either way
+        return stuck
+
     def close(self) -> None:
         self.loop.exit = True
         if self.robot is not None:
@@ -604,6 +616,10 @@ def load_config(options: argparse.Namespace) -> Dict[str, Any]:
 
 def run_module(argv: Optional[List[str]] = None) -> int:
     options = parse_args(argv)
+    # kill -USR1 (to this process or its supervisor): every thread's stack on stderr;
+    # -USR2: faulthandler's, for an interpreter wedged in C (nodekit.stacks).  Before the
+    # first heartbeat: the supervisor passes a signal on only to a module that has beaten.
+    stacks.on_signals()
     sys.setswitchinterval(SWITCH_INTERVAL)
     make_process_realtime()     # no thread holding the interpreter lock preempted (realtime.py)
     line = f"{time_prefix()}[%(levelname)s] %(message)s"
@@ -623,10 +639,6 @@ def run_module(argv: Optional[List[str]] = None) -> int:
                           initial=State(options.initial), heartbeat_fd=options.heartbeat_fd)
     import signal
 
-    # kill -USR1 (to this process or its supervisor): every thread's stack on stderr;
-    # -USR2: faulthandler's, for an interpreter wedged in C (nodekit.stacks).
-    stacks.on_signals()
-
     def request_quit(*_):
         runner.quit_requested = True
         runner.wake.set()
@@ -645,10 +657,7 @@ def run_module(argv: Optional[List[str]] = None) -> int:
                  "(%d on the robot's states); interval error p99 %.3f ms", name,
                  stats["median_ms"], stats["p99_ms"], stats["samples"], stats["locked"],
                  stats["interval_p99_ms"])
-    stuck = runner.loop.request is not None  # the control thread never took its last hook
-    if code == EXIT_QUIT and not stuck:
-        runner.say_quitting()
-    runner.close()  # unregister the ports either way
+    stuck = runner.finish(code)
     if stuck or code == EXIT_ESCALATED:
         os._exit(code)  # a thread stuck in run(): do not wait for it
     return code

@@ -53,6 +53,7 @@ class Supervisor:
     def __init__(self, argv: List[str]) -> None:
         self.argv = argv
         self.child: Optional[subprocess.Popen] = None
+        self.child_beats = False   # it has its signal handlers (they come before its first beat)
         self.stopping = False
         self.restarts: List[float] = []
 
@@ -61,6 +62,7 @@ class Supervisor:
         argv = [sys.executable, "-m", "walkman.gym.runner", *self.argv, "--initial", initial,
                 "--heartbeat-fd", str(write_fd)]
         self.child = subprocess.Popen(argv, pass_fds=(write_fd,))
+        self.child_beats = False
         os.close(write_fd)
         return read_fd
 
@@ -90,6 +92,8 @@ class Supervisor:
             readable, _, _ = select.select([read_fd], [], [], 0.5)
             if readable:
                 words = os.read(read_fd, 1024)
+                if words:
+                    self.child_beats = True
                 if words and not quitting:
                     last_beat, limit = time.monotonic(), HEARTBEAT_TIMEOUT
                 if QUITTING in words and not quitting:
@@ -131,9 +135,15 @@ class Supervisor:
 
     def show_stacks(self, signum: int, _frame) -> None:
         """``SIGUSR1`` (``SIGUSR2``): the module process prints every thread's stack (a
-        module that does not answer can be asked where it is), passed on as it came."""
-        if self.child is not None and self.child.poll() is None:
-            self.child.send_signal(signum)
+        module that does not answer can be asked where it is), passed on as it came -- not
+        to one still importing: a signal it has no handler for yet would kill it."""
+        if self.child is None or self.child.poll() is not None:
+            return
+        if not self.child_beats:
+            log.warning("module process %d is still starting (no heartbeat yet): no stacks "
+                        "to show", self.child.pid)
+            return
+        self.child.send_signal(signum)
 
 
 def main(argv: Optional[List[str]] = None) -> int:
