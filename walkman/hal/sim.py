@@ -54,11 +54,17 @@ HARNESS_MODES = ("locked", "trolley", "off")
 #: frame's plan drifts from the world, the landing at the ramp's top comes 2 cm high).
 #: ``firm``: elliptic cones with friction ``impratio`` times stiffer than the normal
 #: contact (MuJoCo's own advice against slip): 0.9 mm/s there, the sole's normal
-#: compliance unchanged.  Walking is tuned on ``soft``; ``bench/bench_walking.py
-#: --contact`` compares the courses on both.
-CONTACT_MODELS: Dict[str, Tuple[int, float]] = {
-    "soft": (int(mujoco.mjtCone.mjCONE_PYRAMIDAL), 1.0),
-    "firm": (int(mujoco.mjtCone.mjCONE_ELLIPTIC), 3.0),
+#: compliance unchanged.  ``grip``: soft's cones with MuJoCo's no-slip solver after the
+#: main one (5 iterations), which removes the creep the soft friction allows: 0.0002
+#: mm/s -- a sole holds, and with it any disagreement between the plan's footholds and the
+#: ground (position-controlled legs then press one foot and unload the other: stepping
+#: down the ramp onto the floor, the robot rolled over its outer edge; a foot force
+#: difference loop, tried, was too slow for it).  Walking is tuned on ``soft``;
+#: ``bench/bench_walking.py --contact`` compares the courses on each.
+CONTACT_MODELS: Dict[str, Tuple[int, float, int]] = {
+    "soft": (int(mujoco.mjtCone.mjCONE_PYRAMIDAL), 1.0, 0),
+    "firm": (int(mujoco.mjtCone.mjCONE_ELLIPTIC), 3.0, 0),
+    "grip": (int(mujoco.mjtCone.mjCONE_PYRAMIDAL), 1.0, 5),
 }
 
 
@@ -70,9 +76,10 @@ def check_contact(contact: str) -> None:
 
 
 def use_contact(model: mujoco.MjModel, contact: str) -> None:
-    """Set ``model``'s friction cones and impedance ratio to the contact model ``contact``."""
+    """Set ``model``'s friction cones, impedance ratio and no-slip iterations to the contact
+    model ``contact``."""
     check_contact(contact)
-    model.opt.cone, model.opt.impratio = CONTACT_MODELS[contact]
+    model.opt.cone, model.opt.impratio, model.opt.noslip_iterations = CONTACT_MODELS[contact]
 
 
 class MujocoPlant:
