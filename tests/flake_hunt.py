@@ -197,7 +197,10 @@ KNOWN: Tuple[Known, ...] = (
           "test_a_module_asked_with_sigusr1_prints_every_thread_s_stack",
           "the module process died of SIGSEGV in faulthandler's all-threads dump while its "
           "connector thread imported (2026-11-28, beside nothing); SIGUSR1 is a Python "
-          "handler since (nodekit/stacks.py), faulthandler's dump moved to SIGUSR2"),
+          "handler since (nodekit/stacks.py), faulthandler's dump moved to SIGUSR2; 'no "
+          "stacks to show' (CI of 2026-12-03): the supervisor waited for a first beat, which "
+          "came after 'ready for the pilot'; the runner now says SIGNALS_ARMED once its "
+          "handlers are in, before its imports"),
     Known("tests/system/test_tasks_via_gateway.py::test_walking_through_rosservice",
           "the guard tripped at a 0.3-cm ZMP margin, the HAL on time (fc22; the trip now logs "
           "the loop's longest tick: e497490); again at 0.1 cm after a 33-ms tick (2026-11-27 "
@@ -246,7 +249,7 @@ KNOWN: Tuple[Known, ...] = (
           "closing beat nothing for over 5 s and the supervisor started a fresh module nobody "
           "would quit, and the SIGUSR1 for its stacks went to that one while it still "
           "imported (no handler: it died).  Now every quit says QUITTING, and the supervisor "
-          "passes signals only to a module that has beaten"),
+          "passes signals only to a module whose handlers are in (SIGNALS_ARMED)"),
     Known("tests/system/test_pilot_gui.py::"
           "test_the_wall_task_by_clicks_cuts_the_circle_in_the_world",
           "'approach is disabled' right after 'reach -> reached' (fc2; not found, the driver "

@@ -75,6 +75,11 @@ EXIT_QUIT = 0
 #: closing its ports (a heartbeat is ``b"."``): from then on the supervisor waits for it to
 #: end instead of restarting it (walkman.gym.supervisor.QUIT_GRACE)
 QUITTING = b"q"
+#: What the runner writes on the heartbeat pipe once its SIGUSR1/2 handlers are in place,
+#: before its imports: from then on the supervisor passes those signals on (one sent to a
+#: process still without a handler would kill it).  Not a beat: a module still starting
+#: keeps the supervisor's longer start-up timeout.
+SIGNALS_ARMED = b"s"
 EXIT_ESCALATED = 3
 HOOK_TIMEOUT = 2.0
 STATUS_PERIOD = 0.5
@@ -617,9 +622,14 @@ def load_config(options: argparse.Namespace) -> Dict[str, Any]:
 def run_module(argv: Optional[List[str]] = None) -> int:
     options = parse_args(argv)
     # kill -USR1 (to this process or its supervisor): every thread's stack on stderr;
-    # -USR2: faulthandler's, for an interpreter wedged in C (nodekit.stacks).  Before the
-    # first heartbeat: the supervisor passes a signal on only to a module that has beaten.
+    # -USR2: faulthandler's, for an interpreter wedged in C (nodekit.stacks).  The
+    # supervisor passes those signals on only once it has read SIGNALS_ARMED.
     stacks.on_signals()
+    if options.heartbeat_fd is not None:
+        try:
+            os.write(options.heartbeat_fd, SIGNALS_ARMED)
+        except OSError:
+            pass
     sys.setswitchinterval(SWITCH_INTERVAL)
     make_process_realtime()     # no thread holding the interpreter lock preempted (realtime.py)
     line = f"{time_prefix()}[%(levelname)s] %(message)s"

@@ -34,7 +34,8 @@ from typing import List, Optional
 
 from nodekit.exits import describe_exit
 from nodekit.logs import time_prefix
-from walkman.gym.runner import EXIT_ESCALATED, EXIT_QUIT, QUITTING, parse_args, run_module
+from walkman.gym.runner import (EXIT_ESCALATED, EXIT_QUIT, QUITTING, SIGNALS_ARMED, parse_args,
+                                run_module)
 
 log = logging.getLogger("walkman.gym.supervisor")
 
@@ -53,7 +54,7 @@ class Supervisor:
     def __init__(self, argv: List[str]) -> None:
         self.argv = argv
         self.child: Optional[subprocess.Popen] = None
-        self.child_beats = False   # it has its signal handlers (they come before its first beat)
+        self.child_armed = False   # it has its SIGUSR1/2 handlers (it said SIGNALS_ARMED)
         self.stopping = False
         self.restarts: List[float] = []
 
@@ -62,7 +63,7 @@ class Supervisor:
         argv = [sys.executable, "-m", "walkman.gym.runner", *self.argv, "--initial", initial,
                 "--heartbeat-fd", str(write_fd)]
         self.child = subprocess.Popen(argv, pass_fds=(write_fd,))
-        self.child_beats = False
+        self.child_armed = False
         os.close(write_fd)
         return read_fd
 
@@ -92,8 +93,9 @@ class Supervisor:
             readable, _, _ = select.select([read_fd], [], [], 0.5)
             if readable:
                 words = os.read(read_fd, 1024)
-                if words:
-                    self.child_beats = True
+                if SIGNALS_ARMED in words:
+                    self.child_armed = True
+                    words = words.replace(SIGNALS_ARMED, b"")
                 if words and not quitting:
                     last_beat, limit = time.monotonic(), HEARTBEAT_TIMEOUT
                 if QUITTING in words and not quitting:
@@ -139,9 +141,9 @@ class Supervisor:
         to one still importing: a signal it has no handler for yet would kill it."""
         if self.child is None or self.child.poll() is not None:
             return
-        if not self.child_beats:
-            log.warning("module process %d is still starting (no heartbeat yet): no stacks "
-                        "to show", self.child.pid)
+        if not self.child_armed:
+            log.warning("module process %d is still starting (no stack handlers yet): no "
+                        "stacks to show", self.child.pid)
             return
         self.child.send_signal(signum)
 
