@@ -19,7 +19,7 @@ import numpy as np
 
 from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import SimBackend
-from walkman.model.mjcf import PILOT_POSES, PLUG_SOCKETS
+from walkman.model.mjcf import PILOT_POSES, PLUG_SOCKETS, task_harness
 from walkman.modules import drc_door, drc_drive, drc_plug, drc_valve, drc_wall, walking
 from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 
@@ -77,7 +77,7 @@ def main() -> int:
     print(f"{'task':10s} {'step':54s} {'sim s':>7s}")
     summary = []
     for name, (station, module_class, steps, outcome) in TASKS.items():
-        harness = "off" if name == "walking" else "locked"
+        harness = "off" if name == "walking" else task_harness(station)
         world = OfflineWorld(SimBackend(station=station, harness=harness))
         START[:] = [world.backend.plant.base_pose()]
         module = world.add(module_class, name)

@@ -74,6 +74,7 @@ from system.display import display_env, private_display  # noqa: E402
 from system.processes import Proc  # noqa: E402
 from system.topology import PYTHON, Component, Topology, task_component  # noqa: E402
 from walkman import MODELS_DIR  # noqa: E402
+from walkman.model.mjcf import task_harness  # noqa: E402
 
 DRIVER = ROOT / "tests" / "system" / "pi_driver.py"
 TOPOLOGIES = ("lab", "drc", "degraded")
@@ -88,7 +89,8 @@ ROBOT_STATE_ID = 20
 
 def hal_at(station: str) -> Component:
     return Component("hal", "robot", (PYTHON, "-m", "walkman.hal.server", "--backend", "sim",
-                                      "--station", station), r"HAL for walkman")
+                                      "--station", station, "--harness",
+                                      task_harness(station)), r"HAL for walkman")
 
 
 def bench_layouts(task: str) -> str:

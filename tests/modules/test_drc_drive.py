@@ -1,4 +1,5 @@
-"""drc_drive end to end: HAL at the driving rig, the module as a process, yarp-lite write.
+"""drc_drive end to end: HAL with the robot seated in the car (harness off), the module as a
+process, yarp-lite write.
 
 Done when turn_left/turn_right turn the sim steering wheel by the angle, the status
 shows the wheel's angle as the robot measures it, and accelerate presses the sim
@@ -16,7 +17,10 @@ WHEEL = PILOT_POSES["car"]
 
 
 def test_steer_and_accelerate(task_at):
-    drive = task_at("car", "drc_drive")
+    """Seated in the car with the harness off: the seat holds the robot, which ends where it
+    sat, upright."""
+    drive = task_at("car", "drc_drive", "--harness", "off")
+    seated = drive.scene.base()
     drive.command(WHEEL, "ready")
     for command, state in (("reach", "reached"), ("approach", "approached"),
                            ("grasp", "grasped"), ("drive", "drive")):
@@ -85,3 +89,7 @@ def test_steer_and_accelerate(task_at):
     for command, state in (("ungrasp", "ungrasped"), ("move_away_hand", "moved_away_hand")):
         drive.command(command, state)
     assert drive.scene.prop("throttle") < 0.02
+    x, y, z, yaw = drive.scene.base()
+    assert abs(x - seated[0]) < 0.03 and abs(y - seated[1]) < 0.03 and \
+        abs(z - seated[2]) < 0.03 and abs(yaw - seated[3]) < 0.05, (seated, drive.scene.base())
+    assert drive.scene.tilt() < 0.1

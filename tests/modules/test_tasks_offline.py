@@ -13,7 +13,7 @@ import pytest
 from walkman.control.trajectory import CartesianTrajectory, quintic
 from walkman.gym.offline import OfflineWorld
 from walkman.hal.sim import SimBackend
-from walkman.model.mjcf import PILOT_POSES
+from walkman.model.mjcf import PILOT_POSES, task_harness
 from walkman.model.mjcf import DRILL_GRIP, PLUG_HALF, PLUG_SOCKETS, PLUG_TABLE_TOP, SOCKET_INNER
 from walkman.modules import drc_door, drc_drive, drc_plug, drc_valve, drc_wall, task
 from tests.modules.walker import free_body
@@ -25,7 +25,9 @@ WHEEL, DOOR, VALVE = PILOT_POSES["car"], PILOT_POSES["door"], PILOT_POSES["valve
 
 
 def started(station: str, module_class, name: str):
-    world = OfflineWorld(SimBackend(station=station))
+    """The module started at ``station``: in the harness, but seated in the car without it
+    (the seat carries the robot, as at the DRC)."""
+    world = OfflineWorld(SimBackend(station=station, harness=task_harness(station)))
     module = world.add(module_class, name)
     assert module.switch("start")
     world.step(0.05)
@@ -36,6 +38,7 @@ def started(station: str, module_class, name: str):
 @pytest.fixture(scope="module")
 def driving():
     world, module = started("car", drc_drive.Module, "drc_drive")
+    world.seated = world.backend.plant.base_pose()   # x, y, z, yaw where the seat holds it
     module.do(WHEEL, "ready", 1)
     for command, state in (("reach", "reached"), ("approach", "approached"),
                            ("grasp", "grasped"), ("drive", "drive")):
@@ -78,6 +81,8 @@ def test_accelerate_presses_the_throttle_for_the_time_asked(driving):
     assert world.prop("throttle") < 0.02
     module.do("ungrasp", "ungrasped")
     module.do("move_away_hand", "moved_away_hand")
+    # The seat held it (no harness): where it sat, within 2 cm and 0.03 rad.
+    assert world.backend.plant.base_pose() == pytest.approx(world.seated, abs=0.02)
 
 
 def test_the_door_opens_past_30_degrees():

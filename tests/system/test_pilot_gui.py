@@ -184,11 +184,20 @@ def standing_crouched(base: Dict[str, float]) -> bool:
     return abs(base["base_z"] - (STANDING_PELVIS_HEIGHT - CROUCH)) < 0.04 and base["tilt"] < 0.1
 
 
-def take_the_robot_to(topology: Topology, station: str) -> None:
+def still_seated(before: Dict[str, float], after: Dict[str, float]) -> bool:
+    """Where it sat, upright: the seat held the robot through the drive (the harness off)."""
+    return all(abs(after[k] - before[k]) < 0.03 for k in ("base_x", "base_y", "base_z")) and \
+        abs(after["base_yaw"] - before["base_yaw"]) < 0.05 and after["tilt"] < 0.1
+
+
+def take_the_robot_to(topology: Topology, station: str, harness: str = "") -> None:
     """What the README's robot shell does between tasks: ``echo "set station NAME" |
-    yarp-lite rpc /walkman/rpc:i``, then the HAL says the robot is there."""
+    yarp-lite rpc /walkman/rpc:i`` (after ``set harness MODE`` if given), then the HAL says
+    the robot is there."""
     rpc = topology.robot.start(f"station_{station}",
                                [PYTHON, "-m", "yarp_lite", "rpc", "/walkman/rpc:i"], stdin=True)
+    if harness:
+        rpc.send(f"set harness {harness}\n")
     rpc.send(f"set station {station}\n")
     rpc.close_stdin()
     assert rpc.wait(60) == 0 and "[ok]" in rpc.output(), rpc.output()
@@ -204,15 +213,19 @@ def test_drive_door_and_plug_by_clicks_in_one_session_as_the_readme_walks_throug
     also steered by drc_drive's slider, Fig. 14), the robot taken from station to station
     between them on the robot PC's rpc port; the simulated world says what each did -- the
     wheel at the slider's angle (and at the angle the widget shows measured) once steered,
-    and still there once the hand let it go; the door open past 30 degrees, the plug standing in the other socket."""
+    and still there once the hand let it go, the robot seated still in the car without the
+    harness throughout; the door open past 30 degrees, the plug standing in the other socket
+    (those two in the harness: standing unsupported is the test after this one)."""
     tasks = (("drc_drive", "car"), ("drc_door", "door"), ("drc_plug", "plug"))
     with pi_on_drc(tmp_path, display, request, emulated_link, [m for m, _ in tasks], "tasks",
-                   "--station", "car", args=[m for m, _ in tasks]) as (topology, pi):
+                   "--station", "car", "--harness", "off",
+                   args=[m for m, _ in tasks]) as (topology, pi):
         pi.wait_for(r"UP after|FAIL", 120)
         steering = scene(topology, "steering")["steering"][0]
+        seated = robot_base(topology)
         for module, station in tasks:
             if station != "car":
-                take_the_robot_to(topology, station)
+                take_the_robot_to(topology, station, harness="locked")
             pi.send(f"go {module}\n")
             if module == "drc_drive":     # the wheel where the slider said, as the PI shows
                 slider = pi.wait_for(r"STEP steered by the slider to ([+-]\d+) degrees, "
@@ -233,6 +246,7 @@ def test_drive_door_and_plug_by_clicks_in_one_session_as_the_readme_walks_throug
                 end = scene(topology, "steering")["steering"][0] - steering
                 assert end == pytest.approx(turned, abs=0.1), \
                     f"the wheel at {end:.3f} rad after the task, {turned:.3f} once steered"
+                assert still_seated(seated, robot_base(topology)), (seated, robot_base(topology))
         gateway = topology.process("gateway").output()
         for module, command in (("drc_drive", "accelerate"), ("drc_door", "open"),
                                 ("drc_plug", "insert")):   # the timed ones, after the count

@@ -130,7 +130,7 @@ def test_the_valve_task_through_rosservice(pilot_at):
 
 
 def test_the_drive_task_through_rosservice(pilot_at):
-    drive = pilot_at("car", "drc_drive")
+    drive = pilot_at("car", "drc_drive", "--harness", "off")     # seated: the seat holds it
     drive.step(f"{{text: '{WHEEL}'}}", "ready")
     drive.steps(GRASP + (("drive", "drive"),))
     before = drive.scene("steering")["steering"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 
 import mujoco
 import numpy as np
@@ -196,3 +197,23 @@ def test_an_unknown_contact_model_is_refused_before_the_scene_loads():
 
     with pytest.raises(ValueError, match="unknown contact model 'icy': one of soft, firm, grip"):
         SimBackend(contact="icy")
+
+
+def test_the_robot_sits_in_the_car_seat_without_the_harness():
+    """The car's station seats the robot (thighs on the seat, soles just over the car's
+    floor) and the seat holds it: three simulated seconds later it is where it sat."""
+    from walkman.hal.sim import SimBackend
+    from walkman.model.mjcf import CAR_SEAT_TOP, SEATED_POSTURE
+
+    backend = SimBackend(harness="off", station="car")
+    plant = backend.plant
+    assert plant.lowest_point(("l_thigh", "r_thigh")) == pytest.approx(CAR_SEAT_TOP, abs=1e-6)
+    assert 0.005 < plant.lowest_point() - 0.01 < 0.02       # the car's floor's top is at 1 cm
+    for joint, angle in SEATED_POSTURE.items():
+        assert backend.reference[backend.index[joint]] == pytest.approx(angle)
+    seated = plant.base_pose()
+    for _ in range(3000):
+        backend.step()
+    assert plant.base_pose() == pytest.approx(seated, abs=0.005)
+    w, x, y, _ = plant.d.qpos[plant.base + 3:plant.base + 7]
+    assert 1.0 - 2.0 * (x * x + y * y) > math.cos(0.02)            # upright within 0.02 rad

@@ -256,6 +256,16 @@ class ChainBoard(cb.ControlBoardDevice):
         else:
             raise cb.ControlBoardError(f"{self.name}: {what} is not offered")
 
+    def resync(self) -> None:
+        """The robot was set down in a new posture (a simulated station): every goal and
+        reference is the servo's new one, nothing moving -- an old goal would walk the
+        joints back to where they were."""
+        with self.lock:
+            self.targets[:] = self.direct[:] = np.degrees(self.backend.reference[self.indices])
+            self.velocity[:] = 0.0
+            self._moving[:] = False
+            self._dirty[:] = False
+
     def _reference(self, joint: int) -> float:
         """The servo's reference (degrees): where a new mode or a stop starts from."""
         return math.degrees(self.backend.reference[self.indices[joint]])

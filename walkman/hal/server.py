@@ -358,8 +358,10 @@ class HalServer:
             self.backend.plant.set_harness(harness)
         station, self._station = self._station, None
         if station is not None:
-            self.backend.plant.place(station)
+            self.backend.place(station)
             self.backend.plant.set_harness(self.backend.plant.harness_mode)
+            for chain in self.chains.values():
+                chain.resync()
             log.info("HAL: the robot is at station %s (simulation)", station)
         for chain in self.chains.values():
             chain.step(self.backend.dt)

@@ -24,8 +24,9 @@ carries part of the weight, the feet must walk to move the robot) or ``off``.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import mujoco
 import numpy as np
@@ -35,8 +36,8 @@ from walkman.hal.drywall import Drywall
 from walkman.hal.thermal import ThermalModel
 from walkman.model import MJCF_PATH, SCENE_PATH
 from walkman.model.description import Robot, walkman
-from walkman.model.mjcf import (GRASPABLE, HANDS, STATION_GROUND, STATIONS,
-                                WALL_CIRCLE_RADIUS)
+from walkman.model.mjcf import (CAR_SEAT_TOP, GRASPABLE, HANDS, STATION_GROUND, STATION_POSTURE,
+                                STATIONS, WALL_CIRCLE_RADIUS)
 
 GRASP_CLOSED = 0.8
 GRASP_OPEN = 0.4
@@ -141,20 +142,49 @@ class MujocoPlant:
         self.place(station)
         self.set_harness(harness)
 
+    def station_posture(self, station: str) -> np.ndarray:
+        """The joint angles (rad, the robot's joint order) the robot is in at ``station``:
+        the home posture, or seated in the car (:data:`STATION_POSTURE`)."""
+        posture = self.m.key_qpos[0][self.qpos_adr].copy()
+        for joint, angle in STATION_POSTURE.get(station, {}).items():
+            posture[self.robot.joint_names.index(joint)] = angle
+        return posture
+
     def place(self, station: str) -> None:
-        """Put the robot (pelvis and trolley) at a station of the scene, standing still."""
+        """Put the robot (pelvis, joints and trolley) at a station of the scene, still, in
+        the station's posture: standing on its ground, or seated, its thighs on the car's
+        seat."""
         if station not in STATIONS:
             raise ValueError(f"unknown station {station!r}: choose {', '.join(STATIONS)}")
         x, y, yaw = STATIONS[station]
         ground = STATION_GROUND.get(station, 0.0)
         qpos = self.d.qpos
         qpos[self.trolley] = (x, y, ground, yaw)
+        qpos[self.qpos_adr] = self.station_posture(station)
         height = self.m.key_qpos[0][self.base + 2] + ground    # the standing keyframe's
         qpos[self.base:self.base + 7] = (x, y, height, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2))
         self.d.qvel[:] = 0.0
         mujoco.mj_forward(self.m, self.d)
+        if station in STATION_POSTURE:       # seated: the thighs on the seat
+            qpos[self.base + 2] += CAR_SEAT_TOP - self.lowest_point(("l_thigh", "r_thigh"))
+            mujoco.mj_forward(self.m, self.d)
         self._weld_here(self.harness_id)
         self._weld_here(self.brake_id)
+
+    def lowest_point(self, bodies: Sequence[str] = ("l_foot", "r_foot")) -> float:
+        """The height (m) of the lowest point of the bodies' geoms (their bounding boxes):
+        by default, the lower sole."""
+        lowest = math.inf
+        for name in bodies:
+            body = self.m.body(name).id
+            for geom in range(self.m.body_geomadr[body],
+                              self.m.body_geomadr[body] + self.m.body_geomnum[body]):
+                rotation = self.d.geom_xmat[geom].reshape(3, 3)
+                centre, half = self.m.geom_aabb[geom][:3], self.m.geom_aabb[geom][3:]
+                bottom = self.d.geom_xpos[geom][2] + rotation[2] @ centre - \
+                    np.abs(rotation[2]) @ half
+                lowest = min(lowest, float(bottom))
+        return lowest
 
     def set_harness(self, mode: str) -> None:
         """``locked`` (hang still), ``trolley`` (brake off: walk) or ``off``."""
@@ -263,16 +293,34 @@ class MujocoPlant:
         return float(self.d.qpos[self.m.joint(joint).qposadr[0]])
 
 
-class SimBackend(Backend):
+class PlantBackend(Backend):
+    """A backend over a :class:`MujocoPlant` (the simulation, the emulated EtherCAT bus):
+    its servo references start, and start again at each station, in the station's posture
+    -- the robot seated in the car would otherwise stand up into the seat."""
+
+    plant: MujocoPlant
+
+    def _use_plant(self, plant: MujocoPlant, station: str) -> None:
+        self.plant = plant
+        self.dt = float(plant.m.opt.timestep)
+        self.reference[:] = plant.station_posture(station)
+
+    def place(self, station: str) -> None:
+        """Set the robot down at ``station`` (:meth:`MujocoPlant.place`), the references
+        its posture there."""
+        self.plant.place(station)
+        self.reference[:] = self.plant.station_posture(station)
+
+
+class SimBackend(PlantBackend):
     """MuJoCo at 1 kHz with compliant position servos."""
 
     def __init__(self, model: Optional[Robot] = None, scene: bool = True, harness: str = "locked",
                  thermal_speedup: float = 1.0, station: str = "valve",
                  contact: str = "soft") -> None:
         super().__init__(model or walkman())
-        self.plant = MujocoPlant(self.model, scene=scene, harness=harness, station=station,
-                                 contact=contact)
-        self.dt = float(self.plant.m.opt.timestep)
+        self._use_plant(MujocoPlant(self.model, scene=scene, harness=harness, station=station,
+                                    contact=contact), station)
         self.thermal = ThermalModel(len(self.joint_names), speedup=thermal_speedup)
         self._torque_mode = np.zeros(len(self.joint_names), dtype=bool)
         self._hands = (self.index["l_handj"], self.index["r_handj"])

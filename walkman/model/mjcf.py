@@ -12,8 +12,10 @@ boards close their own PID loops.
 The scene (``drc=True``) adds what the DRC modules act on, all articulated:
 
 * a valve (hand wheel, radius 0.15 m) on a wall in front of the robot;
-* a driving rig (to the robot's right): a steering wheel at hand height and a
-  throttle pedal in front of the right foot -- the robot drives standing;
+* a car (to the robot's right): a seat with a low backrest, a steering wheel
+  before the chest and a throttle pedal in front of the right foot -- the robot
+  drives seated, as Walk-Man did at the DRC (the station seats it:
+  :data:`STATION_POSTURE`);
 * a door with a lever handle and a latch (to the robot's left): it opens
   away from the robot only while the handle is turned down;
 * the surprise task's table (station ``plug``): two open sockets side by side
@@ -32,10 +34,8 @@ The scene (``drc=True``) adds what the DRC modules act on, all articulated:
   ``ramp`` stands before it), debris blocks in the lane to the left.
 
 Stations (:data:`STATIONS`) are where the robot starts: in front of the
-valve, at the driving rig, before the door, at the plug's table and the
+valve, seated in the car, before the door, at the plug's table and the
 drywall, before the rough ground.
-* grasp welds between each hand and each graspable part, off until the HAL
-  closes a hand next to the part (see ``walkman/hal/sim.py``).
 """
 
 from __future__ import annotations
@@ -70,7 +70,7 @@ WALL_CIRCLE_RADIUS = 0.08
 #: for tests, benchmarks and the PI's task widgets (every number the command takes: a widget
 #: shows a field for each, and an optional one left at 0 put the car's pedal at the pelvis).
 PILOT_POSES = {"valve": "valvedatasent 0.66 0.25 0.08 0 0 0 0.15",
-               "car": "steeringwheeldatasent 0.55 0.1 0.03 0 -1.0472 0 0.18 0.36 -0.11 -1.05",
+               "car": "steeringwheeldatasent 0.55 0.1 0.08 0 -1.0472 0 0.18 0.69 -0.11 -0.63",
                "door": "doordatasent 0.50 0.01 0.03 0 0 0 0.09 0.6",
                "plug": "plugdatasent 0.62 0.30 0.0 0 0 0 0 -0.18",
                "wall": "walldatasent 0.50 0.40 -0.06 0 0 0 0.85 0.22 0.12 0.08"}
@@ -100,6 +100,24 @@ STATIONS = {"valve": (0.0, 0.0, 0.0), "car": (0.0, -2.5, 0.0), "door": (0.34, 2.
                          TERRAIN_RAMP[0], math.pi)}
 #: The height (m) of the ground a station stands on, where it is not the floor.
 STATION_GROUND = {"ramp_top": TERRAIN_RAMP[2] * math.sin(TERRAIN_RAMP[3])}
+#: The robot sits in the car, as Walk-Man drove at the DRC (the team put it in the vehicle
+#: and skipped the egress): thighs level on the seat, shanks upright, soles flat on the car's
+#: floor -- the seat, not a balance controller, carries it while the right foot is on the
+#: pedal.  Every other station stands in the home posture.
+SEATED_POSTURE = {f"{side}{joint}": angle for side in "LR"
+                  for joint, angle in (("HipSag", -1.57), ("KneeSag", 1.57), ("AnkSag", 0.0))}
+STATION_POSTURE = {"car": SEATED_POSTURE}
+
+
+def task_harness(station: str) -> str:
+    """The harness a task module runs in at ``station`` (tests, benchmarks): none seated in
+    the car, where the seat carries the robot; locked standing (walking has its own)."""
+    return "off" if station in STATION_POSTURE else "locked"
+
+#: The car seat's top (m above the ground), where the thighs rest: the soles hang 1 cm over
+#: the car's floor, so the seat, not the legs, carries the robot
+#: (walkman.hal.sim.MujocoPlant.place).
+CAR_SEAT_TOP = 0.47
 #: Vertical stiffness (N/m) of the harness spring and its share of the robot's weight when
 #: the feet touch the floor (trolley mode).
 HARNESS_STIFFNESS = 3000.0
@@ -202,11 +220,14 @@ def scene_bodies() -> List[str]:
         <site name="valve_grip" pos="0 0 0.15" size="0.015" rgba="1 1 0 0.6"/>
       </body>
     </body>
-    <!-- driving rig: steering wheel at hand height, throttle pedal before the right foot -->
+    <!-- the car: a seat with a backrest, the steering wheel before the chest, the throttle
+         pedal before the right foot -->
     <body name="car" pos="0 -2.5 0">
       <geom name="car_floor" type="box" size="0.6 0.5 0.005" pos="0.3 0 0.005" rgba="0.4 0.4 0.45 1"/>
-      <geom name="car_dash" type="box" size="0.05 0.4 0.35" pos="0.85 0 0.85" rgba="0.3 0.3 0.35 1"/>
-      <body name="steering_column" pos="0.55 0.1 1.15" euler="0 -1.0472 0">
+      <geom name="car_seat" type="box" size="0.23 0.25 0.1" pos="0.05 0 0.37" rgba="0.25 0.25 0.3 1"/>
+      <geom name="car_backrest" type="box" size="0.03 0.25 0.15" pos="-0.16 0 0.70" rgba="0.25 0.25 0.3 1"/>
+      <geom name="car_dash" type="box" size="0.05 0.4 0.3" pos="0.9 0 0.8" rgba="0.3 0.3 0.35 1"/>
+      <body name="steering_column" pos="0.55 0.1 0.80" euler="0 -1.0472 0">
         <geom name="steering_shaft" type="cylinder" size="0.02 0.15" pos="0 0 -0.15" rgba="0.2 0.2 0.2 1"/>
         <body name="steering_wheel">
           <joint name="steering" type="hinge" axis="0 0 1" range="-6.28 6.28" damping="0.8" frictionloss="1.5"/>
@@ -214,7 +235,7 @@ def scene_bodies() -> List[str]:
           <site name="steering_grip" pos="0 0.18 0" size="0.015" rgba="1 1 0 0.6"/>
         </body>
       </body>
-      <body name="throttle_pedal" pos="0.28 -0.11 0.03">
+      <body name="throttle_pedal" pos="0.60 -0.11 0.08">
         <joint name="throttle" type="hinge" axis="0 1 0" range="0 0.35" stiffness="60" springref="0" damping="2"/>
         <geom name="throttle_pad" type="box" size="0.09 0.06 0.008" pos="0.09 0 0" euler="0 -0.349 0" rgba="0.1 0.1 0.1 1"/>
       </body>

@@ -23,8 +23,10 @@ While driving:
 * ``ungrasp``, then ``move_away_hand`` (the arm back to where it started).
 
 The hand moves by IK over the left arm and the waist, the foot by IK over the
-right leg with the sole kept flat.  The harness holds the robot while it
-drives standing (the rig has no seat: see ``walkman/model/mjcf.py``).
+right leg with the sole kept flat.  The robot drives seated, as Walk-Man did at
+the DRC: the car's seat carries it (no harness, no balance controller) while one
+foot is on the pedal, and ``move_away_foot`` puts the leg back where it was when
+the module started (seated, not the standing home posture).
 """
 
 from __future__ import annotations
@@ -40,10 +42,19 @@ from walkman.modules.task import LEFT_ARM, WAIST, Effector, GraspTask, task_stat
 
 RIGHT_LEG = ["RHipLat", "RHipYaw", "RHipSag", "RKneeSag", "RAnkSag", "RAnkLat"]
 SOLE = np.array([0.10, 0.0, -0.10])  # the ball of the right foot, under the sole
-#: Where the throttle pad is in the pelvis frame at the car station, unless the pilot says.
-PEDAL = np.array([0.36, -0.11, -1.05])
+#: Where the throttle pad is in the pelvis frame, seated at the car station, unless the
+#: pilot says.
+PEDAL = np.array([0.69, -0.11, -0.63])
+#: The sole on the pedal: toe up as the pad slopes (20 degrees), so the whole sole presses
+#: it -- a flat sole met only the pad's raised front edge, and slid off it forward.
+PEDAL_SLOPE = 0.349
+SOLE_ON_PEDAL = rpy_matrix(0.0, -PEDAL_SLOPE, 0.0)
+#: rad the sole turns toe down to press the pedal all the way, as a seated driver does, the
+#: heel's side still: with the thigh on the seat and the shank upright the ankle is already
+#: as low as it goes, and pushing the whole leg down pressed the thigh into the seat.
+PRESS_TILT = 0.30
 PEDAL_CLEARANCE = 0.03               # m above the pad when the foot is on the pedal
-PRESS_DEPTH = 0.04                   # m the foot pushes the pad down
+PRESS_DEPTH = 0.03                   # m the ball of the foot pushes the pad down
 APPROACH_GAP, REACH_GAP = 0.04, 0.15
 TURN_SPEED, FOOT_SPEED = 0.6, 0.1
 #: The states in which the left hand holds the rim (:data:`DRIVE_TABLE`).
@@ -128,7 +139,7 @@ class Module(GraspTask):
                  "approach": grip + APPROACH_GAP * axis, "reach": grip + REACH_GAP * axis,
                  "pedal": np.array(pedal) if pedal else PEDAL.copy(), "steered": 0.0}
         above = wheel["pedal"] + [0.0, 0.0, PEDAL_CLEARANCE]
-        self.reachable(self.foot, above, np.eye(3), what="throttle pedal")
+        self.reachable(self.foot, above, SOLE_ON_PEDAL, what="throttle pedal")
         self.aim(wheel, "wheel")
 
     def _start_drive(self) -> None:
@@ -150,8 +161,12 @@ class Module(GraspTask):
         self.target["steered"] += angle
 
     def _start_rotate_foot(self) -> None:
-        self.line_to(self.foot, self.target["pedal"] + [0.0, 0.0, PEDAL_CLEARANCE], FOOT_SPEED,
-                     np.eye(3))
+        """Up off the floor, then over the pad: straight there, the toe met the pedal's
+        edge (the pad is higher than the resting foot)."""
+        above = self.target["pedal"] + [0.0, 0.0, PEDAL_CLEARANCE]
+        here, _ = self.pose(self.foot)
+        self.line_to(self.foot, [here[0], here[1], max(here[2], above[2])], FOOT_SPEED)
+        self.then(lambda: self.line_to(self.foot, above, FOOT_SPEED, SOLE_ON_PEDAL))
         self.foot_on_pedal = True
 
     def _start_accelerate(self, seconds: float = 1.0, amount: float = 1.0) -> None:
@@ -163,13 +178,21 @@ class Module(GraspTask):
             raise ValueError(f"press the throttle 0.1..1 of its travel, got {amount}")
         above = self.target["pedal"] + [0.0, 0.0, PEDAL_CLEARANCE]
         pressed = self.target["pedal"] - [0.0, 0.0, amount * PRESS_DEPTH]
-        self.line_to(self.foot, pressed, FOOT_SPEED, np.eye(3), contact=True)
+        self.line_to(self.foot, pressed, FOOT_SPEED,
+                     rpy_matrix(0.0, amount * PRESS_TILT - PEDAL_SLOPE, 0.0), contact=True)
         # The pad pushes back: hold the commanded depth, then let it up.
         self.then(lambda: self.hold_for(seconds),
-                  lambda: self.line_to(self.foot, above, FOOT_SPEED, np.eye(3)))
+                  lambda: self.line_to(self.foot, above, FOOT_SPEED, SOLE_ON_PEDAL))
 
     def _start_move_away_foot(self) -> None:
-        self.home(RIGHT_LEG)
+        """Back over where the foot rested, as high as it is over the pad, then down to the
+        posture it started in: straight home, the toe caught the pad and held it down."""
+        here, _ = self.pose(self.foot)
+        position, rotation = self.kinematics.pose(self.rest, self.foot.frame)
+        rest = position + rotation @ self.foot.offset
+        self.line_to(self.foot, [rest[0], rest[1], max(here[2], rest[2])], FOOT_SPEED,
+                     rotation)
+        self.then(lambda: self.home(RIGHT_LEG))
         self.foot_on_pedal = False
 
     def _start_move_away_hand(self) -> None:

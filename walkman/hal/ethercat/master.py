@@ -23,10 +23,10 @@ from typing import Dict, Optional
 
 import numpy as np
 
-from walkman.hal.backend import Backend, Imu
+from walkman.hal.backend import Imu
 from walkman.hal.ethercat.firmware import ControlBoards, SensorBoard, pack_tx, unpack_rx
 from walkman.hal.ethercat.packets import CLEAR_FAULTS, CONTROL_RX, CONTROL_TX, SENSOR_RX, Fault
-from walkman.hal.sim import MujocoPlant
+from walkman.hal.sim import MujocoPlant, PlantBackend
 from walkman.hal.thermal import ThermalModel
 from walkman.model.description import Robot, walkman
 
@@ -42,12 +42,12 @@ def _gains(name: str) -> tuple:
     return GAINS["default"]
 
 
-class EthercatBackend(Backend):
+class EthercatBackend(PlantBackend):
     def __init__(self, model: Optional[Robot] = None, scene: bool = True, harness: str = "locked",
                  thermal_speedup: float = 1.0, station: str = "valve") -> None:
         super().__init__(model or walkman())
-        self.plant = MujocoPlant(self.model, scene=scene, harness=harness, station=station)
-        self.dt = float(self.plant.m.opt.timestep)
+        self._use_plant(MujocoPlant(self.model, scene=scene, harness=harness, station=station),
+                        station)
         self.plant.set_servo(np.arange(len(self.joint_names)),
                              np.ones(len(self.joint_names), dtype=bool), self.idle)
         self.thermal = ThermalModel(len(self.joint_names), speedup=thermal_speedup)
