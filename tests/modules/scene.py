@@ -67,6 +67,13 @@ class World:
         w, x, y, z = self._positions()[adr + 3:adr + 7]
         return 1.0 - 2.0 * (x * x + y * y)
 
+    def data(self) -> mujoco.MjData:
+        """The scene's kinematics now (bodies where the world's positions put them)."""
+        d = mujoco.MjData(self.model)
+        d.qpos[:] = self._positions()
+        mujoco.mj_kinematics(self.model, d)
+        return d
+
     def close(self) -> None:
         self.port.close()
 
@@ -83,11 +90,18 @@ def follow(world: World, joint: str) -> None:
 def main(args: List[str]) -> None:
     """Print ``base_x X base_y Y base_yaw YAW``, ``base_z Z tilt T`` (m, rad) then ``JOINT VALUE``
     for each joint asked (``JOINT X Y Z upright COS`` for a free body's: the plug, the
-    drill); ``--follow JOINT``: that joint's every value (:func:`follow`)."""
+    drill); ``--follow JOINT``: that joint's every value (:func:`follow`); ``--onto-ramp
+    FORWARD PITCH``: the ``footsteps`` command onto the ramp's surface that far ahead
+    (:func:`tests.modules.walker.ramp_footsteps`)."""
     world = World("/probe/world:i")
     try:
         if args[:1] == ["--follow"] and len(args) == 2:
             follow(world, args[1])
+        if args[:1] == ["--onto-ramp"] and len(args) == 3:
+            from tests.modules.walker import ramp_footsteps
+
+            print(ramp_footsteps(world.data(), float(args[1]), float(args[2])))
+            return
         joints = args
         x, y, z, yaw = world.base()
         print("base_x", x, "base_y", y, "base_yaw", yaw)

@@ -74,16 +74,22 @@ def walk_through(world, module, command: str, limit: float = 40.0) -> float:
     return smallest
 
 
+def _data(source):
+    """The MuJoCo data of a backend, or the data itself (a probe's, tests/modules/scene.py)."""
+    plant = getattr(source, "plant", None)
+    return source if plant is None else plant.d
+
+
 def sole_heights(backend) -> Tuple[float, float]:
     """The world height of each sole's bottom (m): 0 on the floor."""
-    return tuple(float(backend.plant.d.body(f"{side}_foot").xpos[2]) - SOLE_ABOVE_FLOOR
+    return tuple(float(_data(backend).body(f"{side}_foot").xpos[2]) - SOLE_ABOVE_FLOOR
                  for side in "lr")
 
 
 def soles_in_pelvis_frame(backend) -> Tuple[np.ndarray, np.ndarray]:
     """Each sole's centre as a pose (x, y, z, roll, pitch, yaw) in the pelvis frame, as a
     pilot measures it (from the world, the simulator's truth)."""
-    d = backend.plant.d
+    d = _data(backend)
     pelvis, turn = d.body("pelvis").xpos, d.body("pelvis").xmat.reshape(3, 3)
     soles = []
     for side in "lr":
@@ -148,23 +154,32 @@ def ramp_down_course(world, module) -> List[Leg]:
                                         0.30, 0.0))
 
 
-def _on_the_ramp(world, module, course) -> List[Leg]:
-    """Walk ``course``: commands, and pairs (forward, pitch) of two footsteps that far ahead
-    of each sole, on the ramp's surface there, pitched so."""
+def ramp_footsteps(source, forward: float, pitch: float) -> str:
+    """The ``footsteps`` command of two footsteps ``forward`` m ahead of each sole, on the
+    ramp's surface there (the world's), pitched ``pitch``: what a pilot places from what
+    perception shows.  ``source``: a backend, or a probe's MuJoCo data."""
     _, foot, length, slope = TERRAIN_RAMP
     top = length * math.sin(slope)
 
     def surface(x: float) -> float:
         return min(max(x - foot, 0.0) * math.tan(slope), top)
 
+    d = _data(source)
+    soles = soles_in_pelvis_frame(d)
+    heights = sole_heights(d)
+    _, _, _, w, _, _, qz = d.joint("base").qpos
+    ahead = math.cos(2.0 * math.atan2(qz, w))       # +1 facing up the ramp, -1 down
+    x = float(d.body("l_foot").xpos[0]) + ahead * (walking.SOLE[0] + forward)
+    return footsteps(*(walking.sole_ahead(sole, forward, surface(x) - height, pitch)
+                       for sole, height in zip(soles, heights)))
+
+
+def _on_the_ramp(world, module, course) -> List[Leg]:
+    """Walk ``course``: commands, and pairs (forward, pitch) of two footsteps that far ahead
+    of each sole, on the ramp's surface there, pitched so."""
+
     def onto(forward: float, pitch: float) -> str:
-        soles = soles_in_pelvis_frame(world.backend)
-        heights = sole_heights(world.backend)
-        ahead = math.cos(world.backend.plant.base_pose()[3])      # +1 up the ramp, -1 down
-        x = float(world.backend.plant.d.body("l_foot").xpos[0]) + ahead * (walking.SOLE[0]
-                                                                           + forward)
-        return footsteps(*(walking.sole_ahead(sole, forward, surface(x) - height, pitch)
-                           for sole, height in zip(soles, heights)))
+        return ramp_footsteps(world.backend, forward, pitch)
 
     done = []
     steps = list(course)

@@ -19,7 +19,8 @@ the lab, no bridge: frames with a black sky and a cloud without depth there read
 100 %, nothing hatched), ``wall`` (the wall task by clicks, start to home),
 ``terrain [camera]`` (the rough-ground course by walking's clicks and two footsteps placed
 and dragged in the 3-D view; ``camera``: the rest of the way on footsteps from the head
-camera's cloud), ``valve COUNT`` (for bench/bench_valve_topologies.py: the
+camera's cloud), ``ramp`` (up the ramp by walking's clicks, the footsteps onto the slope and
+the landing dragged in the 3-D view where the test says), ``valve COUNT`` (for bench/bench_valve_topologies.py: the
 whole valve task COUNT times by clicks, printing ``TIMED run command state click-time
 shown-time`` per step and ``SHOWN time state stamp`` for every status the task widget
 showed, ``stamp`` the gateway's receipt; after each run but the last it waits for the
@@ -439,12 +440,16 @@ def send_look_at(gaze, x: float) -> None:
     click(gaze.send_button, f"send look_at {x:.3f}", gaze)
 
 
-def drag(marker: str, position, yaw: float, followed, what: str) -> None:
-    """What RViz sends while the pilot drags ``marker`` to ``position`` turned ``yaw`` (pelvis
-    frame): pose updates to the PI's marker server until ``followed()`` says the PI took it."""
+def drag(marker: str, position, yaw: float, followed, what: str, roll: float = 0.0,
+         pitch: float = 0.0) -> None:
+    """What RViz sends while the pilot drags ``marker`` to ``position`` turned ``yaw`` (and
+    ``roll``, ``pitch``: its rotate rings; pelvis frame): pose updates to the PI's marker
+    server until ``followed()`` says the PI took it."""
 
     import rospy
     from visualization_msgs.msg import InteractiveMarkerFeedback
+
+    from pilot.view3d_child import rpy_to_quaternion
 
     topic = rospy.Publisher(f"{window.view3d.markers_topic}/feedback", InteractiveMarkerFeedback,
                             queue_size=5)
@@ -455,8 +460,8 @@ def drag(marker: str, position, yaw: float, followed, what: str) -> None:
     feedback.header.frame_id = "pelvis"
     (feedback.pose.position.x, feedback.pose.position.y,
      feedback.pose.position.z) = position
-    feedback.pose.orientation.z, feedback.pose.orientation.w = math.sin(yaw / 2), \
-        math.cos(yaw / 2)
+    (feedback.pose.orientation.x, feedback.pose.orientation.y, feedback.pose.orientation.z,
+     feedback.pose.orientation.w) = rpy_to_quaternion(roll, pitch, yaw)
     say(f"STEP dragging {what} from {time.time():.3f}")
     # A drag is a stream of pose updates.  The marker server lives in the render process:
     # if librviz takes it down meanwhile (its own crash, which the PI survives), the PI
@@ -581,6 +586,41 @@ def terrain(on_camera: bool) -> None:
         walk("go_straight", [0.36])
         walk("step_down", [0.05, 0.33])
     say("DONE")
+
+
+def ramp() -> None:
+    """The ramp course by clicks (issue 32): start walking, to the ramp's foot, two
+    footsteps dragged in the 3-D view onto the 10-degree slope and pitched like it (turned
+    on the marker's pitch ring), up the slope, two more onto the level landing at its top.
+    Where each footstep goes the test reads on the ramp's surface in the world -- what the
+    perception pilot shows -- and says ``footsteps X Y Z ROLL PITCH YAW ...``."""
+    walking = start_walking()
+    say("STEP walking started")
+    listen()
+    for leg, distance in enumerate((0.20, 0.36), 1):
+        walk("go_straight", [distance])
+        say(f"STEP footsteps wanted for leg {leg}")
+        values = [float(word) for word in said("footsteps", 120).split()]
+        place_footsteps(walking, [values[i:i + 6] for i in range(0, len(values), 6)])
+        pump(1.0)
+        window.screenshot(OUT / f"ramp-footsteps-{leg}.png")
+        walk("footsteps")
+    say("DONE")
+
+
+def place_footsteps(walking, poses: Sequence[Sequence[float]]) -> None:
+    """Clear the footsteps, add one per pose and drag each onto its pose in the 3-D view."""
+    click(walking.clear_button, "clear footsteps", walking)
+    for _ in poses:
+        click(walking.add_button, "add footstep", walking)
+    names = walking.ordered()
+    if len(names) != len(poses) or not set(names) <= set(window.view3d.markers):
+        fail(f"footsteps {walking.footsteps}, markers {list(window.view3d.markers)}")
+    for name, pose in zip(names, poses):
+        def followed(name=name, pose=pose) -> bool:
+            return all(abs(a - b) < 1e-3 for a, b in zip(walking.footsteps[name], pose))
+        drag(name, pose[:3], pose[5], followed, name, roll=pose[3], pitch=pose[4])
+    say(f"STEP footsteps placed {[[round(v, 3) for v in walking.footsteps[n]] for n in names]}")
 
 
 #: The cloud :func:`finer_ground` asks for: 80 x 30 points of the picture's lower half.
@@ -1088,7 +1128,7 @@ if __name__ == "__main__":
     say(f"UP after {window.ready_after:.2f} s")
     {"first": first, "second": second, "latency": latency, "peer": peer,
      "camera": camera, "wall": wall_task,
-     "terrain": lambda: terrain(sys.argv[3:] == ["camera"]), "debris": debris,
+     "terrain": lambda: terrain(sys.argv[3:] == ["camera"]), "debris": debris, "ramp": ramp,
      "valve": lambda: task_runs("drc_valve", int(sys.argv[3])),
      "task": lambda: task_runs(sys.argv[3], int(sys.argv[4])),
      "tasks": lambda: tasks_in_turn(sys.argv[3:]),

@@ -31,7 +31,8 @@ from system.processes import ROSCORE_READY, Proc
 from system.topology import REPO, Pc, Topology, hal_component, task_component
 from walkman.model.description import STANDING_PELVIS_HEIGHT
 from walkman.model.mjcf import (DRILL_GRIP, PILOT_POSES, PLUG_HALF, PLUG_SOCKETS,
-                                 PLUG_TABLE_TOP, SOCKET_INNER, STATIONS, TERRAIN_STEP)
+                                 PLUG_TABLE_TOP, SOCKET_INNER, STATIONS, TERRAIN_RAMP,
+                                 TERRAIN_STEP)
 from walkman.modules.walking import CROUCH
 from tests.modules.walker import seen_from_the_crouched_pelvis
 from tests.system.conftest import dump_outputs_if_failed
@@ -316,6 +317,42 @@ def test_the_terrain_course_by_clicks_with_footsteps_placed_in_the_3d_view(tmp_p
         gateway = topology.process("gateway").output()
         assert re.search(r"gateway: sent to /walking/command:i: \(?footsteps\b", gateway), \
             gateway[-3000:]
+
+
+@pytest.mark.requires("root")
+@pytest.mark.free_standing
+@pytest.mark.alone
+def test_up_the_ramp_by_clicks_with_footsteps_dragged_onto_the_slope_in_the_3d_view(
+        tmp_path, display, request, emulated_link):
+    """Issue 32, rough ground, the ramp through the PI on the drc topology (over the
+    emulated DRC link) with the harness off: walking's clicks take the robot to the
+    10-degree ramp's foot, two footsteps dragged in the 3-D view onto the slope and pitched
+    like it, up the slope, two more onto the level landing at its top.  Where each goes the
+    test reads on the ramp's surface in the world (what the perception pilot shows) and says
+    to the PI; the simulated world says the robot stands on the landing."""
+    _, foot, length, slope = TERRAIN_RAMP
+    legs = {"1": -slope, "2": 0.0}         # onto the slope, then onto the level landing
+    with pi_on_drc(tmp_path, display, request, emulated_link, ["walking"], "ramp",
+                   "--station", "ramp", "--harness", "off",
+                   unused=("perception",)) as (topology, pi):
+        for leg, pitch in legs.items():
+            pi.wait_for(rf"STEP footsteps wanted for leg {leg}\b|FAIL", 300)
+            assert "FAIL" not in pi.output(), pi.output()
+            probe = topology.robot.run([PYTHON, "-m", "tests.modules.scene", "--onto-ramp",
+                                        "0.33", str(pitch)], timeout=60)
+            line = next(text for text in probe.output().splitlines()
+                        if text.startswith("footsteps "))
+            pi.send(line + "\n")
+        pi.wait_for(r"DONE|FAIL", 300)
+        assert "FAIL" not in pi.output(), pi.output()
+        base = robot_base(topology)
+        top = length * math.sin(slope)
+        assert base["base_x"] > foot + length * math.cos(slope), base     # past the top edge
+        assert abs(base["base_z"] - (STANDING_PELVIS_HEIGHT - CROUCH + top)) < 0.04 and \
+            base["tilt"] < 0.1 and abs(base["base_yaw"]) < 0.1, base     # on the landing
+        gateway = topology.process("gateway").output()
+        assert len(re.findall(r"gateway: sent to /walking/command:i: \(?footsteps\b",
+                              gateway)) == 2, gateway[-3000:]
 
 
 @pytest.mark.requires("root")
