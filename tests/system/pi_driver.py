@@ -19,8 +19,8 @@ the lab, no bridge: frames with a black sky and a cloud without depth there read
 100 %, nothing hatched), ``wall`` (the wall task by clicks, start to home),
 ``terrain [camera]`` (the rough-ground course by walking's clicks and two footsteps placed
 and dragged in the 3-D view; ``camera``: the rest of the way on footsteps from the head
-camera's cloud), ``ramp`` (up the ramp by walking's clicks, the footsteps onto the slope and
-the landing dragged in the 3-D view where the test says), ``valve COUNT`` (for bench/bench_valve_topologies.py: the
+camera's cloud), ``ramp up|down`` (the ramp by walking's clicks, the footsteps onto the slope
+and off it dragged in the 3-D view where the test says), ``valve COUNT`` (for bench/bench_valve_topologies.py: the
 whole valve task COUNT times by clicks, printing ``TIMED run command state click-time
 shown-time`` per step and ``SHOWN time state stamp`` for every status the task widget
 showed, ``stamp`` the gateway's receipt; after each run but the last it waits for the
@@ -588,22 +588,29 @@ def terrain(on_camera: bool) -> None:
     say("DONE")
 
 
-def ramp() -> None:
-    """The ramp course by clicks (issue 32): start walking, to the ramp's foot, two
-    footsteps dragged in the 3-D view onto the 10-degree slope and pitched like it (turned
-    on the marker's pitch ring), up the slope, two more onto the level landing at its top.
-    Where each footstep goes the test reads on the ramp's surface in the world -- what the
-    perception pilot shows -- and says ``footsteps X Y Z ROLL PITCH YAW ...``."""
+#: go_straight before each pair of footsteps: up from station ``ramp`` (to the ramp's foot,
+#: then up the slope to its top), down from ``ramp_top`` (to the landing's edge, then down
+#: the slope to its foot) -- tests/modules/walker.py's ramp courses.
+RAMP_LEGS = {"up": (0.20, 0.36), "down": (0.08, 0.22)}
+
+
+def ramp(way: str) -> None:
+    """The ramp course by clicks (issue 32), ``up`` or ``down``: start walking, to the
+    slope's edge, two footsteps dragged in the 3-D view onto the 10-degree slope and pitched
+    like it (turned on the marker's pitch ring), along the slope, two more onto the level
+    ground at its end.  Where each footstep goes the test reads on the ramp's surface in the
+    world -- what the perception pilot shows -- and says ``footsteps X Y Z ROLL PITCH YAW
+    ...``."""
     walking = start_walking()
     say("STEP walking started")
     listen()
-    for leg, distance in enumerate((0.20, 0.36), 1):
+    for leg, distance in enumerate(RAMP_LEGS[way], 1):
         walk("go_straight", [distance])
         say(f"STEP footsteps wanted for leg {leg}")
         values = [float(word) for word in said("footsteps", 120).split()]
         place_footsteps(walking, [values[i:i + 6] for i in range(0, len(values), 6)])
         pump(1.0)
-        window.screenshot(OUT / f"ramp-footsteps-{leg}.png")
+        window.screenshot(OUT / f"ramp-{way}-footsteps-{leg}.png")
         walk("footsteps")
     say("DONE")
 
@@ -1128,7 +1135,8 @@ if __name__ == "__main__":
     say(f"UP after {window.ready_after:.2f} s")
     {"first": first, "second": second, "latency": latency, "peer": peer,
      "camera": camera, "wall": wall_task,
-     "terrain": lambda: terrain(sys.argv[3:] == ["camera"]), "debris": debris, "ramp": ramp,
+     "terrain": lambda: terrain(sys.argv[3:] == ["camera"]), "debris": debris,
+     "ramp": lambda: ramp(sys.argv[3]),
      "valve": lambda: task_runs("drc_valve", int(sys.argv[3])),
      "task": lambda: task_runs(sys.argv[3], int(sys.argv[4])),
      "tasks": lambda: tasks_in_turn(sys.argv[3:]),
