@@ -283,6 +283,7 @@ def test_retreat_puts_the_foot_back_where_it_lifted_from_and_drops_the_rest():
     assert plan.retreat(lead, t) == 1
     back = plan.steps[0]
     assert (back.side, back.start_z, back.land_z) == ("left", 0.05, 0.0)
+    assert back.returning            # not watched for a strike on its way down
     assert back.lift_at > t          # the weight shifts back onto the standing foot first
     assert not plan.set_aside
     play(plan, plan.end_time() + 0.1)
@@ -305,6 +306,7 @@ def test_strike_holds_the_foot_on_the_ground_it_left_then_puts_it_back():
     back = plan.steps[0]
     assert (back.start, back.land, back.start_z, back.land_z) == (where, lead.start, 0.05, 0.05)
     assert back.slow and not back.check and back.lift_at > t   # the weight stays on the right
+    assert back.returning and not lead.returning
     assert back.land_at - back.lift_at == pytest.approx(Timing().swing + Timing().climb)
     stance = plan.zmp(np.array([back.lift_at]))
     assert float(stance[0][0]) == pytest.approx(plan.feet["right"][0], abs=1e-6)

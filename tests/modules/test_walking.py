@@ -408,6 +408,27 @@ def test_a_step_down_sent_before_the_kerbs_edge_strikes_it_and_the_foot_is_put_b
 
 
 @pytest.mark.offline
+def test_a_foot_going_back_where_it_lifted_from_is_not_watched_for_a_strike():
+    """Down the ramp by clicks, a strike's put-back set out from above where it went back to
+    (the swing's height when it struck): the watch on its way down found the ground it stood
+    on and put it back again, fifty times over.  A returning foot is not watched; the same
+    step going out is."""
+    from dataclasses import replace
+
+    from walkman.control.footsteps import Ground, Step
+
+    world, module = walker("yard")
+    thread = module.thread
+    going = Step("left", (0.0, 0.11, 0.0), (0.3, 0.11, 0.0), (0.15, 0.0, 0.0), 0.0, 0.1, 0.9,
+                 Ground(0.06), Ground(0.0))
+    feet = {"left": ((0.2, 0.11, 0.0), 0.03), "right": ((0.0, -0.11, 0.0), 0.0)}
+    thread.check_descent(0.5, replace(going, returning=True), feet)
+    assert thread.descent is None
+    thread.check_descent(0.5, going, feet)
+    assert thread.descent is not None
+
+
+@pytest.mark.offline
 def test_a_step_the_legs_cannot_make_is_refused_with_a_warning_before_a_foot_lifts():
     world, module = walker("terrain")
     before = world.backend.positions()

@@ -176,6 +176,11 @@ class Step:
     #: swings as slowly as a step up or down (a foot going back where it lifted from,
     #: after it struck the ground it left)
     slow: bool = False
+    #: a foot going back where it lifted from (:meth:`FootstepPlan.retreat`,
+    #: :meth:`FootstepPlan.strike`): not watched for a strike on its way down -- it sets out
+    #: from where it met ground, often above where it goes back to, and such a watch found
+    #: the ground the foot stood on and put it back again, fifty times over
+    returning: bool = False
 
     @property
     def start_z(self) -> float:
@@ -574,7 +579,8 @@ class WalkPlan:
         stride = compose(inverse(self.centre), midpoint(feet["left"], feet["right"]))
         # where the foot stood a moment ago: no reach to check
         self._schedule([Step(step.side, self.feet[step.side], step.start, stride, 0.0, 0.0,
-                             0.0, self.ground[step.side], step.start_ground)], t)
+                             0.0, self.ground[step.side], step.start_ground,
+                             returning=True)], t)
         return 1
 
     def strike(self, step: Step, t: float) -> int:
@@ -592,7 +598,8 @@ class WalkPlan:
         self.ground = {**self.ground, step.side: met}
         # where it stood a moment ago (no reach to check, nor its landing: it stood there)
         self._schedule([Step(step.side, where, step.start, (0.0, 0.0, 0.0), 0.0, 0.0, 0.0,
-                             met, step.start_ground, check=False, slow=True)], t,
+                             met, step.start_ground, check=False, slow=True,
+                             returning=True)], t,
                        from_standing=False)
         return 1
 

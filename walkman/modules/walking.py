@@ -477,8 +477,10 @@ class Module(TaskModule):
                       feet: Dict[str, Tuple[Planar, float]]) -> None:
         """Watch a sole stepping down: if it meets ground well above where it was going
         (the kerb it leaves), say so; it stays there and goes back where it lifted from
-        (the rest of the walk dropped)."""
-        if flying is None or flying.land_z > flying.start_z - STRIKE_ABOVE:
+        (the rest of the walk dropped).  A foot already going back is not watched
+        (:attr:`Step.returning`)."""
+        if flying is None or flying.returning or \
+                flying.land_z > flying.start_z - STRIKE_ABOVE:
             self.descent = self.descent_step = None
             return
         if self.descent_step is not flying:
