@@ -343,7 +343,9 @@ def test_the_ramp_by_clicks_with_footsteps_dragged_onto_and_off_the_slope_in_the
     The suite walks up only (``PI_RAMP_WAYS=up,down`` both): down tripped the balance guard
     in its one run, beside a fresh-clone run (ZMP -0.2 cm as the last footsteps brought the
     feet onto the floor; offline it keeps 2.8 cm), and then walking's descent watch put the
-    right foot back fifty times over (a put-back watched for a strike: not since)."""
+    right foot back fifty times over (a put-back watched for a strike: not since); its
+    second run, after that fix, fell on the footsteps sent after the guard had stopped the
+    walk at the landing's edge (ZMP -0.3 cm)."""
     _, foot, length, slope = TERRAIN_RAMP
     station, legs = RAMP_WAYS[way]
     with pi_on_drc(tmp_path, display, request, emulated_link, ["walking"], "ramp",
