@@ -125,46 +125,44 @@ def test_a_module_that_ends_within_the_quit_grace_gives_its_own_exit(short_timeo
     assert code == 0 and seconds < 1.5 + 1.2, seconds
 
 
+def _watched_saying(words: bytes, sent: list) -> Supervisor:
+    """A supervisor that watched a child (killed after 0.3 s) whose pipe said ``words`` and
+    ended; the signals it passes on go to ``sent``."""
+    import signal
+    watcher = Supervisor([])
+    watcher.child = subprocess.Popen(["sleep", "60"])
+    watcher.child.send_signal = sent.append
+    try:
+        read_fd, write_fd = os.pipe()
+        os.write(write_fd, words)
+        os.close(write_fd)
+        threading.Timer(0.3, os.kill, (watcher.child.pid, signal.SIGKILL)).start()
+        watcher._watch(read_fd)
+        os.close(read_fd)
+    finally:
+        if watcher.child.poll() is None:
+            os.kill(watcher.child.pid, signal.SIGKILL)
+        watcher.child.wait()
+    return watcher
+
+
 def test_stacks_are_asked_only_of_a_module_that_has_armed_its_handlers(short_timeouts):
     """A module still importing has no SIGUSR1 handler: the signal would kill it (and the
     supervisor start another) instead of printing anything.  Its first beat is no sign
     either: it can come seconds after the module says it is ready (CI of 2026-12-03)."""
     import signal
+    sent: list = []
     watcher = Supervisor([])
     watcher.child = subprocess.Popen(["sleep", "60"])
-    sent: list = []
     watcher.child.send_signal = sent.append
     try:
-        watcher.show_stacks(signal.SIGUSR1, None)
-        assert sent == []
-        read_fd, write_fd = os.pipe()
-        os.write(write_fd, b".")
-        os.close(write_fd)                       # a beat alone, then the pipe ends...
-        watcher.child_armed = False
-        threading.Timer(0.3, os.kill, (watcher.child.pid, signal.SIGKILL)).start()  # the child too
-        watcher._watch(read_fd)
-        os.close(read_fd)
-        assert not watcher.child_armed
-        watcher.show_stacks(signal.SIGUSR1, None)
+        watcher.show_stacks(signal.SIGUSR1, None)       # nothing said yet
         assert sent == []
     finally:
-        if watcher.child.poll() is None:
-            os.kill(watcher.child.pid, signal.SIGKILL)
+        os.kill(watcher.child.pid, signal.SIGKILL)
         watcher.child.wait()
-    watcher.child = subprocess.Popen(["sleep", "60"])
-    watcher.child.send_signal = sent.append
-    try:
-        read_fd, write_fd = os.pipe()
-        os.write(write_fd, SIGNALS_ARMED)
-        os.close(write_fd)                       # armed, then the pipe ends...
-        threading.Timer(0.3, os.kill, (watcher.child.pid, signal.SIGKILL)).start()
-        watcher._watch(read_fd)
-        os.close(read_fd)
-        assert watcher.child_armed
-    finally:
-        if watcher.child.poll() is None:
-            os.kill(watcher.child.pid, signal.SIGKILL)
-        watcher.child.wait()
+    assert not _watched_saying(b".", sent).child_armed             # a beat alone
+    assert _watched_saying(SIGNALS_ARMED, sent).child_armed
     watcher.child = subprocess.Popen(["sleep", "60"])
     watcher.child.send_signal = sent.append
     watcher.child_armed = True
