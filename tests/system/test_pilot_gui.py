@@ -30,9 +30,8 @@ from system.display import display_env, private_display
 from system.processes import ROSCORE_READY, Proc
 from system.topology import REPO, Pc, Topology, hal_component, task_component
 from walkman.model.description import STANDING_PELVIS_HEIGHT
-from walkman.model.mjcf import (DRILL_GRIP, PILOT_POSES, PLUG_HALF, PLUG_SOCKETS,
-                                 PLUG_TABLE_TOP, SOCKET_INNER, STATIONS, TERRAIN_RAMP,
-                                 TERRAIN_STEP)
+from walkman.model.mjcf import (DRILL_GRIP, STATIONS, TERRAIN_RAMP, TERRAIN_STEP,
+                                 plug_in_socket)
 from walkman.modules.walking import CROUCH
 from tests.modules.walker import seen_from_the_crouched_pelvis
 from tests.system.conftest import dump_outputs_if_failed
@@ -433,9 +432,7 @@ def circle_cut_and_drill_back(topology: Topology, before: float) -> None:
 
 def plug_in_the_other_socket(topology: Topology, before: float = 0.0) -> None:
     x, y, z, upright = scene(topology, "plug")["plug"]
-    inside = SOCKET_INNER - PLUG_HALF[0] + 0.002    # its walls leave this play
-    assert math.hypot(x - PLUG_SOCKETS["b"][0], y - PLUG_SOCKETS["b"][1]) < inside, (x, y)
-    assert z == pytest.approx(PLUG_TABLE_TOP + PLUG_HALF[2], abs=0.01), z
+    assert plug_in_socket((x, y, z), "b"), (x, y, z)
     assert upright > math.cos(math.radians(10)), upright
 
 

@@ -217,3 +217,26 @@ def test_the_robot_sits_in_the_car_seat_without_the_harness():
     assert plant.base_pose() == pytest.approx(seated, abs=0.005)
     w, x, y, _ = plant.d.qpos[plant.base + 3:plant.base + 7]
     assert 1.0 - 2.0 * (x * x + y * y) > math.cos(0.02)            # upright within 0.02 rad
+
+
+@pytest.mark.parametrize("offset, inside", [((0.0, 0.0), True), ((0.019, -0.019), True),
+                                            ((0.0, 0.09), False)])
+def test_a_plug_dropped_into_socket_b_is_in_it_even_in_a_corner(offset, inside):
+    """``plug_in_socket`` is judged by the world: the plug dropped at the socket's centre, in
+    its corner (2.7 cm from the centre, more than the play the walls leave on one axis), or on
+    the table beside the socket, and settled."""
+    from walkman.model.mjcf import PLUG_HALF, PLUG_SOCKETS, PLUG_TABLE_TOP, plug_in_socket
+
+    mj = mujoco.MjModel.from_xml_path(str(SCENE_PATH))
+    data = mujoco.MjData(mj)
+    address = mj.joint("plug").qposadr[0]
+    x, y = PLUG_SOCKETS["b"]
+    data.qpos[address:address + 3] = (x + offset[0], y + offset[1],
+                                      PLUG_TABLE_TOP + PLUG_HALF[2] + 0.005)
+    data.qpos[address + 3:address + 7] = (1, 0, 0, 0)
+    mujoco.mj_forward(mj, data)
+    for _ in range(int(1.0 / mj.opt.timestep)):
+        mujoco.mj_step(mj, data)
+    settled = data.xpos[mj.body("plug").id]
+    assert settled[2] == pytest.approx(PLUG_TABLE_TOP + PLUG_HALF[2], abs=0.005), settled
+    assert plug_in_socket(settled, "b") is inside, settled
