@@ -13,7 +13,8 @@ push (N*s on the torso, over 0.1 s) survived standing, in 5 N*s steps, each way;
 sideways in mid-walk.  Survived: upright (tilt < 0.1 rad, pelvis not sunk) 4 s after.
 The rough-ground courses (tests/modules/walker.py): up a 5-cm step, along it and down
 (station ``terrain``); onto a 10-degree ramp, up it and onto its top (station ``ramp``), and
-back down from the top (station ``ramp_top``): each command's time and smallest ZMP margin,
+back down from the top (station ``ramp_top``), at once and, as through the PI, standing 15 s
+before each pair of footsteps is measured: each command's time and smallest ZMP margin,
 each course's speed; then the step and the ramp on footsteps the head camera places, look
 by look.  ``--contact`` runs the courses on each of the simulator's contact models
 (walkman.hal.sim.CONTACT_MODELS: ``soft``, MuJoCo's defaults, where a loaded sole creeps
@@ -23,6 +24,7 @@ down a slope, and ``firm``), side by side.
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import sys
 import tempfile
@@ -97,6 +99,9 @@ def by_camera(goal: float):
 _, RAMP_FOOT, RAMP_LENGTH, RAMP_SLOPE = TERRAIN_RAMP
 COURSES = (("terrain", "terrain", terrain_course), ("ramp", "ramp", ramp_course),
            ("ramp down", "ramp_top", ramp_down_course),
+           # as the PI walks it: the robot stands while the pilot drags each pair of footsteps
+           ("ramp down, 15 s to place", "ramp_top",
+            functools.partial(ramp_down_course, standing=15.0)),
            ("terrain by camera", "terrain", by_camera(TERRAIN_STEP[1] + 0.40)),
            ("ramp by camera", "ramp",
             by_camera(RAMP_FOOT + RAMP_LENGTH * math.cos(RAMP_SLOPE) + 0.30)))

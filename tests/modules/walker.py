@@ -146,12 +146,13 @@ def ramp_course(world, module) -> List[Leg]:
                                         0.33, 0.0))
 
 
-def ramp_down_course(world, module) -> List[Leg]:
+def ramp_down_course(world, module, standing: float = 0.0) -> List[Leg]:
     """Station ``ramp_top``, the way back: from the landing to its edge, onto the ramp by two
-    footsteps pitched down like it, down its slope, onto the floor at its foot by two more."""
+    footsteps pitched down like it, down its slope, onto the floor at its foot by two more;
+    the robot stands ``standing`` s before each pair is measured (a pilot placing them)."""
     _, _, _, slope = TERRAIN_RAMP
     return _on_the_ramp(world, module, ("go_straight 0.08", 0.33, slope, "go_straight 0.22",
-                                        0.30, 0.0))
+                                        0.30, 0.0), standing)
 
 
 def ramp_footsteps(source, forward: float, pitch: float) -> str:
@@ -174,11 +175,12 @@ def ramp_footsteps(source, forward: float, pitch: float) -> str:
                        for sole, height in zip(soles, heights)))
 
 
-def _on_the_ramp(world, module, course) -> List[Leg]:
+def _on_the_ramp(world, module, course, standing: float = 0.0) -> List[Leg]:
     """Walk ``course``: commands, and pairs (forward, pitch) of two footsteps that far ahead
-    of each sole, on the ramp's surface there, pitched so."""
+    of each sole, on the ramp's surface there, pitched so, measured after ``standing`` s."""
 
     def onto(forward: float, pitch: float) -> str:
+        world.step(standing)
         return ramp_footsteps(world.backend, forward, pitch)
 
     done = []
