@@ -27,7 +27,7 @@ showed, ``stamp`` the gateway's receipt; after each run but the last it waits fo
 bench to say ``next``), ``task MODULE COUNT`` (the same for any task module, by its
 ``TASK_STEPS``), ``tasks MODULE...`` (each task once, after the test said ``go
 MODULE``: the README's "every DRC task in one session"; drc_drive's wheel also steered by
-its slider).  ``PI_NAME`` and ``PI_LAYOUT`` choose the
+its slider; a screenshot ``MODULE-done.png`` as each task ends).  ``PI_NAME`` and ``PI_LAYOUT`` choose the
 PI's name and layout (``PI_LAYOUTS`` the file of layouts).  Each step prints ``STEP
 name``; failures print ``FAIL why`` and exit 1.  Screenshots go to OUTDIR.
 """
@@ -991,6 +991,7 @@ def tasks_in_turn(modules: Sequence[str]) -> None:
         task = TaskRun(module)
         task.start()
         task.run(after=BESIDE_STEPS.get(module))
+        screenshot_of(f"{module}-done.png", task.task)   # and the robot in the 3-D view
         # "stop when done, then the next station": its joints are the next task's
         click(task.task.switch_buttons["stop"], f"{module} stop", task.task)
         wait(lambda: task.task.state == "stopped", 60, f"{module} stopped")
