@@ -12,6 +12,9 @@ export WALKMAN_REQUIRE_REFERENCE=1
 export WALKMAN_REQUIRE_REFERENCE_DEVICES=1
 export WALKMAN_REQUIRE_ROOT=1
 export WALKMAN_REQUIRE_XVFB=1
+# Hypothesis derandomised (tests/conftest.py's "ci" profile: the same examples every run, so a
+# red run is reproducible and a green one is not luck), whether or not the CI system sets CI.
+export WALKMAN_HYPOTHESIS_PROFILE=ci
 # One pytest worker per core (WALKMAN_TEST_WORKERS=N to choose; 1: one test at a time).
 # On a fast machine a third worker on 2 cores filled the CPU the robot's real-time waits left
 # idle (the suite 13:21 -> 11:20; a fourth: 10:52 against 10:30).  On one 2.5 times slower
