@@ -27,8 +27,8 @@ showed, ``stamp`` the gateway's receipt; after each run but the last it waits fo
 bench to say ``next``), ``task MODULE COUNT`` (the same for any task module, by its
 ``TASK_STEPS``), ``tasks MODULE...`` (each task once, after the test said ``go
 MODULE``: the README's "every DRC task in one session"; drc_drive's wheel also steered by
-its slider; a screenshot ``MODULE-done.png`` as each task ends).  ``PI_NAME`` and ``PI_LAYOUT`` choose the
-PI's name and layout (``PI_LAYOUTS`` the file of layouts).  Each step prints ``STEP
+its slider; a screenshot ``MODULE-done.png`` as each task ends).  ``PI_NAME`` and
+``PI_LAYOUT`` choose the PI's name and layout (``PI_LAYOUTS`` the file of layouts).  Each step prints ``STEP
 name``; failures print ``FAIL why`` and exit 1.  Screenshots go to OUTDIR.
 """
 
