@@ -16,7 +16,7 @@ pose fields, and after the test says ``restarted`` (roscore and bridge restarted
 under it) the PI shows the module again, librviz takes the new bridge's cloud,
 the PI sends ``look_at X+0.1`` and draws the robot), ``camera`` (the camera tab in
 the lab, no bridge: frames with a black sky and a cloud without depth there read
-100 %, nothing hatched), ``wall`` (the wall task by clicks, start to home),
+100 %, nothing hatched),
 ``terrain [camera]`` (the rough-ground course by walking's clicks and two footsteps placed
 and dragged in the 3-D view; ``camera``: the rest of the way on footsteps from the head
 camera's cloud), ``ramp up|down`` (the ramp by walking's clicks, the footsteps onto the slope
@@ -200,43 +200,6 @@ def view_pixels(disable: str = "") -> int:
                     + abs(colour.blue() - background.blue()) > 60:
                 count += 1
     return count
-
-
-def wall_task() -> None:
-    """The wall task by clicks: start drc_wall, send the drill's and the circle's pose from
-    the task widget's fields (filled with the scene's values), then every step of the task,
-    the timed ones (push_in, cut) counting down before they leave."""
-    from walkman.modules.drc_wall import TASK_STEPS
-
-    wall = widget("drc_wall")
-    wait(lambda: wall.state is not None, 60, "drc_wall's status")
-    wait_sendable("drc_wall")
-    click(wall.switch_buttons["start"], "drc_wall start", wall)
-    wait(lambda: wall.state == "idle", 30, "drc_wall idle")
-    say("STEP drc_wall started")
-    do("drc_wall", "walldatasent", "ready")
-    for command, state in TASK_STEPS:
-        if command not in wall.timed:
-            do("drc_wall", command, state, timeout=90)
-            continue
-        # A dangerous command: while it counts down, the 3-D view shows where it goes.  The
-        # click works the preview out and shows it at once (on a loaded box the countdown
-        # may be over by the time this driver looks again: the count says it was shown).
-        shown = window.ghosts_shown
-        click(wall.buttons[command], f"drc_wall {command}", wall)
-        if window.ghosts_shown != shown + 1:
-            shadow = window.preview._shadows.get("drc_wall")
-            fail(f"no preview shown for {command} ({window.preview.last_ms} ms; the shadow "
-                 f"{'out of step ' + shadow.out_of_step if shadow else 'missing'})")
-        say(f"STEP preview of {command} shown, worked out in {window.preview.last_ms:.1f} ms")
-        if window.ghost is not None and window.view3d.displays.get("Preview"):
-            pump(1.0)                                # librviz draws at 15 Hz
-            window.screenshot(OUT / f"wall-preview-{command}.png")
-        wait(lambda: wall.state == state, 90, f"drc_wall {state} after {command}")
-        if window.ghost is not None or window.view3d.displays.get("Preview"):
-            fail(f"the ghost of {command} is still shown after its countdown")
-        say(f"STEP drc_wall {command} -> {state}, the ghost gone")
-    say("DONE")
 
 
 def first() -> None:
@@ -868,6 +831,11 @@ def listen() -> None:
 LISTENING = False
 
 
+def ghost_drawn() -> bool:
+    """The 3-D view (if the layout has one) draws the preview's ghost."""
+    return window.view3d is not None and bool(window.view3d.displays.get("Preview"))
+
+
 class TaskRun:
     """One task module driven by its buttons: the pose (the fields' values), then the
     module's ``TASK_STEPS``; each step timed from its click to the widget showing the state
@@ -920,7 +888,17 @@ class TaskRun:
         button = task.buttons[command]
         wait(button.isEnabled, 60, f"{command} enabled")
         before, at = task.state, time.time()
+        ghosts = window.ghosts_shown
         click(button, f"{self.module} {command}", task)
+        # A dangerous command that moves an arm is worked out on this PC as it is clicked,
+        # and its ghost shown in the 3-D view while it counts down (pilot/preview.py).
+        previewed = window.ghosts_shown == ghosts + 1
+        if previewed:
+            say(f"STEP preview of {command} shown, worked out in "
+                f"{window.preview.last_ms:.1f} ms")
+            if ghost_drawn():
+                pump(1.0)                                # librviz draws at 15 Hz
+                window.screenshot(OUT / f"{self.module}-preview-{command}.png")
         since = at
         if command in self.dangerous:             # the motion starts after the countdown
             # A state other than the one clicked in: the motion's, or already its end.
@@ -932,6 +910,8 @@ class TaskRun:
             since = next(when for when, said in self.seen if when >= at and said != before)
         wait(lambda: self.reached(state, before, since) is not None, 180,
              f"{self.module} {state} after {command}")
+        if previewed and (window.ghost is not None or ghost_drawn()):
+            fail(f"the ghost of {command} is still shown after its countdown")
         say(f"TIMED {run} {command} {state} {at:.6f} {self.reached(state, before, since):.6f}")
 
     def run(self, run: int = 0,
@@ -1135,7 +1115,7 @@ if __name__ == "__main__":
     wait(lambda: window.ros_up, 60, "the PI's ROS node")
     say(f"UP after {window.ready_after:.2f} s")
     {"first": first, "second": second, "latency": latency, "peer": peer,
-     "camera": camera, "wall": wall_task,
+     "camera": camera,
      "terrain": lambda: terrain(sys.argv[3:] == ["camera"]), "debris": debris,
      "ramp": lambda: ramp(sys.argv[3]),
      "valve": lambda: task_runs("drc_valve", int(sys.argv[3])),
