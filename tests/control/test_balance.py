@@ -94,6 +94,17 @@ def test_the_attitude_loop_tilts_the_pelvis_against_the_measured_tilt():
     assert np.all(np.abs(loop.attitude) <= 0.12 + 1e-12)
 
 
+def test_the_attitude_turns_at_once_with_the_soles_and_stays_bounded():
+    """Soles seated as they rest turn the legs' frame: the commanded tilt turns as much at
+    once (the IMU level), within the loop's bound."""
+    loop = AttitudeLoop()
+    loop.update(0.01, 0.0, 0.0)
+    loop.turn(-0.04)
+    assert loop.update(0.01, 0.0, 0.0)[1] == pytest.approx(-0.04)
+    loop.turn(-1.0)
+    assert loop.update(0.01, 0.0, 0.0)[1] == pytest.approx(-0.12)
+
+
 def test_the_guard_trips_once_on_a_lasting_problem_and_rearms_after_a_safe_second():
     guard = BalanceGuard()
     assert guard.update(0.0, SAFE_MARGIN / 2, 0.0) is None          # one tick is noise

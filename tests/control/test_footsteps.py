@@ -236,6 +236,26 @@ def test_a_walk_on_a_ramp_goes_on_up_its_slope_and_turns_each_sole_to_it():
         plan.place([(0.15, 0.11, 0.0, 0.03, -slope * 1.1)], 0.0)
 
 
+def test_soles_seated_as_they_rest_turn_to_it_and_step_from_it_the_slope_going_on_as_planned():
+    """Soles that rest 2.3 degrees flatter than the 10-degree ramp they stand on (crept onto
+    the bend at its foot) are seated: their planned pitch turns to the measured one over the
+    time given, the next step sets out from it, and a walk still goes on down the slope."""
+    slope, rest = math.radians(10), math.radians(7.7)
+    plan = WalkPlan(dict(FEET), ground={"left": Ground(0.0, slope), "right": Ground(0.0, slope)})
+    plan.seat({"left": rest, "right": rest}, 1.0, 3.0)
+    assert plan.foot_pitch("left", 1.0) == pytest.approx(slope)
+    assert rest < plan.foot_pitch("left", 2.0) < slope
+    assert plan.foot_pitch("right", 3.0) == pytest.approx(rest)
+    assert plan.ground["left"].pitch == slope and plan.ground["left"].sole_pitch == rest
+    plan.plan(0.3, 0.0, 0.0, 3.0)
+    first = plan.steps[0]
+    assert plan.foot_pitch(first.side, first.lift_at) == pytest.approx(rest)
+    assert first.land_ground == Ground(first.land_ground.z, slope)    # the slope, no seat
+    assert first.land_ground.z == pytest.approx(-first.land[0] * math.tan(slope))
+    with pytest.raises(ValueError, match="standing"):
+        plan.seat({"left": slope}, 4.0, 5.0)
+
+
 def test_the_weight_waits_on_the_standing_foot_after_a_landing_on_other_ground():
     """A step onto higher ground (a kerb, a ramp) is checked on landing
     (walkman/control/foothold.py): the ZMP stays on the standing foot for

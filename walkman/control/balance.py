@@ -182,6 +182,12 @@ class AttitudeLoop:
                                 -MAX_ATTITUDE, MAX_ATTITUDE)
         return self.attitude
 
+    def turn(self, pitch: float) -> None:
+        """The soles' commanded pitch turns by ``pitch`` under a pelvis that stays where it
+        is (the soles seated as they rest): the commanded tilt turns with them at once, not
+        after the IMU has seen the pelvis tip."""
+        self._sum[1] = float(np.clip(self._sum[1] + pitch, -MAX_ATTITUDE, MAX_ATTITUDE))
+
 
 @dataclass
 class AnkleCompliance:

@@ -32,7 +32,16 @@ aimed at the kerb's height, the sole above the edge a few mm higher (toes up), a
 the reach it touched only when the legs' springs happened to sag that far -- 0.28 s after
 the landing on a quiet machine, after :data:`LATEST` under load (then "no ground", and the
 weight 50 ms from heading onto the new foot: the guard tripped).  The depth reached at the
-touch is held, and given back as the sole turns flat.  A sole that
+touch is held, and given back as the sole turns flat.  The reach is for a few mm, not for
+a plan whose frame is turned: after 15 s standing at a ramp's foot (the soles crept 4.5 cm
+onto the bend on MuJoCo's soft contacts, resting 7.7 degrees for the slope's 10) the step to
+the floor found no ground -- the attitude loop had tilted the commanded pelvis 2.7 degrees
+to hold it level over soles resting otherwise than planned, 7 degrees off the IMU's at the
+landing, and the swing foot came down 4 cm higher over the standing sole than planned, toes
+up, the leg straight (knee 0.18 rad at the landing, 0 while reaching), 3 cm above the floor
+at :data:`LATEST`: no reach would have found it.  The walking module now seats the soles as
+they rest before a walk sets out (:meth:`walkman.modules.walking.Module.seat_soles`); the
+same step then touched without reaching.  A sole that
 bears then turns flat; one that does not stays turned
 (:meth:`FootholdCheck.release`) while the walking module puts the foot back
 where it lifted from: the weight waits on the standing foot for :data:`WAIT`

@@ -34,7 +34,11 @@ rises to ``lift`` above the higher of its two grounds before it travels, so the
 toe clears a kerb going up and the heel its edge going down, and comes straight
 down onto the new ground.  :meth:`WalkPlan.ground_level` is the mean of the two
 feet's grounds, the swing foot's taken along its travel: the pelvis rises and
-sinks with it (the pendulum's height above the feet stays constant).  Every
+sinks with it (the pendulum's height above the feet stays constant).  A sole may
+rest otherwise than its ground says -- one that crept onto the bend at a ramp's foot
+rests flatter than the slope: :meth:`WalkPlan.seat` turns its planned pitch to the
+measured one (:attr:`Ground.seat`, the sole's, not continued ahead) and its next step sets
+out from there.  Every
 landing is checked against :class:`Reach` -- how far a foot can go from the
 one that stands -- *before* the first foot lifts: a walk with a step the legs
 cannot make is refused whole, saying which step and why.  A step onto
@@ -74,6 +78,15 @@ class Ground:
 
     z: float = 0.0
     pitch: float = 0.0
+    #: rad the sole standing here rests pitched off the ground's own pitch, as measured
+    #: (:meth:`WalkPlan.seat`: a sole that crept across the bend at a ramp's foot); the
+    #: sole's, not the ground's: not continued ahead
+    seat: float = 0.0
+
+    @property
+    def sole_pitch(self) -> float:
+        """The pitch of a sole standing here."""
+        return self.pitch + self.seat
 
     def ahead(self, distance: float) -> "Ground":
         """The same slope ``distance`` m further along it (horizontally)."""
@@ -212,7 +225,7 @@ class Step:
     def pitch(self, t: float) -> float:
         """The sole's pitch at ``t``: turned from the old ground's to the new one's on the
         way (before it comes down)."""
-        a, b = self.start_ground.pitch, self.land_ground.pitch
+        a, b = self.start_ground.sole_pitch, self.land_ground.sole_pitch
         return a + self.travel(t) * (b - a)
 
     def travel(self, t: float) -> float:
@@ -235,6 +248,9 @@ class WalkPlan:
     reach: Reach = field(default_factory=Reach)
     #: ZMP knots (t, x, y): linear between them, constant before the first and after the last
     _knots: List[Tuple[float, float, float]] = field(default_factory=list)
+    #: the standing soles turning onto their seats (:meth:`seat`): from, until, and each
+    #: one's pitch before
+    _seating: Optional[Tuple[float, float, Dict[str, float]]] = None
 
     def __post_init__(self) -> None:
         left, right = self.feet["left"], self.feet["right"]
@@ -289,9 +305,15 @@ class WalkPlan:
         return pose, height
 
     def foot_pitch(self, side: str, t: float) -> float:
-        """The sole's pitch at ``t`` (the ground's where it stands)."""
+        """The sole's pitch at ``t`` (the ground's where it stands, and its seat)."""
         step = self._in_air(side, t)
-        return self.ground[side].pitch if step is None else step.pitch(t)
+        if step is not None:
+            return step.pitch(t)
+        pitch = self.ground[side].sole_pitch
+        if self._seating is not None and side in self._seating[2]:
+            t0, t1, before = self._seating
+            pitch = before[side] + (pitch - before[side]) * quintic((t - t0) / (t1 - t0))
+        return pitch
 
     @property
     def heights(self) -> Dict[str, float]:
@@ -334,6 +356,16 @@ class WalkPlan:
         module starts) to between the feet, from ``t0`` to ``t1``."""
         centre = self.centre
         self._knots = [(t0, float(start[0]), float(start[1])), (t1, centre[0], centre[1])]
+
+    def seat(self, pitches: Dict[str, float], t0: float, t1: float) -> None:
+        """The standing soles rest pitched ``pitches`` (measured), not as their grounds say:
+        from ``t0`` to ``t1`` each one's planned pitch turns to it, and its steps set out from
+        it.  Only standing, before a walk: a step then lifts after ``t1``."""
+        if self.steps:
+            raise ValueError("the soles are seated standing, not while walking")
+        self._seating = (t0, t1, {side: self.foot_pitch(side, t0) for side in pitches})
+        self.ground = {side: replace(ground, seat=pitches[side] - ground.pitch)
+                       if side in pitches else ground for side, ground in self.ground.items()}
 
     def nominal(self, centre: Planar, side: str) -> Planar:
         """Where the ``side`` foot stands in a centre frame (feet side by side)."""
@@ -534,7 +566,8 @@ class WalkPlan:
         # are together): turning the CoM back at once would be the same jolt.  Halfway up
         # (or down) a step, the closing step joins the foot already there.
         closing = [replace(rest[0], start=feet[side], land=beside, stride=(0.0, 0.0, 0.0),
-                           start_ground=ground[side], land_ground=ground[other(side)])] \
+                           start_ground=ground[side],
+                           land_ground=replace(ground[other(side)], seat=0.0))] \
             if apart or rest[0].shift_at <= t else []
         self.set_aside = rest + self.set_aside
         self.steps = flying

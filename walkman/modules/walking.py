@@ -41,7 +41,11 @@ down heel first and the first touch says whether the heel bears
 lands the heel over the lower floor -- the pilot is warned and the foot goes
 back where it lifted from before the weight goes onto it.  A sole stepping down
 that meets ground on its way (a ``step_down`` sent before the kerb's far edge:
-the kerb it leaves) stays there and goes back the same way.
+the kerb it leaves) stays there and goes back the same way.  Before a walk sets out
+the soles' pitch is measured (the IMU and the legs' joints), and soles resting otherwise
+than planned -- crept down a ramp onto the bend at its foot, on the simulator's soft
+contacts -- are first seated as they rest (``seat_soles``): planned from the slope's pitch,
+the swing foot came down in a frame turned about the standing sole and missed the floor.
 
 On start the knees bend (the pelvis sinks ``CROUCH``) so that steps are within
 reach and the pendulum's height is constant while walking.  The pilot's
@@ -105,6 +109,18 @@ ANKLE_AIM = (0.08, 0.04)               # m: the most a foot's desired CoP is off
 #: s the ankles stay compliant after a walk's last motion; standing, they are stiff: a
 #: stiff ankle is what holds the robot against a push (compliant, it gives way)
 ANKLE_AFTER = 1.0
+#: rad: a standing sole resting further than this off the pitch the plan gives it is seated
+#: as it rests before a walk sets out (:meth:`Module.seat_soles`).  Soles that crept 4.5 cm
+#: across the bend at a ramp's foot rest 2.3 degrees flatter than its slope; on the slope
+#: itself, and on plane ground, they rest within 0.4 degrees of the plan
+SEAT_MIN = 0.02
+#: rad/s the soles turn onto their seats at (:meth:`Module.seat_soles`), the pelvis going over
+#: the feet with them.  Soles that crept onto the bend at a ramp's foot for 15 s turn 2.3
+#: degrees (the pelvis 4 cm); the smallest ZMP margin of the step to the floor after it was
+#: 1.7 cm at 1 deg/s, 2.1 at 0.65, 2.2 at 0.5.  After 30 s (4.8 degrees, the feet's centre
+#: of pressure 3 cm from their heels before the turn) the robot rocked on its heels and the
+#: guard tripped at 1.45 and 0.92 deg/s; at 0.66 and 0.5 it walked (0.6 and 0.8 cm)
+SEAT_RATE = math.radians(0.5)
 
 TABLE = {
     "idle": {"go_straight": "walking", "turn": "turning", "step_side": "side_stepping",
@@ -210,6 +226,9 @@ class Module(TaskModule):
         self.ankles = {side: AnkleCompliance() for side in SIDES}
         self.sole_shape = Sole()
         self.halted_for_pause = False
+        #: the soles being seated (:meth:`seat_soles`): since, until, by how much the
+        #: commanded pelvis tilt turns, and the share of it turned so far
+        self.seating: Optional[Tuple[float, float, float, float]] = None
         self.foothold: Optional[FootholdCheck] = None   # a sole landing heel first
         self.foothold_step: Optional[Step] = None    # and its step
         self.descent: Optional[DescentCheck] = None  # a sole stepping down
@@ -242,8 +261,47 @@ class Module(TaskModule):
     # -- commands ----------------------------------------------------------------------
 
     def _walk_start(self) -> float:
-        """Asked while the knees still bend, a walk starts when they are done."""
-        return max(self.now(), self.height[2] + CROUCH_TIME)
+        """Asked while the knees still bend, a walk starts when they are done; on soles that
+        rest otherwise than planned, once they are seated (:meth:`seat_soles`)."""
+        crouched = self.height[2] + CROUCH_TIME
+        return crouched if self.now() < crouched else self.seat_soles(self.now())
+
+    def seat_soles(self, now: float) -> float:
+        """Before a walk, plan from the soles as they rest (their measured pitch) if one is
+        more than :data:`SEAT_MIN` off the plan's; returns when the walk may start.
+
+        A sole that rests otherwise than planned -- crept down a ramp onto the bend at its
+        foot, toes on the floor and heel on the slope -- holds the legs' frame turned
+        under the pelvis, and the attitude loop tilts the commanded pelvis as much to keep
+        it level (2.7 degrees, after 15 s standing on the ramp's foot).  The plan's swing
+        foot then comes down in a frame turned by that tilt about the standing sole, and
+        more as the loop winds on under one leg (7 degrees at the landing: the foot 4 cm
+        higher over the standing one than planned, the leg straight, the floor out of its
+        reach).  Seated, the soles' planned pitch turns to the measured one at
+        :data:`SEAT_RATE` and the commanded tilt with it (:meth:`AttitudeLoop.turn`): the
+        legs keep their pitch, and the pelvis, level, goes over the feet as the plan has it."""
+        if self.plan.walking:
+            return now          # (the plan refuses a second walk)
+        pitches = {side: self.sole_pitch(side) for side in SIDES}
+        turns = {side: pitches[side] - self.plan.foot_pitch(side, now) for side in SIDES}
+        largest = max(abs(turn) for turn in turns.values())
+        if largest <= SEAT_MIN:
+            return now
+        until = now + largest / SEAT_RATE
+        log.info("%s: the soles rest pitched %s degrees off the plan: seated in %.1f s before "
+                 "the walk", self.name, ", ".join(f"{side} {math.degrees(turns[side]):+.1f}"
+                                                  for side in SIDES), until - now)
+        self.plan.seat(pitches, now, until)
+        self.seating = (now, until, sum(turns.values()) / len(SIDES), 0.0)
+        return until
+
+    def sole_pitch(self, side: str) -> float:
+        """The pitch (rad) a standing sole rests at: the legs as they are (the joints' state,
+        their springs' give in it) under the pelvis as the IMU has it.  Read once, the robot
+        standing: the lag of the joints' state stream does not matter."""
+        _, rotation = self.kinematics.pose(self.robot.sense_position(), FRAMES[side])
+        turned = rotation_rpy(*self.roll_pitch, 0.0) @ rotation
+        return -math.asin(max(-1.0, min(1.0, float(turned[2, 0]))))
 
     def _walk(self, dx: float, dy: float, dyaw: float) -> None:
         self.plan.plan(dx, dy, dyaw, self._walk_start())
@@ -399,6 +457,7 @@ class Module(TaskModule):
         tilt = self.sense_balance()
         self.check_foothold(now)
         self.check_descent(now, flying, feet)
+        self.turn_with_seats(now)
         roll, pitch = self.attitude.update(dt, *self.roll_pitch)
         self.guard_check(now, tilt)
         start, end, t0 = self.height
@@ -432,6 +491,16 @@ class Module(TaskModule):
                                    self.unlocked(side), LEGS[side], offset=SOLE, restarts=0,
                                    max_iterations=TICK_IK_ITERATIONS)
             self.reference[index] = result.q[index]
+
+    def turn_with_seats(self, now: float) -> None:
+        """While the soles turn onto their seats, the commanded pelvis tilt turns as they do
+        (the plan's quintic), so that the legs keep their pitch."""
+        if self.seating is None:
+            return
+        since, until, turn, turned = self.seating
+        share = quintic((now - since) / (until - since))
+        self.attitude.turn(turn * (share - turned))
+        self.seating = None if share >= 1.0 else (since, until, turn, share)
 
     def unlocked(self, side: str) -> np.ndarray:
         """The IK's seed for a leg: the reference, its knee bent by at least
@@ -507,7 +576,10 @@ class Module(TaskModule):
         held pelvis does not follow (see :meth:`track`); the ankles keep it over the feet."""
         swinging = self.plan.swinging(now)
         zmp = [float(v[0]) for v in self.plan.zmp(np.array([now]))]
-        stepping = self.plan.walking or now < self.plan.end_time() + ANKLE_AFTER or paused
+        # (stiff while the soles turn onto their seats: the robot stands, and a compliant
+        # ankle turning a sole that rests on its heel against the bend tipped it back)
+        stepping = (self.plan.walking or now < self.plan.end_time() + ANKLE_AFTER) and \
+            self.seating is None or paused
         tilts = {}
         for side in SIDES:
             wrench = self.wrenches.get(side)
