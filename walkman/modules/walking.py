@@ -41,11 +41,13 @@ down heel first and the first touch says whether the heel bears
 lands the heel over the lower floor -- the pilot is warned and the foot goes
 back where it lifted from before the weight goes onto it.  A sole stepping down
 that meets ground on its way (a ``step_down`` sent before the kerb's far edge:
-the kerb it leaves) stays there and goes back the same way.  Before a walk sets out
-the soles' pitch is measured (the IMU and the legs' joints), and soles resting otherwise
-than planned -- crept down a ramp onto the bend at its foot, on the simulator's soft
-contacts -- are first seated as they rest (``seat_soles``): planned from the slope's pitch,
-the swing foot came down in a frame turned about the standing sole and missed the floor.
+the kerb it leaves) stays there and goes back the same way.  Standing idle, every half
+second, and before a walk sets out, the soles' pitch is measured (the IMU and the legs'
+joints), and soles resting otherwise than planned -- creeping down a ramp onto the bend at
+its foot, on the simulator's soft contacts -- are seated as they rest (``seat_standing``,
+``seat_soles``): planned from the slope's pitch, the swing foot came down in a frame turned
+about the standing sole and missed the floor, and a robot standing there had its CoM
+drift back over its heels, the model's frame turned about the soles with them.
 
 On start the knees bend (the pelvis sinks ``CROUCH``) so that steps are within
 reach and the pendulum's height is constant while walking.  The pilot's
@@ -121,6 +123,9 @@ SEAT_MIN = 0.02
 #: of pressure 3 cm from their heels before the turn) the robot rocked on its heels and the
 #: guard tripped at 1.45 and 0.92 deg/s; at 0.66 and 0.5 it walked (0.6 and 0.8 cm)
 SEAT_RATE = math.radians(0.5)
+#: s between a standing robot's looks at how its soles rest (:meth:`Module.seat_standing`):
+#: they creep onto a ramp's bend at 0.15-0.2 degrees a second
+SEAT_CHECK = 0.5
 
 TABLE = {
     "idle": {"go_straight": "walking", "turn": "turning", "step_side": "side_stepping",
@@ -229,6 +234,7 @@ class Module(TaskModule):
         #: the soles being seated (:meth:`seat_soles`): since, until, by how much the
         #: commanded pelvis tilt turns, and the share of it turned so far
         self.seating: Optional[Tuple[float, float, float, float]] = None
+        self.last_seat_check = self.now()    # (:meth:`seat_standing`)
         self.foothold: Optional[FootholdCheck] = None   # a sole landing heel first
         self.foothold_step: Optional[Step] = None    # and its step
         self.descent: Optional[DescentCheck] = None  # a sole stepping down
@@ -262,13 +268,44 @@ class Module(TaskModule):
 
     def _walk_start(self) -> float:
         """Asked while the knees still bend, a walk starts when they are done; on soles that
-        rest otherwise than planned, once they are seated (:meth:`seat_soles`)."""
+        rest otherwise than planned, once they are seated (:meth:`seat_soles`; also when
+        they are being seated standing, :meth:`seat_standing`)."""
+        now = self.now()
         crouched = self.height[2] + CROUCH_TIME
-        return crouched if self.now() < crouched else self.seat_soles(self.now())
+        if now < crouched:
+            return crouched
+        start = self.seat_soles(now)
+        return start if self.seating is None else max(start, self.seating[1])
 
-    def seat_soles(self, now: float) -> float:
-        """Before a walk, plan from the soles as they rest (their measured pitch) if one is
-        more than :data:`SEAT_MIN` off the plan's; returns when the walk may start.
+    def seat_standing(self, now: float, paused: bool) -> None:
+        """Standing idle, the soles are looked at every :data:`SEAT_CHECK` and seated as they
+        rest as soon as they are :data:`SEAT_MIN` off the plan (:meth:`seat_soles`), not only
+        when a walk sets out.
+
+        Why: a sole resting flatter than planned turns the whole robot back about it
+        under a pelvis the attitude loop holds level, and the CoM with it -- the model puts
+        it over the plan's soles, the world has it behind them by the CoM's height times the
+        difference.  On the bend at the ramp's foot (soles creeping 0.15-0.2 degrees a second
+        flatter) that was the CoM 3.7 cm behind the soles' centres after 15 s standing, 6.5 cm
+        after 25 s, their centres of pressure 9 cm behind (margin 4.1 cm; in the PI, a lagging
+        100-Hz loop, the guard tripped standing, both soles on their heels); and seating
+        3.9 degrees at once when the walk was asked rocked the robot onto its heels (-0.5 cm).
+        Seated as they creep, 1.1 degrees at a time, the CoM stays within 2 cm of the
+        soles' centres.  Not while paused: another module's hand then works in a pelvis frame
+        held still in the world."""
+        if paused or self.fsm.state != "idle" or self.seating is not None or \
+                self.plan.walking or self.plan.halted or \
+                now - self.last_seat_check < SEAT_CHECK or \
+                now < max(self.plan.end_time(), self.height[2] + CROUCH_TIME) + ANKLE_AFTER or \
+                float(np.linalg.norm(self.com_velocity)) >= SETTLED_SPEED:
+            return
+        self.last_seat_check = now
+        self.seat_soles(now, "standing")
+
+    def seat_soles(self, now: float, when: str = "before the walk") -> float:
+        """Plan from the soles as they rest (their measured pitch: before a walk, and
+        standing) if one is more than :data:`SEAT_MIN` off the plan's; returns when the walk
+        may start.
 
         A sole that rests otherwise than planned -- crept down a ramp onto the bend at its
         foot, toes on the floor and heel on the slope -- holds the legs' frame turned
@@ -288,9 +325,10 @@ class Module(TaskModule):
         if largest <= SEAT_MIN:
             return now
         until = now + largest / SEAT_RATE
-        log.info("%s: the soles rest pitched %s degrees off the plan: seated in %.1f s before "
-                 "the walk", self.name, ", ".join(f"{side} {math.degrees(turns[side]):+.1f}"
-                                                  for side in SIDES), until - now)
+        log.info("%s: the soles rest pitched %s degrees off the plan: seated in %.1f s %s",
+                 self.name,
+                 ", ".join(f"{side} {math.degrees(turns[side]):+.1f}" for side in SIDES),
+                 until - now, when)
         self.plan.seat(pitches, now, until)
         self.seating = (now, until, sum(turns.values()) / len(SIDES), 0.0)
         return until
@@ -457,6 +495,7 @@ class Module(TaskModule):
         tilt = self.sense_balance()
         self.check_foothold(now)
         self.check_descent(now, flying, feet)
+        self.seat_standing(now, paused)
         self.turn_with_seats(now)
         roll, pitch = self.attitude.update(dt, *self.roll_pitch)
         self.guard_check(now, tilt)
