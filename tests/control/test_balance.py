@@ -105,6 +105,19 @@ def test_the_attitude_turns_at_once_with_the_soles_and_stays_bounded():
     assert loop.update(0.01, 0.0, 0.0)[1] == pytest.approx(-0.12)
 
 
+def test_standing_still_the_attitude_is_the_integral_alone_and_the_same_integral_goes_on():
+    """A robot standing still levels its pelvis by the integral alone (its proportional term
+    fed the robot's own sway back on a ramp's bend); a walk has the same integral back,
+    with the proportional term on top."""
+    still, moving = AttitudeLoop(), AttitudeLoop()
+    for _ in range(50):
+        still.update(0.01, 0.0, 0.02, proportional=False)
+        moving.update(0.01, 0.0, 0.02)
+    assert still.attitude[1] == pytest.approx(-2.0 * 0.02 * 0.5)        # integral: 1/s * s
+    assert moving.attitude[1] == pytest.approx(still.attitude[1] - 0.3 * 0.02)
+    assert still.update(0.0, 0.0, 0.02)[1] == pytest.approx(moving.attitude[1])
+
+
 def test_the_guard_trips_once_on_a_lasting_problem_and_rearms_after_a_safe_second():
     guard = BalanceGuard()
     assert guard.update(0.0, SAFE_MARGIN / 2, 0.0) is None          # one tick is noise

@@ -20,7 +20,9 @@ corrections here close the loop, each a pure function of the sensors:
   on the toe edge for 0.6 s of each single support by the fifth step); with
   it the ZMP keeps 3 cm from every edge.
 * **Attitude** (:class:`AttitudeLoop`): a PI loop on the pelvis IMU's roll and
-  pitch tilts the commanded pelvis against what the legs' springs add.
+  pitch tilts the commanded pelvis against what the legs' springs add; a robot
+  standing still has the integral alone (on a ramp's bend, with 15-ms ticks,
+  the proportional term rocked it onto its heels).
 * **Guard** (:class:`BalanceGuard`): the measured ZMP's distance to the edge of
   the support polygon (the convex hull of the soles on the floor) and the
   torso's tilt.  Below :data:`SAFE_MARGIN`, or past :data:`MAX_TILT`, for
@@ -174,12 +176,15 @@ class AttitudeLoop:
     attitude: np.ndarray = field(default_factory=lambda: np.zeros(2))   # roll, pitch
     _sum: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
-    def update(self, dt: float, roll: float, pitch: float) -> np.ndarray:
-        """The pelvis tilt (roll, pitch) to command after ``dt`` s of reading ``roll, pitch``."""
+    def update(self, dt: float, roll: float, pitch: float,
+               proportional: bool = True) -> np.ndarray:
+        """The pelvis tilt (roll, pitch) to command after ``dt`` s of reading ``roll, pitch``;
+        ``proportional`` False: the integral alone (a robot standing still, see
+        :meth:`walkman.modules.walking.Module.standing_still`)."""
         error = np.array([roll, pitch])
         self._sum = np.clip(self._sum - self.integral * error * dt, -MAX_ATTITUDE, MAX_ATTITUDE)
-        self.attitude = np.clip(self._sum - self.proportional * error,
-                                -MAX_ATTITUDE, MAX_ATTITUDE)
+        gain = self.proportional if proportional else 0.0
+        self.attitude = np.clip(self._sum - gain * error, -MAX_ATTITUDE, MAX_ATTITUDE)
         return self.attitude
 
     def turn(self, pitch: float) -> None:

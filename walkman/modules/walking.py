@@ -15,7 +15,8 @@ own module:
   ankle F/T sensors and the pelvis IMU, 100 Hz): each ankle turns its foot so
   that the foot's measured centre of pressure comes where it should be
   (Kajita et al.'s damping control, IROS 2010), a PI loop on the IMU's roll and
-  pitch tilts the commanded pelvis level, and a guard watches the measured
+  pitch tilts the commanded pelvis level (standing still, its integral alone:
+  ``standing_still``), and a guard watches the measured
   ZMP's margin to the support polygon and the torso's tilt;
 * every tick, the pelvis is placed so that the model's CoM (Pinocchio: the
   legs as commanded, the other joints as measured) is where the preview
@@ -293,14 +294,29 @@ class Module(TaskModule):
         Seated as they creep, 1.1 degrees at a time, the CoM stays within 2 cm of the
         soles' centres.  Not while paused: another module's hand then works in a pelvis frame
         held still in the world."""
-        if paused or self.fsm.state != "idle" or self.seating is not None or \
-                self.plan.walking or self.plan.halted or \
-                now - self.last_seat_check < SEAT_CHECK or \
-                now < max(self.plan.end_time(), self.height[2] + CROUCH_TIME) + ANKLE_AFTER or \
-                float(np.linalg.norm(self.com_velocity)) >= SETTLED_SPEED:
+        if not self.standing_still(now, paused) or self.seating is not None or \
+                now - self.last_seat_check < SEAT_CHECK:
             return
         self.last_seat_check = now
         self.seat_soles(now, "standing")
+
+    def standing_still(self, now: float, paused: bool) -> bool:
+        """Idle, not paused, the walk's last motion :data:`ANKLE_AFTER` past and the CoM at
+        rest: the soles are looked at (:meth:`seat_standing`), and the attitude loop levels
+        the pelvis by its integral alone.
+
+        Why the integral alone: standing on the bend at the ramp's foot (each sole bridging
+        it, heel on the slope, toes on the floor) with 15-ms ticks, the loop's proportional
+        term fed the robot's own sway back: it rocked fore and aft, 0.7 s a swing, the feet's
+        centre of pressure from 13 cm behind their centres to 12 cm ahead within 20 s, and
+        the guard tripped -- as the PI's runs did, standing (its 100-Hz loop lags).  Without
+        it (or at half) the centre of pressure stayed within 5 cm behind; with 10- and 12-ms
+        ticks, and on the slope or level ground at 15 ms, the robot stood still either way.
+        A walk, a pause (another module's arms moving the CoM) or a push has it back."""
+        return not paused and self.fsm.state == "idle" and not self.plan.walking and \
+            not self.plan.halted and \
+            now >= max(self.plan.end_time(), self.height[2] + CROUCH_TIME) + ANKLE_AFTER and \
+            float(np.linalg.norm(self.com_velocity)) < SETTLED_SPEED
 
     def seat_soles(self, now: float, when: str = "before the walk") -> float:
         """Plan from the soles as they rest (their measured pitch: before a walk, and
@@ -497,7 +513,8 @@ class Module(TaskModule):
         self.check_descent(now, flying, feet)
         self.seat_standing(now, paused)
         self.turn_with_seats(now)
-        roll, pitch = self.attitude.update(dt, *self.roll_pitch)
+        roll, pitch = self.attitude.update(dt, *self.roll_pitch,
+                                           proportional=not self.standing_still(now, paused))
         self.guard_check(now, tilt)
         start, end, t0 = self.height
         pelvis_z = start + (end - start) * quintic((now - t0) / CROUCH_TIME) + \
