@@ -322,7 +322,10 @@ def test_the_ramp_by_clicks_with_footsteps_dragged_onto_and_off_the_slope_in_the
     second run, after that fix, fell on the footsteps sent after the guard had stopped the
     walk at the landing's edge (ZMP -0.3 cm); the third, like the offline course when the
     robot first stands the pilot's 15 s on the slope (bench/bench_walking.py --rough): the
-    soles creep down onto the bend at its foot and the step to the floor falls short."""
+    soles creep down onto the bend at its foot and the step to the floor falls short.
+    Walking now seats the soles as they rest, standing and before a walk (92ef4cb,
+    1d4040f, 19b08b1): 0 of 3 runs passed before those, 2 of 3 after (2026-12-07); the
+    third warned once standing on the bend, both soles on their heels (ZMP 0.0 cm)."""
     _, foot, length, slope = TERRAIN_RAMP
     station, legs = RAMP_WAYS[way]
     with pi_on_drc(tmp_path, display, request, emulated_link, ["walking"], "ramp",
