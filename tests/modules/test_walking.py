@@ -320,6 +320,29 @@ def test_down_the_ramp_as_the_pi_sent_it_standing_30_s_on_the_bend_the_com_kept_
 
 
 @pytest.mark.offline
+def test_standing_on_the_ramps_bend_with_the_sensors_a_tick_late_the_robot_does_not_rock():
+    """The PI's run 1 of 3 after 19b08b1: its wrenches reach the 100-Hz loop over YARP a tick
+    late, and standing on the bend at the ramp's foot the robot rocked onto both heels (CoP
+    -13 cm, a guard trip).  Offline with the F/T and IMU one tick late it rocked too: the
+    ankles' pitch, made up for its spring's deflection, chased its own late wrench (positive
+    feedback) and swung the centres of pressure from heel to toe, smallest margin -0.5 cm.
+    Standing still, the ankles' pitch follows the load slowly (walking.ANKLE_FOLLOW): 7.2 cm."""
+    world, module = walker("ramp_top", late_ticks=1)
+    backend = world.backend
+    _, _, _, slope = TERRAIN_RAMP
+    walk_through(world, module, "go_straight 0.08")
+    walk_through(world, module, ramp_footsteps(backend, 0.33, slope))
+    walk_through(world, module, "go_straight 0.22")
+    lowest = math.inf
+    for _ in range(200):                     # 20 s standing, the pilot placing pair 2
+        world.step(0.1)
+        assert module.thread.margin is not None
+        lowest = min(lowest, module.thread.margin)
+    assert lowest > 0.05, lowest
+    assert not module.warnings, module.warnings
+
+
+@pytest.mark.offline
 def test_a_step_up_sent_too_far_from_the_kerb_is_found_on_landing_and_the_foot_put_back():
     """Issue 32's fall: ``step_up`` sent from the station, not walked up to the kerb first,
     lands the left heel 9 cm short of the kerb.  The sole lands heel first and finds no

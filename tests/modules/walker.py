@@ -10,7 +10,8 @@ import os
 import subprocess
 import sys
 from pathlib import Path
-from typing import List, Sequence, Tuple
+from collections import deque
+from typing import Dict, List, Sequence, Tuple
 
 import numpy as np
 
@@ -27,11 +28,39 @@ SOLE_ABOVE_FLOOR = 0.0994   # m: a foot body's height standing on the floor (its
 MAX_TILT = 0.1  # rad of the free base: more is not walking upright
 
 
-def walker(station: str = "yard", contact: str = "soft") -> Tuple[OfflineWorld, OfflineModule]:
+class LateSensors:
+    """The module's robot with its F/T and IMU readings ``ticks`` of its loop late: as the
+    PI's runs have them, streamed over YARP ports to a 100-Hz loop on a loaded machine."""
+
+    def __init__(self, robot, ticks: int) -> None:
+        self.robot, self.ticks = robot, ticks
+        self.readings: Dict[str, deque] = {}
+
+    def _late(self, what: str, reading):
+        kept = self.readings.setdefault(what, deque(maxlen=self.ticks + 1))
+        kept.append(reading)
+        return kept[0]
+
+    def sense_ft(self, sensor: str) -> np.ndarray:
+        return self._late(sensor, self.robot.sense_ft(sensor))
+
+    def sense_imu(self):
+        return self._late("imu", self.robot.sense_imu())
+
+    def __getattr__(self, name: str):
+        return getattr(self.robot, name)
+
+
+def walker(station: str = "yard", contact: str = "soft",
+           late_ticks: int = 0) -> Tuple[OfflineWorld, OfflineModule]:
+    """The walking module started on the robot at ``station``; ``late_ticks``: its F/T and
+    IMU readings that many ticks late (:class:`LateSensors`)."""
     backend = SimBackend(station=station, harness="off", contact=contact)
     world = OfflineWorld(backend)
     world.step(0.5)
     module = world.add(walking.Module, "walking")
+    if late_ticks:
+        module.thread.robot = LateSensors(module.thread.robot, late_ticks)
     module.switch("start")
     world.step(walking.CROUCH_TIME + 0.5)
     return world, module

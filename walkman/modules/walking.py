@@ -25,7 +25,8 @@ own module:
   under the robot's weight (5 cm of CoM in single support): the command adds
   ``DEFLECTION_SHARE`` of the expected deflection, torque over stiffness, the
   torques being the F/T wrenches through the legs' Jacobians plus their
-  weight.  Nothing here reads the joints' own state stream for balance: it
+  weight (standing still, the ankles' share followed slowly: ``commanded``).
+  Nothing here reads the joints' own state stream for balance: it
   runs at 500 Hz on a port per chain and reaches a loaded module late (a
   100 ms lag there topples the robot); the F/T and IMU ports stay fresh.
 
@@ -108,6 +109,13 @@ SETTLED_SPEED = 0.01                   # m/s: the CoM is at rest below this
 REPORT_PERIOD = 0.5                    # s between balance reports on the status port
 GAPS_KEPT = 300                        # ticks whose gaps a balance guard trip logs (3 s at 100 Hz)
 DEFLECTION_SHARE = 0.8                 # of the legs' measured spring deflection made up for
+#: s: standing still (:meth:`Module.standing_still`) this long, the ankles' pitch deflection
+#: compensation follows the F/T-measured load within ANKLE_FOLLOW s, not 0.05 s
+#: (:meth:`Module.commanded`).  Slowed (or held) at once, the ankles lagged the head bending
+#: down after the start: the camera's cloud, taken 0.5 s into standing still, made the
+#: ramp's foot a 10-cm surface and the camera's footsteps onto the ramp were refused
+ANKLE_SETTLE = 1.0
+ANKLE_FOLLOW = 0.5
 ANKLE_AIM = (0.08, 0.04)               # m: the most a foot's desired CoP is off its sole's centre
 #: s the ankles stay compliant after a walk's last motion; standing, they are stiff: a
 #: stiff ankle is what holds the robot against a push (compliant, it gives way)
@@ -244,6 +252,9 @@ class Module(TaskModule):
         self.stiffness = np.array([self.kinematics.robot.joint(self.robot.joint_names[i]).stiffness
                                    for i in self.legs])
         self.deflection = np.zeros(len(self.legs))
+        #: the ankles' pitch among the legs' joints: followed slowly standing still (ANKLE_FOLLOW)
+        self.ankle_pitch = np.isin(self.legs, [self.robot.index[LEGS[side][4]]
+                                               for side in SIDES])
         self.posture = q.copy()   # for the CoM: the legs as commanded, the rest as measured
         self.margin: Optional[float] = None
         #: the ZMP (None: no foot loaded) and the soles' planar poses, the last tick's
@@ -251,6 +262,8 @@ class Module(TaskModule):
         self.wrenches: Dict[str, np.ndarray] = {}
         self.com_velocity = np.zeros(2)
         self.roll_pitch = (0.0, 0.0)
+        self.still = False      # standing still this tick (:meth:`standing_still`)
+        self.still_since = self.now()      # and since
         self.last_tick = self.last_report = self.now()
         #: (time, seconds since the tick before) of the last ticks: a guard trip's log says
         #: whether the loop itself was late (a stalled loop topples the robot).
@@ -513,8 +526,11 @@ class Module(TaskModule):
         self.check_descent(now, flying, feet)
         self.seat_standing(now, paused)
         self.turn_with_seats(now)
-        roll, pitch = self.attitude.update(dt, *self.roll_pitch,
-                                           proportional=not self.standing_still(now, paused))
+        still = self.standing_still(now, paused)
+        if still and not self.still:
+            self.still_since = now
+        self.still = still
+        roll, pitch = self.attitude.update(dt, *self.roll_pitch, proportional=not self.still)
         self.guard_check(now, tilt)
         start, end, t0 = self.height
         pelvis_z = start + (end - start) * quintic((now - t0) / CROUCH_TIME) + \
@@ -656,13 +672,32 @@ class Module(TaskModule):
         torques over the stiffness, filtered): the stance hip carries 150 N*m in single
         support, which bends its series-elastic spring by 0.05 rad -- 5 cm of CoM.  The
         torques are the ankle F/T wrenches through the legs' Jacobians plus the legs'
-        weight, at the commanded posture: fresh where the joints' torque stream is not."""
+        weight, at the commanded posture: fresh where the joints' torque stream is not.
+
+        Standing still (:meth:`standing_still`, :data:`ANKLE_SETTLE` s on), the ankles' pitch
+        deflection follows the load within :data:`ANKLE_FOLLOW` s, the hips' and knees'
+        within 0.05 s as walking.  Why: made up for, an ankle's pitch chases its own wrench
+        -- the centre of pressure moves, the ankle's torque with it, the command turns the
+        ankle further, the centre of pressure moves on: positive feedback, 80 % a turn.  With
+        the wrenches a tick late (10 ms: the PI's, over YARP), a robot standing on the bend
+        at the ramp's foot rocked fore and aft on it, the soles' centres of pressure from
+        14 cm behind their centres to 14 cm ahead within 7.5 s, and the guard tripped on
+        both heels (offline, -0.5 cm; the PI's run, 0.0 cm).  Followed slowly, the loop's
+        gain at that swing is a third, the share made up for in the end the same, and the
+        robot stands: smallest margin 7.2 cm in 20 s, 7.3 with 10-15-ms ticks and the
+        sensors 20 ms late.  Held outright, the camera course's
+        start saw the ramp wrong (:data:`ANKLE_SETTLE`); all the legs' joints followed
+        within 0.1-0.3 s made the robot on the 5-cm kerb sway 1-2 mm a second, at 0.15 s
+        ever wider."""
         tau = self.kinematics.gravity(self.reference)
         for side, wrench in self.wrenches.items():
             tau += self.kinematics.wrench_torques(self.reference, f"{SENSORS[side]}_frame",
                                                   wrench)
         alpha = min(1.0, self.thread_period / 0.05)
-        self.deflection += alpha * (tau[self.legs] / self.stiffness - self.deflection)
+        change = alpha * (tau[self.legs] / self.stiffness - self.deflection)
+        if self.still and self.now() - self.still_since >= ANKLE_SETTLE:
+            change[self.ankle_pitch] *= min(1.0, self.thread_period / ANKLE_FOLLOW) / alpha
+        self.deflection += change
         out = self.reference.copy()
         ramp = min(1.0, max(0.0, (self.now() - self.height[2]) / CROUCH_TIME))
         out[self.legs] += ramp * DEFLECTION_SHARE * self.deflection
