@@ -325,7 +325,10 @@ def test_the_ramp_by_clicks_with_footsteps_dragged_onto_and_off_the_slope_in_the
     soles creep down onto the bend at its foot and the step to the floor falls short.
     Walking now seats the soles as they rest, standing and before a walk (92ef4cb,
     1d4040f, 19b08b1): 0 of 3 runs passed before those, 2 of 3 after (2026-12-07); the
-    third warned once standing on the bend, both soles on their heels (ZMP 0.0 cm)."""
+    third warned once standing on the bend, both soles on their heels (ZMP 0.0 cm): the
+    ankles chased their own late F/T wrench, which standing still they now follow slowly
+    (e2ed3ec): 3 of 3 passed.  Down joins the suite once hunted 20 times beside two
+    burners."""
     _, foot, length, slope = TERRAIN_RAMP
     station, legs = RAMP_WAYS[way]
     with pi_on_drc(tmp_path, display, request, emulated_link, ["walking"], "ramp",
