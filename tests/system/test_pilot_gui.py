@@ -327,8 +327,10 @@ def test_the_ramp_by_clicks_with_footsteps_dragged_onto_and_off_the_slope_in_the
     1d4040f, 19b08b1): 0 of 3 runs passed before those, 2 of 3 after (2026-12-07); the
     third warned once standing on the bend, both soles on their heels (ZMP 0.0 cm): the
     ankles chased their own late F/T wrench, which standing still they now follow slowly
-    (e2ed3ec): 3 of 3 passed.  Down joins the suite once hunted 20 times beside two
-    burners."""
+    (e2ed3ec): 9 of 10 passed; the tenth's left sole touched the floor toes first, 0.15 s
+    early, coming off the slope, and the foothold check took it for a heel over an edge.
+    Down joins the suite once that is told apart and it has been hunted 20 times beside
+    two burners."""
     _, foot, length, slope = TERRAIN_RAMP
     station, legs = RAMP_WAYS[way]
     with pi_on_drc(tmp_path, display, request, emulated_link, ["walking"], "ramp",
