@@ -289,6 +289,23 @@ def test_down_the_ramp_with_15_s_to_place_each_pair_of_footsteps_the_soles_seate
     assert not module.warnings, module.warnings
 
 
+def standing_on_the_ramps_bend(seconds: float, late_ticks: int = 0):
+    """The PI's way down from ``ramp_top`` up to pair 2 (to the edge, pair 1 onto the slope,
+    down it), then ``seconds`` standing on the bend while the pilot places pair 2: the world,
+    the module and the smallest ZMP margin standing."""
+    world, module = walker("ramp_top", late_ticks=late_ticks)
+    _, _, _, slope = TERRAIN_RAMP
+    walk_through(world, module, "go_straight 0.08")
+    walk_through(world, module, ramp_footsteps(world.backend, 0.33, slope))
+    walk_through(world, module, "go_straight 0.22")
+    lowest = math.inf
+    for _ in range(round(seconds / 0.1)):
+        world.step(0.1)
+        assert module.thread.margin is not None
+        lowest = min(lowest, module.thread.margin)
+    return world, module, lowest
+
+
 @pytest.mark.offline
 def test_down_the_ramp_as_the_pi_sent_it_standing_30_s_on_the_bend_the_com_kept_over_the_soles():
     """What failed through the PI, 3 runs of 3: pair 1 onto the slope at once, down it, then
@@ -299,17 +316,8 @@ def test_down_the_ramp_as_the_pi_sent_it_standing_30_s_on_the_bend_the_com_kept_
     then rocked the robot onto its heels: the guard tripped (-0.5 cm).  Seated as they
     creep (walking.Module.seat_standing), the centres of pressure stay mid-sole and the
     step to the floor keeps its margin."""
-    world, module = walker("ramp_top")
+    world, module, lowest = standing_on_the_ramps_bend(30.0)
     backend = world.backend
-    _, _, _, slope = TERRAIN_RAMP
-    walk_through(world, module, "go_straight 0.08")
-    walk_through(world, module, ramp_footsteps(backend, 0.33, slope))
-    walk_through(world, module, "go_straight 0.22")
-    lowest = math.inf
-    for _ in range(300):                     # 30 s standing, the pilot placing pair 2
-        world.step(0.1)
-        assert module.thread.margin is not None
-        lowest = min(lowest, module.thread.margin)
     assert lowest > 0.05, lowest             # the ZMP mid-sole, not on the heels
     margin = walk_through(world, module, ramp_footsteps(backend, 0.30, 0.0))
     world.step(1.0)
@@ -327,17 +335,7 @@ def test_standing_on_the_ramps_bend_with_the_sensors_a_tick_late_the_robot_does_
     ankles' pitch, made up for its spring's deflection, chased its own late wrench (positive
     feedback) and swung the centres of pressure from heel to toe, smallest margin -0.5 cm.
     Standing still, the ankles' pitch follows the load slowly (walking.ANKLE_FOLLOW): 7.2 cm."""
-    world, module = walker("ramp_top", late_ticks=1)
-    backend = world.backend
-    _, _, _, slope = TERRAIN_RAMP
-    walk_through(world, module, "go_straight 0.08")
-    walk_through(world, module, ramp_footsteps(backend, 0.33, slope))
-    walk_through(world, module, "go_straight 0.22")
-    lowest = math.inf
-    for _ in range(200):                     # 20 s standing, the pilot placing pair 2
-        world.step(0.1)
-        assert module.thread.margin is not None
-        lowest = min(lowest, module.thread.margin)
+    _, module, lowest = standing_on_the_ramps_bend(20.0, late_ticks=1)
     assert lowest > 0.05, lowest
     assert not module.warnings, module.warnings
 
