@@ -276,6 +276,11 @@ def test_the_weight_waits_on_the_standing_foot_after_a_landing_on_other_ground()
     ramp = WalkPlan(dict(FEET), ground={"left": Ground(0.0, slope), "right": Ground(0.0, slope)})
     ramp.plan(0.3, 0.0, 0.0, 0.0)
     assert all(step.climbs and not step.checked_on_landing for step in ramp.steps)
+    # off a ramp's slope onto the floor at its foot: above the slope continued, yet lower
+    # than where the foot lifted -- a step down, not checked
+    off = WalkPlan(dict(FEET), ground={"left": Ground(0.03, -slope), "right": Ground(0.03, -slope)})
+    off.place([(0.30, 0.11, 0.0, 0.0, 0.0), (0.30, -0.11, 0.0, 0.0, 0.0)], 0.0)
+    assert all(step.climbs and not step.checked_on_landing for step in off.steps)
     down = WalkPlan(dict(FEET), ground={"left": Ground(0.05), "right": Ground(0.05)})
     down.step_to(0.33, -0.05, 0.0)
     assert not any(step.checked_on_landing for step in down.steps)

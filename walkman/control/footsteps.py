@@ -213,8 +213,16 @@ class Step:
     def checked_on_landing(self) -> bool:
         """The step lands on other ground than the one it left, continued, and not lower:
         onto a kerb, onto a ramp or its top (not a step up a ramp's slope, nor a step down):
-        it lands heel first and the sole is checked (:mod:`walkman.control.foothold`)."""
-        if not self.check:
+        it lands heel first and the sole is checked (:mod:`walkman.control.foothold`).
+
+        Not lower than the ground continued, nor than where it lifted: off a ramp's slope
+        onto the floor at its foot, the floor lies above the slope continued, yet the step
+        goes down -- watched on its way (:class:`walkman.control.foothold.DescentCheck`),
+        onto ground that goes on back under the slope's end: no edge a heel could hang
+        over.  Checked, a sole that touched there toes first (the swing leg placed in the
+        commanded pelvis tilt, 2-3 degrees off the IMU's) was taken for a heel over an edge
+        and put back, and the guard tripped (a PI run of the ramp down, 1 in 10)."""
+        if not self.check or self.land_z < self.start_z - 0.005:
             return False
         ahead = compose(inverse(self.start), self.land)[0]
         continued = self.start_ground.ahead(ahead)
