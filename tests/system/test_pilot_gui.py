@@ -304,7 +304,7 @@ RAMP_WAYS = {"up": ("ramp", ((0.33, -TERRAIN_RAMP[3]), (0.33, 0.0))),
 @pytest.mark.requires("root")
 @pytest.mark.free_standing
 @pytest.mark.alone
-@pytest.mark.parametrize("way", os.environ.get("PI_RAMP_WAYS", "up").split(","))
+@pytest.mark.parametrize("way", os.environ.get("PI_RAMP_WAYS", "up,down").split(","))
 def test_the_ramp_by_clicks_with_footsteps_dragged_onto_and_off_the_slope_in_the_3d_view(
         way, tmp_path, display, request, emulated_link):
     """Issue 32, rough ground, the ramp through the PI on the drc topology (over the
@@ -315,22 +315,18 @@ def test_the_ramp_by_clicks_with_footsteps_dragged_onto_and_off_the_slope_in_the
     in the world (what the perception pilot shows) and says to the PI; the simulated world
     says the robot stands on the landing (up) or on the floor past the ramp's foot (down).
 
-    The suite walks up only (``PI_RAMP_WAYS=up,down`` both): down tripped the balance guard
-    in its one run, beside a fresh-clone run (ZMP -0.2 cm as the last footsteps brought the
-    feet onto the floor; offline it keeps 2.8 cm), and then walking's descent watch put the
-    right foot back fifty times over (a put-back watched for a strike: not since); its
-    second run, after that fix, fell on the footsteps sent after the guard had stopped the
-    walk at the landing's edge (ZMP -0.3 cm); the third, like the offline course when the
-    robot first stands the pilot's 15 s on the slope (bench/bench_walking.py --rough): the
-    soles creep down onto the bend at its foot and the step to the floor falls short.
-    Walking now seats the soles as they rest, standing and before a walk (92ef4cb,
-    1d4040f, 19b08b1): 0 of 3 runs passed before those, 2 of 3 after (2026-12-07); the
-    third warned once standing on the bend, both soles on their heels (ZMP 0.0 cm): the
-    ankles chased their own late F/T wrench, which standing still they now follow slowly
-    (e2ed3ec): 9 of 10 passed; the tenth's left sole touched the floor toes first, 0.15 s
-    early, coming off the slope, and the foothold check took it for a heel over an edge.
-    Down joins the suite once that is told apart and it has been hunted 20 times beside
-    two burners."""
+    The suite walks both ways (``PI_RAMP_WAYS=up`` or ``=down`` picks one).  Down failed
+    its first runs: a guard trip as the last footsteps brought the feet onto the floor
+    (ZMP -0.2 cm; offline it kept 2.8 cm), then the descent watch putting the right foot back
+    fifty times over (a put-back watched for a strike: not since), then falls after the
+    pilot's time standing on the slope: the soles crept onto the bend at its foot and the
+    step to the floor fell short.  Walking now seats the soles as they rest, standing and
+    before a walk (92ef4cb, 1d4040f), levels the pelvis by the attitude loop's integral
+    alone standing still (19b08b1), and lets the ankles follow a late F/T wrench slowly
+    standing still (e2ed3ec): 9 of 10 passed; the tenth's left sole touched the floor toes
+    first coming off the slope, and the foothold check took it for a heel over an edge.  A
+    step that lands lower than it lifted is no longer checked on landing (b8c3a16): 20 of
+    20 passed beside two CPU burners (tests/flake_hunt.py, 2026-12-07)."""
     _, foot, length, slope = TERRAIN_RAMP
     station, legs = RAMP_WAYS[way]
     with pi_on_drc(tmp_path, display, request, emulated_link, ["walking"], "ramp",
