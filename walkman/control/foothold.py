@@ -55,7 +55,9 @@ stop threw the trailing foot's swing onto the kerb (tried: the ZMP within 3 mm
 of the feet's edge); pressing while the weight shifts on left the robot no way
 back (tried: it fell stepping back).
 
-A step *down* is watched on its way instead (:class:`DescentCheck`).  Sent
+A step *down* -- any step that lands lower than it lifted, off a ramp's slope onto the floor
+at its foot too, though that floor lies above the slope continued -- is watched on its way
+instead (:class:`DescentCheck`).  Sent
 before the feet reach the kerb's far edge, its sole comes down on the kerb it
 leaves, 5 cm above where it was going: unwatched, the leg went on pressing it
 down -- 1.4 kN on the sole, the robot thrown off its standing foot and fallen.
