@@ -100,6 +100,9 @@ SIDES = ("left", "right")
 RISE, DESCEND = 0.2, 0.7  # swing phases: up until RISE, travel, down from DESCEND
 #: m along the standing sole within which a landing is beside it
 BESIDE = 0.05
+#: m, rad: grounds this close in height, in pitch, are the same ground to a step (a step
+#: that rises or drops more climbs; one that drops more is a step down)
+SAME_HEIGHT, SAME_PITCH = 0.005, 0.05
 
 
 def compose(a: Planar, b: Planar) -> Planar:
@@ -206,8 +209,8 @@ class Step:
     @property
     def climbs(self) -> bool:
         """The step goes up or down (more than 5 mm), or onto ground pitched otherwise."""
-        return abs(self.land_z - self.start_z) > 0.005 or \
-            abs(self.land_ground.pitch - self.start_ground.pitch) > 0.05
+        return abs(self.land_z - self.start_z) > SAME_HEIGHT or \
+            abs(self.land_ground.pitch - self.start_ground.pitch) > SAME_PITCH
 
     @property
     def checked_on_landing(self) -> bool:
@@ -222,13 +225,13 @@ class Step:
         over.  Checked, a sole that touched there toes first (the swing leg placed in the
         commanded pelvis tilt, 2-3 degrees off the IMU's) was taken for a heel over an edge
         and put back, and the guard tripped (a PI run of the ramp down, 1 in 10)."""
-        if not self.check or self.land_z < self.start_z - 0.005:
+        if not self.check or self.land_z < self.start_z - SAME_HEIGHT:
             return False
         ahead = compose(inverse(self.start), self.land)[0]
         continued = self.start_ground.ahead(ahead)
         rise = self.land_z - continued.z
-        return rise > 0.005 or (rise > -0.005 and
-                                abs(self.land_ground.pitch - continued.pitch) > 0.05)
+        return rise > SAME_HEIGHT or (rise > -SAME_HEIGHT and
+                                abs(self.land_ground.pitch - continued.pitch) > SAME_PITCH)
 
     def pitch(self, t: float) -> float:
         """The sole's pitch at ``t``: turned from the old ground's to the new one's on the
@@ -463,8 +466,8 @@ class WalkPlan:
                 stride = compose(inverse(before), midpoint(feet["left"], feet["right"]))
             # beside the standing sole, on the ground it stands on: that ground bears
             beside = abs(compose(inverse(stance), land)[0]) < BESIDE and \
-                abs(land_ground.z - ground[other(side)].z) < 0.005 and \
-                abs(land_ground.pitch - ground[other(side)].pitch) < 0.05
+                abs(land_ground.z - ground[other(side)].z) < SAME_HEIGHT and \
+                abs(land_ground.pitch - ground[other(side)].pitch) < SAME_PITCH
             steps.append(Step(side, start, land, stride, 0.0, 0.0, 0.0, ground[side],
                               land_ground, check=(number == 1 or not check_first_only) and
                               not beside))
@@ -568,7 +571,7 @@ class WalkPlan:
         beside = self.beside(feet[other(side)], side)
         apart = math.hypot(beside[0] - feet[side][0], beside[1] - feet[side][1]) > 0.01 or \
             abs(beside[2] - feet[side][2]) > 0.02 or \
-            abs(ground["left"].z - ground["right"].z) > 0.005 or \
+            abs(ground["left"].z - ground["right"].z) > SAME_HEIGHT or \
             abs(ground["left"].pitch - ground["right"].pitch) > 0.01
         # Once its weight shift has begun, the next step is taken (in place if the feet
         # are together): turning the CoM back at once would be the same jolt.  Halfway up

@@ -693,11 +693,10 @@ class Module(TaskModule):
         for side, wrench in self.wrenches.items():
             tau += self.kinematics.wrench_torques(self.reference, f"{SENSORS[side]}_frame",
                                                   wrench)
-        alpha = min(1.0, self.thread_period / 0.05)
-        change = alpha * (tau[self.legs] / self.stiffness - self.deflection)
+        follow = np.full(len(self.legs), min(1.0, self.thread_period / 0.05))
         if self.still and self.now() - self.still_since >= ANKLE_SETTLE:
-            change[self.ankle_pitch] *= min(1.0, self.thread_period / ANKLE_FOLLOW) / alpha
-        self.deflection += change
+            follow[self.ankle_pitch] = min(1.0, self.thread_period / ANKLE_FOLLOW)
+        self.deflection += follow * (tau[self.legs] / self.stiffness - self.deflection)
         out = self.reference.copy()
         ramp = min(1.0, max(0.0, (self.now() - self.height[2]) / CROUCH_TIME))
         out[self.legs] += ramp * DEFLECTION_SHARE * self.deflection
