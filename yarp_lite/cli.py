@@ -579,6 +579,78 @@ def cmd_rpcserver(args: List[str], admin: bool) -> int:
         port.close()
 
 
+CLOCK_OPTIONS = {"name": str, "period": float, "rtf": float, "systemTime": None, "help": None}
+
+
+def _clock_options(args: List[str]) -> Dict[str, object]:
+    """``yarp clock``'s options (YARP's ``Property::fromCommand``: ``--key [value]``)."""
+    options: Dict[str, object] = {}
+    rest = list(args)
+    while rest:
+        word = rest.pop(0)
+        key = word[2:] if word.startswith("--") else ""
+        if key not in CLOCK_OPTIONS:
+            raise UsageError(f"unknown option {word!r}: yarp-lite clock takes "
+                             f"{' '.join('--' + k for k in CLOCK_OPTIONS)}")
+        kind = CLOCK_OPTIONS[key]
+        if kind is None:
+            options[key] = True
+            continue
+        if not rest:
+            raise UsageError(f"--{key} needs a value")
+        text = rest.pop(0)
+        try:
+            options[key] = kind(text)
+        except ValueError:
+            raise UsageError(f"--{key} takes a number, not {text!r}") from None
+    for key in ("period", "rtf"):
+        value = options.get(key)
+        if value is not None and not 0 < float(value) < float("inf"):
+            raise UsageError(f"--{key} must be above 0, not {value}")
+    return options
+
+
+@command("clock", "publish a clock time on a YARP port (programs with YARP_CLOCK follow it)",
+         "yarp-lite clock [--name PORT] [--period MS] [--rtf FACTOR] [--systemTime]")
+def cmd_clock(args: List[str], admin: bool) -> int:
+    from yarp_lite import clock_wire, time as yarp_time
+
+    options = _clock_options(args)
+    if options.get("help"):
+        out("This command publishes a clock time through a YARP port")
+        out("period:     update period [ms]. Default 30")
+        out("name:       name of yarp port to be opened. Default: check YARP_CLOCK "
+            "environment variable; if missing use '/clock'")
+        out("rtf:        real time factor: elapsed time is multiplied by it. Default 1")
+        out("systemTime: start the published time at the system time, else from 0")
+        return 1      # as yarp clock --help
+    name = str(options.get("name") or yarp_time.source_from_environment() or
+               yarp_time.DEFAULT_SOURCE)
+    period = float(options.get("period", 30.0)) / 1000.0
+    rtf = float(options.get("rtf", 1.0))
+    system = bool(options.get("systemTime"))
+    log.info("Clock configuration is the following:")
+    log.info("period %.3f msec", period * 1000)
+    log.info("name   %s", name)
+    log.info("rtf    %.3f", rtf)
+    log.info("system %s", "true" if system else "false")
+    wall = yarp_time.SystemClock()   # a clock source follows no network clock
+    port = Port()
+    port.open(name)
+    start, offset = wall.now(), (time.time() if system else 0.0)
+    pacer = yarp_time.Pacer(period, wall)
+    log.info("yarp clock running happily...")
+    try:
+        while True:
+            port.write(clock_wire.encode_tick((wall.now() - start) * rtf + offset))
+            pacer.wait()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        port.close()
+    return 0
+
+
 @command("version", "get version information", "yarp-lite version")
 def cmd_version(args: List[str], admin: bool) -> int:
     out(f"YARP version 3.5.0 (yarp_lite {__version__})")

@@ -48,6 +48,8 @@ from walkman.hal.arbitration import JointArbiter, owner_of
 from walkman.hal.backend import Backend
 from walkman.hal.battery import Battery, electric_power
 from walkman.hal.chain import ChainBoard
+from walkman.hal.clock_server import SimulationTime, StepGate, parse_rtf
+from walkman.hal.clock_source import ClockSource
 from walkman.hal.config import HalConfig, load_config
 from walkman.hal.controlboard import ControlBoardError, JointData, Stamp
 from walkman.hal.protocol import ChainState
@@ -57,7 +59,9 @@ from walkman.model.mjcf import STATIONS
 from walkman.realtime import (HAL_BACKGROUND_PRIORITY, HAL_PRIORITY, PATH_PRIORITY,
                                SWITCH_INTERVAL, make_process_realtime, make_realtime,
                                make_realtime_once)
+from yarp_lite import time as yarp_time
 from yarp_lite.bottle import Bottle, Vocab
+from yarp_lite.contact import is_valid_port_name
 from yarp_lite.buffered_port import BufferedPort
 from yarp_lite.bursts import Burst
 from yarp_lite.nameclient import NameClient
@@ -132,7 +136,8 @@ class Publisher(threading.Thread):
 class HalServer:
     def __init__(self, backend: Backend, config: HalConfig,
                  nameclient: Optional[NameClient] = None, realtime: bool = True,
-                 battery: Optional[Battery] = None) -> None:
+                 battery: Optional[Battery] = None, clock: Optional[str] = None,
+                 rtf: Optional[float] = 1.0) -> None:
         self.backend = backend
         self.battery = battery or Battery()
         self.battery_port: Optional[Port] = None
@@ -140,7 +145,18 @@ class HalServer:
         self.config = config
         self.robot = config.robot
         self.nameclient = nameclient or NameClient()
-        self.realtime = realtime
+        #: Simulated seconds per wall second the physics keeps to (None: as fast as it can);
+        #: only with ``realtime`` (without it the physics never waits).
+        self.rtf = rtf
+        #: Keep pace with the wall clock, with real-time priority.  Not at ``--rtf max``: a
+        #: SCHED_FIFO thread that never sleeps would starve every other program of its core.
+        self.realtime = realtime and rtf is not None
+        #: Pauses and counted steps (``/clock/rpc``); open unless a clock client pauses it.
+        self.gate = StepGate()
+        self.clock: Optional[ClockSource] = None
+        if clock is not None:
+            self.clock = ClockSource(clock, self.gate, SimulationTime(backend.dt),
+                                     self.nameclient)
         self._harness: Optional[str] = None  # asked over rpc, applied by the physics thread
         self._station: Optional[str] = None  # likewise
         self.arbiter = JointArbiter(backend.joint_names, config.policy, config.priorities,
@@ -161,7 +177,7 @@ class HalServer:
         self.ports: List[Port] = []
         self.warning_port: Optional[Port] = None
         self._warning_seq = 1
-        self.publisher = Publisher(realtime)
+        self.publisher = Publisher(self.realtime)
         self.running = False
         # When each state seq went out, as a ring indexed by seq (written by the loop,
         # read by command readers without a lock: one float store, no iteration).
@@ -233,6 +249,8 @@ class HalServer:
         self._state_ports = [self.whole_state_port, *(
             ports[key] for ports in self.chain_ports.values()
             for key in ("state", "state_ext", "state_si"))]
+        if self.clock is not None:
+            self.clock.open()
         log.info("HAL for %s: %d chains (%s), %s backend, state every %g ms", self.robot,
                  len(self.chains), ", ".join(self.chains), type(self.backend).__name__,
                  self.config.period_ms)
@@ -244,6 +262,9 @@ class HalServer:
 
     def close(self) -> None:
         self.running = False
+        self.gate.close()
+        if self.clock is not None:
+            self.clock.close()
         self.publisher.stop()
         # /<robot>/rpc:i after the chains (only the whole state goes later): a client that
         # finds chains without it takes us for a plain YARP robot (see walkman.hal.robot).
@@ -453,11 +474,20 @@ class HalServer:
         self.started_at = time.perf_counter()
         deadline = self.started_at
         next_status = self.started_at + STATUS_PERIOD_S
+        paced = self.realtime and self.rtf is not None
+        step_wall = backend.dt / self.rtf if self.rtf else 0.0   # wall seconds per step
         while self.running:
+            if not self.gate.may_step():          # paused by /clock/rpc
+                deadline = time.perf_counter()    # resumed later: no burst to catch up
+                if deadline > next_status:
+                    self._log_status()
+                    next_status = deadline + STATUS_PERIOD_S
+                continue
             begin = time.perf_counter()
             self._apply_commands()
             backend.step()
             self.steps += 1
+            self.gate.stepped()
             if self.steps % state_every == 0:
                 self._publish_state()
             if self.steps % sensor_every == 0:
@@ -469,6 +499,8 @@ class HalServer:
             if self.steps % battery_out_every == 0:
                 self._publish_battery()
             self.publisher.flush()
+            if self.clock is not None and (self.steps % burst == 0 or self.gate.paused):
+                self.clock.post(self.gate.taken)  # each wake-up's time; each counted step's
             for event in getattr(backend, "events", []):
                 log.info("%s", event)
             if getattr(backend, "events", None):
@@ -479,11 +511,11 @@ class HalServer:
             if begin > next_status:
                 self._log_status()
                 next_status = begin + STATUS_PERIOD_S
-            if self.realtime:
-                deadline += backend.dt
+            if paced and not self.gate.paused:    # counted steps run as fast as they can
+                deadline += step_wall
                 if self.steps % burst:
                     continue        # the period's next step, back to back
-                delay = deadline + (burst - 1) * backend.dt - time.perf_counter()
+                delay = deadline + (burst - 1) * step_wall - time.perf_counter()
                 if delay > 0:
                     time.sleep(delay)
                 elif delay < -MAX_LAG_S:
@@ -497,6 +529,9 @@ class HalServer:
                  "real_time_factor": round(self.backend.time / wall, 3),
                  "overruns": self.overruns, "max_step_ms": round(self.max_step_s * 1e3, 3),
                  "messages_sent": self.publisher.sent}
+        if self.clock is not None:
+            stats["simulated_time"] = round(self.clock.server.now(), 6)
+            stats["paused"] = self.gate.held
         if latencies:
             stats["sense_to_move_median_ms"] = round(latencies[len(latencies) // 2] * 1e3, 3)
             stats["sense_to_move_p99_ms"] = round(latencies[int(len(latencies) * 0.99)] * 1e3, 3)
@@ -528,6 +563,13 @@ def make_backend(name: str, scene: bool, harness: str, thermal_speedup: float,
     raise ValueError(f"unknown backend {name!r}: choose sim or ethercat")
 
 
+def _rtf_argument(text: str) -> Optional[float]:
+    try:
+        return parse_rtf(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="walkman-hal", description=__doc__.split("\n\n")[0])
     parser.add_argument("--backend", choices=["sim", "ethercat"], default="sim",
@@ -549,11 +591,25 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--battery-speedup", type=float, default=1.0,
                         help="drain the battery faster than real time (demos, tests)")
     parser.add_argument("--duration", type=float, help="stop after this much simulated time")
+    parser.add_argument("--clock", nargs="?", const=yarp_time.DEFAULT_SOURCE, metavar="NAME",
+                        help="publish simulated time on the YARP port NAME (default /clock) "
+                             "and serve NAME/rpc (ClockServer: pause, step, continue), as "
+                             "gazebo_yarp_clock; programs started with YARP_CLOCK=NAME follow")
+    parser.add_argument("--rtf", type=_rtf_argument, default=1.0, metavar="X|max",
+                        help="keep simulated time at X times real time (default 1), or 'max': "
+                             "as fast as the machine allows")
     parser.add_argument("--verbose", action="store_true")
     options = parser.parse_args(argv)
+    if options.clock is not None and not is_valid_port_name(options.clock):
+        parser.error(f"--clock {options.clock!r}: a YARP port name starts with '/', has no "
+                     f"space and does not end with '/'")
+    # The clock's source follows no clock but its own physics, even with YARP_CLOCK set for
+    # the programs it serves (gazebo_yarp_clock does the same).
+    yarp_time.use_system_clock()
 
-    sys.setswitchinterval(SWITCH_INTERVAL)  # keep the physics thread on time
-    make_process_realtime(HAL_BACKGROUND_PRIORITY)  # ... and its other threads off its lock
+    if options.rtf is not None:
+        sys.setswitchinterval(SWITCH_INTERVAL)  # keep the physics thread on time
+        make_process_realtime(HAL_BACKGROUND_PRIORITY)  # ... and its other threads off its lock
     logging.basicConfig(level=logging.DEBUG if options.verbose else logging.INFO,
                         format="[%(levelname)s] %(message)s", stream=sys.stderr)
     try:
@@ -567,7 +623,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         parser.error(str(exc))
     backend = make_backend(options.backend, options.scene == "drc", options.harness,
                            options.thermal_speedup, options.station)
-    server = HalServer(backend, config, battery=battery)
+    server = HalServer(backend, config, battery=battery, clock=options.clock, rtf=options.rtf)
     signal.signal(signal.SIGTERM, lambda *_: setattr(server, "running", False))
     try:
         server.open()
