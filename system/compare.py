@@ -88,8 +88,9 @@ def contract(observed: dict) -> Dict[str, str]:
 #: Names the pilot's bridge has whatever runs: its status and rpc ports, its ROS node's
 #: services, and the session's reader of its status.
 BRIDGE_OWN_PREFIXES = ("/bridge/pilot/", "/walkman_bridge_pilot/", "/session/bridge/")
-#: The port a gateway reads the pilot bridge's status on (``--link bridge``), for /bridge/link.
-GATEWAY_LINK_PORT = re.compile(r"^/pilot_gateway/\d+/bridge:i$")
+#: The port a gateway reads the pilot bridge's status on (``--link bridge``), for /bridge/link,
+#: as observed: :func:`system.topology.normalize` has made its pid ``N``.
+GATEWAY_LINK_PORT = re.compile(r"^/pilot_gateway/(\d+|N)/bridge:i$")
 DRC_ONLY = "drc only, the bridge's own"
 
 
