@@ -7,11 +7,12 @@ launch_scripts/bootstrap.sh
 launch_scripts/build_reference_yarp.sh
 # What CI has must be used, not skipped (tests/requirements.py): the interop suite runs
 # against the reference YARP (and its devices), the emulated-network tests as root (namespaces, tc, nftables),
-# the Pilot Interface's GUI tests under Xvfb.
+# the Pilot Interface's GUI tests under Xvfb, the ROS nodes' tests with ROS.
 export WALKMAN_REQUIRE_REFERENCE=1
 export WALKMAN_REQUIRE_REFERENCE_DEVICES=1
 export WALKMAN_REQUIRE_ROOT=1
 export WALKMAN_REQUIRE_XVFB=1
+export WALKMAN_REQUIRE_ROS=1
 # Hypothesis derandomised (tests/conftest.py's "ci" profile: the same examples every run, so a
 # red run is reproducible and a green one is not luck), whether or not the CI system sets CI.
 export WALKMAN_HYPOTHESIS_PROFILE=ci

@@ -72,6 +72,17 @@ def _root() -> Optional[str]:
     return emulation.available()
 
 
+def _ros() -> Optional[str]:
+    import importlib.util
+    import shutil
+
+    missing = [what for what, ok in (
+        ("roscore (apt-get install ros-core)", shutil.which("roscore")),
+        ("rospy (python3-rospy)", importlib.util.find_spec("rospy")),
+        ("rosgraph (python3-rosgraph)", importlib.util.find_spec("rosgraph"))) if not ok]
+    return None if not missing else f"the ROS tests need {', '.join(missing)}"
+
+
 def _xvfb() -> Optional[str]:
     import importlib.util
     import shutil
@@ -93,6 +104,7 @@ REQUIREMENTS: Dict[str, Requirement] = {
         Requirement("reference_devices", _reference_devices),
         Requirement("root", _root),  # network namespaces, tc and nftables: emulated hosts
         Requirement("xvfb", _xvfb),  # the Pilot Interface under Xvfb: Qt, librviz, markers
+        Requirement("ros", _ros),    # ROS 1 from Debian: roscore, rospy, rosgraph
     )
 }
 

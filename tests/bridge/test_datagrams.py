@@ -42,11 +42,19 @@ def test_round_trip_within_one_ethernet_frame_once_sealed(datagram):
 
 @FUZZ
 @given(st.binary(max_size=1600))
-def test_garbage_raises_the_peer_error(data):
+def test_any_bytes_decode_to_a_datagram_it_can_write_or_raise_the_peer_error(data):
     try:
-        datagrams.decode(data)
+        datagram = datagrams.decode(data)
     except BridgeProtocolError:
-        pass
+        return
+    assert datagrams.decode(datagrams.encode(datagram)) == datagram
+    assert datagram.body == bytes(data)[len(data) - len(datagram.body):]
+
+
+@pytest.mark.parametrize("data", [b"", b"\x00" * 7, b"\xff" * 40, bytes(range(30))])
+def test_plain_garbage_raises_the_peer_error(data):
+    with pytest.raises(BridgeProtocolError):
+        datagrams.decode(data)
 
 
 @FUZZ

@@ -54,10 +54,16 @@ def test_programs_started_at_once_on_a_fresh_checkout_all_import_them(tmp_path):
 
 
 READ_ONLY_PROGRAM = """
-import os, sys
+import os, shutil, sys
 from pathlib import Path
+import nodekit.msgs
 from nodekit.msgs import generate
 output = Path(sys.argv[1])
+# The other user reads the message definitions and the dependencies' manifests too: copies
+# beside the install, readable wherever the checkout lives (a clone under /root, mode 700,
+# is not).
+nodekit.msgs.SOURCE = Path(shutil.copytree(nodekit.msgs.SOURCE, output.parent / "definitions"))
+nodekit.msgs.SHARE = output.parent / "share"
 generate(output=output)
 os.remove(output / ".generating.lock")
 os.chmod(output, 0o555)
@@ -69,7 +75,7 @@ print("up to date:", generate(output=output), flush=True)
 @pytest.mark.requires("root")
 def test_messages_installed_read_only_still_import_for_another_user():
     """An install its users cannot write (no lock file can be made there) is used as it
-    is when it is up to date."""
+    is when it is up to date -- from a checkout anywhere, one its users cannot enter too."""
     with tempfile.TemporaryDirectory() as folder:      # pytest's tmp_path is root's alone
         os.chmod(folder, 0o755)
         result = subprocess.run([sys.executable, "-c", READ_ONLY_PROGRAM, f"{folder}/lib"],
