@@ -33,6 +33,7 @@ setup(
             "walkman-pilot-gateway=rosnodes.gateway:main",
             "walkman-perception=rosnodes.perception:main",
             "walkman-joint-state=rosnodes.joint_state:main",
+            "walkman-ros-clock=rosnodes.ros_clock:main",
             "walkman-compare=system.compare:main",
             "walkman-pc=system.pc:main",
             "walkman-main-job=system.mainjob:main",
