@@ -624,7 +624,10 @@ def main(argv: Optional[List[str]] = None) -> int:
     backend = make_backend(options.backend, options.scene == "drc", options.harness,
                            options.thermal_speedup, options.station)
     server = HalServer(backend, config, battery=battery, clock=options.clock, rtf=options.rtf)
-    signal.signal(signal.SIGTERM, lambda *_: setattr(server, "running", False))
+    # Ctrl-C too, explicitly: a program started in the background of a script inherits SIGINT
+    # ignored, and Python then never raises KeyboardInterrupt.
+    for stop in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(stop, lambda *_: setattr(server, "running", False))
     try:
         server.open()
         server.run(options.duration)
