@@ -466,12 +466,13 @@ class Gateway:
             life = lifetime(module, validity)
         except GatewayError as exc:
             return False, str(exc), 0
+        sent_at = self.topics.now()     # before the send: its receipt may come back at once
         ok, message = link.send(link.switch, stamp(Bottle([word, seq]), life))
         if ok:
             if word in ("stop", "quit"):
                 for event in self.countdowns.cancel_all(module):
                     self._publish_countdown(event, sender)
-            self._log_sent(module, "switch", f"{word} {seq}", seq, sender)
+            self._log_sent(module, "switch", f"{word} {seq}", seq, sender, sent_at)
         return ok, message, seq
 
     def send_command(self, module: str, command: PilotCommand,
@@ -480,29 +481,32 @@ class Gateway:
         if command.lifetime is None:
             command = PilotCommand(command.name, command.args, command.seq,
                                    lifetime(module, 0.0))
+        sent_at = self.topics.now()     # before the send: its receipt may come back at once
         ok, message = link.send(link.command, encode_command(command))
         if ok:
             shown = encode_command(PilotCommand(command.name, command.args, command.seq))
-            self._log_sent(module, "command", readable(shown), command.seq or 0, sender)
+            self._log_sent(module, "command", readable(shown), command.seq or 0, sender,
+                           sent_at)
         return ok, message
 
-    def _log_sent(self, module: str, port: str, text: str, seq: int, sender: str) -> None:
+    def _log_sent(self, module: str, port: str, text: str, seq: int, sender: str,
+                  sent_at: Optional[Any] = None) -> None:
         sender = sender or "rostopic"
         log.info("gateway: sent to /%s/%s:i: %s (from %s)", module, port, text, sender)
         if self.sent_out is not None:
             self.sent_out.write(Bottle(sent_bottle_fields(self.station, sender, module, port,
                                                           text, seq)))
-        self._publish_sent(module, port, text, seq, sender, self.station)
+        self._publish_sent(module, port, text, seq, sender, self.station, sent_at)
 
     def _publish_sent(self, module: str, port: str, text: str, seq: int, sender: str,
-                      station: int) -> None:
+                      station: int, sent_at: Optional[Any] = None) -> None:
         if seq:
             life = CommandLife(module, port, seq, life_text(text), sender or "rostopic",
                                station)
             with self._ledger_lock:
                 changed = self.ledger.sent(life, link_down=self.link_watch.state.state == "down")
             self._publish_states(changed)
-        self.topics.sent(module, port, text, seq, sender, station)
+        self.topics.sent(module, port, text, seq, sender, station, sent_at)
 
     # -- the commands' lives -------------------------------------------------------------
 

@@ -119,15 +119,25 @@ class PilotTopics:
             msg.state, msg.reason = life.state.value, life.reason
             self._states.publish(msg)
 
+    def now(self):
+        """The stamp the topics give (``rospy.Time``), or None before they are open: the
+        gateway takes a command's before sending it, so the command's stamp and its
+        receipt's come from one clock, in the order they happened."""
+        if self._sent is None:
+            return None
+        import rospy
+
+        return rospy.Time.now()
+
     def sent(self, module: str, port: str, text: str, seq: int, sender: str,
-             station: int) -> None:
+             station: int, sent_at: Optional[Any] = None) -> None:
         if self._sent is None:
             return
         import rospy
         from walkman_msgs.msg import SentCommand
 
         msg = SentCommand()
-        msg.header.stamp = rospy.Time.now()
+        msg.header.stamp = sent_at if sent_at is not None else rospy.Time.now()
         msg.module, msg.port, msg.text, msg.seq = module, port, text, seq
         msg.sender, msg.station = sender, station
         self._sent.publish(msg)

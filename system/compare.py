@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
 import shutil
 import statistics
@@ -34,7 +35,7 @@ import tempfile
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, List, NamedTuple, Optional, Sequence, Tuple
 
 from system.session import CANCELLED_COMMAND, MODULES, SessionRecord
 from system.session import run as run_session
@@ -146,23 +147,45 @@ def rates(record: SessionRecord) -> Dict[str, float]:
     return {topic: count / span for topic, count in sorted(counts.items())}
 
 
-def command_latencies(record: SessionRecord) -> List[Tuple[str, float]]:
-    """For each command the gateway sent: time until the module's status next changed.
+#: The receipts that end a command's trip: the module took it (or said why not).
+ANSWERED = ("accepted", "refused")
 
-    Timed from the gateway's own stamp, not from when the recorder heard of the
-    command: ROS does not order messages across topics.
+
+class CommandLatency(NamedTuple):
+    """One command the gateway sent: until the module answered it (s), or why no figure."""
+
+    name: str
+    seconds: Optional[float]
+    why_none: str = ""
+
+    def shown(self) -> str:
+        return f"{self.seconds * 1000:.0f}" if self.seconds is not None else self.why_none
+
+
+def command_latencies(record: SessionRecord) -> List[CommandLatency]:
+    """For each command the gateway sent: the time until the module's receipt for *that*
+    command (by module, port and sequence number) said accepted or refused.
+
+    Both ends are the gateway's own stamps (``/pilot/sent_commands``, taken before the
+    send; ``/pilot/command_states``), one clock, not when the recorder heard of them: ROS
+    does not order messages across topics.  A command with no such receipt gets no figure.
     """
+    answers: Dict[Tuple[str, str, int], float] = {}
+    for r in record.records:
+        if r["topic"] == "/pilot/command_states" and r.get("state") in ANSWERED:
+            key = (r["module"], r["port"], r["seq"])
+            answers[key] = min(answers.get(key, math.inf), r["stamp"])
     out = []
-    records = sorted(record.records, key=lambda r: r["t"])
-    for sent in [r for r in records if r["topic"] == "/pilot/sent_commands"]:
-        status_topic = f"/{sent['module']}/status"
-        at = sent.get("stamp") or sent["t"]
-        before = [r for r in records if r["topic"] == status_topic and r["t"] <= at]
-        previous = before[-1]["state"] if before else None
-        after = next((r for r in records if r["topic"] == status_topic and r["t"] > at
-                      and r["state"] != previous), None)
-        if after is not None:
-            out.append((f"{sent['module']} {sent['text']}", after["t"] - at))
+    for sent in sorted((r for r in record.records if r["topic"] == "/pilot/sent_commands"),
+                       key=lambda r: r["stamp"]):
+        name = f"{sent['module']} {sent['text']}"
+        answered = answers.get((sent["module"], sent.get("port", ""), sent.get("seq", 0)))
+        if answered is None:
+            out.append(CommandLatency(name, None, "no receipt"))
+        elif answered < sent["stamp"]:
+            out.append(CommandLatency(name, None, "answered before its stamp"))
+        else:
+            out.append(CommandLatency(name, answered - sent["stamp"]))
     return out
 
 
@@ -318,7 +341,7 @@ def _plots(out: Path, lab_record: SessionRecord, drc_record: SessionRecord) -> L
         files.append(_save(figure, out / "bandwidth_by_id.png"))
     figure, axes = plt.subplots(figsize=(8, 4))
     for record, color in ((lab_record, "tab:blue"), (drc_record, "tab:orange")):
-        values = [1000 * v for _, v in command_latencies(record)]
+        values = [1000 * c.seconds for c in command_latencies(record) if c.seconds is not None]
         if values:
             axes.hist(values, bins=20, alpha=0.6, color=color,
                       label=f"{record.topology} (median {statistics.median(values):.0f} ms)")
@@ -384,11 +407,12 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
     for topic in sorted(set(lab_rates) | set(drc_rates)):
         lines.append(f"| `{topic}` | {lab_rates.get(topic, 0):.2f} | "
                      f"{drc_rates.get(topic, 0):.2f} | {designed.get(topic, '')} |")
-    lines += ["", "## Command latency (sent by the gateway -> the module's status changed)", "",
+    lines += ["", "## Command latency (sent by the gateway -> the module's receipt for it: "
+                  "accepted or refused)", "",
               "| command | lab (ms) | drc (ms) |", "|---|---|---|"]
     lab_lat, drc_lat = command_latencies(lab_record), command_latencies(drc_record)
-    for (name, a), (_, b) in zip(lab_lat, drc_lat):
-        lines.append(f"| {name} | {a * 1000:.0f} | {b * 1000:.0f} |")
+    for a, b in zip(lab_lat, drc_lat):
+        lines.append(f"| {a.name} | {a.shown()} | {b.shown()} |")
     bandwidth = bandwidth_by_id(drc_record)
     if bandwidth:
         means = mean_bandwidth(drc_record)
@@ -418,10 +442,12 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
          "observed_drc": drc}, default=str))
     summary = [f"verdict: {'no observable difference' if not problems else 'DIFFERENT'}"]
     summary += [f"  - {p}" for p in problems]
-    if lab_lat and drc_lat:
-        summary.append(f"command -> status latency, median: lab "
-                       f"{statistics.median(v for _, v in lab_lat) * 1000:.0f} ms, drc "
-                       f"{statistics.median(v for _, v in drc_lat) * 1000:.0f} ms")
+    lab_figures = [c.seconds for c in lab_lat if c.seconds is not None]
+    drc_figures = [c.seconds for c in drc_lat if c.seconds is not None]
+    if lab_figures and drc_figures:
+        summary.append(f"command -> receipt latency, median: lab "
+                       f"{statistics.median(lab_figures) * 1000:.0f} ms, drc "
+                       f"{statistics.median(drc_figures) * 1000:.0f} ms")
     for name, value in sorted(drc_record.completeness.items()):
         summary.append(f"through the bridge, {name}: {value:.3f} of each frame arrived")
     summary.append(f"joint states at the pilot: lab {lab_rates.get('/joint_states', 0):.1f} Hz,"

@@ -204,7 +204,7 @@ def record_main() -> int:
     from nodekit.msgs import ensure_importable
 
     ensure_importable()
-    from walkman_msgs.msg import Countdown, SentCommand, Status, Warning
+    from walkman_msgs.msg import CommandState, Countdown, SentCommand, Status, Warning
 
     lock = threading.Lock()
 
@@ -223,8 +223,11 @@ def record_main() -> int:
     rospy.Subscriber("/gaze_control/countdown", Countdown, lambda m: emit(
         "/gaze_control/countdown", command=m.command, state=m.state, remaining=m.remaining))
     rospy.Subscriber("/pilot/sent_commands", SentCommand, lambda m: emit(
-        "/pilot/sent_commands", module=m.module, port=m.port, text=m.text,
+        "/pilot/sent_commands", module=m.module, port=m.port, text=m.text, seq=m.seq,
         stamp=m.header.stamp.to_sec()))
+    rospy.Subscriber("/pilot/command_states", CommandState, lambda m: emit(
+        "/pilot/command_states", module=m.module, port=m.port, seq=m.seq, state=m.state,
+        stamp=m.header.stamp.to_sec()), queue_size=50)
 
     def on_joints(msg: Any) -> None:
         names = list(msg.name)

@@ -107,18 +107,43 @@ def test_a_module_shown_only_through_the_bridge_is_a_difference():
         "/drc_door/switch:i: only in the drc topology (not the bridge's own)"]
 
 
-def test_command_latency_is_timed_from_the_gateways_stamp():
+def test_command_latency_is_timed_to_the_receipt_of_that_very_command():
+    """From the gateway's stamp to the module's receipt for that command (module, port,
+    seq), whatever the statuses did and whenever the recorder heard of either."""
     record = session("drc")
     record.records = [
         {"t": 0.0, "topic": "/gaze_control/status", "state": "ready"},
-        {"t": 10.3, "topic": "/gaze_control/status", "state": "ready"},
-        {"t": 10.4, "topic": "/gaze_control/status", "state": "moving"},
-        # the recorder heard of the command after the status changed
+        # the lab's case: the status changed before the command's stamp was taken ...
+        {"t": 9.99, "topic": "/gaze_control/status", "state": "tracking"},
         {"t": 10.5, "topic": "/pilot/sent_commands", "module": "gaze_control",
-         "text": "look_at", "stamp": 10.0},
+         "port": "switch", "text": "start 3", "seq": 3, "stamp": 10.0},
+        {"t": 10.6, "topic": "/pilot/command_states", "module": "gaze_control",
+         "port": "switch", "seq": 3, "state": "delivered", "stamp": 10.004},
+        {"t": 10.6, "topic": "/pilot/command_states", "module": "gaze_control",
+         "port": "switch", "seq": 3, "state": "accepted", "stamp": 10.012},
+        # ... and the next change seconds later must not be taken for its effect
+        {"t": 17.8, "topic": "/gaze_control/status", "state": "paused"},
+        # another module's receipt with the same seq is not this command's
+        {"t": 18.0, "topic": "/pilot/command_states", "module": "drc_valve",
+         "port": "command", "seq": 4, "state": "accepted", "stamp": 18.0},
+        {"t": 18.1, "topic": "/pilot/sent_commands", "module": "gaze_control",
+         "port": "command", "text": "look_at 4", "seq": 4, "stamp": 17.9},
     ]
-    [(name, latency)] = compare.command_latencies(record)
-    assert name == "gaze_control look_at" and latency == pytest.approx(0.4)
+    assert compare.command_latencies(record) == [
+        compare.CommandLatency("gaze_control start 3", pytest.approx(0.012)),
+        compare.CommandLatency("gaze_control look_at 4", None, "no receipt")]
+    assert [c.shown() for c in compare.command_latencies(record)] == ["12", "no receipt"]
+
+
+def test_a_receipt_stamped_before_its_command_gives_no_figure():
+    record = session("drc")
+    record.records = [
+        {"t": 1.0, "topic": "/pilot/command_states", "module": "temperature", "port": "switch",
+         "seq": 9, "state": "refused", "stamp": 4.998},
+        {"t": 1.0, "topic": "/pilot/sent_commands", "module": "temperature", "port": "switch",
+         "text": "pause 9", "seq": 9, "stamp": 5.0}]
+    assert compare.command_latencies(record) == [
+        compare.CommandLatency("temperature pause 9", None, "answered before its stamp")]
 
 
 def bridge_line(t: float, tcp: dict, udp: dict) -> str:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 from hypothesis import given, strategies as st
 
@@ -41,6 +43,26 @@ def test_the_usual_life_through_a_blackout():
     expired = ledger.receipt("drc_valve", Receipt(42, S.EXPIRED, "too old"))
     assert expired[0].state is S.EXPIRED and expired[0].reason == "too old"
     assert describe(expired[0]) == "`turn 1.57` (seq 42) to drc_valve: expired: too old"
+
+
+def test_a_receipt_that_beats_its_commands_record_is_kept_for_it():
+    """The lab's main job: the module answered before the gateway's send returned, so the
+    receipts came before the ledger heard the command was sent ("temperature start" had no
+    receipt in its report)."""
+    ledger = Ledger()
+    assert ledger.receipt("drc_valve", Receipt(42, S.DELIVERED)) == []
+    assert ledger.receipt("drc_valve", Receipt(42, S.ACCEPTED)) == []
+    assert [l.state for l in ledger.sent(TURN)] == [S.SENT, S.DELIVERED, S.ACCEPTED]
+    assert ledger.get("drc_valve", 42).state is S.ACCEPTED
+    assert ledger.sent(TURN) == []                          # and only once
+
+
+def test_early_receipts_are_bounded_too():
+    ledger = Ledger(limit=3)
+    for seq in range(10):
+        ledger.receipt("drc_valve", Receipt(seq, S.ACCEPTED))
+    assert [l.state for l in ledger.sent(replace(TURN, seq=9))] == [S.SENT, S.ACCEPTED]
+    assert [l.state for l in ledger.sent(replace(TURN, seq=0))] == [S.SENT]   # forgotten
 
 
 def test_receipts_out_of_order_never_move_a_command_back_nor_past_its_end():

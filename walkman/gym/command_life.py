@@ -133,6 +133,9 @@ class Ledger:
     def __init__(self, limit: int = 2000) -> None:
         self.limit = limit
         self._lives: Dict[Tuple[str, int], CommandLife] = {}
+        #: Receipts that came before their command was recorded as sent: a module on the
+        #: same machine can answer before the gateway's send returns (the lab topology).
+        self._early: Dict[Tuple[str, int], List[Receipt]] = {}
 
     def get(self, module: str, seq: int) -> Optional[CommandLife]:
         return self._lives.get((module, seq))
@@ -146,12 +149,20 @@ class Ledger:
         self._lives[key_of(life)] = life
         while len(self._lives) > self.limit:
             del self._lives[next(iter(self._lives))]
-        return [life]
+        changed = [life]
+        for receipt in self._early.pop(key_of(life), []):
+            changed += self.receipt(life.module, receipt)
+        return changed
 
     def receipt(self, module: str, receipt: Receipt) -> List[CommandLife]:
         """What a place that held the command said of it."""
         life = self._lives.get((module, receipt.seq))
-        moved = life.moved(receipt.state, receipt.reason) if life is not None else None
+        if life is None:
+            self._early.setdefault((module, receipt.seq), []).append(receipt)
+            while len(self._early) > self.limit:
+                del self._early[next(iter(self._early))]
+            return []
+        moved = life.moved(receipt.state, receipt.reason)
         if moved is None:
             return []
         self._lives[key_of(moved)] = moved
