@@ -76,6 +76,7 @@ import fcntl
 import json
 import os
 import random
+import re
 import shutil
 import signal
 import socket
@@ -321,6 +322,28 @@ class EmulatedLink:
         for device in ("lo", rogue):
             self._ns("rogue", "ip", "link", "set", device, "up")
         self._ns("rogue", "ip", "link", "set", rogue, "promisc", "on")
+
+    def block_tcp(self, on: bool) -> None:
+        """Drop every TCP segment the robot sends or receives on the radio (``on``), or let
+        them through again: what crosses the link then goes by UDP alone."""
+        table, device = f"{self.prefix}_no_tcp", self.device("robot")
+        self._ns("robot", "nft", "delete", "table", "inet", table, check=False)
+        if on:
+            rules = (f"table inet {table} {{\n"
+                     f"  chain out {{ type filter hook output priority 0; "
+                     f"oifname \"{device}\" meta l4proto tcp counter drop; }}\n"
+                     f"  chain in {{ type filter hook input priority 0; "
+                     f"iifname \"{device}\" meta l4proto tcp counter drop; }}\n}}\n")
+            result = subprocess.run(self.exec_argv("robot", ["nft", "-f", "-"]), input=rules,
+                                    capture_output=True, text=True)
+            if result.returncode != 0:
+                raise EmulationError(f"blocking TCP on {device}: {result.stderr.strip()}")
+
+    def tcp_dropped(self) -> int:
+        """TCP segments :meth:`block_tcp` dropped so far, both ways (0: not blocking)."""
+        listed = self._ns("robot", "nft", "list", "table", "inet", f"{self.prefix}_no_tcp",
+                          check=False).stdout
+        return sum(int(n) for n in re.findall(r"counter packets (\d+)", listed))
 
     # -- shaping -----------------------------------------------------------------------
 

@@ -120,6 +120,15 @@ def head_position(pcs, lite) -> float:
     return float(found.group(1))
 
 
+def hal_halt(pcs, lite) -> str:
+    """``on`` or ``off``: the HAL's halt, asked on the robot (``[get] halt``)."""
+    reply = pcs.robot.world.run_tool(lite, "rpc", "/walkman/rpc:i",
+                                     input_text="[get] halt\n").stdout
+    found = re.search(r"\[ok\] \"?(on|off)\"?", reply)
+    assert found, reply
+    return found.group(1)
+
+
 def latest_state(pcs, module: str) -> str:
     """The module's last status word, as the pilot's gateway says (latched)."""
     echo = pcs.pilot.start(["rostopic", "echo", "-n", "1", f"/{module}/status/state"],
@@ -179,13 +188,44 @@ def test_a_stop_all_at_30_percent_loss_holds_every_module_and_the_hal(tmp_path, 
         again = pcs.pilot.start(["rosservice", "call", "/gaze_control/send_command",
                                  "{command: look_at, numbers: [1.0, -0.4, 0.1]}"], "look again")
         assert again.wait(60) == 0
-        halt = pcs.robot.world.run_tool(lite, "rpc", "/walkman/rpc:i",
-                                        input_text="[get] halt\n").stdout
-        assert "on" in halt, halt
+        assert hal_halt(pcs, lite) == "on"   # ("on" in the reply: its "Response" says on)
         assert head_position(pcs, lite) == pytest.approx(held, abs=0.5)
         release = pcs.pilot.start(["rosservice", "call", "/pilot/release"], "release")
         assert release.wait(60) == 0 and "ok: True" in release.output(), release.output()
-        assert "off" in pcs.robot.world.run_tool(lite, "rpc", "/walkman/rpc:i",
-                                                 input_text="[get] halt\n").stdout
+        assert hal_halt(pcs, lite) == "off"
     finally:
+        pcs.close()
+
+
+@pytest.mark.two_pcs
+def test_a_stop_all_gets_through_by_udp_alone_at_30_percent_loss(tmp_path, lite, link):
+    """The stop goes out on TCP and as datagram copies: with every TCP segment across the
+    radio dropped, the copies alone must halt the robot, at 30 % loss."""
+    config = tmp_path / "bridge.xml"
+    config.write_text(STOP_CONFIG)
+    pcs = TwoPCs(tmp_path, lite, config, link=link)
+    try:
+        link.apply("drc", loss=0)
+        pcs.start_name_servers()
+        pcs.start_roscore(pcs.pilot)
+        pcs.robot.python("-m", "walkman.hal.server", "--backend", "sim",
+                         name="hal").wait_for("HAL for walkman", 60)
+        pcs.start_bridge(pcs.robot)
+        pcs.start_bridge(pcs.pilot)
+        pcs.wait_linked()
+        gateway = pcs.pilot.python("-m", "rosnodes.gateway", "--config", str(config),
+                                   "--link", "bridge", name="gateway")
+        gateway.wait_for("ROS topics and services up", 60)
+        halted = lambda: hal_halt(pcs, lite) == "on"  # noqa: E731
+        assert not halted()
+        link.block_tcp(True)
+        link.set_loss(30)
+        stop = pcs.pilot.start(["rosservice", "call", "/pilot/stop_all"], "stop all")
+        wait_until(halted, 30, message="the HAL halted by the stop's datagrams alone")
+        assert link.tcp_dropped() > 0, "nothing tried the blocked TCP path: not a test of it"
+        stop.wait(90)
+        link.block_tcp(False)
+        link.set_loss(0)
+    finally:
+        link.block_tcp(False)
         pcs.close()
