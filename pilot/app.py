@@ -506,7 +506,7 @@ class PilotWindow(QMainWindow):
         for widgets in self.module_widgets.values():
             for widget in widgets:
                 widget.tick()
-        for sink in (self.status, self.link_widget):
+        for sink in (self.status, self.link_widget, self.camera):
             if sink is not None:
                 sink.tick()
 

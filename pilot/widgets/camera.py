@@ -11,7 +11,6 @@ frame (the lab: no bridge) the frame is whole: 100 %, nothing hatched.
 from __future__ import annotations
 
 import math
-import time
 from typing import Optional
 
 import numpy as np
@@ -21,6 +20,7 @@ from python_qt_binding.QtWidgets import QLabel, QVBoxLayout, QWidget
 
 from pilot.arrival import ArrivalBook, fraction, missing_mask
 from pilot.link import CLOUD_TOPIC, IMAGE_TOPIC, ArrivalEvent, CloudEvent, ImageEvent
+from pilot.link_cut import LinkCut
 
 MISSING_COLOUR = np.array([200, 30, 30], np.uint8)
 
@@ -53,6 +53,8 @@ class CameraView(QWidget):
         self.cloud: Optional[CloudEvent] = None
         self.frames = 0
         self.last_frame = 0.0
+        #: While the link is down the frame shown is as old as the cut, or older: said so.
+        self.cut = LinkCut()
 
     @property
     def image_completeness(self) -> Optional[float]:
@@ -70,8 +72,17 @@ class CameraView(QWidget):
     def on_image(self, event: ImageEvent) -> None:
         self.image = event
         self.frames += 1
-        self.last_frame = time.monotonic()
+        self.last_frame = self.cut.clock()
         self._draw()
+
+    def on_link(self, event) -> None:
+        self.cut.on_link(event)
+        self._caption()
+
+    def tick(self) -> None:
+        """Once a second (the window's timer): the age of a frame shown during a cut."""
+        if self.cut.down_for is not None:
+            self._caption()
 
     def on_cloud(self, event: CloudEvent) -> None:
         self.cloud = event
@@ -108,6 +119,9 @@ class CameraView(QWidget):
             parts.append(f"cloud {percent(cloud)} of points")
         report = self.report_for(IMAGE_TOPIC)
         lost = report is not None and bool(report.missing)
+        cut = self.cut.banner(f"frame {self.frames}", self.last_frame if self.frames else None)
+        if cut:
+            parts = [cut] + parts[1:]
         self.caption.setText(" | ".join(parts) +
                              ("  (red: tiles that did not arrive)" if lost else ""))
 

@@ -21,7 +21,8 @@ from python_qt_binding.QtWidgets import (QHBoxLayout, QHeaderView, QLabel, QLine
                                          QTableWidgetItem, QToolTip, QVBoxLayout, QWidget)
 
 from pilot.link import BatteryEvent, JointsEvent, StatusEvent, TemperaturesEvent, WarningEvent
-from pilot.widgets.generic import ChoiceBox, status_text
+from pilot.link_cut import LinkCut, age_text
+from pilot.widgets.generic import LINK_DOWN_COLOUR, ChoiceBox, status_text
 
 HISTORY_S = 120.0
 HOT_C = 70.0        # the temperature module's "hot" level (FACTS: boards shut down at 80)
@@ -328,6 +329,15 @@ class StatusTab(QWidget):
         super().__init__(parent)
         self.setObjectName("status")
         layout = QVBoxLayout(self)
+        #: While the link is down: how old the states, charts and battery below are.
+        self.cut = LinkCut()
+        self.link_banner = QLabel("")
+        self.link_banner.setObjectName("status_link")
+        self.link_banner.setWordWrap(True)
+        self.link_banner.setStyleSheet(f"color: {LINK_DOWN_COLOUR}; font-weight: bold;")
+        self.link_banner.setVisible(False)
+        layout.addWidget(self.link_banner)
+        self.charts_at: Optional[float] = None   # when the newest joints or temperatures came
         self.table = QTableWidget(len(modules), 3)
         self.table.setHorizontalHeaderLabels(["module", "state", "heard"])
         self.rows: Dict[str, int] = {}
@@ -367,7 +377,12 @@ class StatusTab(QWidget):
             self.table.item(row, 1).setText(status_text(event))
             self.heard[event.module] = time.monotonic() - max(0.0, time.time() - event.stamp)
 
+    def on_link(self, event) -> None:
+        self.cut.on_link(event)
+        self.tick()
+
     def on_joints(self, event: JointsEvent) -> None:
+        self.charts_at = self.cut.clock()
         self.torques.update_values(event.names, event.effort)
         self.torque_body.update_values(event.names, event.effort)
 
@@ -378,13 +393,20 @@ class StatusTab(QWidget):
         self.warnings.on_warning(event)
 
     def on_temperatures(self, event: TemperaturesEvent) -> None:
+        self.charts_at = self.cut.clock()
         self.temperatures.update_values(event.names, event.celsius)
         self.temperature_body.update_values(event.names, event.celsius)
 
     def tick(self) -> None:
         now = time.monotonic()
+        down = self.cut.down_for
         for module, row in self.rows.items():
             heard = self.heard.get(module)
-            self.table.item(row, 2).setText("never" if heard is None else f"{now - heard:.1f} s ago")
+            text = "never" if heard is None else f"{now - heard:.1f} s ago"
+            self.table.item(row, 2).setText(text if down is None else
+                                            f"{text} (link down {age_text(down)})")
+        banner = self.cut.banner("the states, charts and battery below", self.charts_at)
+        self.link_banner.setText(banner)
+        self.link_banner.setVisible(bool(banner))
 
 

@@ -768,3 +768,53 @@ def test_the_body_views_colour_each_joint_where_it_is_on_the_robot(qt):
                                        body._points()["LKneeSag"].y())))
     assert hot.red() > 200 and hot.blue() < 80          # the hot knee is red
     assert cool.blue() > 200 and cool.red() < 80        # the others are blue
+
+
+def test_during_a_cut_the_status_tab_and_the_camera_say_how_old_what_they_show_is(qt):
+    """Issue 66: a 20 s cut showed "initializing, 17.3 s ago", live-looking charts and
+    "frame 46 | image 73% arrived" with no word of the link.  Each now says the link is
+    down, for how long, and how old what it shows is; and nothing of it once the link is
+    back."""
+    from pilot.link import ImageEvent, JointsEvent, LinkEvent, TemperaturesEvent
+    from pilot.link_cut import LinkCut
+    from pilot.widgets.camera import CameraView
+    from pilot.widgets.status import StatusTab
+
+    class Clock:
+        now = 1000.0
+
+        def __call__(self) -> float:
+            return self.now
+
+    clock = Clock()
+    tab, view = StatusTab(["drc_valve"]), CameraView()
+    tab.cut, view.cut = LinkCut(clock), LinkCut(clock)
+    tab.on_status(status("drc_valve", "initializing"))
+    names = ("LHipSag",)
+    tab.on_temperatures(TemperaturesEvent(names, np.array([41.0]), time.time()))
+    tab.on_joints(JointsEvent(names, np.zeros(1), np.array([12.0]), time.time()))
+    view.on_image(ImageEvent(np.zeros((24, 32, 3), np.uint8), 5))
+    tab.charts_at = view.last_frame = clock.now - 3.0      # the robot's last, 3 s before now
+    tab.tick()
+    assert not tab.link_banner.isVisible() and "link" not in view.caption.text()
+    assert "link" not in tab.table.item(0, 2).text()
+
+    for widget in (tab, view):
+        widget.on_link(LinkEvent("down", "no frame for 2 s", 18.0, 0))
+    assert tab.link_banner.text() == \
+        "link down for 18 s: the states, charts and battery below as of 3.0 s ago"
+    assert not tab.link_banner.isHidden()
+    assert tab.table.item(0, 2).text().endswith("(link down 18 s)")
+    assert view.caption.text().startswith("link down for 18 s: frame 1 as of 3.0 s ago"), \
+        view.caption.text()
+    clock.now += 60                                        # a minute later, still down
+    tab.tick()
+    view.tick()
+    assert tab.link_banner.text().startswith("link down for 78 s:") and \
+        tab.link_banner.text().endswith("as of 63 s ago")
+    assert view.caption.text().startswith("link down for 78 s: frame 1 as of 63 s ago")
+
+    for widget in (tab, view):
+        widget.on_link(LinkEvent("up", "", 0.5, 0))
+    assert tab.link_banner.isHidden() and tab.link_banner.text() == ""
+    assert view.caption.text().startswith("frame 1")
