@@ -105,7 +105,10 @@ class GenericWidget(QGroupBox):
         self.task_area = QVBoxLayout()     # task widgets put their panel here
         body.addLayout(self.task_area)
 
-        body.addWidget(self._command_entry())
+        #: The generic row: pick any command, type its numbers (a task widget, which has a
+        #: row of its own for each command, hides it: one command, one set of fields).
+        self.command_entry = self._command_entry()
+        body.addWidget(self.command_entry)
         held = QHBoxLayout()
         self.queued_label = QLabel("")
         self.queued_label.setObjectName("queued")

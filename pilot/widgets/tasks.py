@@ -113,6 +113,9 @@ class TaskWidget(GenericWidget):
             self.buttons[name] = button
             row += max(1, -(-len(fields) // FIELDS_PER_LINE))
         self.task_area.addWidget(panel)
+        # Each command has its row here, with the scene's values: the generic row would show
+        # the same command again, all zeros, and either could be sent.
+        self.command_entry.setVisible(False)
         self.refresh()
 
     def do(self, name: str) -> bool:

@@ -428,9 +428,9 @@ def test_scrolling_over_a_tab_changes_no_field_the_pilot_did_not_choose(qt):
     from python_qt_binding.QtWidgets import QScrollArea
 
     from pilot.catalogue import catalogue_of
-    from pilot.widgets.tasks import TaskWidget
+    from pilot.widgets.tasks import DriveWidget
 
-    widget = TaskWidget(catalogue_of("drc_drive"), Recorder())
+    widget = DriveWidget(catalogue_of("drc_drive"), Recorder())
     widget.on_status(status("drc_drive", "idle"))          # launched: its fields are shown
     area = QScrollArea()
     area.setWidget(widget)
@@ -439,8 +439,10 @@ def test_scrolling_over_a_tab_changes_no_field_the_pilot_did_not_choose(qt):
     area.activateWindow()
     qt.processEvents()
     fields = [field for fields in widget.fields.values() for field in fields]
-    combo = widget.command_box
-    combo.setFocus(Qt.ActiveWindowFocusReason)    # as Qt gives the first field of a window
+    # (the steering slider, as the generic row's command box was before the task widget
+    # hid that row: a wheel-hungry widget that Qt gives the focus first)
+    combo = widget.slider
+    combo.setFocus(Qt.ActiveWindowFocusReason)    # as Qt gives the first widget of a window
     qt.processEvents()
     assert combo.hasFocus() and not combo.chosen
     before = [field.value() for field in fields]
@@ -450,7 +452,7 @@ def test_scrolling_over_a_tab_changes_no_field_the_pilot_did_not_choose(qt):
         assert not wheel(field, 3), f"{field.objectName()} took the wheel while not chosen"
     assert not wheel(combo, 2)
     assert [field.value() for field in fields] == before
-    assert combo.currentIndex() == 0
+    assert combo.value() == 0
     # What a field ignores, Qt hands to its parents (for a real wheel; a sent event stops at
     # its receiver, so here the page gets it directly): the page scrolls.
     bar = area.verticalScrollBar()
@@ -818,3 +820,34 @@ def test_during_a_cut_the_status_tab_and_the_camera_say_how_old_what_they_show_i
         widget.on_link(LinkEvent("up", "", 0.5, 0))
     assert tab.link_banner.isHidden() and tab.link_banner.text() == ""
     assert view.caption.text().startswith("frame 1")
+
+
+@pytest.mark.parametrize("module", ["drc_valve", "drc_door", "drc_drive", "drc_plug", "drc_wall",
+                                    "walking", "gaze_control"])
+def test_a_task_widget_shows_each_command_once_with_the_scenes_values(qt, module):
+    """Issue 66: the valve's own row (x 0.660 ...) sat above the generic row for the same
+    command, all zeros, and either could be sent.  One command, one row: the task's."""
+    from python_qt_binding.QtWidgets import QDoubleSpinBox, QPushButton
+
+    from pilot.catalogue import catalogue_of
+    from pilot.widgets.tasks import STARTING_VALUES, TaskWidget, task_widget_class
+
+    widget = task_widget_class(module)(catalogue_of(module), Recorder())
+    assert isinstance(widget, TaskWidget)
+    widget.on_status(status(module, "idle"))
+    widget.resize(900, 1200)
+    widget.show()
+    qt.processEvents()
+    shown = [b.text() for b in widget.findChildren(QPushButton) if b.isVisibleTo(widget)]
+    for name in widget.catalogue.commands:
+        assert shown.count(name) == 1, (name, shown)
+    assert not any(b.text().startswith("send") for b in widget.findChildren(QPushButton)
+                   if b.isVisibleTo(widget)), "the generic row's send is still shown"
+    assert not widget.command_entry.isVisibleTo(widget)
+    shown_fields = [f for f in widget.findChildren(QDoubleSpinBox) if f.isVisibleTo(widget)]
+    for fields in widget.fields.values():
+        assert all(f in shown_fields for f in fields)
+    for name, values in STARTING_VALUES[module].items():
+        assert [f.value() for f in widget.fields[name]][:len(values)] == \
+            pytest.approx(values, abs=1e-3), name
+    widget.close()
