@@ -1,5 +1,5 @@
-"""The README's tutorial module, exactly as printed there, run as a user runs it: the pilot's
-commands, the module's states, and the right hand where the HAL says it is."""
+"""The tutorial module of docs/drc-tasks.md, exactly as printed there, run as a user runs it:
+the pilot's commands, the module's states, and the right hand where the HAL says it is."""
 
 import os
 import re
@@ -11,14 +11,14 @@ import numpy as np
 
 from tests.walkman.test_gym_hal import Pilot, probe, start_hal  # noqa: F401 (a fixture)
 
-README = Path(__file__).resolve().parents[2] / "README.md"
+TUTORIAL = Path(__file__).resolve().parents[2] / "docs" / "drc-tasks.md"
 STATES = ["down", "raising", "up", "waving", "lowering"]
 
 
 def tutorial_code() -> str:
-    text = README.read_text()
+    text = TUTORIAL.read_text()
     match = re.search(r"<!-- tutorial:my_wave.py -->\n```python\n(.*?)```", text, re.S)
-    assert match, "README lost its tutorial block"
+    assert match, f"{TUTORIAL.name} lost its tutorial block"
     return match.group(1)
 
 
