@@ -397,9 +397,6 @@ class EmulatedLink:
     def set_loss(self, percent: float) -> None:
         self.configure(loss=_fraction(percent))
 
-    def set_delay(self, seconds: float) -> None:
-        self.configure(delay=seconds)
-
     def blackout(self, on: bool) -> None:
         """The radio gone (every frame dropped, those under way too), or back with its
         settings as they were."""

@@ -1,13 +1,12 @@
-"""Small wire primitives shared by every bridge codec: varints, zigzag, CRC.
+"""Small wire primitives shared by every bridge codec: varints and zigzag.
 
 Varints are LEB128 (7 bits per byte, low group first) as in protobuf; signed
-values go through zigzag so small negatives stay small.  The CRC is CRC-16/CCITT
-(``binascii.crc_hqx``, implemented in C), two bytes per frame or datagram.
+values go through zigzag so small negatives stay small.  (Frames and datagrams are
+sealed by :mod:`bridge.link`'s tags, which also catch what a CRC would.)
 """
 
 from __future__ import annotations
 
-import binascii
 from typing import Tuple, Union
 
 from bridge.errors import BridgeProtocolError, NeedMoreData
@@ -67,10 +66,6 @@ def put_svarint(out: bytearray, value: int) -> None:
 def get_svarint(buf: Buffer, pos: int, what: str = "signed varint") -> Tuple[int, int]:
     value, pos = get_varint(buf, pos, what)
     return unzigzag(value), pos
-
-
-def crc16(data: Buffer) -> int:
-    return binascii.crc_hqx(data, 0xFFFF)
 
 
 def take(buf: Buffer, pos: int, count: int, what: str) -> Tuple[bytes, int]:

@@ -264,20 +264,6 @@ class PilotLink:
         threading.Thread(target=self._open_bridge_status, name="pilot bridge status",
                          daemon=True).start()
 
-    def adopt_local_nodes(self) -> None:
-        """Have our node register this process's roscpp node (librviz) again after a roscore
-        restart, as it does its own topics (see :meth:`nodekit.ros_node.RosNode.adopt`)."""
-        def adopt() -> None:
-            try:
-                names = self._ros.adopt()
-            except Exception as exc:  # noqa: BLE001 -- the master went away meanwhile
-                log.warning("pilot: cannot list this process's ROS nodes: %s", exc)
-                return
-            log.info("pilot: after a roscore restart %s registers itself and %s again",
-                     self.name, ", ".join(names) or "no other node")
-
-        threading.Thread(target=adopt, name="adopt roscpp nodes", daemon=True).start()
-
     def close(self) -> None:
         if self._keeper is not None:
             self._keeper.stop()

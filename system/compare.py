@@ -199,11 +199,6 @@ def valid_points(record: SessionRecord) -> List[Tuple[float, float]]:
     return [(r["t"], 1.0 - r["nan"]) for r in record.records if r["topic"] == "/multisense/points"]
 
 
-def state_sequence(record: SessionRecord, module: str) -> List[str]:
-    states = [r["state"] for r in record.records if r["topic"] == f"/{module}/status"]
-    return [s for i, s in enumerate(states) if i == 0 or s != states[i - 1]]
-
-
 def bandwidth_by_id(record: SessionRecord, window_s: float = 5.0
                     ) -> Dict[int, List[Tuple[float, float]]]:
     """Bits per second per 8-bit id (TCP and UDP), averaged over ``window_s``.

@@ -139,10 +139,6 @@ class BufferedPort(Port):
             self._outbox_cond.notify_all()
         return True
 
-    def write_now(self, bottle: Union[Bottle, Sequence, Payload]) -> bool:
-        """Send in the calling thread, like a plain Port."""
-        return super().write(bottle)
-
     def wait_for_write(self, timeout: Optional[float] = None) -> bool:
         deadline = None if timeout is None else time.monotonic() + timeout
         with self._outbox_cond:

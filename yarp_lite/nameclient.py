@@ -22,7 +22,6 @@ from typing import List, Mapping, Optional, Sequence
 
 from yarp_lite import auth
 from yarp_lite.bottle import Bottle
-from yarp_lite.bottle_text import format_value
 from yarp_lite.carriers import BottlePayload, SUPPORTED
 from yarp_lite.connection import OutgoingConnection, open_stream
 from yarp_lite.contact import Contact
@@ -219,7 +218,3 @@ class NameClient:
             return True
         except NetworkError:
             return False
-
-
-def format_command(words: Sequence) -> str:
-    return " ".join(format_value(word) if not isinstance(word, str) else word for word in words)

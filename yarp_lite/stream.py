@@ -17,7 +17,7 @@ import os
 import socket
 import threading
 import time
-from typing import Iterable, Optional, Tuple, Union
+from typing import Optional, Tuple, Union
 
 from yarp_lite import auth
 from yarp_lite.errors import NetworkError, RemoteProtocolError
@@ -250,11 +250,6 @@ class SocketStream(Stream):
     def unread(self, data: bytes) -> None:
         self._buffer[self._start:self._start] = data
 
-    def peek(self, count: int) -> bytes:
-        while self.buffered < count:
-            self._fill()
-        return bytes(self._buffer[self._start:self._start + count])
-
     # -- writing ---------------------------------------------------------------
 
     def write(self, *chunks: Buffer) -> None:
@@ -357,7 +352,3 @@ def authenticate(stream: SocketStream, role: auth.Role, config: auth.AuthConfig)
 
 def _without_where(exc: NetworkError, stream: Stream) -> str:
     return str(exc).removeprefix(f"{stream.where}: ")
-
-
-def write_all(stream: Stream, chunks: Iterable[Buffer]) -> None:
-    stream.write(*chunks)

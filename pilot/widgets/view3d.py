@@ -101,11 +101,6 @@ class View3D(QWidget):
         the view's place instead of waiting for the roscore."""
         self._say(f"3-D view: not started -- {why}")
 
-    @property
-    def child_pid(self) -> Optional[int]:
-        """The render process now running (embedded or not yet)."""
-        return self.supervisor.pid if self.supervisor is not None else None
-
     # -- what the PI asks ------------------------------------------------------------------
 
     def add_pose_marker(self, name: str, start: Sequence[float],

@@ -181,8 +181,5 @@ class ControlThread(GenericThread):
         (walking makes up for the legs' springs) returns its command for its joints."""
         return None
 
-    def sense(self):
-        return self.robot.sense_position()
-
     def move(self, q) -> bool:
         return self.robot.move(q)

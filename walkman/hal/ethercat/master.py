@@ -164,9 +164,6 @@ class EthercatBackend(PlantBackend):
                gravity * np.cos(roll) * np.cos(pitch))
         return Imu((roll, pitch, yaw), tuple(float(a) for a in acc), (wx, wy, wz))
 
-    def request_fault_clear(self) -> None:
-        self.clear_faults = True
-
     def status(self) -> Dict[str, object]:
         faulty = {self.joint_names[i]: str(Fault(int(f))) for i, f in enumerate(self.faults)
                   if f and not f == Fault.TORQUE_SATURATED}
