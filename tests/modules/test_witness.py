@@ -78,3 +78,27 @@ def test_a_line_being_written_is_left_for_the_next_read(tmp_path):
     assert witness.read_log(log) == []              # no file yet: nothing ran
     log.write_text("executed count 1 at 1.000 age - valid -\nexecuted count 2 at 2.0")
     assert [e.seq for e in witness.read_log(log)] == [1]
+
+
+def test_a_module_of_ours_that_cannot_load_is_an_error_naming_it(tmp_path, monkeypatch):
+    """A broken module made the gateway fall back to generic decoding without a word."""
+    import sys
+
+    import walkman.modules
+    from walkman.modules import ModuleLoadError
+
+    assert module_class("not_one_of_ours") is None      # another team's: none of ours
+    assert module_class("my_wave:Module") is None
+    broken = tmp_path / "walkman_broken"
+    broken.mkdir()
+    (broken / "broken_task.py").write_text("import no_such_library\n")
+    (broken / "no_module.py").write_text("X = 1\n")
+    monkeypatch.setattr(walkman.modules, "__path__", [*walkman.modules.__path__, str(broken)])
+    for name in ("broken_task", "no_module"):
+        monkeypatch.delitem(sys.modules, f"walkman.modules.{name}", raising=False)
+    with pytest.raises(ModuleLoadError, match=r"walkman.modules.broken_task cannot be imported: "
+                                              r"ModuleNotFoundError: No module named "
+                                              r"'no_such_library'"):
+        module_class("broken_task")
+    with pytest.raises(ModuleLoadError, match="walkman.modules.no_module has no Module class"):
+        module_class("no_module")
