@@ -251,7 +251,7 @@ class EmulatedLink:
             try:
                 path.unlink()
             except FileNotFoundError:
-                pass
+                pass  # never made or already removed: nothing to clean
 
     def _stop_stage(self) -> None:
         """End the processes in the link namespace (the stage; nothing else runs there)."""
@@ -262,7 +262,7 @@ class EmulatedLink:
                 try:
                     os.kill(pid, sig)
                 except ProcessLookupError:
-                    pass
+                    pass  # already exited: nothing to signal
             deadline = time.monotonic() + 5
             while any(self._alive(pid) for pid in pids) and time.monotonic() < deadline:
                 time.sleep(0.02)

@@ -466,8 +466,8 @@ class Bridge:
         while not self._stop.wait(STATUS_PERIOD):
             try:
                 port.write(status_codec.to_bottle(self.status()), skip_busy=True)
-            except YarpError:
-                pass
+            except YarpError as exc:
+                log.warning("%s: status not published (%s)", port.name, exc)
 
     def stop(self) -> None:
         self._stop.set()

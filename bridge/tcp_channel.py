@@ -128,7 +128,7 @@ def _shut(sock: socket.socket) -> None:
     try:
         sock.shutdown(socket.SHUT_RDWR)
     except OSError:
-        pass
+        pass  # already shut or reset: close() still releases it
     sock.close()
 
 

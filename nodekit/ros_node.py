@@ -103,7 +103,7 @@ def guard_tcpros() -> None:
             try:
                 cut[0].shutdown(socket.SHUT_RDWR)   # its reader sees the end and gives up
             except OSError:
-                pass
+                pass  # already closed by its reader: nothing left to cut
 
         # rospy logs and closes on any failure; bounded_read takes the socket off the list.
         threading.Thread(target=serve, args=(server, sock, address), name="tcpros handshake",

@@ -237,7 +237,7 @@ def keep_crash_evidence() -> None:
     try:
         resource.setrlimit(resource.RLIMIT_CORE, (hard, hard))
     except (ValueError, OSError):
-        pass
+        pass  # no core file then; stacks.txt still records a crash
 
 
 # -- the process ---------------------------------------------------------------------------

@@ -191,7 +191,7 @@ class RenderProcess(QObject):
         try:
             os.kill(self.pid, signal.SIGKILL)
         except ProcessLookupError:
-            pass
+            pass  # already exited: nothing to kill
 
     def close(self, wait: float = 2.0) -> None:
         """Ask it to quit (the socket's end), give it ``wait`` s, then kill it."""

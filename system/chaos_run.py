@@ -378,6 +378,6 @@ class Chaos:
             try:
                 os.kill(process["pid"], signal.SIGKILL)
             except ProcessLookupError:
-                pass
+                pass  # already exited: nothing to kill
         shutil.rmtree(self.root, ignore_errors=True)
         return found

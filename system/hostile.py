@@ -137,7 +137,7 @@ def _hold(target: Target, count: int) -> List[socket.socket]:
         try:
             sock.connect((target.host, target.port))
         except BlockingIOError:
-            pass
+            pass  # non-blocking connect under way: expected
         except OSError:
             sock.close()
             continue
@@ -168,7 +168,7 @@ def udp_attacks(target: Target, rng: random.Random, count: int) -> Iterator[tupl
                 try:
                     sock.sendto(rng.randbytes(size), (target.host, target.port))
                 except OSError:
-                    pass
+                    pass  # the stack refused this datagram: the target is spared it
     yield (f"datagrams x{count}", blast, lambda: None)
 
 

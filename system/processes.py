@@ -152,7 +152,7 @@ class Proc:
             try:
                 self._queue.get(timeout=0.2)
             except queue.Empty:
-                pass
+                pass  # no new line within 0.2 s: look again
 
     def output(self) -> str:
         return "\n".join(self.lines)
@@ -173,12 +173,12 @@ class Proc:
             try:
                 os.killpg(self.popen.pid, sig)
             except ProcessLookupError:
-                pass
+                pass  # the group already exited: nothing to signal
         for pid in family:
             try:
                 os.kill(pid, sig)
             except ProcessLookupError:
-                pass
+                pass  # already exited: nothing to signal
         try:
             self.popen.wait(timeout=5)
         except subprocess.TimeoutExpired:

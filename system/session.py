@@ -250,7 +250,7 @@ def record_main() -> int:
         while not rospy.is_shutdown():
             time.sleep(0.2)
     except KeyboardInterrupt:
-        pass
+        pass  # Ctrl-C is how the user ends the recording
     return 0
 
 

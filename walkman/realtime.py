@@ -87,7 +87,7 @@ def make_normal() -> bool:
         try:
             os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
         except OSError:
-            pass
+            pass  # only ever lowers priority; False is the answer either way
     return False
 
 

@@ -402,7 +402,7 @@ def cmd_read(args: List[str], admin: bool) -> int:
             _print_outcome(network.connect(source, port.name))
         printer.done.wait()
     except KeyboardInterrupt:
-        pass
+        pass  # Ctrl-C is how the user ends the read; finally closes the port
     finally:
         port.close()
     return 0
@@ -441,7 +441,7 @@ def cmd_write(args: List[str], admin: bool) -> int:
                 return 1
         _write_loop(port, verbatim, admin)
     except KeyboardInterrupt:
-        pass
+        pass  # Ctrl-C is how the user ends the write; finally closes the port
     finally:
         port.close()
     return 0
@@ -460,7 +460,7 @@ def cmd_readwrite(args: List[str], admin: bool) -> int:
     try:
         _write_loop(writer, True, admin)
     except KeyboardInterrupt:
-        pass
+        pass  # Ctrl-C is how the user ends it; finally closes both ports
     finally:
         writer.close()
         reader.close()
@@ -645,7 +645,7 @@ def cmd_clock(args: List[str], admin: bool) -> int:
             port.write(clock_wire.encode_tick((wall.now() - start) * rtf + offset))
             pacer.wait()
     except KeyboardInterrupt:
-        pass
+        pass  # Ctrl-C is how the user stops the clock; finally closes the port
     finally:
         port.close()
     return 0

@@ -175,7 +175,7 @@ class OutgoingConnection:
                             break
                         lines.append(line)
                 except NetworkError:
-                    pass
+                    pass  # an answer no <ACK> ends is ended by the timeout or hang-up
             return lines
 
     def peer_closed(self) -> bool:
@@ -220,6 +220,6 @@ class OutgoingConnection:
                             else None
                         self.carrier.read_ack(self.stream)
         except YarpError:
-            pass
+            pass  # peer already gone: abort() below releases our end
         finally:
             self.abort()

@@ -483,7 +483,7 @@ class Port:
             try:
                 listener.shutdown(socket.SHUT_RDWR)
             except OSError:
-                pass
+                pass  # already shut: close() below still releases it
             listener.close()
         self._handoff.close()
         for output in outputs:
@@ -633,8 +633,9 @@ class Port:
                 connection = OutgoingConnection.open(contact, "admin", "text", timeout=2.0)
                 connection.send_text_command(f"~{self.name}", timeout=1.0)
                 connection.abort()
-        except YarpError:
-            pass
+        except YarpError as exc:
+            log.warning("%s: cannot tell %s this udp output is gone (%s); it may "
+                        "still list the input", self.name, unit.route.target, exc)
 
     def remove_input(self, source: str) -> bool:
         with self._lock:

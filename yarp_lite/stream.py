@@ -110,7 +110,7 @@ class SocketStream(Stream):
         try:
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         except OSError:
-            pass
+            pass  # not TCP (no Nagle to turn off), or gone: getpeername says so
         try:
             self._local = sock.getsockname()[:2]
             self._remote = sock.getpeername()[:2]
@@ -282,14 +282,14 @@ class SocketStream(Stream):
         try:
             self.sock.settimeout(timeout)
         except OSError:
-            pass
+            pass  # socket already closed: the next read or write reports it
 
     def shutdown_read(self) -> None:
         """Wake a thread blocked in recv on this stream (used by close())."""
         try:
             self.sock.shutdown(socket.SHUT_RDWR)
         except OSError:
-            pass
+            pass  # not connected or already closed: no reader to wake
 
     def close(self) -> None:
         if not self._closed:

@@ -629,7 +629,7 @@ def run_module(argv: Optional[List[str]] = None) -> int:
         try:
             os.write(options.heartbeat_fd, SIGNALS_ARMED)
         except OSError:
-            pass
+            pass  # no supervisor to read it: none to pass signals on
     sys.setswitchinterval(SWITCH_INTERVAL)
     make_process_realtime()     # no thread holding the interpreter lock preempted (realtime.py)
     line = f"{time_prefix()}[%(levelname)s] %(message)s"

@@ -128,7 +128,7 @@ class Supervisor:
         try:
             self.child.wait(STACKS_GRACE)   # (faulthandler's dump does not end the process)
         except subprocess.TimeoutExpired:
-            pass
+            pass  # still alive after its dump: the caller kills it next
 
     def forward(self, signum: int, _frame) -> None:
         self.stopping = True

@@ -60,8 +60,8 @@ def find_grouping(nameclient: NameClient, robot: str, model: RobotModel, owner: 
                 parts = find_parts(nameclient, robot, model, owner)
                 if parts and nameclient.query(rpc_name) is None:
                     return Grouping(parts, standard=True)
-        except YarpError:
-            pass
+        except YarpError as exc:
+            log.debug("%s: looking for the robot at %s: %s", owner, rpc_name, exc)
         now = time.monotonic()
         if now > deadline:
             raise NetworkError(f"no robot answered at {rpc_name} nor at "

@@ -349,8 +349,9 @@ class Robot(WholeBody):
         for source, target in self._subs:
             try:
                 self.nameclient.unsubscribe(source, target)
-            except YarpError:
-                pass
+            except YarpError as exc:
+                log.warning("%s: cannot unsubscribe %s -> %s (%s); the name server "
+                            "keeps it", self.owner, source, target, exc)
         for port in self._ports:
             port.close()
 

@@ -632,7 +632,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         server.open()
         server.run(options.duration)
     except KeyboardInterrupt:
-        pass
+        pass  # Ctrl-C ends the HAL; finally reports and closes
     finally:
         log.info("HAL stopping: %s", server.stats())
         server.close()

@@ -93,7 +93,7 @@ class DatagramStream(Stream):
         try:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 * 1024 * 1024)
         except OSError:
-            pass
+            pass  # the kernel's default buffer still receives, with less slack
         sock.bind((host, 0))
         origin = f"udp from {sender} " if sender else "udp "
         return cls(sock, f"{origin}on {host}:{sock.getsockname()[1]}")
@@ -142,8 +142,9 @@ class DatagramStream(Stream):
                 wake = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
                 wake.sendto(b"\0\0\0\0\xff\xff\xff\xff", self.sock.getsockname())
                 wake.close()
-            except OSError:
-                pass
+            except OSError as exc:
+                log.info("%s: cannot wake a reader on close (%s): it stays blocked "
+                         "until a datagram comes", self.where, exc)
             self.sock.close()
 
     @property
