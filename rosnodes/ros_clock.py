@@ -3,7 +3,8 @@
 It follows the robot's YARP clock (``walkman-hal --clock``, ``--source``) and publishes
 ``rosgraph_msgs/Clock`` on ``/clock`` whenever the robot's time moved, at most every
 ``--period`` of wall time (so at ``--rtf max`` ROS is not flooded), and always the time it
-stopped at: a paused robot stops ROS time exactly where it stands.  With ``--use-sim-time`` it sets ``/use_sim_time`` first: ROS nodes
+stopped at, latched: a paused robot stops ROS time exactly where it stands, for a node that
+subscribes later too.  With ``--use-sim-time`` it sets ``/use_sim_time`` first: ROS nodes
 started after it follow ``/clock`` (``rospy.Time.now``, ``rospy.sleep``, ``Rate``), their bags
 and RViz show robot time.  Its own ROS time is never used: it is the clock's source.
 """
@@ -50,7 +51,9 @@ def main(argv: Optional[List[str]] = None) -> int:
 
         if options.use_sim_time:
             rospy.set_param("/use_sim_time", True)
-        publisher.append(rospy.Publisher("/clock", Clock, queue_size=1))
+        # Latched: a node that subscribes while the robot is paused (no new time to publish)
+        # gets the time it stands at, instead of reading 0 ("no clock yet") until it moves.
+        publisher.append(rospy.Publisher("/clock", Clock, queue_size=1, latch=True))
         log.info("publishing %s on ROS's /clock, at most every %g ms",
                  options.source, options.period)
 
