@@ -7,6 +7,9 @@
   baseline: what the main job and the PI run) and at ``--rtf max``; alone, and two robots
   side by side, each with its own name server.  The factor is read as a follower reads it:
   simulated time from the ``/clock`` ticks (``yarp_lite.time.NetworkClock``) over wall time.
+* The HAL at ``--rtf max`` and the walking module in lockstep with it (``--lockstep``,
+  started on launch: it crouches, then balances on its own feet, the harness off), as
+  processes; alone, and two such robots side by side.
 
 Usage: ``.venv/bin/python bench/bench_clock.py [--seconds S]``.  Needs only this project.
 """
@@ -65,7 +68,7 @@ def in_process_factors(seconds: float) -> Dict[str, float]:
 class Robot:
     """A name server and ``walkman-hal --clock`` of its own."""
 
-    def __init__(self, name: str, rtf: str) -> None:
+    def __init__(self, name: str, rtf: str, walking: bool = False) -> None:
         self.root = Path(tempfile.mkdtemp(prefix=f"walkman-clock-bench-{name}-"))
         self.env = dict(os.environ, YARP_CONFIG_HOME=str(self.root / "config"),
                         YARP_DATA_HOME=str(self.root / "data"), PYTHONUNBUFFERED="1")
@@ -75,10 +78,16 @@ class Robot:
                        str(free_port(span=400)), "--write"], self.env, f"{name} server")
         self.children.append(server)
         server.wait_for("Ready|running", timeout=30)
-        hal = Proc([PYTHON, "-m", "walkman.hal.server", "--clock", "/clock", "--rtf", rtf],
-                   self.env, f"{name} hal")
+        standing = ["--harness", "off", "--station", "yard"] if walking else []
+        hal = Proc([PYTHON, "-m", "walkman.hal.server", "--clock", "/clock", "--rtf", rtf,
+                    *standing], self.env, f"{name} hal")
         self.children.append(hal)
         hal.wait_for("simulated time on /clock", timeout=120)
+        if walking:
+            module = Proc([PYTHON, "-m", "walkman.gym.runner", "walking", "--lockstep",
+                           "--start"], self.env, f"{name} walking")
+            self.children.append(module)
+            hal.wait_for("lockstep: /walking joined", timeout=120)
 
     def factor(self, seconds: float) -> float:
         """Simulated seconds per wall second over ``seconds``, as a /clock follower sees it
@@ -106,28 +115,41 @@ def main() -> int:
             figures[f"walkman-hal --rtf {rtf}, alone"] = f"{robot.factor(options.seconds):.2f}x"
         finally:
             robot.close()
-    robots = [Robot("first", "max"), Robot("second", "max")]
+    measure_side_by_side(figures, "walkman-hal --rtf max, two side by side",
+                         [Robot("first", "max"), Robot("second", "max")], options.seconds)
+    robot = Robot("lockstep", "max", walking=True)
     try:
-        import threading
-
-        results: Dict[int, float] = {}
-        threads = [threading.Thread(target=lambda i=i, r=r: results.__setitem__(
-            i, r.factor(options.seconds))) for i, r in enumerate(robots)]
-        for thread in threads:
-            thread.start()
-        for thread in threads:
-            thread.join()
-        figures["walkman-hal --rtf max, two side by side"] = \
-            " and ".join(f"{results[i]:.2f}x" for i in sorted(results))
+        figures["HAL --rtf max + walking --lockstep, alone"] = \
+            f"{robot.factor(options.seconds):.2f}x"
     finally:
-        for robot in robots:
-            robot.close()
+        robot.close()
+    measure_side_by_side(figures, "HAL + walking in lockstep, two side by side",
+                         [Robot("first", "max", walking=True),
+                          Robot("second", "max", walking=True)], options.seconds)
     print()
     print("real-time factor: simulated seconds per wall second (drc scene, 1 ms steps)")
     for label, value in figures.items():
         print(f"  {label:<48}{value:>16}")
     say_machine("after")
     return 0
+
+
+def measure_side_by_side(figures: Dict[str, str], label: str, robots: List[Robot],
+                         seconds: float) -> None:
+    try:
+        import threading
+
+        results: Dict[int, float] = {}
+        threads = [threading.Thread(target=lambda i=i, r=r: results.__setitem__(
+            i, r.factor(seconds))) for i, r in enumerate(robots)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+        figures[label] = " and ".join(f"{results[i]:.2f}x" for i in sorted(results))
+    finally:
+        for robot in robots:
+            robot.close()
 
 
 if __name__ == "__main__":

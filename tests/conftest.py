@@ -53,6 +53,9 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "real_time: starts programs with real-time threads "
                             "(a HAL) from a folder whose tests otherwise start none "
                             "(tests/robot_slots.py)")
+    config.addinivalue_line("markers", "lockstep: runs the robot and its modules as "
+                            "processes on the lockstep clock at --rtf max: no real-time thread, "
+                            "beside anything (tests/robot_slots.py)")
     config.addinivalue_line("markers", "offline: runs the robot on simulated time in this "
                             "process: no real-time thread, none in what it starts "
                             "(tests/robot_slots.py)")

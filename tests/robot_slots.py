@@ -81,6 +81,10 @@ REAL_TIME_MARK = "real_time"
 #: its own process (walkman.gym.offline), where nothing is real-time (a helper program it
 #: starts, such as the head camera's renderer, runs at normal priority).
 OFFLINE_MARK = "offline"
+#: The mark of a test that runs the robot and its modules as processes on the lockstep clock
+#: (walkman-hal --clock --rtf max, modules --lockstep): nothing there is real-time, and the
+#: robot waits for its modules however loaded the machine is.
+LOCKSTEP_MARK = "lockstep"
 
 
 class Share(enum.Enum):
@@ -100,7 +104,7 @@ def share_of(marks: Iterable[str], folder: str) -> Share:
     marks = set(marks)
     if machine_to_itself(marks):
         return Share.ALONE
-    if OFFLINE_MARK in marks or (folder in NO_REAL_TIME_FOLDERS
+    if OFFLINE_MARK in marks or LOCKSTEP_MARK in marks or (folder in NO_REAL_TIME_FOLDERS
                                  and REAL_TIME_MARK not in marks):
         return Share.NONE
     return Share.SHARED

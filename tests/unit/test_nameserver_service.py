@@ -104,6 +104,23 @@ def test_persistent_connection_lifecycle(service):
     assert apply(service, "subscribe").reply == ["subscriptions"]
 
 
+def test_a_break_decided_when_a_port_left_is_stale_once_it_is_back(service):
+    """A module restarted under the same names: the break queued when its old port left must
+    not cut the connection made to its new one (the connector re-checks before breaking)."""
+    apply(service, "subscribe /hal/state:o fast_tcp://m/state:i")
+    for name in ("/hal/state:o", "/m/state:i"):
+        apply(service, f"register {name}")
+        apply(service, f"announce {name}")
+    [stale] = apply(service, "unregister /m/state:i").actions
+    assert not stale.connect and not service.subscriptions.wanted(stale.source, stale.target)
+    apply(service, "register /m/state:i")
+    assert apply(service, "announce /m/state:i").actions == [
+        Action("/hal/state:o", "fast_tcp://m/state:i", True)]
+    assert service.subscriptions.wanted(stale.source, stale.target)     # the break is stale
+    apply(service, "unsubscribe /hal/state:o /m/state:i")
+    assert not service.subscriptions.wanted(stale.source, stale.target)
+
+
 def test_persistent_connection_with_carrier_and_topics(service):
     apply(service, "subscribe /a udp://b")
     for name in ("/a", "/b"):

@@ -57,6 +57,8 @@ from walkman.gym.command_life import CommandState, Receipt
 from walkman.gym.inbox_journal import InboxJournal, Predecessor, interruptions, journal_path
 from walkman.gym.interfaces import PilotCommand, PilotInterfaces, decoder_for, validity_of
 from walkman.gym.link_loss import LinkLossDecider, link_loss_of
+from walkman.gym.lockstep import LockstepSchedule
+from walkman.gym.lockstep import wanted as lockstep_wanted
 from walkman.gym.pacing import TickSchedule
 from walkman.gym.lifecycle import State, Switch
 from walkman.gym.thread import ControlThread, GenericThread
@@ -163,8 +165,13 @@ class ControlLoop(threading.Thread):
         # Only a loop on the sense -> move path is real-time (realtime.py): one that moves no
         # joint (perception's renders) runs below every robot's thread.
         moves_the_robot = getattr(runner.module_class, "needs_robot", False)
-        self.realtime = make_realtime(CONTROL_PRIORITY) if moves_the_robot else make_normal()
-        self.schedule = TickSchedule(runner.thread.thread_period, lambda: runner.robot)
+        # In lockstep the robot waits for the loop: no real-time priority is needed, and none
+        # is taken (a loop in lockstep at --rtf max would never sleep).
+        self.realtime = make_realtime(CONTROL_PRIORITY) \
+            if moves_the_robot and runner.lockstep is None else make_normal()
+        self.schedule = runner.lockstep or \
+            TickSchedule(runner.thread.thread_period, lambda: runner.robot)
+        interrupted = lambda: self.request is not None or self.exit  # noqa: E731
         paused_too = runner.thread.runs_while_paused()
         while not self.exit:
             self._serve_request()
@@ -181,6 +188,8 @@ class ControlLoop(threading.Thread):
                     self.cond.wait_for(lambda: self.request is not None or self.exit, 0.1)
                 self.schedule.restart()
                 continue
+            if runner.lockstep is not None and not runner.lockstep.round_ready(interrupted):
+                continue    # a request came before the round: served first, then the round
             try:
                 if state == State.RUNNING:
                     runner.thread.run()
@@ -217,7 +226,8 @@ class ModuleRunner:
                  heartbeat_fd: Optional[int] = None,
                  nameclient: Optional[NameClient] = None,
                  interfaces: Optional[PilotInterfaces] = None,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic,
+                 lockstep: bool = False) -> None:
         self.name = name
         self.clock = clock
         self.prefix = prefix or f"/{name}"
@@ -237,6 +247,11 @@ class ModuleRunner:
         #: Why the module cannot start (the connector gave up), or None.
         self.robot_failure: Optional[str] = None
         self.thread = self._make_thread()
+        #: In lockstep with the robot's clock (:mod:`walkman.gym.lockstep`), or None.
+        self.lockstep: Optional[LockstepSchedule] = None
+        if lockstep and getattr(module_class, "needs_robot", False):
+            self.lockstep = LockstepSchedule(self.thread.thread_period, self.prefix,
+                                             lambda: self.robot, nameclient=self.nameclient)
         self.lifecycle = Lifecycle(name, self.thread, self.interfaces, initial=initial,
                                    call_hook=self._ask_control_thread,
                                    wait_until=self._wait_until, robot=lambda: self.robot,
@@ -351,11 +366,14 @@ class ModuleRunner:
                 if self.quit_requested:
                     return
                 try:
+                    # In lockstep every round is read: the one the robot waits at must come.
                     self.robot = Robot(self.prefix,
                                        robot=str(self.config.get("robot_name", "walkman")),
                                        nameclient=self.nameclient, connect_timeout=3600,
-                                       state_interval=state_interval(self.thread.thread_period),
-                                       realtime_readers=True)
+                                       state_interval=0.0 if self.lockstep else
+                                       state_interval(self.thread.thread_period),
+                                       realtime_readers=self.lockstep is None,
+                                       lockstep=self.lockstep is not None)
                 except NetworkError as exc:
                     log.info("%s: HAL not reachable yet (%s)", self.name, exc)
                     time.sleep(CONNECT_RETRY)
@@ -370,7 +388,7 @@ class ModuleRunner:
         thread = self.thread
         if isinstance(thread, ControlThread):
             thread.robot, thread.kinematics = self.robot, self.kinematics
-            thread.clock = self.robot.clock.now
+            thread.clock = self.lockstep.now if self.lockstep else self.robot.clock.now
         self.robot_ready.set()
         self.wake.set()
 
@@ -559,6 +577,8 @@ class ModuleRunner:
 
     def close(self) -> None:
         self.loop.exit = True
+        if self.lockstep is not None:
+            self.lockstep.close()
         if self.robot is not None:
             self.robot.close()
         self.link.close()
@@ -597,6 +617,10 @@ def parse_args(argv: Optional[List[str]] = None) -> argparse.Namespace:
     parser.add_argument("--heartbeat-fd", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--no-supervisor", action="store_true",
                         help="run in this process (no restart on hang or crash)")
+    parser.add_argument("--lockstep", action="store_true",
+                        help="hold the robot's physics at each tick until it is handled "
+                             "(walkman-hal --clock; the clock YARP_CLOCK names, default "
+                             "/clock); also WALKMAN_LOCKSTEP=1")
     parser.add_argument("--verbose", action="store_true")
     return parser.parse_args(argv)
 
@@ -630,8 +654,10 @@ def run_module(argv: Optional[List[str]] = None) -> int:
             os.write(options.heartbeat_fd, SIGNALS_ARMED)
         except OSError:
             pass  # no supervisor to read it: none to pass signals on
-    sys.setswitchinterval(SWITCH_INTERVAL)
-    make_process_realtime()     # no thread holding the interpreter lock preempted (realtime.py)
+    lockstep = lockstep_wanted(options.lockstep)
+    if not lockstep:  # in lockstep the robot waits for this process: no real time needed
+        sys.setswitchinterval(SWITCH_INTERVAL)
+        make_process_realtime()  # no thread holding the interpreter lock preempted (realtime.py)
     line = f"{time_prefix()}[%(levelname)s] %(message)s"
     logging.basicConfig(level=logging.DEBUG if options.verbose else logging.INFO, format=line,
                         stream=sys.stderr)         # a user's module's own loggers
@@ -646,7 +672,8 @@ def run_module(argv: Optional[List[str]] = None) -> int:
     module_class = load_module_class(options.module)
     name = module_name(options.module)
     runner = ModuleRunner(name, module_class, config, prefix=options.name,
-                          initial=State(options.initial), heartbeat_fd=options.heartbeat_fd)
+                          initial=State(options.initial), heartbeat_fd=options.heartbeat_fd,
+                          lockstep=lockstep)
     import signal
 
     def request_quit(*_):

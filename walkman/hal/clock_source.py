@@ -1,10 +1,12 @@
-"""The HAL's clock ports: ``NAME`` (the ticks) and ``NAME/rpc`` (the ClockServer verbs).
+"""The HAL's clock ports: ``NAME`` (the ticks), ``NAME/rpc`` (the ClockServer verbs) and
+``NAME/lockstep:i`` (the modules in lockstep, :mod:`walkman.hal.lockstep`).
 
 The thin I/O layer around :mod:`walkman.hal.clock_server`.  The physics thread only posts
 the step count it reached (latest only, never blocking); one writer thread turns it into a
 tick and writes it to every follower, waiting for a slow one rather than skipping it, so
 the last tick before a pause always arrives and a follower's time ends exactly where the
-physics stopped.  Requests on ``NAME/rpc`` are answered by the port's own threads.
+physics stopped.  Requests on ``NAME/rpc`` and the members' messages are taken by the
+ports' own threads.
 """
 
 from __future__ import annotations
@@ -13,7 +15,9 @@ import logging
 import threading
 from typing import Optional
 
+from walkman.hal import lockstep
 from walkman.hal.clock_server import WAIT_SLICE_S, ClockServer, SimulationTime, StepGate
+from walkman.hal.lockstep import LockstepGate
 from yarp_lite.clock_wire import encode_tick
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
@@ -26,18 +30,23 @@ class ClockSource:
     """Ticks out on ``name``, the ClockServer on ``name/rpc`` (see the module's docstring)."""
 
     def __init__(self, name: str, gate: StepGate, time: SimulationTime,
-                 nameclient: Optional[NameClient] = None) -> None:
+                 nameclient: Optional[NameClient] = None,
+                 members: Optional[LockstepGate] = None) -> None:
         self.name = name
         self.gate = gate
         self.time = time
         self.nameclient = nameclient or NameClient()
-        self.server = ClockServer(gate, time, published=self.wait_written)
+        #: The modules in lockstep with the physics.
+        self.members = members or LockstepGate()
+        self.server = ClockServer(gate, time, on_reset=self.members.refuse_reset,
+                                  published=self.wait_written)
         self._cond = threading.Condition()
         self._pending: Optional[int] = None
         self._written = -1
         self._running = False
         self._tick_port: Optional[Port] = None
         self._rpc_port: Optional[RpcServer] = None
+        self._lockstep_port: Optional[Port] = None
         self._thread = threading.Thread(target=self._write_ticks, daemon=True,
                                         name=f"clock {name}")
         self.ticks_written = 0
@@ -46,6 +55,8 @@ class ClockSource:
         self._tick_port = Port(nameclient=self.nameclient).open(self.name)
         self._rpc_port = RpcServer(nameclient=self.nameclient, handler=self._answer)
         self._rpc_port.open(f"{self.name}/rpc")
+        self._lockstep_port = Port(nameclient=self.nameclient, reader=self.members.receive)
+        self._lockstep_port.open(lockstep.port_name(self.name))
         self._running = True
         self._thread.start()
         self.post(self.gate.taken)          # the first tick: followers start at once
@@ -94,6 +105,7 @@ class ClockSource:
             self._cond.notify_all()
         if self._thread.is_alive():
             self._thread.join(timeout=2.0)
-        for port in (self._rpc_port, self._tick_port):
+        self.members.close()
+        for port in (self._lockstep_port, self._rpc_port, self._tick_port):
             if port is not None:
                 port.close()

@@ -45,6 +45,11 @@ from typing import List, Sequence, Tuple
 from yarp_lite.bottle import Bottle
 
 
+#: The F/T sensors and the IMU stream every this much robot time (s), on the robot steps
+#: that are whole multiples of it.
+SENSOR_PERIOD_S = 0.01
+
+
 class HalError(Exception):
     """Base of the HAL's errors."""
 

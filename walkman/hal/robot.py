@@ -190,8 +190,13 @@ class Robot(WholeBody):
     def __init__(self, owner: str, robot: str = "walkman", model: Optional[RobotModel] = None,
                  nameclient: Optional[NameClient] = None, connect_timeout: float = 30.0,
                  carrier: str = "fast_tcp", state_interval: float = 0.0,
-                 realtime_readers: bool = False, sensors: bool = True) -> None:
+                 realtime_readers: bool = False, sensors: bool = True,
+                 lockstep: bool = False) -> None:
         self.owner = owner.rstrip("/")
+        #: In lockstep with the robot's clock (:mod:`walkman.gym.lockstep`): joints are switched
+        #: to position direct inside ``move``, before the command, so the first tick's command
+        #: is never refused for a mode on its way (a race the physics would remember).
+        self.lockstep = lockstep
         #: False: the force/torque sensors and the IMU are not read (a client that shows only
         #: joints, such as ``walkman-joint-state``, spares three 100-Hz streams).
         self.sensors = sensors
@@ -225,6 +230,10 @@ class Robot(WholeBody):
         self._bad_whole = Burst()
         self._ft: Dict[str, np.ndarray] = {}
         self._imu: Optional[Tuple[List[float], List[float], List[float]]] = None
+        #: the robot time each sensor's newest reading is stamped with (our HAL on a clock)
+        self._sensor_times: Dict[str, float] = {}
+        self._round_time = -math.inf    # the robot time of the newest round (our HAL's)
+        self._commanded: List[str] = []   # chains written to since take_commanded, once a write
         self.chains: Dict[str, List[int]] = {}
         self._state_readers: List[BufferedPort] = []    # their intervals: read_idle
         self._sensor_readers: List[BufferedPort] = []
@@ -311,12 +320,14 @@ class Robot(WholeBody):
     def _read_sensors(self) -> None:
         for sensor in (s.name for s in self.model.sensors if s.kind == "ft"):
             port = BufferedPort(nameclient=self.nameclient,
-                                on_read=lambda b, sensor=sensor: self._on_ft(sensor, b))
+                                on_read=None)
+            port.on_read = lambda b, sensor=sensor, port=port: self._on_ft(sensor, b, port.envelope)
             port.open(f"{self.owner}/robot/{sensor}:i")
             self._ports.append(port)
             self._sensor_readers.append(port)
             self._persist(protocol.ft_port_name(self.robot, sensor), port.name, stream=True)
-        imu = BufferedPort(nameclient=self.nameclient, on_read=self._on_imu)
+        imu = BufferedPort(nameclient=self.nameclient)
+        imu.on_read = lambda b: self._on_imu(b, imu.envelope)
         imu.open(f"{self.owner}/robot/inertial:i")
         self._ports.append(imu)
         self._sensor_readers.append(imu)
@@ -440,7 +451,10 @@ class Robot(WholeBody):
                 # A robot back from silence, or restarted (its count went back), may have
                 # booted our joints in another mode; so may anyone who changed their modes.
                 lost = [k for k in link.direct if modes[k] != "posd"] if modes is not None else []
-                if now - link.seen_at > STALE_AFTER or seq < link.seq or lost:
+                # In lockstep a gap in the wall clock is the machine's, not the robot's: only
+                # a count that went back says it restarted.
+                stale = now - link.seen_at > STALE_AFTER and not self.lockstep
+                if stale or seq < link.seq or lost:
                     link.direct.difference_update(lost if lost else set(link.direct))
                     if link.wanted - link.direct:
                         self._mode_wanted.set()
@@ -455,6 +469,8 @@ class Robot(WholeBody):
             self._updated = now
             if all(other.seen_at > self.newest_round for other in self._links.values()):
                 self._rounds.round(now, seq, robot_time)
+                if robot_time is not None:
+                    self._round_time = robot_time
                 self._round.notify_all()
 
     def _poll_temperatures(self) -> None:
@@ -488,9 +504,19 @@ class Robot(WholeBody):
             log.info("%s: %s %s: %s", self.owner, link.rpc, Bottle(request).to_text(), why)
         return None
 
-    def _on_ft(self, sensor: str, bottle: Bottle) -> None:
+    def _on_ft(self, sensor: str, bottle: Bottle, envelope: str = "") -> None:
         if len(bottle) >= 6:
             self._ft[sensor] = np.array([float(v) for v in bottle[:6]])
+            self._sensor_read(sensor, envelope)
+
+    def _sensor_read(self, sensor: str, envelope: str) -> None:
+        if not self.lockstep:
+            return
+        stamp = controlboard.Stamp.from_envelope(envelope)
+        if stamp is not None:
+            with self._round:
+                self._sensor_times[sensor] = stamp.time
+                self._round.notify_all()
 
     def _on_hal_warning(self, bottle: Bottle) -> None:
         """Keep what the HAL says about this module's own commands (arbitration, and
@@ -510,11 +536,13 @@ class Robot(WholeBody):
             warnings, self._hal_warnings = self._hal_warnings, []
         return warnings
 
-    def _on_imu(self, bottle: Bottle) -> None:
+    def _on_imu(self, bottle: Bottle, envelope: str = "") -> None:
         try:
             self._imu = protocol.decode_inertial(bottle)
         except HalProtocolError as exc:
             log.warning("%s: bad inertial message: %s", self.owner, exc)
+            return
+        self._sensor_read("inertial", envelope)
 
     # -- sensing ------------------------------------------------------------------------------
 
@@ -542,6 +570,45 @@ class Robot(WholeBody):
             if self.newest_round <= after and timeout > 0:
                 self._round.wait_for(lambda: self.newest_round > after, timeout)
             return self.newest_round if self.newest_round > after else None
+
+    @property
+    def round_time(self) -> float:
+        """The robot time of the newest whole round (our HAL's states say it; -inf: none)."""
+        return self._round_time
+
+    def wait_round_at(self, at_least: float, timeout: float) -> bool:
+        """Wait until a round of robot time ``at_least`` or later is here, with the sensor
+        readings streamed at its step (a module in lockstep: :mod:`walkman.gym.lockstep`);
+        False if not within ``timeout``."""
+        with self._round:
+            return self._round.wait_for(lambda: self._whole_round_at(at_least), timeout)
+
+    def _whole_round_at(self, at_least: float) -> bool:
+        """(lock held) The round is here, and each sensor's newest reading is the one of its
+        step (sensors stream on the steps that are whole multiples of their period)."""
+        now = self._round_time
+        if now < at_least - 1e-6:
+            return False
+        if not self.sensors or self.standard:
+            return True
+        oldest = now - protocol.SENSOR_PERIOD_S + 1e-4
+        names = [s.name for s in self.model.sensors if s.kind == "ft"] + ["inertial"]
+        return all(self._sensor_times.get(name, -math.inf) >= oldest for name in names)
+
+    def lockstep_view(self) -> str:
+        """What a module in lockstep has of the robot, for a log line when a round is late."""
+        with self._lock:
+            sensors = ", ".join(f"{name} {when:.4f}" for name, when in
+                                sorted(self._sensor_times.items()))
+            return (f"newest round {self._round_time:.4f} s (count {self.last_seq}), "
+                    f"sensors at {sensors or 'none yet'}")
+
+    def take_commanded(self) -> List[str]:
+        """The chains ``move`` wrote to since the last call, one per command written (a
+        lockstep tick names them)."""
+        with self._lock:
+            chains, self._commanded = self._commanded, []
+        return chains
 
     def sense_position(self) -> np.ndarray:
         with self._lock:
@@ -595,8 +662,8 @@ class Robot(WholeBody):
         if mode != "pos":
             raise HalUsageError(f"move streams positions (mode 'pos'), not {mode!r}")
         values = self.check(q)
-        if not self.connected:
-            return False
+        if not self.connected and not self.lockstep:  # in lockstep: the round it handles
+            return False                              # is the robot's word that it is there
         selected = None if joints is None else {self.index[name] for name in joints}
         sent = True
         for chain, link in self._links.items():
@@ -607,12 +674,19 @@ class Robot(WholeBody):
             if not link.wanted.issuperset(mine) or not link.direct.issuperset(mine):
                 with self._lock:
                     link.wanted.update(mine)
-                self._mode_wanted.set()  # the mode keeper switches them; we stream meanwhile
+                if self.lockstep:
+                    self._switch_modes(link)
+                else:
+                    self._mode_wanted.set()  # the mode keeper switches them; we stream meanwhile
             refs = np.degrees(values[[link.indices[k] for k in mine]])
             bottle = controlboard.encode_stream(
                 "direct", refs, None if len(mine) == len(link.indices) else mine,
                 self.last_seq or None)
-            sent = link.command.write(bottle) and sent
+            written = link.command.write(bottle)
+            if written and self.lockstep:
+                with self._lock:
+                    self._commanded.append(chain)
+            sent = written and sent
         return sent
 
     def _keep_modes(self) -> None:
@@ -622,15 +696,23 @@ class Robot(WholeBody):
             self._mode_wanted.wait(1.0)
             self._mode_wanted.clear()
             for link in list(self._links.values()):
-                with self._lock:
-                    joints = sorted(link.wanted - link.direct)
-                if not joints or self._stop.is_set():
-                    continue
-                reply = self._rpc(link, [Vocab("set"), Vocab("icmd"), Vocab("cmog"), len(joints),
-                                         Bottle(joints), Bottle(Vocab("posd") for _ in joints)])
-                if reply is not None:
-                    with self._lock:
-                        link.direct.update(joints)
-                else:
+                if self._stop.is_set():
+                    break
+                if not self._switch_modes(link):
                     self._stop.wait(1.0)  # refused or away: ask again in a second
                     self._mode_wanted.set()
+
+    def _switch_modes(self, link: _ChainLink) -> bool:
+        """Ask for position direct on the joints of ``link`` we command and it has not
+        switched; False if refused or the robot is away."""
+        with self._lock:
+            joints = sorted(link.wanted - link.direct)
+        if not joints:
+            return True
+        reply = self._rpc(link, [Vocab("set"), Vocab("icmd"), Vocab("cmog"), len(joints),
+                                 Bottle(joints), Bottle(Vocab("posd") for _ in joints)])
+        if reply is None:
+            return False
+        with self._lock:
+            link.direct.update(joints)
+        return True

@@ -52,6 +52,7 @@ from walkman.hal.clock_server import SimulationTime, StepGate, parse_rtf
 from walkman.hal.clock_source import ClockSource
 from walkman.hal.config import HalConfig, load_config
 from walkman.hal.controlboard import ControlBoardError, JointData, Stamp
+from walkman.hal.lockstep import DEFAULT_TIMEOUT, HEARTBEAT_S, LockstepGate
 from walkman.hal.protocol import ChainState
 from walkman.hal.robot_rpc import RobotWordError
 from walkman.inifile import IniError
@@ -70,7 +71,7 @@ from yarp_lite.rpc import RpcServer
 
 log = logging.getLogger("walkman.hal")
 
-SENSOR_PERIOD_S = 0.01
+SENSOR_PERIOD_S = protocol.SENSOR_PERIOD_S
 WORLD_PERIOD_S = 1.0 / 30
 BATTERY_STEP_S = 0.01        # the battery drains by the power of each 10 ms
 BATTERY_PERIOD_S = 1.0       # batteryWrapper's default period
@@ -124,7 +125,10 @@ class Publisher(threading.Thread):
                     return
                 batch, self.pending = list(self.pending.values()), {}
             for port, bottle, envelope in batch:
-                port.write(bottle, envelope, skip_busy=True)  # a slow reader misses a state
+                # A slow reader misses a state.  A module in lockstep reads on fast_tcp (no
+                # acknowledgement to wait for): it gets the round the physics holds at, and if
+                # not, the heartbeat brings it (walkman.hal.lockstep).
+                port.write(bottle, envelope, skip_busy=True)
                 self.sent += 1
 
     def stop(self) -> None:
@@ -137,7 +141,8 @@ class HalServer:
     def __init__(self, backend: Backend, config: HalConfig,
                  nameclient: Optional[NameClient] = None, realtime: bool = True,
                  battery: Optional[Battery] = None, clock: Optional[str] = None,
-                 rtf: Optional[float] = 1.0) -> None:
+                 rtf: Optional[float] = 1.0, paused: bool = False,
+                 lockstep_timeout: float = DEFAULT_TIMEOUT) -> None:
         self.backend = backend
         self.battery = battery or Battery()
         self.battery_port: Optional[Port] = None
@@ -153,10 +158,15 @@ class HalServer:
         self.realtime = realtime and rtf is not None
         #: Pauses and counted steps (``/clock/rpc``); open unless a clock client pauses it.
         self.gate = StepGate()
+        if paused:
+            self.gate.pause()                     # as Gazebo's -u: until continueSimulation
         self.clock: Optional[ClockSource] = None
+        #: The modules in lockstep (:mod:`walkman.hal.lockstep`); None without a clock.
+        self.members: Optional[LockstepGate] = None
         if clock is not None:
+            self.members = LockstepGate(lockstep_timeout)
             self.clock = ClockSource(clock, self.gate, SimulationTime(backend.dt),
-                                     self.nameclient)
+                                     self.nameclient, self.members)
         self._harness: Optional[str] = None  # asked over rpc, applied by the physics thread
         self._station: Optional[str] = None  # likewise
         self.arbiter = JointArbiter(backend.joint_names, config.policy, config.priorities,
@@ -178,6 +188,9 @@ class HalServer:
         self.warning_port: Optional[Port] = None
         self._warning_seq = 1
         self.publisher = Publisher(self.realtime)
+        #: The last round's and sensors' messages, port by port: what a held or paused robot
+        #: repeats (:meth:`_heartbeat`).
+        self._last_out: Dict[int, Tuple[Port, Bottle, str]] = {}
         self.running = False
         # When each state seq went out, as a ring indexed by seq (written by the loop,
         # read by command readers without a lock: one float store, no iteration).
@@ -280,8 +293,10 @@ class HalServer:
             make_realtime_once(PATH_PRIORITY)
         try:
             command = controlboard.decode_stream(bottle, chain.axes())
-            chain.command(command.what, command.joints, command.values,
-                          owner_of(source) if source else "?", command.seq)
+            owner = owner_of(source) if source else "?"
+            chain.command(command.what, command.joints, command.values, owner, command.seq)
+            if self.members is not None:
+                self.members.commanded(owner, chain.name, command.seq)
         except ControlBoardError as exc:
             burst = self._malformed[chain.name]
             if burst.record():
@@ -387,47 +402,68 @@ class HalServer:
         for chain in self.chains.values():
             chain.step(self.backend.dt)
 
-    def _publish_state(self) -> None:
-        """Every chain's state, as YARP's wrapper streams it and in SI for the bridge."""
+    def _stamp_time(self) -> float:
+        """The time in a stream's envelope: the simulated time on a clock, as Gazebo's
+        devices stamp theirs, else the wall clock's, as YARP's wrapper stamps."""
+        return self.backend.time if self.clock is not None else time.time()
+
+    def _send(self, port: Port, bottle: Bottle, envelope: str = "") -> None:
+        self.publisher.publish(port, bottle, envelope)
+        if self.clock is not None:
+            self._last_out[id(port)] = (port, bottle, envelope)
+
+    def _heartbeat(self) -> None:
+        """While paused or held: the last round and sensors again, as they were (same count,
+        same time), so that no client takes the robot for a dead one."""
+        for port, bottle, envelope in list(self._last_out.values()):
+            if port.has_outputs:
+                self.publisher.publish(port, bottle, envelope)
+        self.publisher.flush()
+
+    def _publish_state(self, every_port: bool = False) -> None:
+        """Every chain's state, as YARP's wrapper streams it and in SI for the bridge;
+        ``every_port``: also where nobody reads yet (the first, which a robot started paused
+        repeats to the clients that connect meanwhile)."""
         backend = self.backend
-        envelope = self.state_stamp.update(time.time()).envelope()
+        envelope = self.state_stamp.update(self._stamp_time()).envelope()
         seq = self.state_stamp.count
         self.published_at[seq % PUBLISHED_HISTORY] = time.perf_counter()
-        if not any(port.has_outputs for port in self._state_ports):
+        if not every_port and not any(port.has_outputs for port in self._state_ports):
             return      # nobody reads a state: none is made (an idle HAL's every other tick)
         q, qdot, tau = backend.positions(), backend.velocities(), backend.torques()
         temperature = backend.temperatures()
-        if self.whole_state_port is not None and self.whole_state_port.has_outputs:
+        if self.whole_state_port is not None and \
+                (every_port or self.whole_state_port.has_outputs):
             every = self.whole_indices
-            self.publisher.publish(self.whole_state_port, protocol.encode_whole_state(ChainState(
+            self._send(self.whole_state_port, protocol.encode_whole_state(ChainState(
                 seq, backend.time, q[every].tolist(), qdot[every].tolist(), tau[every].tolist(),
                 temperature[every].tolist()), self.whole_joints))
         for chain in self.chains.values():
             idx, ports = chain.indices, self.chain_ports[chain.name]
-            if ports["state_si"].has_outputs:
+            if every_port or ports["state_si"].has_outputs:
                 state = ChainState(seq, backend.time, q[idx].tolist(), qdot[idx].tolist(),
                                    tau[idx].tolist(), temperature[idx].tolist())
-                self.publisher.publish(ports["state_si"], protocol.encode_state_si(state))
+                self._send(ports["state_si"], protocol.encode_state_si(state))
             q_deg = np.degrees(q[idx])
-            if ports["state_ext"].has_outputs:
+            if every_port or ports["state_ext"].has_outputs:
                 data = JointData(tuple(q_deg.tolist()), tuple(np.degrees(qdot[idx]).tolist()),
                                  None, tuple(tau[idx].tolist()),
                                  tuple(chain.control_modes()),
                                  tuple(chain.interaction_modes()))
-                self.publisher.publish(ports["state_ext"],
-                                       controlboard.encode_joint_data(data, len(idx)), envelope)
-            if ports["state"].has_outputs:
-                self.publisher.publish(ports["state"], Bottle(q_deg.tolist()), envelope)
+                self._send(ports["state_ext"], controlboard.encode_joint_data(data, len(idx)),
+                           envelope)
+            if every_port or ports["state"].has_outputs:
+                self._send(ports["state"], Bottle(q_deg.tolist()), envelope)
 
-    def _publish_sensors(self) -> None:
-        envelope = self.sensor_stamp.update(time.time()).envelope()
+    def _publish_sensors(self, every_port: bool = False) -> None:
+        envelope = self.sensor_stamp.update(self._stamp_time()).envelope()
         for sensor, port in self.ft_ports.items():
-            if port.has_outputs:
+            if every_port or port.has_outputs:
                 wrench = self.ft_offsets[sensor].apply(self.backend.ft(sensor))
-                self.publisher.publish(port, protocol.encode_ft(wrench), envelope)
-        if self.imu_port is not None and self.imu_port.has_outputs:
+                self._send(port, protocol.encode_ft(wrench), envelope)
+        if self.imu_port is not None and (every_port or self.imu_port.has_outputs):
             imu = self.backend.imu()
-            self.publisher.publish(self.imu_port, protocol.encode_inertial(
+            self._send(self.imu_port, protocol.encode_inertial(
                 imu.rpy, imu.acceleration, imu.gyro), envelope)
 
     def _drain_battery(self, dt: float) -> None:
@@ -476,9 +512,18 @@ class HalServer:
         next_status = self.started_at + STATUS_PERIOD_S
         paced = self.realtime and self.rtf is not None
         step_wall = backend.dt / self.rtf if self.rtf else 0.0   # wall seconds per step
+        if self.clock is not None:   # the first round and sensors, repeated while paused
+            self._publish_state(every_port=True)
+            self._publish_sensors(every_port=True)
+            self.publisher.flush()
+        next_beat = self.started_at
+        still_running = lambda: self.running  # noqa: E731
         while self.running:
-            if not self.gate.may_step():          # paused by /clock/rpc
+            if not self.gate.may_step():          # paused by /clock/rpc (or from the start)
                 deadline = time.perf_counter()    # resumed later: no burst to catch up
+                if deadline > next_beat:
+                    self._heartbeat()
+                    next_beat = deadline + HEARTBEAT_S
                 if deadline > next_status:
                     self._log_status()
                     next_status = deadline + STATUS_PERIOD_S
@@ -499,6 +544,10 @@ class HalServer:
             if self.steps % battery_out_every == 0:
                 self._publish_battery()
             self.publisher.flush()
+            if self.members is not None and self.steps % state_every == 0:
+                self.members.hold(backend.time, still_running, self._heartbeat)
+            # After the hold: a follower's time, and stepSimulationAndWait's return, come
+            # once the modules in lockstep have handled the round.
             if self.clock is not None and (self.steps % burst == 0 or self.gate.paused):
                 self.clock.post(self.gate.taken)  # each wake-up's time; each counted step's
             for event in getattr(backend, "events", []):
@@ -529,9 +578,12 @@ class HalServer:
                  "real_time_factor": round(self.backend.time / wall, 3),
                  "overruns": self.overruns, "max_step_ms": round(self.max_step_s * 1e3, 3),
                  "messages_sent": self.publisher.sent}
-        if self.clock is not None:
+        if self.clock is not None and self.members is not None:
             stats["simulated_time"] = round(self.clock.server.now(), 6)
             stats["paused"] = self.gate.held
+            stats["lockstep_members"] = len(self.members.members)
+            stats["lockstep_held_s"] = round(self.members.held_s, 3)
+            stats["lockstep_timeouts"] = self.members.dropped
         if latencies:
             stats["sense_to_move_median_ms"] = round(latencies[len(latencies) // 2] * 1e3, 3)
             stats["sense_to_move_p99_ms"] = round(latencies[int(len(latencies) * 0.99)] * 1e3, 3)
@@ -570,6 +622,16 @@ def _rtf_argument(text: str) -> Optional[float]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _seconds_argument(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not 0.01 <= value <= 3600:
+        raise argparse.ArgumentTypeError(f"{text!r}: between 0.01 and 3600 s")
+    return value
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="walkman-hal", description=__doc__.split("\n\n")[0])
     parser.add_argument("--backend", choices=["sim", "ethercat"], default="sim",
@@ -598,8 +660,16 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--rtf", type=_rtf_argument, default=1.0, metavar="X|max",
                         help="keep simulated time at X times real time (default 1), or 'max': "
                              "as fast as the machine allows")
+    parser.add_argument("--paused", action="store_true",
+                        help="start paused, as gazebo -u (needs --clock): the physics waits "
+                             "for NAME/rpc's continueSimulation or stepSimulation")
+    parser.add_argument("--lockstep-timeout", type=_seconds_argument, default=DEFAULT_TIMEOUT,
+                        metavar="S", help="a module in lockstep that has not handled its round "
+                        f"after S wall seconds leaves the barrier (default {DEFAULT_TIMEOUT:g})")
     parser.add_argument("--verbose", action="store_true")
     options = parser.parse_args(argv)
+    if options.paused and options.clock is None:
+        parser.error("--paused needs --clock: without NAME/rpc nothing could continue it")
     if options.clock is not None and not is_valid_port_name(options.clock):
         parser.error(f"--clock {options.clock!r}: a YARP port name starts with '/', has no "
                      f"space and does not end with '/'")
@@ -623,7 +693,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         parser.error(str(exc))
     backend = make_backend(options.backend, options.scene == "drc", options.harness,
                            options.thermal_speedup, options.station)
-    server = HalServer(backend, config, battery=battery, clock=options.clock, rtf=options.rtf)
+    server = HalServer(backend, config, battery=battery, clock=options.clock, rtf=options.rtf,
+                       paused=options.paused, lockstep_timeout=options.lockstep_timeout)
     # Ctrl-C too, explicitly: a program started in the background of a script inherits SIGINT
     # ignored, and Python then never raises KeyboardInterrupt.
     for stop in (signal.SIGTERM, signal.SIGINT):

@@ -129,6 +129,9 @@ class Connector:
                 raise YarpError(outcome.message)
             log.info("   (connected %s -> %s)", action.source, action.target)
         elif carrier is not None:
+            if self.service.subscriptions.wanted(action.source, action.target):
+                log.info("   (kept %s -> %s: both ends are back)", action.source, action.target)
+                return
             network.disconnect(action.source, action.target, resolve=self._resolve)
 
 

@@ -80,6 +80,19 @@ class Subscriptions:
             return self._check(src_name, dest_name, src, dest, mode, lookup)
         return self.hookup(dest_name if src_carrier == "topic" else src_name, lookup)
 
+    def wanted(self, src: str, dest: str) -> bool:
+        """Whether a subscription asks for ``src -> dest`` and both ports are alive now.  A
+        break decided when one of them left is stale once it is back (a module restarted
+        under the same names): applied late, it would cut the new process's connection."""
+        src_name, dest_name = split_name(src)[1], split_name(dest)[1]
+        with self.lock:
+            row = self.db.execute(
+                "SELECT 1 FROM subscriptions WHERE src = ? AND dest = ? "
+                "AND EXISTS (SELECT NULL FROM live WHERE name = ?) "
+                "AND EXISTS (SELECT NULL FROM live WHERE name = ?)",
+                (src_name, dest_name, src_name, dest_name)).fetchone()
+        return row is not None
+
     def remove(self, src: str, dest: str) -> bool:
         with self.lock:
             cursor = self.db.execute("DELETE FROM subscriptions WHERE src = ? AND dest = ?",
