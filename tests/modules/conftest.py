@@ -5,6 +5,8 @@ import pytest
 from tests.modules.scene import World
 from tests.walkman.test_gym_hal import Pilot, start_hal, start_module
 from walkman.gym.runner import load_module_class
+from yarp_lite.bottle import Vocab
+from yarp_lite.rpc import RpcClient
 
 
 class Task:
@@ -23,21 +25,39 @@ class Task:
         self.pilot.close()
 
 
+#: The HAL's and each module's options in a test marked ``lockstep``: the robot as fast as the
+#: machine goes, started paused until the first module has joined its clock.
+LOCKSTEP_HAL = ("--clock", "--rtf", "max", "--paused")
+LOCKSTEP_MODULE = ("--lockstep",)
+
+
 @pytest.fixture
-def task_at(lite_world, lite):
+def task_at(lite_world, lite, request):
     """``task_at(station, module)``: HAL at a station of the scene, the module started
-    (``task.hal`` is the HAL's process: its log says what the simulated world did)."""
+    (``task.hal`` is the HAL's process: its log says what the simulated world did).  In a
+    test marked ``lockstep`` the robot runs on the lockstep clock at ``--rtf max`` and every
+    module joins it (walkman/gym/lockstep.py): the test no longer needs the machine alone."""
     made = []
     hals = []
+    lockstep = request.node.get_closest_marker("lockstep") is not None
 
     def start(station: str, name: str, *hal_options: str) -> Task:
         if not made:
-            hals.append(start_hal(lite_world, "sim", "--station", station, *hal_options))
+            hals.append(start_hal(lite_world, "sim", "--station", station, *hal_options,
+                                  *(LOCKSTEP_HAL if lockstep else ())))
             made.append(World())
-        start_module(lite_world, name).wait_for("ready for the pilot", timeout=60)
+        start_module(lite_world, name, *(LOCKSTEP_MODULE if lockstep else ())).wait_for(
+            "ready for the pilot", timeout=60)
         task = Task(lite_world, lite, name, made[0], hals[0])
         made.append(task)
         task.send("switch", "start")
+        if lockstep and len(made) == 2:    # the first module: the robot waited for it
+            hals[0].wait_for(f"lockstep: /{name} joined", timeout=60)
+            clock = RpcClient(target="/clock/rpc")
+            try:
+                assert clock.call(["continueSimulation"]) == [Vocab("done")]
+            finally:
+                clock.close()
         task.pilot.wait_state("idle", 30)
         return task
 

@@ -592,7 +592,7 @@ def test_a_metre_with_a_pause_on_the_way_as_processes(task_at):
         assert scene.tilt() < MAX_TILT and abs(scene.base()[2] - height) < 0.02
 
 
-@pytest.mark.free_standing
+@pytest.mark.lockstep
 def test_a_step_up_sent_too_far_from_the_kerb_is_put_back_as_processes(task_at):
     """The main job's fall (issue 32), as it happened: HAL, module and pilot as processes,
     ``step_up 0.05`` straight from station terrain.  The pilot is told the heel found no
@@ -634,7 +634,7 @@ def push(impulse: Tuple[float, float, float]) -> str:
         client.close()
 
 
-@pytest.mark.free_standing
+@pytest.mark.lockstep
 def test_turns_side_steps_and_a_push_standing_as_processes(task_at):
     walk = task_at("yard", "walking", "--harness", "off")
     scene = walk.scene
@@ -687,7 +687,7 @@ def pilot_pose(command: str, point: np.ndarray, base, *extra: float) -> str:
             f"{rel[2]:.3f} 0 0 {-yaw:.3f} " + " ".join(f"{v:g}" for v in extra))
 
 
-@pytest.mark.free_standing
+@pytest.mark.lockstep
 def test_the_door_sequence_unsupported_as_processes(task_at):
     """Paper, section 3.3: walking paused and resumed around the door module, no harness."""
     walk = task_at("door_far", "walking", "--harness", "off")
@@ -722,7 +722,7 @@ def test_the_door_sequence_unsupported_as_processes(task_at):
     assert scene.tilt() < MAX_TILT
 
 
-@pytest.mark.free_standing
+@pytest.mark.lockstep
 def test_the_valve_is_turned_standing_unsupported_as_processes(task_at):
     """Walking balances the legs while paused; drc_valve has the waist and the arms."""
     walk = task_at("valve", "walking", "--harness", "off")
