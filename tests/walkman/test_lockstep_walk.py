@@ -23,7 +23,6 @@ from tests.walkman.test_gym_hal import Pilot, start_hal, start_module
 from walkman.gym.runner import load_module_class
 from walkman.hal import protocol
 from walkman.model import SCENE_PATH
-from walkman.modules import walking
 from yarp_lite.bottle import Bottle
 from yarp_lite.bottle_text import parse
 from yarp_lite.buffered_port import BufferedPort

@@ -14,7 +14,9 @@ Three threads:
 * the **control thread** calls ``run()`` every ``thread_period`` while
   running, and performs the hooks (``custom_init``, ``custom_pause``...) on
   the watchdog's request, between two ``run()`` calls, so user code is never
-  re-entered;
+  re-entered.  Its ticks follow the robot's state rounds
+  (:mod:`walkman.gym.pacing`), or, with ``--lockstep``, the robot waits for each
+  of them (:mod:`walkman.gym.lockstep`);
 * the **connector** finds the HAL (whole-body interface) in the background, so
   the module starts before the HAL and says "waiting_hal" meanwhile.  Only a
   :class:`~yarp_lite.errors.NetworkError` means "not there yet" and is retried;
