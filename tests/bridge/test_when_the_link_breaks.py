@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import re
 import time
+from contextlib import contextmanager
+from typing import Sequence, Tuple
 
 import pytest
 
-from bridge_harness import PYTHON, TwoPCs
+from bridge_harness import TwoPCs
 from harness import wait_until
 from pilot_side import bridge_status, executed, exists, switch, wait_nothing_in_flight
 from test_emulated_network import link, pcs  # noqa: F401 -- the emulated hosts, as fixtures
@@ -137,12 +139,12 @@ def latest_state(pcs, module: str) -> str:
     return echo.output()
 
 
-@pytest.mark.two_pcs
-def test_a_stop_all_at_30_percent_loss_holds_every_module_and_the_hal(tmp_path, lite, link,
-                                                                       monkeypatch):
+@contextmanager
+def linked_for_a_stop(tmp_path, lite, link, modules: Sequence[Tuple[str, ...]] = ()):
+    """Both PCs for a stop-all: the robot's HAL and ``modules`` (each ``(name, module
+    arguments...)``), the bridges linked over ``link`` at no loss, the pilot's gateway up."""
     config = tmp_path / "bridge.xml"
     config.write_text(STOP_CONFIG)
-    monkeypatch.setenv("COUNTER_LOG", str(tmp_path / "executed.log"))
     pcs = TwoPCs(tmp_path, lite, config, link=link)
     try:
         link.apply("drc", loss=0)
@@ -150,11 +152,9 @@ def test_a_stop_all_at_30_percent_loss_holds_every_module_and_the_hal(tmp_path, 
         pcs.start_roscore(pcs.pilot)
         pcs.robot.python("-m", "walkman.hal.server", "--backend", "sim",
                          name="hal").wait_for("HAL for walkman", 60)
-        modules = [pcs.robot.python("-m", "walkman.gym.supervisor", "witness",
-                                    "--name", "/counter", name="counter"),
-                   pcs.robot.python("-m", "walkman.gym.supervisor", "gaze_control",
-                                    name="gaze_control")]
-        for module in modules:
+        started = [pcs.robot.python("-m", "walkman.gym.supervisor", *arguments, name=name)
+                   for name, *arguments in modules]
+        for module in started:
             module.wait_for("ready for the pilot", 90)
         pcs.start_bridge(pcs.robot)
         pcs.start_bridge(pcs.pilot)
@@ -162,6 +162,17 @@ def test_a_stop_all_at_30_percent_loss_holds_every_module_and_the_hal(tmp_path, 
         gateway = pcs.pilot.python("-m", "rosnodes.gateway", "--config", str(config),
                                    "--link", "bridge", name="gateway")
         gateway.wait_for("ROS topics and services up", 60)
+        yield pcs
+    finally:
+        pcs.close()
+
+
+@pytest.mark.two_pcs
+def test_a_stop_all_at_30_percent_loss_holds_every_module_and_the_hal(tmp_path, lite, link,
+                                                                       monkeypatch):
+    monkeypatch.setenv("COUNTER_LOG", str(tmp_path / "executed.log"))
+    modules = [("counter", "witness", "--name", "/counter"), ("gaze_control", "gaze_control")]
+    with linked_for_a_stop(tmp_path, lite, link, modules) as pcs:
         for module in ("counter", "gaze_control"):
             started = pcs.pilot.start(["rosservice", "call", f"/{module}/switch_and_wait",
                                        "{command: start, timeout: 30}"], f"start {module}")
@@ -193,39 +204,23 @@ def test_a_stop_all_at_30_percent_loss_holds_every_module_and_the_hal(tmp_path, 
         release = pcs.pilot.start(["rosservice", "call", "/pilot/release"], "release")
         assert release.wait(60) == 0 and "ok: True" in release.output(), release.output()
         assert hal_halt(pcs, lite) == "off"
-    finally:
-        pcs.close()
 
 
 @pytest.mark.two_pcs
 def test_a_stop_all_gets_through_by_udp_alone_at_30_percent_loss(tmp_path, lite, link):
     """The stop goes out on TCP and as datagram copies: with every TCP segment across the
     radio dropped, the copies alone must halt the robot, at 30 % loss."""
-    config = tmp_path / "bridge.xml"
-    config.write_text(STOP_CONFIG)
-    pcs = TwoPCs(tmp_path, lite, config, link=link)
-    try:
-        link.apply("drc", loss=0)
-        pcs.start_name_servers()
-        pcs.start_roscore(pcs.pilot)
-        pcs.robot.python("-m", "walkman.hal.server", "--backend", "sim",
-                         name="hal").wait_for("HAL for walkman", 60)
-        pcs.start_bridge(pcs.robot)
-        pcs.start_bridge(pcs.pilot)
-        pcs.wait_linked()
-        gateway = pcs.pilot.python("-m", "rosnodes.gateway", "--config", str(config),
-                                   "--link", "bridge", name="gateway")
-        gateway.wait_for("ROS topics and services up", 60)
+    with linked_for_a_stop(tmp_path, lite, link) as pcs:
         halted = lambda: hal_halt(pcs, lite) == "on"  # noqa: E731
         assert not halted()
-        link.block_tcp(True)
-        link.set_loss(30)
-        stop = pcs.pilot.start(["rosservice", "call", "/pilot/stop_all"], "stop all")
-        wait_until(halted, 30, message="the HAL halted by the stop's datagrams alone")
-        assert link.tcp_dropped() > 0, "nothing tried the blocked TCP path: not a test of it"
-        stop.wait(90)
-        link.block_tcp(False)
-        link.set_loss(0)
-    finally:
-        link.block_tcp(False)
-        pcs.close()
+        try:
+            link.block_tcp(True)
+            link.set_loss(30)
+            stop = pcs.pilot.start(["rosservice", "call", "/pilot/stop_all"], "stop all")
+            wait_until(halted, 30, message="the HAL halted by the stop's datagrams alone")
+            assert link.tcp_dropped() > 0, \
+                "nothing tried the blocked TCP path: not a test of it"
+            stop.wait(90)
+        finally:
+            link.block_tcp(False)
+            link.set_loss(0)
