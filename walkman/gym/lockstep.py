@@ -74,13 +74,8 @@ class LockstepSchedule:
         self.owner = owner
         self._robot = robot
         self.clock = clock or clock_name()
-        self.port = Port(nameclient=nameclient).open(f"{owner}/lockstep:o")
-        nameclient = nameclient or NameClient()
-        # Persistent: a HAL that starts after the module, or restarts, is joined at once.
-        if not nameclient.subscribe(self.port.name, lockstep.port_name(self.clock)):
-            raise NetworkError(f"the name server refused {self.port.name} -> "
-                               f"{lockstep.port_name(self.clock)}")
-        self._nameclient = nameclient
+        self._nameclient = nameclient or NameClient()
+        self.port = Port(nameclient=self._nameclient)
         self.joined = False
         self.due = 0.0             # robot time of the round the next tick runs on
         self.time = 0.0            # robot time of the round being handled
@@ -90,6 +85,15 @@ class LockstepSchedule:
         # What the runner's statistics read (the loop is never late against the robot here).
         self.locked_ticks = 0
         self.interval_errors: Deque[float] = deque(maxlen=1)
+
+    def open(self, wait: float) -> None:
+        """Open ``OWNER/lockstep:o`` (waiting up to ``wait`` s for the name server, as the
+        module's other ports) and keep it connected to the clock's ``NAME/lockstep:i``:
+        persistently, so a HAL that starts after the module, or restarts, is found again."""
+        self.port.open(f"{self.owner}/lockstep:o", wait=wait)
+        target = lockstep.port_name(self.clock)
+        if not self._nameclient.subscribe(self.port.name, target):
+            raise NetworkError(f"the name server refused {self.port.name} -> {target}")
 
     def now(self) -> float:
         """The module's clock: the robot time of the round it handles."""
@@ -142,6 +146,8 @@ class LockstepSchedule:
         self.port.write(lockstep.encode(message))
 
     def close(self) -> None:
+        if not self.port.is_open:
+            return
         self.restart()
         try:
             self._nameclient.unsubscribe(self.port.name, lockstep.port_name(self.clock))

@@ -313,6 +313,8 @@ class ModuleRunner:
     def start(self) -> None:
         before = self._take_over_journal() if self._link_from_port else Predecessor()
         self.interfaces.open(wait=math.inf)
+        if self.lockstep is not None:
+            self.lockstep.open(wait=math.inf)
         self._report_predecessor(before)
         if self._link_from_port:
             self.link.open(self.nameclient, f"{self.prefix}/bridge:i")
