@@ -28,7 +28,8 @@ from pathlib import Path
 from typing import Callable, Dict, List, Optional
 
 from system.processes import Proc
-from system.topology import BRIDGE_CONFIG, Pc, bridge_argv, components, ensure_bridge_key
+from system.topology import (BRIDGE_CONFIG, SIM_TIME_ENV, Pc, bridge_argv, components,
+                             ensure_bridge_key)
 
 DEFAULT_DIR = Path.home() / ".local" / "state" / "walkman"
 DEFAULT_KEY = Path(os.environ.get("XDG_CONFIG_HOME") or Path.home() / ".config") / "walkman" \
@@ -75,7 +76,8 @@ def plan(side: str, options: argparse.Namespace) -> Dict[str, List[str]]:
     """The programs of this PC and their command lines."""
     out = {}
     bag = options.dir / f"{side}-{time.strftime('%Y%m%d-%H%M%S')}.bag"
-    for component in components(kind_of(side), tasks=not options.no_tasks):
+    for component in components(kind_of(side), tasks=not options.no_tasks,
+                                sim_time=options.sim_time):
         if side != "lab" and component.pc != side:
             continue
         if component.name in options.skip:
@@ -123,10 +125,18 @@ def main(argv: Optional[List[str]] = None) -> int:
                         help="no Pilot Interface even when a display is present (pilot, lab)")
     parser.add_argument("--layout", default="main-pilot",
                         help="the Pilot Interface's layout (models/pilot_layouts.ini)")
+    parser.add_argument("--sim-time", action="store_true",
+                        help="the robot on simulated time (robot PC): the HAL serves /clock at "
+                             "real time, every module joins it in lockstep, and this PC's "
+                             "roscore carries it (/clock, /use_sim_time); "
+                             "docs/simulated-time.md")
     parser.add_argument("--shuffle", action="store_true",
                         help="start the programs in a random order, 0-2 s apart")
     options = parser.parse_args(argv)
     options.skip = {name.strip() for name in options.skip.split(",") if name.strip()}
+    if options.sim_time and options.side != "robot":
+        parser.error("--sim-time is the robot PC's: the pilot's programs, countdowns and link "
+                     "stay on the wall clock (and the lab's one roscore is the pilot's too)")
     if options.side != "lab" and not options.peer:
         parser.error(f"the {options.side} PC needs --peer (the other PC's address)")
     for name in ("yarp_port", "ros_port", "bridge_port", "udp_port"):
@@ -149,7 +159,7 @@ def main(argv: Optional[List[str]] = None) -> int:
 
     generate()
     pc = Pc(options.side, options.dir, yarp_port=options.yarp_port, ros_port=options.ros_port,
-            log_dir=options.dir / "logs")
+            log_dir=options.dir / "logs", extra_env=dict(SIM_TIME_ENV) if options.sim_time else {})
     programs = plan(options.side, options)
     names = list(programs)
     if options.shuffle:
@@ -158,13 +168,16 @@ def main(argv: Optional[List[str]] = None) -> int:
         say(f"{options.side} PC: name servers (yarp-lite :{options.yarp_port}, "
             f"roscore :{options.ros_port}), state in {options.dir}")
         pc.start_name_servers()
+        if options.sim_time:
+            pc.use_sim_time()
         for name in names:
             say(f"starting {name}: {' '.join(programs[name])}")
             pc.start(name, programs[name])
             if options.shuffle:
                 time.sleep(random.uniform(0, 2))
         env_file = pc.write_env_file()
-        ready = {c.name: c.ready for c in components(kind_of(options.side), tasks=True)}
+        ready = {c.name: c.ready for c in components(kind_of(options.side), tasks=True,
+                                                     sim_time=options.sim_time)}
         ready["pilot_interface"] = r"window up"
         return serve({name: pc.processes[name] for name in names}, ready, lambda: say(
             f"all up. In another shell: source {env_file} (then rostopic, rosservice, "

@@ -39,6 +39,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 from system.processes import REPO, ROSCORE_READY, Proc, WaitTimeout
 from yarp_lite.freeport import free_port, release
 from walkman import MODELS_DIR
+from walkman.gym.lockstep import ENVIRONMENT as LOCKSTEP_ENVIRONMENT
 
 PYTHON = sys.executable
 #: The line ``yarp-lite server`` prints once it answers.
@@ -82,12 +83,21 @@ def task_components() -> List[Component]:
     return [task_component(name) for name in TASK_MODULES]
 
 
-def components(kind: str, perception_rate: float = 1.0, tasks: bool = False) -> List[Component]:
+#: What the robot PC's programs get on simulated time: every GYM module joins the HAL's clock.
+SIM_TIME_ENV = {LOCKSTEP_ENVIRONMENT: "1"}
+#: The robot's time on the robot PC's roscore (``sim_time``): the HAL's /clock as ROS's.
+ROS_CLOCK = Component("ros_clock", "robot", (PYTHON, "-m", "rosnodes.ros_clock"),
+                      r"on ROS's /clock", ("drc",))
+
+
+def components(kind: str, perception_rate: float = 1.0, tasks: bool = False,
+               sim_time: bool = False) -> List[Component]:
     """Every program of a topology besides the name servers (the task modules too if
-    ``tasks``)."""
+    ``tasks``; with ``sim_time`` the robot's clock, :class:`Topology`)."""
     module = (PYTHON, "-m", "walkman.gym.supervisor")
     table = [
-        hal_component(),
+        hal_component(*(("--clock",) if sim_time else ())),
+        *((ROS_CLOCK,) if sim_time else ()),
         Component("gaze_control", "robot", (*module, "gaze_control"), r"ready for the pilot"),
         Component("temperature", "robot", (*module, "temperature"), r"ready for the pilot"),
         # The head camera as a GYM module (the paper's section 3.1: the perception pilot
@@ -252,6 +262,13 @@ class Pc:
                               + proc.output())
         return proc
 
+    def use_sim_time(self) -> None:
+        """``/use_sim_time`` on this PC's roscore, before any node starts (a node reads it
+        once, at its start): its nodes follow ``/clock``."""
+        setting = self.run(["rosparam", "set", "/use_sim_time", "true"])
+        if setting.wait(1) != 0:
+            raise WaitTimeout(f"rosparam set /use_sim_time failed:\n{setting.output()}")
+
     def start_name_servers(self) -> None:
         server = self.start_yarp_server()
         roscore = self.start_roscore()
@@ -288,17 +305,31 @@ class Topology:
     def __init__(self, kind: str, root: Path, link=None, profile: str = "lab",
                  loss: Optional[float] = None, perception_rate: float = 1.0,
                  bridge_config: Path = BRIDGE_CONFIG, extra: Sequence[Component] = (),
-                 extra_env: Optional[Dict[str, str]] = None, tasks: bool = False) -> None:
+                 extra_env: Optional[Dict[str, str]] = None, tasks: bool = False,
+                 sim_time: bool = False) -> None:
         """``extra`` components join the table (a test's witness module); ``extra_env`` goes
-        into every program's environment; ``tasks`` adds the paper's task modules."""
+        into every program's environment; ``tasks`` adds the paper's task modules.
+
+        ``sim_time``: the robot on simulated time (docs/simulated-time.md).  The HAL serves
+        its clock (``--clock``, at real time), every GYM module on the robot PC joins it in
+        lockstep (``WALKMAN_LOCKSTEP``), and the robot PC's roscore carries it on ``/clock``
+        with ``/use_sim_time`` set before any node starts, so its nodes and bags show robot
+        time.  The pilot PC, the bridges and the link stay on the wall clock: they are
+        physical.  Only ``drc``: the lab's one roscore is the pilot's too, whose countdowns
+        must stay on the wall clock."""
         if kind not in ("lab", "drc"):
             raise ValueError(f"topology must be lab or drc, not {kind!r}")
+        if sim_time and kind != "drc":
+            raise ValueError("simulated time needs the drc topology: the lab's one roscore "
+                             "is the pilot's too, whose countdowns stay on the wall clock")
+        self.sim_time = sim_time
         self.kind = kind
         self.root = root
         self.link = link
         self.profile, self.loss = profile, loss
         self.bridge_config = bridge_config
-        self.table = {c.name: c for c in [*components(kind, perception_rate, tasks), *extra]
+        self.table = {c.name: c for c in [*components(kind, perception_rate, tasks, sim_time),
+                                          *extra]
                       if kind in c.topologies}
         env = dict(extra_env or {})
         if kind == "lab":
@@ -306,8 +337,10 @@ class Topology:
                      extra_env=env)
             self.pcs = {"robot": lab, "pilot": lab}
         else:
+            robot_env = {**env, **SIM_TIME_ENV} if sim_time else env
             self.pcs = {side: Pc(side, root / side, link.exec_argv(side, []) if link else (),
-                                 link.address(side) if link else "127.0.0.1", extra_env=env)
+                                 link.address(side) if link else "127.0.0.1",
+                                 extra_env=robot_env if side == "robot" else env)
                         for side in ("robot", "pilot")}
         self.tcp_port = free_port()
         self.udp_ports = {"robot": free_port(), "pilot": free_port()}
@@ -331,6 +364,8 @@ class Topology:
             self.link.apply(self.profile, loss=self.loss)
         for pc in self.unique_pcs():
             pc.start_name_servers()
+        if self.sim_time:
+            self.robot.use_sim_time()
 
     def _argv(self, component: Component) -> List[str]:
         if component.name.startswith("bridge_"):
