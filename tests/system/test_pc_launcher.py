@@ -3,6 +3,7 @@
 import os
 import signal
 import subprocess
+import sys
 
 import pytest
 
@@ -72,3 +73,16 @@ def test_launchers_bring_up_both_pcs_and_a_plain_shell_pilots_the_robot(tmp_path
                  if os.path.exists(f"/proc/{pid}") and
                  open(f"/proc/{pid}/stat").read().split(")")[1].split()[0] != "Z"]
     assert leftovers == [] and processes_mentioning(str(tmp_path)) == []
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["pilot", "--peer", "10.0.0.2", "--sim-time"], "--sim-time is the robot PC's"),
+    (["lab", "--sim-time"], "--sim-time is the robot PC's"),
+    (["robot", "--sim-time"], "the robot PC needs --peer"),
+])
+def test_walkman_pc_refuses_simulated_time_off_the_robot_pc_by_name(argv, says):
+    """The pilot's programs, countdowns and link stay on the wall clock: --sim-time is refused
+    there, before anything starts (exit 2, as argparse)."""
+    ran = subprocess.run([sys.executable, "-m", "system.pc", *argv], cwd=REPO,
+                         capture_output=True, text=True, timeout=60)
+    assert ran.returncode == 2 and says in ran.stderr, ran.stderr
