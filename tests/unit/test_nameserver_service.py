@@ -106,7 +106,7 @@ def test_persistent_connection_lifecycle(service):
 
 def test_a_break_decided_when_a_port_left_is_stale_once_it_is_back(service):
     """A module restarted under the same names: the break queued when its old port left must
-    not cut the connection made to its new one (the connector re-checks before breaking)."""
+    not leave it unconnected (the connector, after breaking, makes a wanted one again)."""
     apply(service, "subscribe /hal/state:o fast_tcp://m/state:i")
     for name in ("/hal/state:o", "/m/state:i"):
         apply(service, f"register {name}")

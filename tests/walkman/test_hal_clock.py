@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import re
+import signal
 import sys
 
 import pytest
@@ -171,3 +172,34 @@ def test_a_member_that_stalls_leaves_the_barrier_after_the_timeout_and_the_robot
         in hal.output()
     assert hal.interrupt() == 0
     assert "'lockstep_timeouts': 1" in hal.output()
+
+
+def test_a_module_in_lockstep_stopped_and_started_again_never_holds_the_robot_to_the_timeout(
+        lite_world):
+    """A stop holds the joints by a move made out of any tick; the next start's first tick
+    must not name those commands (the robot would wait for them until the timeout)."""
+    from tests.walkman.test_gym_hal import start_module
+    from yarp_lite.bottle_text import parse
+    from yarp_lite.port import Port
+
+    hal = start_hal(lite_world, "--clock", "--rtf", "max")
+    module = start_module(lite_world, "gaze_control", "--lockstep")
+    module.wait_for("ready for the pilot", timeout=60)
+    switch = Port().open("/test/switch:o")
+    try:
+        assert switch.add_output("/gaze_control/switch:i")
+        for round_number, word in enumerate(("start", "stop", "start", "stop"), 1):
+            assert switch.write_with_reply(parse(word), timeout=30) is not None
+            if word == "start":
+                hal.wait_for("lockstep: /gaze_control joined", timeout=30,
+                             count=(round_number + 1) // 2)
+            else:
+                hal.wait_for("lockstep: /gaze_control left", timeout=30,
+                             count=round_number // 2)
+    finally:
+        switch.close()
+    module.kill(signal.SIGTERM)
+    module.wait(30)
+    assert hal.interrupt() == 0
+    assert "'lockstep_timeouts': 0" in hal.output(), hal.output()[-2000:]
+    assert "did not handle the round" not in hal.output()

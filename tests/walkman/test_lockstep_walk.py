@@ -50,7 +50,8 @@ class Scene:
         self.at: Dict[int, np.ndarray] = {}
         self._lock = threading.Lock()
         self.port = BufferedPort(name, on_read=self._read, strict=True)
-        NameClient().subscribe(protocol.world_port_name("walkman"), self.port.name)
+        # fast_tcp: no acknowledgement to wait for, so the HAL never skips this reader as busy
+        NameClient().subscribe(protocol.world_port_name("walkman"), f"fast_tcp:/{self.port.name}")
         assert self.port.wait_for_inputs(1, 20)
 
     def _read(self, bottle: Bottle) -> None:

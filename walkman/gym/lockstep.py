@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
 from collections import deque
 from typing import TYPE_CHECKING, Callable, Deque, Optional
 
@@ -71,7 +72,8 @@ class LockstepSchedule:
     def __init__(self, period: float, owner: str, robot: Callable[[], Optional["Robot"]],
                  clock: Optional[str] = None, nameclient: Optional[NameClient] = None) -> None:
         self.period = period
-        self.owner = owner
+        self.owner = owner.rstrip("/")   # as the robot client names its ports (its commands)
+        self._lock = threading.Lock()      # joined, and what is written: loop and close()
         self._robot = robot
         self.clock = clock or clock_name()
         self._nameclient = nameclient or NameClient()
@@ -109,12 +111,20 @@ class LockstepSchedule:
         if robot is None:
             return False
         if not self.joined:
-            self.due = max(robot.round_time, 0.0) + JOIN_AFTER     # the next round
-            self._write(Join(self.owner, self.due))
-            self.joined = True
+            robot.take_commanded()   # moves made out of a tick (a hold on stop) are not its
+            with self._lock:
+                self.time = max(robot.round_time, 0.0)   # (a restarted robot's time is new)
+                self.due = self.time + JOIN_AFTER        # the next round
+                self._write(Join(self.owner, self.due))
+                self.joined = True
             self._waited = 0.0
             log.info("%s: in lockstep with %s", self.owner, self.clock)
         while not robot.wait_round_at(self.due, WAIT_SLICE_S):
+            if robot.round_time < self.time - 1e-6 or not robot.connected:
+                # The robot restarted (its time went back) or is silent: out of the barrier;
+                # the loop sees the robot away, or joins the new one at its next round.
+                self.restart()
+                return False
             self._waited += WAIT_SLICE_S
             if self._waited >= SLOW_ROUND_S and not self._said_slow:
                 self._said_slow = True
@@ -130,17 +140,22 @@ class LockstepSchedule:
         """The tick is done: name its commands' chains and the next tick's time."""
         robot = self._robot()
         chains = tuple(robot.take_commanded()) if robot is not None else ()
-        self.due = self.time + self.period
-        self._write(Tick(self.owner, self.seq, self.due, chains))
+        with self._lock:
+            if not self.joined:     # closed meanwhile: a tick now would join it again
+                return 0.0
+            self.due = self.time + self.period
+            self._write(Tick(self.owner, self.seq, self.due, chains))
         self.locked_ticks += 1
         return 0.0
 
     def restart(self) -> None:
         """Not controlling (or the robot away): leave the barrier."""
-        if self.joined:
+        with self._lock:
+            if not self.joined:
+                return
             self._write(Leave(self.owner))
             self.joined = False
-            log.info("%s: out of lockstep (not controlling the robot)", self.owner)
+        log.info("%s: out of lockstep (not controlling the robot)", self.owner)
 
     def _write(self, message: lockstep.Message) -> None:
         self.port.write(lockstep.encode(message))

@@ -286,8 +286,9 @@ class LockstepGate:
         """Why ``resetSimulationTime`` is refused now (None: it is not)."""
         members = self.members
         if members:
-            return (f"modules are in lockstep with the robot ({', '.join(members)}); a time "
-                    "that goes back would leave them waiting for rounds that never come")
+            return (f"modules are in lockstep with the robot ({', '.join(members)}); they tick "
+                    "on the physics' time, which a reset does not move: /clock would go back "
+                    "under them and disagree with their clocks")
         return None
 
     def close(self) -> None:

@@ -683,7 +683,8 @@ class Robot(WholeBody):
                 "direct", refs, None if len(mine) == len(link.indices) else mine,
                 self.last_seq or None)
             written = link.command.write(bottle)
-            if written and self.lockstep:
+            # (a port with no output "writes" to nobody: a tick must not name that chain)
+            if written and self.lockstep and link.command.has_outputs:
                 with self._lock:
                     self._commanded.append(chain)
             sent = written and sent

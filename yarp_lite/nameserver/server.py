@@ -129,10 +129,14 @@ class Connector:
                 raise YarpError(outcome.message)
             log.info("   (connected %s -> %s)", action.source, action.target)
         elif carrier is not None:
-            if self.service.subscriptions.wanted(action.source, action.target):
-                log.info("   (kept %s -> %s: both ends are back)", action.source, action.target)
-                return
             network.disconnect(action.source, action.target, resolve=self._resolve)
+            if self.service.subscriptions.wanted(action.source, action.target):
+                # Decided when a port left, applied after it came back under the same name:
+                # the connection broken may be the new one (or an output to the old process
+                # the source still lists), so it is made again, to the port there now.
+                outcome = network.connect(action.source, action.target, resolve=self._resolve)
+                log.info("   (re-made %s -> %s: both ends are back)%s", action.source,
+                         action.target, "" if outcome.ok else f": {outcome.message}")
 
 
 class NameServer:
