@@ -12,15 +12,14 @@ from __future__ import annotations
 
 import signal
 import threading
-from typing import Dict, List, Tuple
+from typing import Dict, List
 
 import numpy as np
 import pytest
 
 from tests.flake_hunt import burners
 from tests.harness import wait_until
-from tests.walkman.test_gym_hal import Pilot, start_hal, start_module
-from walkman.gym.runner import load_module_class
+from tests.walkman.test_gym_hal import start_hal, start_module
 from walkman.hal import protocol
 from walkman.model import SCENE_PATH
 from yarp_lite.bottle import Bottle
@@ -82,14 +81,12 @@ class ClockClient:
         self.port.close()
 
 
-def walk_once(world, run: str) -> Tuple[List[np.ndarray], List[str]]:
-    """The metre walked from a paused start: the scene at the end of each chunk, and the
-    module's statuses."""
+def walk_once(world, run: str) -> List[np.ndarray]:
+    """The metre walked from a paused start: the scene at the end of each chunk."""
     hal = start_hal(world, "sim", "--station", "yard", "--harness", "off", "--clock",
                     "--rtf", "max", "--paused")
     module = start_module(world, "walking", "--lockstep")
     module.wait_for("ready for the pilot", timeout=60)
-    pilot = Pilot(world, "walking", load_module_class("walking").statuses)
     scene = Scene(f"/test/{run}/world:i")
     clock = ClockClient(f"/test/{run}/clock:o")
     commands = Port().open(f"/test/{run}/command:o")
@@ -109,19 +106,17 @@ def walk_once(world, run: str) -> Tuple[List[np.ndarray], List[str]]:
             clock.ask(f"stepSimulationAndWait {CHUNK}")
             taken += CHUNK
             poses.append(scene.qpos_at(taken))
-        statuses = [pilot.state(timeout=5) or "?"]
     finally:
         for port in (commands, switch):
             port.close()
         clock.close()
         scene.close()
-        pilot.close()
         for proc in (module, hal):
             proc.kill(signal.SIGTERM)
             proc.wait(30)
     # No module left the barrier: a run where one did is not the robot in lockstep.
     assert "'lockstep_timeouts': 0" in hal.output(), hal.output()[-3000:]
-    return poses, statuses
+    return poses
 
 
 def own_world(make_world, lite, monkeypatch, name: str):
@@ -135,11 +130,11 @@ def own_world(make_world, lite, monkeypatch, name: str):
 
 def test_a_metre_walked_twice_in_lockstep_at_max_quiet_and_beside_two_burners_agrees(
         make_world, lite, monkeypatch):
-    quiet, _ = walk_once(own_world(make_world, lite, monkeypatch, "quiet"), "quiet")
+    quiet = walk_once(own_world(make_world, lite, monkeypatch, "quiet"), "quiet")
     base = quiet[-1][:3]
     assert base[0] - quiet[0][0] >= 0.9, f"walked {base[0] - quiet[0][0]:.3f} m, not a metre"
     assert base[2] > 0.7, f"the pelvis at {base[2]:.3f} m: fallen"
     with burners(2):
-        loaded, _ = walk_once(own_world(make_world, lite, monkeypatch, "loaded"), "loaded")
+        loaded = walk_once(own_world(make_world, lite, monkeypatch, "loaded"), "loaded")
     worst = max(float(np.max(np.abs(a - b))) for a, b in zip(quiet, loaded))
     assert worst <= 1e-6, f"the two walks differ by up to {worst:.3g} (m or rad)"
