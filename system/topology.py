@@ -32,7 +32,7 @@ import shlex
 import subprocess
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Tuple
 
@@ -331,6 +331,9 @@ class Topology:
         self.table = {c.name: c for c in [*components(kind, perception_rate, tasks, sim_time),
                                           *extra]
                       if kind in c.topologies}
+        hal = self.table.get("hal")
+        if sim_time and hal is not None and "--clock" not in hal.argv:   # a test's own HAL
+            self.table["hal"] = replace(hal, argv=(*hal.argv, "--clock"))
         env = dict(extra_env or {})
         if kind == "lab":
             lab = Pc("lab", root / "lab", link.exec_argv("robot", []) if link else (),

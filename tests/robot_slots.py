@@ -29,8 +29,11 @@ drove, and the steering wheel ended 15 degrees from where the slider had put it.
 first took turns among themselves (one slot per two cores); they now have the machine to
 themselves as well.
 
-A test marked ``alone`` has the machine to itself too: the PI's courses with the harness off
-walk a free-standing robot through the drc topology.
+A test marked ``alone`` has the machine to itself too (the main job's run, the PI's valve by
+clicks: the real-time smoke tests of issue 65).  The PI's courses with the harness off, which
+walk a free-standing robot through the drc topology, held it until they moved onto the
+lockstep clock (``lockstep``, below): there the robot waits for its modules, and a loaded
+machine slows it down instead of tripping its balance guard.
 
 "To itself" means: beside no other real-time thread.  Normal-priority load stalls a FIFO
 thread only where the CPU's real-time load nears the budget, which one robot's does not (the

@@ -40,6 +40,10 @@ from tests.system.conftest import dump_outputs_if_failed
 PYTHON = sys.executable
 DRIVER = REPO / "tests" / "system" / "pi_driver.py"
 pytestmark = pytest.mark.requires("xvfb")
+#: The real-time factor of the PI's courses on simulated time: the robot as fast as the
+#: machine allows, in lockstep with its modules (issue 65).  The PI, the bridges and the
+#: link stay on the wall clock.
+SIM_RTF = os.environ.get("PI_SIM_RTF", "max")
 
 
 @pytest.fixture
@@ -128,13 +132,20 @@ def test_the_valve_task_by_clicks_with_a_pi_crash_and_a_cancelled_timed_turn(
 
 @contextlib.contextmanager
 def pi_on_drc(tmp_path, display, request, link, modules: Sequence[str], phase: str,
-              *hal: str, args: Sequence[str] = (), unused: Sequence[str] = ()):
+              *hal: str, args: Sequence[str] = (), unused: Sequence[str] = (),
+              rtf: str = ""):
     """A PI (driver phase ``phase`` with ``args``) on the drc topology with the task
     ``modules``, its two PCs on the emulated hosts over the DRC link (1 Mbit/s, 50 ms, 5 %
     loss), the HAL started with ``hal``, without the rosbag recorder and the ``unused``
-    components: yields the topology and the PI's process once the PI is started."""
+    components: yields the topology and the PI's process once the PI is started.
+
+    With ``rtf`` the robot runs on simulated time at that factor (``1``, ``max``), its
+    modules in lockstep (issue 65): the test is marked ``lockstep`` and needs no machine
+    to itself.  Without, it runs on the wall clock with its real-time threads."""
     topology = Topology("drc", tmp_path / "drc", link=link, profile="drc",
-                        extra=[hal_component(*hal), *map(task_component, modules)])
+                        extra=[hal_component(*hal, *(("--rtf", rtf) if rtf else ())),
+                               *map(task_component, modules)],
+                        sim_time=bool(rtf))
     for name in ("rosbag", *unused):
         del topology.table[name]
     out = tmp_path / "screens"
@@ -153,13 +164,16 @@ def pi_on_drc(tmp_path, display, request, link, modules: Sequence[str], phase: s
 
 @contextlib.contextmanager
 def clicked_on_drc(tmp_path, display, request, link, module: str, phase: str, *hal: str,
-                   args: Sequence[str] = (), unused: Sequence[str] = ()):
+                   args: Sequence[str] = (), unused: Sequence[str] = (), rtf: str = ""):
     """A task clicked through a PI on the drc topology (:func:`pi_on_drc`): yields the
     topology and the PI's process once it said DONE."""
     with pi_on_drc(tmp_path, display, request, link, [module], phase, *hal, args=args,
-                   unused=unused) as (topology, pi):
+                   unused=unused, rtf=rtf) as (topology, pi):
         pi.wait_for(r"DONE|FAIL", 600)
         assert "FAIL" not in pi.output(), pi.output()
+        if rtf:     # the task's module held the physics at its ticks
+            hal = topology.process("hal").output()
+            assert f"lockstep: /{module} joined" in hal, hal[-3000:]
         yield topology, pi
 
 
@@ -205,7 +219,7 @@ def take_the_robot_to(topology: Topology, station: str, harness: str = "") -> No
     topology.process("hal").wait_for(rf"HAL: the robot is at station {station}\b", 30)
 
 
-@pytest.mark.two_pcs
+@pytest.mark.lockstep
 @pytest.mark.requires("root")
 def test_drive_door_and_plug_by_clicks_in_one_session_as_the_readme_walks_through(
         tmp_path, display, request, emulated_link):
@@ -220,7 +234,7 @@ def test_drive_door_and_plug_by_clicks_in_one_session_as_the_readme_walks_throug
     tasks = (("drc_drive", "car"), ("drc_door", "door"), ("drc_plug", "plug"))
     with pi_on_drc(tmp_path, display, request, emulated_link, [m for m, _ in tasks], "tasks",
                    "--station", "car", "--harness", "off",
-                   args=[m for m, _ in tasks]) as (topology, pi):
+                   args=[m for m, _ in tasks], rtf=SIM_RTF) as (topology, pi):
         pi.wait_for(r"UP after|FAIL", 120)
         steering = scene(topology, "steering")["steering"][0]
         seated = robot_base(topology)
@@ -256,8 +270,7 @@ def test_drive_door_and_plug_by_clicks_in_one_session_as_the_readme_walks_throug
 
 
 @pytest.mark.requires("root")
-@pytest.mark.free_standing
-@pytest.mark.alone
+@pytest.mark.lockstep
 def test_the_terrain_course_by_clicks_with_footsteps_placed_in_the_3d_view(tmp_path, display,
                                                                          request, emulated_link):
     """Issue 32, rough ground, through the PI on the drc topology (over the emulated DRC
@@ -279,7 +292,8 @@ def test_the_terrain_course_by_clicks_with_footsteps_placed_in_the_3d_view(tmp_p
     with clicked_on_drc(tmp_path, display, request, emulated_link, "walking", "terrain",
                         "--station", "terrain", "--harness", "off",
                         args=["camera"] if on_camera else [],
-                        unused=() if on_camera else ("perception",)) as (topology, pi):
+                        unused=() if on_camera else ("perception",),
+                        rtf=SIM_RTF) as (topology, pi):
         for step in ("go_straight 0.12", "step_up 0.05 0.33", "footsteps") + (
                 () if on_camera else ("go_straight 0.36", "step_down 0.05 0.33")):
             assert f"STEP walking {step} done" in pi.output(), pi.output()
@@ -302,8 +316,7 @@ RAMP_WAYS = {"up": ("ramp", ((0.33, -TERRAIN_RAMP[3]), (0.33, 0.0))),
 
 
 @pytest.mark.requires("root")
-@pytest.mark.free_standing
-@pytest.mark.alone
+@pytest.mark.lockstep
 @pytest.mark.parametrize("way", os.environ.get("PI_RAMP_WAYS", "up,down").split(","))
 def test_the_ramp_by_clicks_with_footsteps_dragged_onto_and_off_the_slope_in_the_3d_view(
         way, tmp_path, display, request, emulated_link):
@@ -331,7 +344,7 @@ def test_the_ramp_by_clicks_with_footsteps_dragged_onto_and_off_the_slope_in_the
     station, legs = RAMP_WAYS[way]
     with pi_on_drc(tmp_path, display, request, emulated_link, ["walking"], "ramp",
                    "--station", station, "--harness", "off", args=[way],
-                   unused=("perception",)) as (topology, pi):
+                   unused=("perception",), rtf=SIM_RTF) as (topology, pi):
         for leg, (forward, pitch) in enumerate(legs, 1):
             pi.wait_for(rf"STEP footsteps wanted for leg {leg}\b|FAIL", 300)
             assert "FAIL" not in pi.output(), pi.output()
@@ -357,8 +370,7 @@ def test_the_ramp_by_clicks_with_footsteps_dragged_onto_and_off_the_slope_in_the
 
 
 @pytest.mark.requires("root")
-@pytest.mark.free_standing
-@pytest.mark.alone
+@pytest.mark.lockstep
 def test_footsteps_from_the_camera_onto_debris_are_refused_in_the_pi_before_any_is_sent(
         tmp_path, display, request, emulated_link):
     """Issue 32, what the strip between the feet does not show, through the PI on the drc
@@ -368,7 +380,8 @@ def test_footsteps_from_the_camera_onto_debris_are_refused_in_the_pi_before_any_
     places none and walking's widget says what lies where; nothing reaches walking and the
     robot stands where it was (``docs/terrain-camera-refused.png``)."""
     with clicked_on_drc(tmp_path, display, request, emulated_link, "walking", "debris",
-                        "--station", "debris", "--harness", "off") as (topology, pi):
+                        "--station", "debris", "--harness", "off",
+                        rtf=SIM_RTF) as (topology, pi):
         refused = re.search(r"STEP refused: (.*)", pi.output())
         assert refused, pi.output()
         # The lane holds four blocks, and the camera's rows fall on them differently as the
@@ -429,8 +442,7 @@ UNSUPPORTED_TASKS = {"valve": ("turn", valve_turned_a_quarter),
 
 
 @pytest.mark.requires("root")
-@pytest.mark.free_standing
-@pytest.mark.alone
+@pytest.mark.lockstep
 @pytest.mark.parametrize("task", list(UNSUPPORTED_TASKS))
 def test_an_arm_task_by_clicks_standing_unsupported(task, tmp_path, display, request,
                                                     emulated_link):
@@ -446,7 +458,7 @@ def test_an_arm_task_by_clicks_standing_unsupported(task, tmp_path, display, req
     work, done = UNSUPPORTED_TASKS[task]
     with pi_on_drc(tmp_path, display, request, emulated_link, ["walking", module],
                    "unsupported", "--station", task, "--harness", "off",
-                   args=[module], unused=("perception",)) as (topology, pi):
+                   args=[module], unused=("perception",), rtf=SIM_RTF) as (topology, pi):
         before = valve_angle(topology) if task == "valve" else 0.0
         pi.wait_for(r"STEP walking balancing, paused|FAIL", 300)
         assert "FAIL" not in pi.output(), pi.output()

@@ -23,7 +23,7 @@ def first_secs(text: str) -> int:
 
 
 @pytest.mark.requires("ros")
-@pytest.mark.two_pcs
+@pytest.mark.lockstep
 def test_the_robot_pcs_roscore_carries_the_robots_clock_and_its_modules_run_in_lockstep(
         tmp_path, request):
     topology = Topology("drc", tmp_path / "drc", sim_time=True)
