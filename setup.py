@@ -8,7 +8,7 @@ setup(
     description="Walk-Man humanoid software architecture: yarp_lite, GYM, HAL, network bridge, "
                 "ROS pilot nodes",
     python_requires=">=3.11",
-    packages=find_packages(include=["yarp_lite*", "walkman*", "bridge*", "rosnodes*", "system*", "nodekit*", "pilot*"]),
+    packages=find_packages(include=["yarp_lite*", "walkman*", "bridge*", "netem*", "rosnodes*", "system*", "nodekit*", "pilot*"]),
     package_data={"": ["*.xml", "*.xsd", "*.ini", "*.urdf", "*.msg", "*.srv"],
                   # the robot's models, configurations, contexts and layouts (walkman.MODELS_DIR)
                   "walkman": ["models/*.xml", "models/*.ini", "models/*.urdf", "models/contexts/*/*.ini"],
@@ -29,7 +29,7 @@ setup(
             "walkman-hal=walkman.hal.server:main",
             "walkman-module=walkman.gym.supervisor:main",
             "walkman-bridge=bridge.main:main",
-            "walkman-netem=bridge.emulation:main",
+            "walkman-netem=netem.emulation:main",
             "walkman-pilot-gateway=rosnodes.gateway:main",
             "walkman-perception=rosnodes.perception:main",
             "walkman-joint-state=rosnodes.joint_state:main",

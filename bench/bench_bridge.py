@@ -56,8 +56,8 @@ sys.path.insert(0, str(ROOT))
 sys.path.append(str(ROOT / "tests"))
 sys.path.append(str(ROOT / "tests" / "bridge"))
 
-from bridge import emulation  # noqa: E402
-from bridge.emulation import EmulatedLink  # noqa: E402
+from netem import emulation  # noqa: E402
+from netem.emulation import EmulatedLink  # noqa: E402
 from bridge_harness import HERE as TEST_HELPERS, PYTHON, TwoPCs  # noqa: E402
 from harness import YarpWorld, lite_implementation, wait_until  # noqa: E402
 from system.processes import descendants, usage  # noqa: E402

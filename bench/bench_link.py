@@ -10,7 +10,7 @@
    buffer's tail, its loss).
 
 Profiles: lab, drc without loss, drc (5 % loss), degraded.  Runs against whichever
-``bridge.emulation`` is beside it, so the same script measures an older checkout too (the
+``netem.emulation`` is beside it, so the same script measures an older checkout too (the
 radio's counters and floor are shown when it has them).
 
 Usage: ``.venv/bin/python bench/bench_link.py [--quick]``.
@@ -29,8 +29,8 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
 
-from bridge import emulation  # noqa: E402
-from bridge.emulation import EmulatedLink  # noqa: E402
+from netem import emulation  # noqa: E402
+from netem.emulation import EmulatedLink  # noqa: E402
 from system.processes import Proc  # noqa: E402
 from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 

@@ -32,7 +32,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
 
-from bridge.emulation import PROFILES, EmulatedLink  # noqa: E402
+from netem.emulation import PROFILES, EmulatedLink  # noqa: E402
 from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 from system.topology import PYTHON, Topology  # noqa: E402
 

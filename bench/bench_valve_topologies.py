@@ -16,8 +16,8 @@ temperature, perception, joint state, the session's rosbag, plus ``drc_valve`` u
 its supervisor):
 
 ``lab``       one PC, no bridge (the paper's lab), on this machine's loopback;
-``drc``       robot and pilot PCs on emulated hosts (:mod:`bridge.emulation`), both
-              bridges over the user-space radio (:mod:`bridge.radio_stage`): 1 Mbit/s,
+``drc``       robot and pilot PCs on emulated hosts (:mod:`netem.emulation`), both
+              bridges over the user-space radio (:mod:`netem.radio_stage`): 1 Mbit/s,
               50 ms one way, 5 % loss;
 ``degraded``  the same hosts at 9600 bit/s, 50 ms one way, no loss.
 
@@ -67,7 +67,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
 
-from bridge import emulation  # noqa: E402
+from netem import emulation  # noqa: E402
 from host import say_machine  # noqa: E402  (bench/ is the script's folder)
 from nodekit.logs import LOG_TIME_ENV  # noqa: E402
 from system.display import display_env, private_display  # noqa: E402

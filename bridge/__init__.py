@@ -11,6 +11,5 @@ reliable queues), :mod:`tcp_channel`/:mod:`udp_channel` (sockets),
 (the ``walkman-bridge`` program).  :mod:`config` reads the XML and
 :mod:`flows` decides once how each flow crosses; :mod:`expiry` ages a
 command by the time each side held it, :mod:`stop_line` carries the
-stop-all.  :mod:`emulation` with :mod:`radio_model`/:mod:`radio_stage`
-builds emulated robot/pilot networks.
+stop-all.  The emulated robot/pilot network is not part of the bridge: :mod:`netem`.
 """

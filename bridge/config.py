@@ -8,7 +8,7 @@ The file lists modules by 8-bit id (0..255, unique across every section):
   on the robot: its ``switch`` and ``command`` go pilot->robot (reliable:
   never dropped, never duplicated, in order, sent at once), its ``status``
   (latest only, batched every period, but at once when it answers a pilot's
-  command or its state changes: :class:`bridge.node.StatusEvents`),
+  command or its state changes: :class:`bridge.status_events.StatusEvents`),
   ``warning`` and ``receipt`` (reliable) go robot->pilot
   (:data:`walkman.gym.interfaces.GYM_PORTS`, whose order gives each flow's kind);
 * ``<custom_modules>`` -- explicit ``<connection port_to_open source_port
@@ -47,7 +47,7 @@ from typing import Callable, Dict, List, Optional, Tuple, TypeVar, Union
 
 from lxml import etree
 
-from bridge.flows import STATE_KIND, Carriage, FlowKey, Form, Route
+from bridge.flows import STATE_KIND, STOP_ACK_KIND, STOP_ORDER_KIND, Carriage, FlowKey, Form, Route
 from walkman.gym.interfaces import GYM_PORTS, RECEIPT
 
 SCHEMA_PATH = Path(__file__).with_name("bridge.xsd")
@@ -155,11 +155,11 @@ class EmergencyStopFlow:
 
     @property
     def stop_key(self) -> FlowKey:
-        return FlowKey(self.id, 0)
+        return FlowKey(self.id, STOP_ORDER_KIND)
 
     @property
     def ack_key(self) -> FlowKey:
-        return FlowKey(self.id, 1)
+        return FlowKey(self.id, STOP_ACK_KIND)
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ its number in order.  Copies leave only with a frame, so a command queued during
 blackout is sent (and claimed, :meth:`bridge.journal.Journal.cancel`) no earlier than
 without them.
 
-A GYM status answering a command (a status *event*, :class:`bridge.node.StatusEvents`)
+A GYM status answering a command (a status *event*, :class:`bridge.status_events.StatusEvents`)
 goes the same two ways, ``<datagram_copies statuses="N">``.  Statuses are not
 journalled, so the receiver remembers what it last wrote per flow
 (:class:`FirstStatus`): the same status again is the other copy, and one with an older

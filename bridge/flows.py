@@ -15,11 +15,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
-from typing import NamedTuple
 
 
-class FlowKey(NamedTuple):
-    """A flow's name on the wire: module id (0..255) and the flow's kind within it."""
+@dataclass(frozen=True, order=True, slots=True)
+class FlowKey:
+    """A flow's name on the wire: module id (0..255) and the flow's kind within it.  Read by
+    name (``key.id``, ``key.kind``), never by position: it is not a tuple."""
 
     id: int
     kind: int
@@ -30,6 +31,8 @@ class FlowKey(NamedTuple):
 
 #: The kind of the robot state flow under its own id.
 STATE_KIND = 0
+#: The kinds of the stop-all's two flows under its id: the pilot's order, the robot's answer.
+STOP_ORDER_KIND, STOP_ACK_KIND = 0, 1
 
 
 class Carriage(str, Enum):
@@ -38,7 +41,7 @@ class Carriage(str, Enum):
     #: journalled on both sides: never lost, never run twice, in order, sent at once (TCP)
     RELIABLE = "reliable"
     #: the newest value with the next period (TCP); a GYM status's change that a pilot
-    #: waits for leaves at once (:class:`bridge.node.StatusEvents`)
+    #: waits for leaves at once (:class:`bridge.status_events.StatusEvents`)
     LATEST = "latest"
     #: tiles or slices of one datagram each (UDP): what arrived is published after ``gather``
     DATAGRAMS = "datagrams"

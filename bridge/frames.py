@@ -169,7 +169,8 @@ def data_body(entries: Iterable[Entry] = (), ack: Optional[int] = None,
 def presence_bytes(presence: Presence) -> bytes:
     """``varint(n) (id kinds)*n``: one byte of kinds per module present."""
     kinds: dict = {}
-    for ident, kind in presence:
+    for key in presence:
+        ident, kind = key.id, key.kind
         if not 0 <= ident <= 255 or not 0 <= kind <= MAX_KIND:
             raise BridgeUsageError(f"present flow id {ident} kind {kind} out of range")
         kinds[ident] = kinds.get(ident, 0) | 1 << kind

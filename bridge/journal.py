@@ -51,6 +51,7 @@ from typing import Callable, Collection, List, Optional, Sequence, Tuple
 
 from bridge import compact
 from bridge.errors import BridgeProtocolError, BridgeUsageError
+from bridge.flows import FlowKey
 
 DEFAULT_LIMIT = 1000
 #: What a cancelled message becomes in the outbox: its number crosses, the receiving bridge
@@ -174,7 +175,7 @@ class Journal:
                 self._claimed = rows[-1][0]
         return [Queued(*row) for row in rows]
 
-    def cancel(self, flows: Collection[Tuple[int, int]],
+    def cancel(self, flows: Collection[FlowKey],
                chosen: Callable[[bytes], bool]) -> Tuple[List[bytes], List[bytes]]:
         """Replace by :data:`TOMBSTONE` the outbox messages of ``flows`` that ``chosen``
         picks and no frame has claimed; ``(cancelled, too late)``, their payloads."""
@@ -183,7 +184,8 @@ class Journal:
             rows = self._db.execute("SELECT seq, id, kind, payload FROM outbox ORDER BY seq"
                                     ).fetchall()
             for seq, ident, kind, payload in rows:
-                if (ident, kind) not in flows or payload == TOMBSTONE or not chosen(payload):
+                if FlowKey(ident, kind) not in flows or payload == TOMBSTONE or \
+                        not chosen(payload):
                     continue
                 if seq <= self._claimed:
                     too_late.append(payload)

@@ -8,7 +8,11 @@ roscore, so the bridge can start before them (and survives their restarts:
 ports re-register, the :class:`~nodekit.connections.ConnectionKeeper` remakes
 connections, :class:`~nodekit.ros_node.RosNode` re-registers topics).
 
-Data flows sink -> channel -> (link) -> channel -> source.  A module's
+Data flows sink -> channel -> (link) -> channel -> source.  What happens to each
+message -- journalled, posted as the newest value, sent as datagrams or copies,
+delivered, dropped -- is the sans-IO core's decision (:mod:`bridge.core`); this
+class is the I/O shell that performs it (:meth:`Bridge._perform`), and its threads
+start in one place (:class:`~bridge.nursery.Nursery`).  A module's
 stand-in ports (the pilot's ``/M/switch:i``, ``/M/status:o``...) are open only
 while the peer reports the module's own ports connected (:mod:`bridge.stand_ins`);
 the same thread that opened the endpoints keeps them in step.  Reliable messages
@@ -32,24 +36,28 @@ import threading
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Optional, Tuple
+from typing import Any, Dict, List, Optional, Set, Tuple
 
 from bridge import rpc_words
 from bridge import status as status_codec
 from bridge.config import PILOT, ROBOT, BridgeConfig, Channel
-from bridge.copies import FirstStatus, ReliableCopy, ReliableCopyCodec
+from bridge.copies import ReliableCopyCodec
+from bridge.core import (AcceptCopy, BridgeCore, CarryOutStop, Deliver, Drop, Event, FrameLeft,
+                         LocalMessage, PeerMessage, SendCopies, SendDatagrams, SendLatest,
+                         SendReliable, TakeAck, UrgentMessage)
 from bridge.delivery import Delivery
 from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeProtocolError, BridgeUsageError
-from bridge.flows import Carriage, FlowKey, Form, Route
+from bridge.flows import FlowKey, Form, Route
 from bridge.journal import Journal, QueueFull
 from bridge.link import LinkKey
+from bridge.nursery import Nursery
 from bridge.presence import Presence
 from bridge.stand_ins import PRESENCE_PERIOD, StandIns
 from bridge.stop_line import VERBS, Ack, PilotStops, RobotStops
 from bridge.tcp_channel import TcpChannel
 from bridge.udp_channel import UdpChannel, UdpRoute
-from yarp_lite.bottle import Bottle
+from yarp_lite.bursts import Burst
 from yarp_lite.errors import YarpError
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
@@ -57,54 +65,12 @@ from yarp_lite.rpc import RpcServer
 
 log = logging.getLogger("bridge")
 
-#: Seconds after a pilot's command reaches a module during which its status changes are events.
-COMMAND_WINDOW = 1.0
 #: How often the bridge writes its status on ``/bridge/<side>/status:o`` (the pilot gateway
 #: tells the pilots from it that the link is down, within about two of these).
 STATUS_PERIOD = 0.5
-
-
-class StatusEvents:
-    """Which GYM statuses leave at once (events) instead of with the next period.
-
-    A status (``seq state data...``; the seq counts messages) is an event when
-    its state changed, or when its state or data changed within
-    :data:`COMMAND_WINDOW` of a switch or command delivered to that module:
-    what a pilot waits to see.  Data that changes by itself (temperatures,
-    positions) keeps the period, so a robot left alone costs what it did.
-    """
-
-    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
-        self._clock = clock
-        self._previous: Dict[int, Tuple[Any, ...]] = {}
-        self._commanded: Dict[int, float] = {}
-        self._unanswered: set = set()      # modules commanded, no change seen since
-
-    def commanded(self, module_id: int) -> None:
-        self._commanded[module_id] = self._clock()
-        self._unanswered.add(module_id)
-
-    def is_event(self, module_id: int, status: Any) -> bool:
-        return self.classify(module_id, status) is not None
-
-    def classify(self, module_id: int, status: Any) -> Optional[str]:
-        """``"state"`` (its state changed), ``"first answer"`` (the first change of its data
-        after a command), ``"answer"`` (a later one within :data:`COMMAND_WINDOW` of the
-        command) or None (periodic).  Call once per status."""
-        body = tuple(status[1:]) if isinstance(status, Bottle) else ()
-        previous = self._previous.get(module_id)
-        self._previous[module_id] = body
-        if previous is None or body == previous:
-            return None
-        if body[:1] != previous[:1]:
-            self._unanswered.discard(module_id)
-            return "state"
-        if self._clock() - self._commanded.get(module_id, -math.inf) < COMMAND_WINDOW:
-            if module_id in self._unanswered:
-                self._unanswered.discard(module_id)
-                return "first answer"
-            return "answer"
-        return None
+#: Seconds between tries to open the YARP side after the name server refused (a port's name
+#: taken by another program, say): the bridge keeps trying, the link stays up meanwhile.
+OPEN_RETRY = 2.0
 
 
 class Bridge:
@@ -127,25 +93,27 @@ class Bridge:
         self.drops = DropLedger("bridge", log)
         self._sources: Dict[FlowKey, Any] = {}
         self._sinks: List[Any] = []
-        self.status_events = StatusEvents()
+        self._opened: Set[FlowKey] = set()   # the flows whose endpoint is open
         self._ros_sinks: List[Any] = []
         self._stop = threading.Event()
-        self._threads: List[threading.Thread] = []
+        self._nursery = Nursery()
         self._status_ports: List[Port] = []
         self.keeper = None
         self.ros_node = None
         self.routes: Dict[FlowKey, Route] = config.routes()
-        self.first_status = FirstStatus()
+        udp_routes = self._udp_routes()
+        #: every decision on a message; this class performs them (bridge.core)
+        self.core = BridgeCore(side, self.routes, datagrams=bool(udp_routes),
+                               stop=config.emergency_stop)
         self.delivery = Delivery(config, side, self.journal, self.routes, source=self._source,
                                  post=self._post, one_way=self._one_way,
-                                 on_delivered=self.status_events.commanded, drops=self.drops)
+                                 on_delivered=self.core.delivered, drops=self.drops)
         self.stand_ins = StandIns(config, side, state_dir, self.journal,
                                   open_endpoint=self._open_yarp_endpoint,
                                   on_here_changed=lambda: self.tcp.kick(),
                                   on_opened=self.delivery.wake.set,
-                                  on_closed=self.first_status.forget)
+                                  on_closed=self.core.module_gone)
         tcp_routes = [route for route in self.routes.values() if route.on_tcp]
-        udp_routes = self._udp_routes()
         self.tcp = TcpChannel(side=side, peer=peer, port=tcp_port,
                               listen=(side == ROBOT) if listen is None else listen,
                               config_text=config_text, journal=self.journal,
@@ -154,17 +122,17 @@ class Bridge:
                               on_connected=self._on_link_up, link_timeout=link_timeout,
                               key=key, on_keys=self._on_keys, presence=self.stand_ins.here,
                               on_presence=self.stand_ins.on_peer,
-                              on_copies=self._send_copies)
+                              on_copies=lambda copies: self._perform(FrameLeft(tuple(copies))))
         self.udp = UdpChannel(peer=peer, port=udp_port, peer_port=peer_udp_port or udp_port,
                               routes=udp_routes, gather=config.gather,
                               on_message=self._on_message, rate=udp_rate) if udp_routes else None
         stop = config.emergency_stop
         self.stop_all_here = None        # the robot's StopAll, once the name server answers
         self.pilot_stops = PilotStops(
-            lambda order, again: self._send_urgent(stop.stop_key, order, tcp=not again)) \
+            lambda order, again: self._perform(UrgentMessage(stop.stop_key, order, again))) \
             if stop is not None and side == PILOT else None
         self.robot_stops = RobotStops(self._carry_out_stop,
-                                      lambda ack: self._send_urgent(stop.ack_key, ack)) \
+                                      lambda ack: self._perform(UrgentMessage(stop.ack_key, ack))) \
             if stop is not None and side == ROBOT else None
 
     def _on_keys(self, event: str, send_key: bytes, receive_key: bytes) -> None:
@@ -198,54 +166,33 @@ class Bridge:
         self.tcp.start()
         if self.udp is not None:
             self.udp.start()
-        self._spawn(self._open_endpoints, "endpoints")
-        self._spawn(lambda: self.delivery.run(self._stop), "delivery")
-
-    def _spawn(self, target, name: str) -> None:
-        thread = threading.Thread(target=target, name=f"bridge {name}", daemon=True)
-        thread.start()
-        self._threads.append(thread)
+        self._nursery.start_soon(self._open_endpoints, "endpoints")
+        self._nursery.start_soon(lambda: self.delivery.run(self._stop), "delivery")
 
     def _open_endpoints(self) -> None:
         """Open every endpoint but the stand-ins, then keep the stand-ins in step."""
         from nodekit.connections import ConnectionKeeper
-        from bridge.endpoints.yarp import RobotStateSink, RobotStateSource
 
-        yarp_channels = [c for c in self.config.channels if c.middleware == "yarp"]
         ros_channels = [c for c in self.config.channels if c.middleware == "ros"]
         if ros_channels:
             self._start_ros(ros_channels)
         self.keeper = ConnectionKeeper()
         opening = time.monotonic()
-        try:
-            self._open_status_ports()
-            for channel in yarp_channels:
-                if self._stop.is_set():
-                    return
-                if channel.key in self.stand_ins.keys:
-                    continue
-                endpoint = self._open_yarp_endpoint(channel)
-                if channel.key in self.stand_ins.watched:
-                    self.stand_ins.watch(channel.key, endpoint)
-                if channel.source == self.side:
-                    self._sinks.append(endpoint)
-                else:
-                    self._sources[channel.key] = endpoint
-            state = self.config.robot_state
-            if state is not None:
-                if self.side == ROBOT:
-                    self._sinks.append(RobotStateSink(
-                        state.robot, self.nameclient, self.keeper,
-                        lambda snapshot: self._post(self.routes[state.key], snapshot),
-                        self.config.state_rate))
-                else:
-                    self._sources[state.key] = RobotStateSource(state.robot, self.nameclient)
-        except YarpError as exc:
-            log.error("cannot open the YARP side: %s", exc)
+        failures = Burst()
+        while not self._stop.is_set():
+            try:
+                self._open_yarp_side()
+                break
+            except YarpError as exc:   # a name taken, a name server refusing: not for good
+                if failures.record():
+                    log.error("cannot open the YARP side (%s); trying again every %.0f s "
+                              "(%d tries)", exc, OPEN_RETRY, failures.count)
+                self._stop.wait(OPEN_RETRY)
+            except Exception:
+                log.exception("opening the endpoints failed")
+                raise
+        if self._stop.is_set():
             return
-        except Exception:
-            log.exception("opening the endpoints failed")
-            raise
         # Connect to the modules already here before saying which are: a bridge that
         # restarts must not tell the peer, for a moment, that every module has gone.
         connecting = time.monotonic()
@@ -261,6 +208,37 @@ class Bridge:
                  len(self.config.sending(self.side)), len(self.config.receiving(self.side)),
                  connecting - opening, connected - connecting)
         self.stand_ins.keep(self._stop)
+
+    def _open_yarp_side(self) -> None:
+        """Open the status ports and every YARP endpoint not open yet (so a try after a
+        failure opens only what the last one did not)."""
+        from bridge.endpoints.yarp import RobotStateSink, RobotStateSource
+
+        self._open_status_ports()
+        for channel in self.config.channels:
+            if self._stop.is_set():
+                return
+            if channel.middleware != "yarp" or channel.key in self.stand_ins.keys or \
+                    channel.key in self._opened:
+                continue
+            endpoint = self._open_yarp_endpoint(channel)
+            self._opened.add(channel.key)
+            if channel.key in self.stand_ins.watched:
+                self.stand_ins.watch(channel.key, endpoint)
+            if channel.source == self.side:
+                self._sinks.append(endpoint)
+            else:
+                self._sources[channel.key] = endpoint
+        state = self.config.robot_state
+        if state is not None and state.key not in self._opened:
+            if self.side == ROBOT:
+                self._sinks.append(RobotStateSink(
+                    state.robot, self.nameclient, self.keeper,
+                    lambda snapshot: self._post(self.routes[state.key], snapshot),
+                    self.config.state_rate))
+            else:
+                self._sources[state.key] = RobotStateSource(state.robot, self.nameclient)
+            self._opened.add(state.key)
 
     def _open_yarp_endpoint(self, channel: Channel) -> Any:
         from bridge.endpoints.yarp import YarpSink, YarpSource
@@ -284,16 +262,20 @@ class Bridge:
 
         self.ros_node.when_ready(open_topics)
         self.ros_node.start()
-        self._spawn(self._repeat_latched, "latched")
+        self._nursery.start_soon(self._repeat_latched, "latched")
 
     def _open_status_ports(self) -> None:
+        """``/bridge/<side>/status:o`` (then its publisher) and ``rpc:i``, each once."""
         base = f"/bridge/{self.side}"
-        status = Port(nameclient=self.nameclient).open(f"{base}/status:o", wait=math.inf)
-        rpc = RpcServer(nameclient=self.nameclient,
-                        handler=lambda request: rpc_words.answer(request, self))
-        rpc.open(f"{base}/rpc:i", wait=math.inf)
-        self._status_ports = [status, rpc]
-        self._spawn(lambda: self._publish_status(status), "status")
+        if not self._status_ports:
+            status = Port(nameclient=self.nameclient).open(f"{base}/status:o", wait=math.inf)
+            self._status_ports.append(status)
+            self._nursery.start_soon(lambda: self._publish_status(status), "status")
+        if len(self._status_ports) == 1:
+            rpc = RpcServer(nameclient=self.nameclient,
+                            handler=lambda request: rpc_words.answer(request, self))
+            rpc.open(f"{base}/rpc:i", wait=math.inf)
+            self._status_ports.append(rpc)
 
     # -- data paths --------------------------------------------------------------------
 
@@ -306,47 +288,45 @@ class Bridge:
         self._post(self.routes[channel.key], value)
 
     def _post(self, route: Route, value: Any) -> None:
-        """``value`` onto the link the way its route says."""
-        if route.carriage is Carriage.RELIABLE:
-            try:
-                self.tcp.send_reliable(route.key, value)
-            except QueueFull as exc:
-                self.refused += 1
-                log.error("refused a message on %s: %s", route.label, exc)
-        elif route.carriage is Carriage.LATEST:
-            event = self.status_events.classify(route.key.id, value) \
-                if route.status_events else None
-            self.tcp.post(route.key, value, event=event is not None)
-            if event in ("state", "first answer") and route.copies and self.udp is not None:
-                # What a pilot waits for -- a new state, or the status that answers a
-                # command -- also goes as datagram copies.  (Later data changes go by TCP
-                # only: at 9600 bit/s the copies of every tick would cost more than the tail.)
-                self.udp.send_now(route.key, value, route.copies)
-        elif self.udp is not None:
-            self.udp.post(route.key, value)
-
-    def _send_copies(self, copies: List[Tuple[FlowKey, ReliableCopy]]) -> None:
-        """A frame left with reliable messages of copied flows: their datagram copies."""
-        if self.udp is None:
-            return
-        for key, copy in copies:
-            self.udp.send_now(key, copy, self.routes[key].copies)
+        """``value`` onto the link the way its route says (a sink's message, a receipt)."""
+        self._perform(LocalMessage(route.key, value))
 
     def _on_message(self, key: FlowKey, value: Any) -> None:
-        stop = self.config.emergency_stop
-        if stop is not None and key in (stop.stop_key, stop.ack_key):
-            if key == stop.stop_key and self.robot_stops is not None:
-                self.robot_stops.on_order(value)
-            elif key == stop.ack_key and self.pilot_stops is not None:
-                self.pilot_stops.on_ack(value)
-            return
-        route = self.routes.get(key)
-        if route is not None and route.copies:   # a flow that also comes as datagrams
-            if isinstance(value, ReliableCopy):
-                self.tcp.accept_copy(key, value)
-                return
-            if not self.first_status.first(key, value):
-                return
+        """A message off either channel (in the channel's thread)."""
+        self._perform(PeerMessage(key, value))
+
+    def _perform(self, event: Event) -> None:
+        """What the core decides for ``event``, done: the bridge's only I/O on messages."""
+        for action in self.core.handle(event):
+            match action:
+                case SendReliable(key, value):
+                    try:
+                        self.tcp.send_reliable(key, value)
+                    except QueueFull as exc:
+                        self.refused += 1
+                        log.error("refused a message on %s: %s", self.routes[key].label, exc)
+                case SendLatest(key, value, urgent):
+                    self.tcp.post(key, value, event=urgent)
+                case SendDatagrams(key, value) if self.udp is not None:
+                    self.udp.post(key, value)
+                case SendCopies(key, value, count) if self.udp is not None:
+                    self.udp.send_now(key, value, count)
+                case AcceptCopy(key, copy):
+                    self.tcp.accept_copy(key, copy)
+                case Deliver(key, value):
+                    self._deliver(key, value)
+                case CarryOutStop(order) if self.robot_stops is not None:
+                    self.robot_stops.on_order(order)
+                case TakeAck(ack) if self.pilot_stops is not None:
+                    self.pilot_stops.on_ack(ack)
+                case Drop(reason, detail):
+                    self.drops.drop(reason, detail)
+                case _:     # the core decided for an I/O this side does not have: a bug
+                    self.internal_errors += 1
+                    log.error("bridge core: %r cannot be carried out on the %s's side",
+                              action, self.side)
+
+    def _deliver(self, key: FlowKey, value: Any) -> None:
         source = self._source(key)
         if source is None:
             self.drops.drop(Reason.NOT_READY, f"{key}: local endpoint not open yet")
@@ -357,14 +337,6 @@ class Bridge:
             log.warning("delivering on %s failed: %s", key, exc)
 
     # -- the stop-all -------------------------------------------------------------------
-
-    def _send_urgent(self, key: FlowKey, value: Bottle, tcp: bool = True) -> None:
-        """Every way at once: the TCP channel's next frame (unless ``tcp`` is False: a
-        resending, which the connection already carries), and repeated datagrams."""
-        if tcp:
-            self.tcp.post(key, value, event=True)
-        if self.udp is not None:
-            self.udp.send_now(key, value, self.config.emergency_stop.copies)
 
     def stop_all(self, word: str = "stop_all", timeout: float = 5.0) -> Optional[Ack]:
         """Pilot side: hold the robot (``stop_all``) or let its HAL go (``release``);

@@ -63,6 +63,7 @@ from bridge.frames import DataFrame, Presence
 from bridge.journal import Journal
 from bridge.link import (FrameReceived, LinkConnection, LinkKey, LinkUp, PeerAuthenticated,
                          PeerHello)
+from bridge.nursery import Nursery
 
 log = logging.getLogger("bridge.tcp")
 
@@ -262,7 +263,7 @@ class _Connector:
             finally:
                 self._handshakes.release()
 
-        self.channel._spawn(handshake, "tcp handshake")
+        self.channel._nursery.start_soon(handshake, "tcp handshake")
 
     def run_handshake(self, sock: socket.socket) -> bool:
         """Authenticate a new connection and have it installed; False if it was not."""
@@ -391,15 +392,15 @@ class TcpChannel:
         self._urgent = False
         self._connection: Optional[_Connection] = None
         self._stopping = threading.Event()
-        self._threads: List[threading.Thread] = []
+        self._nursery = Nursery()
         self._connector = _Connector(self)
 
     # -- public surface ---------------------------------------------------------------
 
     def start(self) -> None:
         self._connector.open()
-        self._spawn(self._connector.run, "tcp connect")
-        self._spawn(self._send_loop, "tcp send")
+        self._nursery.start_soon(self._connector.run, "tcp connect")
+        self._nursery.start_soon(self._send_loop, "tcp send")
 
     def stop(self) -> None:
         self._stopping.set()
@@ -407,8 +408,7 @@ class TcpChannel:
             self._wake.notify_all()
         self._drop("bridge stopping")
         self._connector.close()
-        for thread in self._threads:
-            thread.join(timeout=3)
+        self._nursery.join()
 
     def post(self, key: FlowKey, value: Any, event: bool = False) -> None:
         """The newest value of a streaming flow; it leaves with the next period's frame.
@@ -422,7 +422,7 @@ class TcpChannel:
 
     def send_reliable(self, key: FlowKey, bottle: Any) -> int:
         """Journal a reliable Bottle (raises :class:`~bridge.journal.QueueFull`); send at once."""
-        seq = self.journal.append(key[0], key[1], compact.encode(bottle))
+        seq = self.journal.append(key.id, key.kind, compact.encode(bottle))
         self.kick()
         return seq
 
@@ -480,11 +480,6 @@ class TcpChannel:
 
     # -- connections -------------------------------------------------------------------
 
-    def _spawn(self, target: Callable[[], None], name: str) -> None:
-        thread = threading.Thread(target=target, name=f"bridge {name}", daemon=True)
-        thread.start()
-        self._threads = [t for t in self._threads if t.is_alive()] + [thread]
-
     def _new_session(self, peer_session: int) -> FrameSession:
         """The frame session of a connection whose peer proved the key."""
         return FrameSession(self.journal, self.routes, self._streams, peer_session,
@@ -521,7 +516,7 @@ class TcpChannel:
                  "authenticated" if self.key.keyed else "NOT authenticated: --no-auth",
                  connection.session.peer_session, connection.session.sent_upto or 0)
         self._keys_hook("installed", connection.link)
-        self._spawn(lambda: self._receive_loop(connection), "tcp receive")
+        self._nursery.start_soon(lambda: self._receive_loop(connection), "tcp receive")
         try:
             self.on_connected()
         except Exception:  # noqa: BLE001 -- a hook's bug must not take the link down

@@ -47,6 +47,7 @@ from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeError, BridgeProtocolError
 from bridge.flows import Carriage, FlowKey, Route
 from bridge.link import DatagramOpener, DatagramSealer
+from bridge.nursery import Nursery
 
 log = logging.getLogger("bridge.udp")
 
@@ -167,11 +168,11 @@ def message_datagrams(route: UdpRoute, message: int, bodies: List[bytes],
     for start in range(0, parts, group):
         chunk = bodies[start:start + group]
         for offset, body in enumerate(chunk):
-            out.append(datagrams.encode(Datagram(route.key[0], route.key[1], message, parts,
+            out.append(datagrams.encode(Datagram(route.key.id, route.key.kind, message, parts,
                                                  group, start + offset, body)))
         count = repairs(len(chunk)) if repairs else fec.repair_count(len(chunk), route.fec)
         for row, repair in enumerate(fec.encode(chunk, count)):
-            out.append(datagrams.encode(Datagram(route.key[0], route.key[1], message, parts,
+            out.append(datagrams.encode(Datagram(route.key.id, route.key.kind, message, parts,
                                                  group, start // group, repair, row)))
     return out
 
@@ -370,7 +371,7 @@ class UdpChannel:
         self._last_message: Dict[FlowKey, int] = {}
         self._cond = threading.Condition()
         self._stopping = threading.Event()
-        self._threads: List[threading.Thread] = []
+        self._nursery = Nursery()
         self._peer_ips = self._resolve()
         self._tokens = 0.0
         self._token_time = time.monotonic()
@@ -382,10 +383,8 @@ class UdpChannel:
             return set()
 
     def start(self) -> None:
-        for target, name in ((self._send_loop, "udp send"), (self._receive_loop, "udp receive")):
-            thread = threading.Thread(target=target, name=f"bridge {name}", daemon=True)
-            thread.start()
-            self._threads.append(thread)
+        self._nursery.start_soon(self._send_loop, "udp send")
+        self._nursery.start_soon(self._receive_loop, "udp receive")
         log.info("UDP channel on port %d, peer %s:%d%s", self.port, self.peer, self.peer_port,
                  f", paced at {self.rate / 1000:.0f} kbit/s" if self.rate else "")
 
@@ -393,8 +392,7 @@ class UdpChannel:
         self._stopping.set()
         with self._cond:
             self._cond.notify_all()
-        for thread in self._threads:
-            thread.join(timeout=3)
+        self._nursery.join()
         self._sock.close()
 
     def set_keys(self, event: str, send_key: bytes, receive_key: bytes) -> None:
@@ -503,7 +501,7 @@ class UdpChannel:
         self.stats.datagrams_out += 1
         self.stats.bytes_out += len(datagram)
         if key is not None:
-            self.stats.bytes_by_id[key[0]] = self.stats.bytes_by_id.get(key[0], 0) + \
+            self.stats.bytes_by_id[key.id] = self.stats.bytes_by_id.get(key.id, 0) + \
                 len(datagram)
         return True
 

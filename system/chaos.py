@@ -4,7 +4,7 @@ Theory of operation
 -------------------
 The ``drc`` topology (:class:`~system.topology.Topology`: robot PC and pilot PC,
 each with its yarp-lite server and roscore, the HAL, the modules, both bridges,
-the pilot gateway) runs on two emulated hosts (:mod:`bridge.emulation`,
+the pilot gateway) runs on two emulated hosts (:mod:`netem.emulation`,
 namespaces ``wmchaos_*``) or, with ``--loopback`` or without root, on this
 host.  Two more programs make it measurable:
 
@@ -56,7 +56,7 @@ import time
 from pathlib import Path
 from typing import Callable, Dict, List, Optional
 
-from bridge.emulation import EmulatedLink, EmulationError
+from netem.emulation import EmulatedLink, EmulationError
 from system import chaos_figures as figures
 from system.chaos_figures import LINK
 from system.chaos_report import fmt, markdown, summarize, table

@@ -452,7 +452,7 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
 
 def open_link(loopback: bool, progress, prefix: str = "wc", subnet: int = 60):
     """The emulated robot/pilot hosts when this machine can build them, else None (loopback)."""
-    from bridge import emulation
+    from netem import emulation
 
     if loopback:
         return None

@@ -5,7 +5,7 @@ Theory of operation
 A :class:`Pc` is a private environment -- its own ``YARP_CONFIG_HOME``, a
 ``yarp-lite server`` and a ``roscore`` on its own ports, its own state folder --
 optionally inside an emulated host (a network namespace of
-:class:`~bridge.emulation.EmulatedLink`).  A :class:`Topology` places the
+:class:`~netem.emulation.EmulatedLink`).  A :class:`Topology` places the
 components on PCs:
 
 ``lab``  one PC, one name-server pair, every program connects directly: the
@@ -161,7 +161,7 @@ def udp_budget(profile: str) -> str:
     queue (bench/bench_valve_topologies.py: the valve task took 2.1x the lab's time; 1.2x
     at 15 %, as without perception).
     """
-    from bridge.emulation import PROFILES
+    from netem.emulation import PROFILES
     from bridge.main import parse_rate
 
     rate = PROFILES.get(profile, {}).get("rate")

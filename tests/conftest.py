@@ -180,12 +180,12 @@ def lite_world(make_world, lite, monkeypatch):
 @pytest.fixture
 def emulated_link():
     """The two emulated hosts (robot, pilot) and the radio between them
-    (:class:`bridge.emulation.EmulatedLink`), taken down after the test, a failed one too.
+    (:class:`netem.emulation.EmulatedLink`), taken down after the test, a failed one too.
     Needs root: mark the test ``requires("root")``.  Give it to
     :class:`system.topology.Topology` (``link=``) to place the PCs on the hosts."""
     import random
 
-    from bridge.emulation import EmulatedLink
+    from netem.emulation import EmulatedLink
 
     link = EmulatedLink(f"we{os.getpid() % 100000}", random.randint(20, 250))
     try:

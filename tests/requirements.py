@@ -67,7 +67,7 @@ def _reference_devices() -> Optional[str]:
 
 
 def _root() -> Optional[str]:
-    from bridge import emulation
+    from netem import emulation
 
     return emulation.available()
 

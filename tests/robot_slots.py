@@ -77,7 +77,7 @@ MACHINE_TO_ITSELF = frozenset({"alone", "free_standing", "two_pcs"})
 #: Folders of tests/ whose tests start no simulated robot, GYM module or bridge -- the only
 #: programs with real-time threads (walkman/realtime.py).
 NO_REAL_TIME_FOLDERS = frozenset({"unit", "control", "fuzz", "integration", "interop",
-                                  "pilot", "nodekit", "rosnodes"})
+                                  "pilot", "nodekit", "rosnodes", "netem"})
 #: The mark of a test there that does start one (a HAL, to speak to it as a YARP robot).
 REAL_TIME_MARK = "real_time"
 #: The mark of a test elsewhere that starts none: it runs the robot on simulated time in

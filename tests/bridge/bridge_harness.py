@@ -1,7 +1,7 @@
 """Two PCs for the bridge tests: a robot and a pilot world, each with its name servers.
 
 On loopback both worlds share the host (different ports); on an emulated
-network (:class:`~bridge.emulation.EmulatedLink`) each runs in its network
+network (:class:`~netem.emulation.EmulatedLink`) each runs in its network
 namespace and the bridges talk over the veth, through the link profile.
 """
 
@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
-from bridge.emulation import EmulatedLink
+from netem.emulation import EmulatedLink
 from bridge.link import generate_key_file
 from system.processes import ROSCORE_READY
 from system.topology import GENERATED

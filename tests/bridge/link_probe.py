@@ -1,6 +1,6 @@
 """Datagrams and a TCP stream across an emulated link, timed (run inside a host's namespace).
 
-Both hosts of :class:`bridge.emulation.EmulatedLink` share this machine's monotonic clock,
+Both hosts of :class:`netem.emulation.EmulatedLink` share this machine's monotonic clock,
 so a time printed by the sender and one printed by the receiver subtract to a one-way
 delay.  Verbs, one process each::
 

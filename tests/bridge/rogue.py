@@ -3,7 +3,7 @@
 Theory of operation
 -------------------
 Run as root inside the rogue's network namespace
-(:meth:`bridge.emulation.EmulatedLink.add_intruder`), whose interface hears
+(:meth:`netem.emulation.EmulatedLink.add_intruder`), whose interface hears
 every frame the robot hears.  The attacker knows the bridge's protocol (it is
 open source: this program builds its frames with :mod:`bridge.frames`), not the
 key.  Verbs, one process each::

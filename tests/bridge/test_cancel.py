@@ -36,7 +36,7 @@ def test_a_cancel_racing_the_frame_is_either_done_or_refused_never_both(pair):
     for number in range(ROUNDS):
         pilot.channel.send_reliable(COMMAND, Bottle([Bottle(["go", number]), number]))
         spin(chance.uniform(0.0, 0.002))
-        cancelled, too_late = pilot.journal.cancel({tuple(COMMAND)}, lambda payload: True)
+        cancelled, too_late = pilot.journal.cancel({COMMAND}, lambda payload: True)
         # Neither: it left, reached the robot and was acknowledged within the spin -- gone
         # from the outbox (the gateway then answers "no queued command N"): too late too.
         assert len(cancelled) + len(too_late) <= 1, (cancelled, too_late)

@@ -8,6 +8,7 @@ import pytest
 
 from bridge import config
 from bridge.config import ConfigError
+from bridge.flows import FlowKey
 from bridge.main import main as bridge_main
 from walkman import MODELS_DIR
 
@@ -58,7 +59,7 @@ def test_custom_modules_rename_ports():
 def test_the_project_config_has_state_and_topics():
     loaded = config.load(MODELS / "bridge_drc.xml")
     assert loaded.robot_state == config.RobotStateFlow(20, "walkman", "tcp")
-    assert loaded.robot_state.key == (20, 0)
+    assert loaded.robot_state.key == FlowKey(20, 0)
     topics = {c.label: c for c in loaded.channels if c.middleware == "ros"}
     assert topics["/multisense/points"].transport == "udp"
     assert topics["/multisense/left/camera_info"].fec == 0.5

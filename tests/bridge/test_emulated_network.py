@@ -1,4 +1,4 @@
-"""The emulated link (bridge/emulation.py, its radio stage) and the bridge over it.  Needs root.
+"""The emulated link (netem/emulation.py, its radio stage) and the bridge over it.  Needs root.
 
 The link first, with real processes on the two hosts: a datagram takes at least its
 serialisation and the delay, frames queue behind each other, the radio's buffer drops the
@@ -20,9 +20,9 @@ import time
 
 import pytest
 
-from bridge.emulation import EmulatedLink, EmulationError
-from bridge.radio_model import MAX_FRAME, QUEUE_MIN_FRAMES
-from bridge.radio_stage import STAGE_PRIORITY
+from netem.emulation import EmulatedLink, EmulationError
+from netem.radio_model import MAX_FRAME, QUEUE_MIN_FRAMES
+from netem.radio_stage import STAGE_PRIORITY
 from bridge_harness import HERE, PYTHON, TwoPCs
 from harness import Proc, wait_until
 from system.processes import WaitTimeout, fifo_priorities
@@ -216,7 +216,7 @@ def radio_stage_pid(link) -> int:
                             capture_output=True, text=True, check=True).stdout.split()
     assert len(listed) == 1, listed
     stage = int(listed[0])
-    assert "bridge.radio_stage" in open(f"/proc/{stage}/cmdline").read()
+    assert "netem.radio_stage" in open(f"/proc/{stage}/cmdline").read()
     return stage
 
 

@@ -8,12 +8,13 @@ from hypothesis import strategies as st
 
 from bridge import frames
 from bridge.errors import BridgeProtocolError, BridgeUsageError
+from bridge.flows import FlowKey
 from bridge.frames import Auth, DataFrame, Entry, FrameSplitter, Hello, Resume
 from codec_helpers import FUZZ
 
 entries = st.builds(Entry, st.integers(0, 255), st.integers(0, 7), st.binary(max_size=300),
                     st.booleans())
-presences = st.none() | st.frozensets(st.tuples(st.integers(0, 255), st.integers(0, 7)),
+presences = st.none() | st.frozensets(st.builds(FlowKey, st.integers(0, 255), st.integers(0, 7)),
                                        max_size=20)
 data_frames = st.builds(DataFrame, st.lists(entries, max_size=6).map(tuple),
                         st.none() | st.integers(0, 2 ** 40), st.none() | st.integers(0, 2 ** 40),
@@ -92,7 +93,8 @@ def test_unknown_flags_and_malformed_handshake_frames_are_refused():
 
 
 def test_presence_costs_two_bytes_a_module_and_an_empty_one_is_said():
-    present = frozenset({(7, 0), (7, 1), (7, 2), (7, 3), (2, 2)})
+    present = frozenset({FlowKey(7, 0), FlowKey(7, 1), FlowKey(7, 2), FlowKey(7, 3),
+                         FlowKey(2, 2)})
     body = frames.data_body(presence=present)
     assert body == bytes((0x20, 2, 2, 0b100, 7, 0b1111))
     assert frames.parse_body(body) == DataFrame(presence=present)
@@ -124,6 +126,6 @@ def test_local_misuse_is_a_usage_error():
     with pytest.raises(BridgeUsageError):
         frames.hello_body(Hello("robot", b"short", 1))
     with pytest.raises(BridgeUsageError):
-        frames.presence_bytes(frozenset({(3, 8)}))
+        frames.presence_bytes(frozenset({FlowKey(3, 8)}))
     with pytest.raises(BridgeUsageError):
         frames.auth_body(Auth(b"short"))

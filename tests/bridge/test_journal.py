@@ -9,6 +9,7 @@ import signal
 import pytest
 
 from bridge.errors import BridgeProtocolError
+from bridge.flows import FlowKey
 from bridge.journal import Journal, QueueFull
 
 
@@ -89,14 +90,14 @@ def test_a_message_no_frame_claimed_can_be_cancelled_one_claimed_never(tmp_path)
     journal.append(7, 0, compact.encode(["start", 3]))
     assert [q.seq for q in journal.unacknowledged(limit=1)] == [first]      # a frame took #1
     every = lambda payload: True  # noqa: E731
-    cancelled, too_late = journal.cancel({(7, 1)}, every)
+    cancelled, too_late = journal.cancel({FlowKey(7, 1)}, every)
     assert [compact.decode(p) for p in cancelled] == [["go", 2]]
     assert [compact.decode(p) for p in too_late] == [["go", 1]]
     assert [q.payload for q in journal.unacknowledged(claim=False)] == [
         compact.encode(["go", 1]), TOMBSTONE, compact.encode(["start", 3])]   # numbers kept
     assert is_tombstone(compact.decode(TOMBSTONE))
-    assert journal.cancel({(7, 1)}, every) == ([], [compact.encode(["go", 1])])  # once
+    assert journal.cancel({FlowKey(7, 1)}, every) == ([], [compact.encode(["go", 1])])  # once
     journal.close()
     again = Journal(tmp_path)                 # the claim survives a restart of the bridge
-    assert again.cancel({(7, 0), (7, 1)}, every) == ([compact.encode(["start", 3])],
+    assert again.cancel({FlowKey(7, 0), FlowKey(7, 1)}, every) == ([compact.encode(["start", 3])],
                                                       [compact.encode(["go", 1])])

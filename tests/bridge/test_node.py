@@ -1,54 +1,12 @@
-"""The bridge node's own decisions: status events without sockets, the stand-ins against a
-``yarp-lite server`` (the whole wiring is tested as processes)."""
+"""The bridge node's stand-ins against a ``yarp-lite server`` (its decisions on messages:
+test_core.py; the whole wiring is tested as processes)."""
 
 from __future__ import annotations
 
 import pytest
 
-from bridge.node import COMMAND_WINDOW, StatusEvents
+from bridge.flows import FlowKey
 from harness import free_port, wait_until
-from harness import ManualClock as Clock
-from yarp_lite.bottle import Bottle
-
-
-def status(seq: int, state: str, *data) -> Bottle:
-    return Bottle([seq, state, *data])
-
-
-def test_a_new_state_is_an_event_and_a_repeated_status_is_not():
-    events = StatusEvents(Clock())
-    assert not events.is_event(7, status(2, "idle"))  # the first one: nothing to compare
-    assert not events.is_event(7, status(3, "idle"))  # only the message counter moved
-    assert events.is_event(7, status(4, "running"))
-    assert not events.is_event(7, status(5, "running"))
-
-
-def test_changing_data_is_an_event_only_right_after_a_command():
-    clock = Clock()
-    events = StatusEvents(clock)
-    events.is_event(3, status(2, "running", 40.0))
-    assert not events.is_event(3, status(3, "running", 40.5))  # drifting by itself
-    events.commanded(3)
-    clock.now += COMMAND_WINDOW / 2
-    assert events.is_event(3, status(4, "running", 12.0))       # the command's effect
-    clock.now += COMMAND_WINDOW
-    assert not events.is_event(3, status(5, "running", 12.5))
-    assert not events.is_event(4, status(2, "running", 1.0))    # modules are apart
-
-
-def test_the_status_answering_a_command_is_told_apart_from_later_ones():
-    """The first change after a command, and a new state, also go as datagram copies
-    (bridge.copies); later changes within the window are events by TCP only."""
-    clock = Clock()
-    events = StatusEvents(clock)
-    events.classify(3, status(2, "running", 40.0))
-    events.commanded(3)
-    assert events.classify(3, status(3, "running", 41.0)) == "first answer"
-    assert events.classify(3, status(4, "running", 42.0)) == "answer"
-    assert events.classify(3, status(5, "running", 42.0)) is None   # nothing changed
-    events.commanded(3)
-    assert events.classify(3, status(6, "reached", 42.0)) == "state"
-    assert events.classify(3, status(7, "reached", 43.0)) == "answer"  # answered by the state
 
 
 # -- presence: the pilot's stand-ins, against a yarp-lite server ------------------------------
@@ -83,7 +41,7 @@ def test_stand_ins_follow_the_word_and_a_closing_one_writes_its_last_warning(pil
     from bridge import compact
     from yarp_lite.bottle import Bottle
 
-    everything = frozenset((7, kind) for kind in range(4))
+    everything = frozenset(FlowKey(7, kind) for kind in range(4))
     pilot_bridge.stand_ins.follow(everything)
     assert shown_here() == {"/gaze_control/switch:i", "/gaze_control/command:i",
                             "/gaze_control/status:o", "/gaze_control/warning:o"}
@@ -107,7 +65,7 @@ def test_the_presence_thread_follows_the_peer_and_remembers_its_word(pilot_bridg
     from bridge.node import Bridge
 
     # Said while the bridge was still opening its endpoints (before the thread runs).
-    pilot_bridge.stand_ins.on_peer(frozenset({(7, 0), (7, 2)}))
+    pilot_bridge.stand_ins.on_peer(frozenset({FlowKey(7, 0), FlowKey(7, 2)}))
     thread = threading.Thread(target=pilot_bridge.stand_ins.keep, args=(pilot_bridge._stop,),
                               daemon=True)
     thread.start()
@@ -121,7 +79,8 @@ def test_the_presence_thread_follows_the_peer_and_remembers_its_word(pilot_bridg
     again = Bridge(bridge_config.parse(PRESENCE_CONFIG), PRESENCE_CONFIG, side="pilot",
                    peer="127.0.0.1", tcp_port=free_port(), udp_port=free_port(),
                    state_dir=tmp_path / "state")
-    assert again.stand_ins.peer == {(7, 0), (7, 2)}   # a restart in an outage shows them
+    # A restart in an outage shows them.
+    assert again.stand_ins.peer == {FlowKey(7, 0), FlowKey(7, 2)}
     again.journal.close()
 
 
@@ -153,3 +112,39 @@ def test_a_reader_that_stops_reading_the_status_does_not_silence_it_for_the_othe
         held.set()
         stalled.close()
         listening.close()
+
+
+def test_a_name_server_that_fails_while_the_ports_open_is_tried_again_not_given_up(
+        tmp_path, lite_world, monkeypatch, caplog):
+    """A refusal while the endpoints open (the name server restarting under the bridge) once
+    left the bridge without its YARP side for good, its link up.  Now it tries again, opening
+    only what the last try did not."""
+    from bridge import config as bridge_config
+    from bridge import node
+    from bridge.node import Bridge
+    from yarp_lite.errors import NetworkError
+
+    monkeypatch.setattr(node, "OPEN_RETRY", 0.05)
+    opened, refusals = [], [2]
+    real_open = Bridge._open_yarp_endpoint
+
+    def refusing_twice(self, channel):
+        if refusals[0]:
+            refusals[0] -= 1
+            raise NetworkError("name server: connection reset (a test's refusal)")
+        opened.append(channel.key)
+        return real_open(self, channel)
+
+    monkeypatch.setattr(Bridge, "_open_yarp_endpoint", refusing_twice)
+    config = PRESENCE_CONFIG
+    bridge = Bridge(bridge_config.parse(config), config, side="robot", peer="127.0.0.1",
+                    tcp_port=free_port(), udp_port=free_port(), state_dir=tmp_path / "state")
+    with caplog.at_level("INFO", logger="bridge"):
+        bridge.start()
+        try:
+            wait_until(lambda: "bridge robot side ready" in caplog.text, 20,
+                       message="the bridge ready after the refusals")
+        finally:
+            bridge.stop()
+    assert "cannot open the YARP side (name server: connection reset" in caplog.text
+    assert len(opened) == len(set(opened)) > 0, opened      # each endpoint opened once

@@ -25,7 +25,7 @@ from typing import Callable, Dict, List
 
 import pytest
 
-from bridge.emulation import EmulatedLink
+from netem.emulation import EmulatedLink
 from bridge.status import from_bottle
 from bridge_harness import HERE, PYTHON, Side, TwoPCs
 from harness import Implementation, Proc, dump_outputs_if_failed, wait_until

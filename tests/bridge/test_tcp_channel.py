@@ -314,7 +314,7 @@ def test_a_forged_frame_drops_the_connection_and_it_comes_back(pair):
     robot, pilot = pair(period=0.2)
     connection = pilot.channel._connection
     # A frame with a made-up tag, injected into the live stream as an on-path attacker would.
-    forged = frames.data_body((frames.Entry(SWITCH[0], SWITCH[1], b"\x01\x04stop"),), seq=99)
+    forged = frames.data_body((frames.Entry(SWITCH.id, SWITCH.kind, b"\x01\x04stop"),), seq=99)
     connection.sock.sendall(frames.wrap(forged, b"\0" * 8))
     wait_until(lambda: robot.channel.drops.get(Reason.FORGED) == 1, 5,
                message="forged frame counted")

@@ -128,7 +128,7 @@ def test_a_sliced_message_is_whole_or_lost():
     out = []
     for raw in message_datagrams(BLOB, 6, slice_message(BottleUdpCodec().encode(bottle))):
         out += reassembler.feed(raw, now=2.0)
-    assert out == [((9, 0), bottle)]
+    assert out == [(FlowKey(9, 0), bottle)]
 
 
 def test_newer_messages_supersede_older_ones_and_numbers_wrap():

@@ -9,8 +9,8 @@ from typing import Dict, List, Set
 
 REPO = Path(__file__).resolve().parents[2]
 #: Bottom up; a package may import those of lower rank only.
-LAYERS = {"yarp_lite": 0, "nodekit": 1, "walkman": 2, "bridge": 3, "rosnodes": 4, "pilot": 4,
-          "system": 5}
+LAYERS = {"yarp_lite": 0, "nodekit": 1, "walkman": 2, "bridge": 3, "netem": 3, "rosnodes": 4,
+          "pilot": 4, "system": 5}
 
 
 def modules() -> Dict[str, Path]:

@@ -1,4 +1,4 @@
-"""The emulated radio's schedule (bridge/radio_model.py): pure, so every time here is exact."""
+"""The emulated radio's schedule (netem/radio_model.py): pure, so every time here is exact."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import pytest
 from hypothesis import given, strategies as st
 
-from bridge.radio_model import (MAX_FRAME, QUEUE_MIN_FRAMES, Drop, RadioChannel,
+from netem.radio_model import (MAX_FRAME, QUEUE_MIN_FRAMES, Drop, RadioChannel,
                                 RadioSettings, RadioSettingsError)
 
 DEGRADED = RadioSettings(rate=9600, delay=0.05)

@@ -7,8 +7,8 @@ with its own loopback (so each runs its own yarpserver and roscore on the
 usual ports) and one cable to the radio, addressed 169.254.<subnet>.1 (robot)
 and .2 (pilot): link-local, so nothing ever leaves.  The radio is a third
 namespace, ``<prefix>_link``, where the two cables end, and a program there,
-the link stage (:mod:`bridge.radio_stage`, whose timing is the pure
-:mod:`bridge.radio_model`), moves every Ethernet frame from one cable to the
+the link stage (:mod:`netem.radio_stage`, whose timing is the pure
+:mod:`netem.radio_model`), moves every Ethernet frame from one cable to the
 other::
 
     robot r0 ==veth== lr  [<prefix>_link: radio stage]  lp ==veth== p0 pilot
@@ -214,11 +214,11 @@ class EmulatedLink:
         """Start the link stage, detached (it outlives ``walkman-netem up``); return once it
         answers on its control socket."""
         STAGE_DIR.mkdir(mode=0o700, parents=True, exist_ok=True)
-        root = str(Path(__file__).resolve().parents[1])  # bridge/ is importable from here
+        root = str(Path(__file__).resolve().parents[1])  # netem/ is importable from here
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(
             filter(None, [root, os.environ.get("PYTHONPATH")])))
         argv = self.exec_argv("link", [
-            sys.executable, "-m", "bridge.radio_stage", "--robot", self.radio_end("robot"),
+            sys.executable, "-m", "netem.radio_stage", "--robot", self.radio_end("robot"),
             "--pilot", self.radio_end("pilot"), "--bridge", bridge,
             "--control", str(self.control_path)])
         with open(self.stage_log, "wb") as log:
@@ -348,7 +348,7 @@ class EmulatedLink:
     # -- shaping -----------------------------------------------------------------------
 
     def _request(self, request: Dict[str, Any]) -> Dict[str, Any]:
-        """One request to the link stage, its reply (see :mod:`bridge.radio_stage`)."""
+        """One request to the link stage, its reply (see :mod:`netem.radio_stage`)."""
         try:
             with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
                 sock.settimeout(10)
@@ -366,7 +366,7 @@ class EmulatedLink:
         return reply
 
     def configure(self, **settings: Any) -> Dict[str, Any]:
-        """Change the radio's settings (:class:`~bridge.radio_model.RadioSettings` fields,
+        """Change the radio's settings (:class:`~netem.radio_model.RadioSettings` fields,
         both directions); returns the stage's status."""
         return self._request({"set": settings})
 

@@ -4,7 +4,7 @@ it never will.  Pure: the caller owns the clock, the random source and the frame
 Theory of operation
 -------------------
 Everything about how the emulated link treats a frame lives in this file; the link stage
-(:mod:`bridge.radio_stage`) only moves bytes.  One :class:`RadioChannel` per direction, the
+(:mod:`netem.radio_stage`) only moves bytes.  One :class:`RadioChannel` per direction, the
 far end of a radio modem's transmit queue.  A frame offered at ``now``:
 
 1. **blackout** -- dropped: the radio is gone.  When a blackout begins, every frame queued or

@@ -1,9 +1,9 @@
 """The emulated radio's process: it moves Ethernet frames between the robot's and the pilot's
-cables, each direction through a :class:`~bridge.radio_model.RadioChannel`.
+cables, each direction through a :class:`~netem.radio_model.RadioChannel`.
 
 Theory of operation
 -------------------
-:mod:`bridge.emulation` cuts the robot-pilot cable in two and runs this program, as root, in
+:mod:`netem.emulation` cuts the robot-pilot cable in two and runs this program, as root, in
 the namespace between the halves (``<prefix>_link``), whose two interfaces lead to the robot
 and to the pilot.  One ``AF_PACKET`` socket on each hears every frame that end sends; frames
 the kernel reports as our own (``PACKET_OUTGOING``) are skipped.
@@ -15,7 +15,7 @@ early, so a frame spends at least its serialisation and delay on the link; on a 
 it may spend more (the process asks for ``SCHED_FIFO`` to keep that small).
 
 Control: a Unix stream socket.  A request is one JSON line, ``{"set": {...}}`` (fields of
-:class:`~bridge.radio_model.RadioSettings`, both directions) or ``{}``; the reply is one JSON
+:class:`~netem.radio_model.RadioSettings`, both directions) or ``{}``; the reply is one JSON
 line with the settings and each direction's counters, or ``{"error": text}``.
 
 Ideal settings (no rate, delay, loss or blackout: the ``lab`` profile) are the kernel's job:
@@ -36,7 +36,7 @@ import sys
 import time
 from typing import Dict, List, Optional
 
-from bridge.radio_model import RadioChannel, RadioSettings, RadioSettingsError
+from netem.radio_model import RadioChannel, RadioSettings, RadioSettingsError
 from walkman.realtime import realtime_refused
 
 ETH_P_ALL = 0x0003
@@ -70,7 +70,7 @@ class Stage:
         self.control.bind(control)
         os.chmod(control, 0o600)
         self.control.listen(8)
-        self.bridged = False  # the ends as :mod:`bridge.emulation` leaves them: in no bridge
+        self.bridged = False  # the ends as :mod:`netem.emulation` leaves them: in no bridge
         self._apply(self.settings)  # ideal: they join the bridge
 
     # -- frames ----------------------------------------------------------------------------
