@@ -393,7 +393,7 @@ def presence(link: EmulatedLink, rounds: int, bridge: bool) -> Tuple[List[float]
 LOOP_CONFIG = """<bridge period="0.5" gather="0.4">
   <modules><module name="counter" id="3"/></modules>{copies}
 </bridge>"""
-#: the command and the status answering it also as two datagrams each (bridge/copies.py)
+#: the command and the status answering it also as two datagrams each (bridge/transport/copies.py)
 LOOP_COPIES = '\n  <datagram_copies commands="2" statuses="2"/>'
 COUNTER = ["-m", "walkman.gym.supervisor", "witness", "--name", "/counter"]
 

@@ -11,7 +11,7 @@ torso tilted, the smallest margin of the measured ZMP to the edge of the feet, a
 wall time of one control tick against the 2 ms budget of a 500 Hz loop.  Then the largest
 push (N*s on the torso, over 0.1 s) survived standing, in 5 N*s steps, each way; and
 sideways in mid-walk.  Survived: upright (tilt < 0.1 rad, pelvis not sunk) 4 s after.
-The rough-ground courses (tests/modules/walker.py): up a 5-cm step, along it and down
+The rough-ground courses (walkman/courses.py): up a 5-cm step, along it and down
 (station ``terrain``); onto a 10-degree ramp, up it and onto its top (station ``ramp``), and
 back down from the top (station ``ramp_top``), at once and, as through the PI, standing 15 s
 before each pair of footsteps is measured: each command's time and smallest ZMP margin,
@@ -34,13 +34,13 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
-# this checkout first (tests/ beside bench/, and its walkman over any the venv installed)
+# this checkout's walkman first, over any the venv installed
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench_tasks import timed_ticks  # noqa: E402  (bench/ is the script's folder)
 from host import say_machine  # noqa: E402
-from tests.modules.walker import (camera_course, ramp_course,  # noqa: E402
-                                  ramp_down_course, terrain_course, tilt, upright, walker)
-from walkman.control.ground_ahead import GroundError
+from walkman.control.ground_ahead import GroundError  # noqa: E402
+from walkman.courses import (camera_course, ramp_course, ramp_down_course,  # noqa: E402
+                             terrain_course, tilt, upright, walker)
 from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import CONTACT_MODELS, SimBackend
 from walkman.model.mjcf import TERRAIN_RAMP, TERRAIN_STEP
@@ -108,7 +108,7 @@ COURSES = (("terrain", "terrain", terrain_course), ("ramp", "ramp", ramp_course)
 
 
 def rough_ground(contact: str = "soft") -> List[str]:
-    """The rough-ground courses (tests/modules/walker.py): the 5-cm step of station
+    """The rough-ground courses (walkman/courses.py): the 5-cm step of station
     ``terrain`` and the 10-degree ramp of station ``ramp``, up and (``ramp_top``) down, by
     commands, then the step and the ramp by the camera's footsteps: per command its time and
     smallest ZMP margin, then each course's speed and balance trips."""

@@ -1,15 +1,17 @@
 """The robot/pilot network bridge (paper section 2.6).
 
-Two processes, one per PC, make YARP ports and ROS topics on two name servers
-look like one network over a slow link that comes and goes.  Layers, bottom
-up: :mod:`wire`/:mod:`compact`/:mod:`state_codec`/:mod:`frames`/
-:mod:`datagrams`/:mod:`tiles`/:mod:`fec` (pure codecs), :mod:`link` (the
-handshake) and :mod:`frame_session` (acks, resume, events, nudges) and
-:mod:`channel_phase` (sans-IO protocol objects), :mod:`journal` (durable
-reliable queues), :mod:`tcp_channel`/:mod:`udp_channel` (sockets),
-:mod:`endpoints` (YARP ports and ROS topics), :mod:`node` and :mod:`main`
-(the ``walkman-bridge`` program).  :mod:`config` reads the XML and
-:mod:`flows` decides once how each flow crosses; :mod:`expiry` ages a
-command by the time each side held it, :mod:`stop_line` carries the
-stop-all.  The emulated robot/pilot network is not part of the bridge: :mod:`netem`.
+Two processes, one per PC, make YARP ports and ROS topics on two name servers look like one
+network over a slow link that comes and goes.  Bottom up:
+
+* :mod:`bridge.wire` -- pure codecs (varints, compact Bottles, the robot state, frames,
+  datagrams, tiles, FEC) and the keyed handshake;
+* :mod:`bridge.transport` -- the journal and the TCP and UDP channels that carry the bytes;
+* :mod:`bridge.gym` -- what the link owes a GYM module: delivery and receipts, expiry, status
+  events, the stop-all, the stand-ins;
+* here: :mod:`config` reads the XML and :mod:`flows` decides once how each flow crosses;
+  :mod:`core` decides what each message does (sans-IO: events in, actions out); :mod:`node`
+  performs it, with the :mod:`endpoints` (YARP ports and ROS topics); :mod:`main` is the
+  ``walkman-bridge`` program.
+
+The emulated robot/pilot network is not part of the bridge: :mod:`netem`.
 """

@@ -8,7 +8,7 @@ The file lists modules by 8-bit id (0..255, unique across every section):
   on the robot: its ``switch`` and ``command`` go pilot->robot (reliable:
   never dropped, never duplicated, in order, sent at once), its ``status``
   (latest only, batched every period, but at once when it answers a pilot's
-  command or its state changes: :class:`bridge.status_events.StatusEvents`),
+  command or its state changes: :class:`bridge.gym.status_events.StatusEvents`),
   ``warning`` and ``receipt`` (reliable) go robot->pilot
   (:data:`walkman.gym.interfaces.GYM_PORTS`, whose order gives each flow's kind);
 * ``<custom_modules>`` -- explicit ``<connection port_to_open source_port
@@ -23,7 +23,7 @@ The file lists modules by 8-bit id (0..255, unique across every section):
   channel", as the paper says.
 
 ``<bridge key="bridge.key">`` names the key file both bridges share (relative
-to the XML file; ``--key`` on the command line wins), see :mod:`bridge.link`.
+to the XML file; ``--key`` on the command line wins), see :mod:`bridge.wire.link`.
 
 Every channel gets ``(id, kind)``: the module id and which of its flows it
 is.  The file is checked against ``bridge.xsd`` and then for what a schema
@@ -34,16 +34,17 @@ Any input, however malformed, gives a :class:`BridgeConfig` or a
 entities and loads no DTD or network resource; a file may be at most
 :data:`MAX_CONFIG_BYTES`; numbers must be finite and in range (ids 0..255,
 quality 0..100, fec 0..0.5 or ``auto``, period/gather/rate > 0).  ``fec="auto"``
-sizes the repairs from the loss the receiver reports (:mod:`bridge.adaptive_fec`).
+sizes the repairs from the loss the receiver reports (:mod:`bridge.transport.adaptive_fec`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from enum import StrEnum
 from functools import lru_cache
 from pathlib import Path
-from typing import Callable, Dict, List, Optional, Tuple, TypeVar, Union
+from typing import Callable, ClassVar, Dict, List, Optional, Tuple, TypeVar, Union
 
 from lxml import etree
 
@@ -51,9 +52,32 @@ from bridge.flows import STATE_KIND, STOP_ACK_KIND, STOP_ORDER_KIND, Carriage, F
 from walkman.gym.interfaces import GYM_PORTS, RECEIPT
 
 SCHEMA_PATH = Path(__file__).with_name("bridge.xsd")
-ROBOT, PILOT = "robot", "pilot"
+
+
+class Side(StrEnum):
+    """A PC of the topology: where a flow's messages come from or go to."""
+
+    ROBOT = "robot"
+    PILOT = "pilot"
+
+
+class Transport(StrEnum):
+    """The bridge's channel a flow crosses on."""
+
+    TCP = "tcp"
+    UDP = "udp"
+
+
+class Middleware(StrEnum):
+    """What a flow is on either PC: YARP ports or a ROS topic."""
+
+    YARP = "yarp"
+    ROS = "ros"
+
+
+ROBOT, PILOT = Side.ROBOT, Side.PILOT
 DIRECTIONS = {"robot_to_pilot": (ROBOT, PILOT), "pilot_to_robot": (PILOT, ROBOT)}
-CHANNELS = ("tcp", "udp")
+CHANNELS = tuple(Transport)
 DEFAULT_PERIOD = 0.5
 DEFAULT_GATHER = 0.4
 DEFAULT_STATE_RATE = 10.0
@@ -67,31 +91,43 @@ class ConfigError(Exception):
 
 
 @dataclass(frozen=True)
-class Channel:
-    """One bridged flow of messages."""
+class Flow:
+    """What every bridged flow of messages has, YARP or ROS (:data:`Channel`)."""
 
     id: int                      # 8-bit module id
     kind: int                    # which flow of that module
     label: str                   # "gaze_control/status"
-    source: str                  # side where messages come from ("robot" or "pilot")
-    destination: str
-    middleware: str              # "yarp" or "ros"
-    transport: str               # "tcp" or "udp"
+    source: Side                 # where messages come from
+    destination: Side
+    transport: Transport
     reliable: bool               # never dropped, in order, sent at once
-    # YARP: on the source side ``listen_port`` is opened and ``feed_port`` connected to it;
-    # on the destination side ``emit_port`` is opened and connected to ``deliver_port``
-    # (or, when None, left for local programs to connect to, as they would to the original).
+    fec: float = 0.0             # the share of repair datagrams (UDP)
+    fec_auto: bool = False       # repairs sized from the measured loss (fec unused)
+    line: int = 0                # of the XML, for messages
+
+    @property
+    def key(self) -> FlowKey:
+        return FlowKey(self.id, self.kind)
+
+    def _datagrams(self, form: Form) -> Route:
+        return Route(self.key, self.label, Carriage.DATAGRAMS, form, fec=self.fec,
+                     fec_auto=self.fec_auto)
+
+
+@dataclass(frozen=True)
+class YarpChannel(Flow):
+    """A flow between YARP ports: a GYM module's port or a custom connection.
+
+    On the source side ``listen_port`` is opened and ``feed_port`` connected to it; on the
+    destination side ``emit_port`` is opened and connected to ``deliver_port`` (or, when
+    None, left for local programs to connect to, as they would to the original)."""
+
+    middleware: ClassVar[Middleware] = Middleware.YARP
     listen_port: str = ""
     feed_port: str = ""
     emit_port: str = ""
     deliver_port: Optional[str] = None
-    ros_type: str = ""
-    latch: bool = False
-    quality: int = 80
-    fec: float = 0.0
-    fec_auto: bool = False       # repairs sized from the measured loss (fec unused)
-    statuses: Tuple[str, ...] = ()
-    line: int = 0
+    statuses: Tuple[str, ...] = ()     # a GYM module's states, beyond the GYM's own
     #: a GYM status: a change of its ``seq state`` head is an event that leaves at once
     status_events: bool = False
     #: a GYM switch or command: its messages carry a validity (:mod:`walkman.gym.validity`)
@@ -100,13 +136,9 @@ class Channel:
     receipts: bool = False
 
     @property
-    def key(self) -> FlowKey:
-        return FlowKey(self.id, self.kind)
-
-    @property
     def module(self) -> str:
         """The module of the configuration this flow belongs to (its label's head)."""
-        return self.label.split("/")[0] if self.middleware == "yarp" else self.label
+        return self.label.split("/")[0]
 
     def opened_on(self, side: str) -> str:
         """The YARP port the bridge opens for this flow on ``side``."""
@@ -114,12 +146,8 @@ class Channel:
 
     def route(self, copies: "Optional[DatagramCopies]" = None) -> Route:
         """How this flow crosses (``copies``: the configuration's ``<datagram_copies>``)."""
-        if self.middleware == "ros":
-            return Route(self.key, self.label, Carriage.DATAGRAMS, Form.ROS,
-                         fec=self.fec, fec_auto=self.fec_auto)
-        if self.transport == "udp":
-            return Route(self.key, self.label, Carriage.DATAGRAMS, Form.BOTTLE,
-                         fec=self.fec, fec_auto=self.fec_auto)
+        if self.transport is Transport.UDP:
+            return self._datagrams(Form.BOTTLE)
         copied = 0
         if copies is not None:
             copied = copies.statuses if self.status_events else \
@@ -132,12 +160,35 @@ class Channel:
 
 
 @dataclass(frozen=True)
+class RosChannel(Flow):
+    """A ROS topic, over the UDP channel only (the paper: "TCP-ROS is unsupported")."""
+
+    middleware: ClassVar[Middleware] = Middleware.ROS
+    ros_type: str = ""                 # package/Type
+    latch: bool = False
+    quality: int = 80                  # JPEG quality of an image's tiles
+
+    @property
+    def module(self) -> str:
+        """A topic is its own module."""
+        return self.label
+
+    def route(self, copies: "Optional[DatagramCopies]" = None) -> Route:
+        """How this flow crosses: as datagrams, always."""
+        return self._datagrams(Form.ROS)
+
+
+#: One bridged flow: a tagged union on ``middleware``.
+Channel = Union[YarpChannel, RosChannel]
+
+
+@dataclass(frozen=True)
 class RobotStateFlow:
     """``<robot_state>``: the HAL's joint state, under its own id."""
 
     id: int
     robot: str                   # the robot's port prefix (``walkman``)
-    transport: str               # "tcp" or "udp"
+    transport: Transport
 
     @property
     def key(self) -> FlowKey:
@@ -166,7 +217,7 @@ class EmergencyStopFlow:
 class DatagramCopies:
     """``<datagram_copies>``: how many datagram copies of each pilot command (and its
     receipt) and of each status event also cross on the UDP channel, beside the TCP
-    channel's one (:mod:`bridge.copies`); 0: none."""
+    channel's one (:mod:`bridge.transport.copies`); 0: none."""
 
     commands: int = 0
     statuses: int = 0
@@ -349,9 +400,9 @@ class _Sections:
                     listen, feed, emit, deliver = bridge_port, original, original, None
                 self.claim(source, listen, element.sourceline)
                 self.claim(destination, emit, element.sourceline)
-                config.channels.append(Channel(
+                config.channels.append(YarpChannel(
                     id=module_id, kind=kind, label=f"{name}/{flow}", source=source,
-                    destination=destination, middleware="yarp", transport="tcp", reliable=reliable,
+                    destination=destination, transport=Transport.TCP, reliable=reliable,
                     listen_port=listen, feed_port=feed, emit_port=emit, deliver_port=deliver,
                     statuses=statuses, line=element.sourceline,
                     status_events=flow == "status", expiring=direction == "pilot_to_robot",
@@ -391,9 +442,9 @@ class _Sections:
                 streaming = connection.get("streaming", default) in ("true", "1")
                 self.claim(source, names["port_to_open"], line)
                 self.claim(destination, names["source_port"], line)
-                config.channels.append(Channel(
+                config.channels.append(YarpChannel(
                     id=module_id, kind=kind, label=f"{name}{connection.get('port_to_open')}",
-                    source=source, destination=destination, middleware="yarp", transport=transport,
+                    source=source, destination=destination, transport=Transport(transport),
                     reliable=not streaming, listen_port=names["port_to_open"],
                     feed_port=names["source_port"], emit_port=names["source_port"],
                     deliver_port=names["target_port"], line=line))
@@ -406,7 +457,8 @@ class _Sections:
             transport = element.get("channel", "tcp")
             if transport not in CHANNELS:
                 raise ConfigError(f"{where}:{element.sourceline}: unknown channel {transport!r}")
-            config.robot_state = RobotStateFlow(state_id, element.get("robot"), transport)
+            config.robot_state = RobotStateFlow(state_id, element.get("robot"),
+                                                Transport(transport))
             config.state_rate = _positive(element, "rate", DEFAULT_STATE_RATE, where)
 
     def emergency_stop(self, root: etree._Element) -> None:
@@ -464,9 +516,9 @@ class _Sections:
             if not 0 <= quality <= 100:
                 raise ConfigError(f"{where}:{line}: quality is a JPEG quality 0..100, "
                                   f"got {quality}")
-            config.channels.append(Channel(
+            config.channels.append(RosChannel(
                 id=topic_id, kind=0, label=topic, source=source, destination=destination,
-                middleware="ros", transport="udp", reliable=False, ros_type=ros_type,
+                transport=Transport.UDP, reliable=False, ros_type=ros_type,
                 latch=element.get("latch", "false") in ("true", "1"),
                 quality=quality, fec=fec, fec_auto=fec_auto, line=line))
 

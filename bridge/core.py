@@ -15,8 +15,8 @@ acknowledgement.  Nothing here touches a socket, a port or a thread: the node
 What happens to a message is decided by its route's :class:`~bridge.flows.Carriage` and its
 direction, in one table (:data:`OUTBOUND`, :data:`INBOUND`); before, five functions of the
 node each decided a part of it.  The GYM's part -- which status change a pilot waits for
-(:class:`~bridge.status_events.StatusEvents`), which copy of a status is the first
-(:class:`~bridge.copies.FirstStatus`) -- is asked, not duplicated.
+(:class:`~bridge.gym.status_events.StatusEvents`), which copy of a status is the first
+(:class:`~bridge.transport.copies.FirstStatus`) -- is asked, not duplicated.
 """
 
 from __future__ import annotations
@@ -25,11 +25,11 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
 
 from bridge.config import PILOT, ROBOT, EmergencyStopFlow
-from bridge.copies import FirstStatus, ReliableCopy
-from bridge.drops import Reason
 from bridge.errors import BridgeUsageError
 from bridge.flows import Carriage, FlowKey, Route
-from bridge.status_events import StatusEvents
+from bridge.gym.status_events import StatusEvents
+from bridge.transport.copies import FirstStatus, ReliableCopy
+from bridge.transport.drops import Reason
 
 # -- events ----------------------------------------------------------------------------------
 
@@ -192,7 +192,7 @@ class BridgeCore:
 
     def delivered(self, module_id: int) -> None:
         """A pilot's switch or command reached module ``module_id``: its status changes
-        within :data:`~bridge.status_events.COMMAND_WINDOW` are events."""
+        within :data:`~bridge.gym.status_events.COMMAND_WINDOW` are events."""
         self.status_events.commanded(module_id)
 
     def module_gone(self, key: FlowKey) -> None:

@@ -41,7 +41,7 @@ class Carriage(str, Enum):
     #: journalled on both sides: never lost, never run twice, in order, sent at once (TCP)
     RELIABLE = "reliable"
     #: the newest value with the next period (TCP); a GYM status's change that a pilot
-    #: waits for leaves at once (:class:`bridge.status_events.StatusEvents`)
+    #: waits for leaves at once (:class:`bridge.gym.status_events.StatusEvents`)
     LATEST = "latest"
     #: tiles or slices of one datagram each (UDP): what arrived is published after ``gather``
     DATAGRAMS = "datagrams"
@@ -74,7 +74,7 @@ class Route:
     fec: float = 0.0
     fec_auto: bool = False
     #: a command, receipt or status also sent as this many datagrams on the UDP channel,
-    #: first copy wins (:mod:`bridge.copies`); 0: TCP only
+    #: first copy wins (:mod:`bridge.transport.copies`); 0: TCP only
     copies: int = 0
 
     @property
@@ -88,3 +88,8 @@ class Route:
     @property
     def reliable(self) -> bool:
         return self.carriage is Carriage.RELIABLE
+
+    @property
+    def copied(self) -> bool:
+        """Each message comes as several copies: a repeated part is expected, no drop."""
+        return self.copies > 0 or self.carriage is Carriage.URGENT

@@ -9,7 +9,7 @@ Usage::
 
 Both sides must use the same configuration file (the handshake compares a
 fingerprint) and the same key file (the handshake proves it both ways; every
-frame and datagram then carries an authentication tag, see :mod:`bridge.link`).
+frame and datagram then carries an authentication tag, see :mod:`bridge.wire.link`).
 The key file must be readable by its owner only, as ssh wants of its keys;
 ``--no-auth`` runs without one, for a closed lab network.  The robot side listens on ``--port`` and the pilot side dials
 it; both send UDP to the peer's ``--udp-port``.  Talk to a running bridge with
@@ -31,8 +31,8 @@ from typing import List, Optional
 from bridge import config as bridge_config
 from bridge.config import ConfigError
 from bridge.errors import BridgeUsageError
-from bridge.journal import default_state_dir
-from bridge.link import LinkKey, generate_key_file
+from bridge.transport.journal import default_state_dir
+from bridge.wire.link import LinkKey, generate_key_file
 from nodekit import stacks
 from nodekit.logs import configure_logging
 from walkman.realtime import BRIDGE_PRIORITY, make_process_realtime

@@ -12,9 +12,9 @@ Data flows sink -> channel -> (link) -> channel -> source.  What happens to each
 message -- journalled, posted as the newest value, sent as datagrams or copies,
 delivered, dropped -- is the sans-IO core's decision (:mod:`bridge.core`); this
 class is the I/O shell that performs it (:meth:`Bridge._perform`), and its threads
-start in one place (:class:`~bridge.nursery.Nursery`).  A module's
+start in one place (:class:`~bridge.transport.nursery.Nursery`).  A module's
 stand-in ports (the pilot's ``/M/switch:i``, ``/M/status:o``...) are open only
-while the peer reports the module's own ports connected (:mod:`bridge.stand_ins`);
+while the peer reports the module's own ports connected (:mod:`bridge.gym.stand_ins`);
 the same thread that opened the endpoints keeps them in step.  Reliable messages
 (pilot commands, warnings) go through the journal on both sides; the delivery
 thread writes the inbox to the local ports in order, one flow at a time, and
@@ -24,7 +24,7 @@ is not lost.
 
 The bridge describes itself on ``/bridge/<side>/status:o`` (every second) and
 answers ``status`` on ``/bridge/<side>/rpc:i``, for ``yarp rpc`` and scripts:
-link phase, queues, and what was dropped by reason (:mod:`bridge.drops`:
+link phase, queues, and what was dropped by reason (:mod:`bridge.transport.drops`:
 forged, replayed, strangers, stale...).
 """
 
@@ -41,22 +41,23 @@ from typing import Any, Dict, List, Optional, Set, Tuple
 from bridge import rpc_words
 from bridge import status as status_codec
 from bridge.config import PILOT, ROBOT, BridgeConfig, Channel
-from bridge.copies import ReliableCopyCodec
 from bridge.core import (AcceptCopy, BridgeCore, CarryOutStop, Deliver, Drop, Event, FrameLeft,
                          LocalMessage, PeerMessage, SendCopies, SendDatagrams, SendLatest,
                          SendReliable, TakeAck, UrgentMessage)
-from bridge.delivery import Delivery
-from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeProtocolError, BridgeUsageError
 from bridge.flows import FlowKey, Form, Route
-from bridge.journal import Journal, QueueFull
-from bridge.link import LinkKey
-from bridge.nursery import Nursery
-from bridge.presence import Presence
-from bridge.stand_ins import PRESENCE_PERIOD, StandIns
-from bridge.stop_line import VERBS, Ack, PilotStops, RobotStops
-from bridge.tcp_channel import TcpChannel
-from bridge.udp_channel import UdpChannel, UdpRoute
+from bridge.gym.delivery import Delivery
+from bridge.gym.expiry import aged_payload
+from bridge.gym.presence import Presence
+from bridge.gym.stand_ins import PRESENCE_PERIOD, StandIns
+from bridge.gym.stop_line import VERBS, Ack, PilotStops, RobotStops
+from bridge.transport.copies import ReliableCopy, ReliableCopyCodec
+from bridge.transport.drops import DropLedger, Reason
+from bridge.transport.journal import Journal, QueueFull
+from bridge.transport.nursery import Nursery
+from bridge.transport.tcp_channel import TcpChannel, TcpListener, TcpSettings
+from bridge.transport.udp_channel import UdpChannel, UdpRoute
+from bridge.wire.link import LinkKey
 from yarp_lite.bursts import Burst
 from yarp_lite.errors import YarpError
 from yarp_lite.nameclient import NameClient
@@ -71,6 +72,37 @@ STATUS_PERIOD = 0.5
 #: Seconds between tries to open the YARP side after the name server refused (a port's name
 #: taken by another program, say): the bridge keeps trying, the link stays up meanwhile.
 OPEN_RETRY = 2.0
+
+
+class _TcpEvents(TcpListener):
+    """What the TCP channel tells the bridge, routed to the part that acts on it."""
+
+    def __init__(self, bridge: "Bridge") -> None:
+        self.bridge = bridge
+
+    def message(self, key: FlowKey, value: Any) -> None:
+        self.bridge._on_message(key, value)
+
+    def reliable(self) -> None:
+        self.bridge.delivery.wake.set()
+
+    def connected(self) -> None:
+        self.bridge._on_link_up()
+
+    def keys(self, event: str, send_key: bytes, receive_key: bytes) -> None:
+        self.bridge._on_keys(event, send_key, receive_key)
+
+    def presence(self) -> Optional[Presence]:
+        return self.bridge.stand_ins.here()
+
+    def peer_presence(self, flows: Presence) -> None:
+        self.bridge.stand_ins.on_peer(flows)
+
+    def copies(self, copies: List[Tuple[FlowKey, ReliableCopy]]) -> None:
+        self.bridge._perform(FrameLeft(tuple(copies)))
+
+    def age(self, payload: bytes, seconds: float) -> bytes:
+        return aged_payload(payload, seconds)
 
 
 class Bridge:
@@ -114,15 +146,11 @@ class Bridge:
                                   on_opened=self.delivery.wake.set,
                                   on_closed=self.core.module_gone)
         tcp_routes = [route for route in self.routes.values() if route.on_tcp]
-        self.tcp = TcpChannel(side=side, peer=peer, port=tcp_port,
-                              listen=(side == ROBOT) if listen is None else listen,
-                              config_text=config_text, journal=self.journal,
-                              routes=tcp_routes, period=config.period,
-                              on_message=self._on_message, on_reliable=self.delivery.wake.set,
-                              on_connected=self._on_link_up, link_timeout=link_timeout,
-                              key=key, on_keys=self._on_keys, presence=self.stand_ins.here,
-                              on_presence=self.stand_ins.on_peer,
-                              on_copies=lambda copies: self._perform(FrameLeft(tuple(copies))))
+        settings = TcpSettings(side, peer, tcp_port,
+                               (side == ROBOT) if listen is None else listen, config_text,
+                               config.period, link_timeout,
+                               key=key if key is not None else LinkKey.none())
+        self.tcp = TcpChannel(settings, self.journal, tcp_routes, _TcpEvents(self))
         self.udp = UdpChannel(peer=peer, port=udp_port, peer_port=peer_udp_port or udp_port,
                               routes=udp_routes, gather=config.gather,
                               on_message=self._on_message, rate=udp_rate) if udp_routes else None
@@ -132,7 +160,8 @@ class Bridge:
             lambda order, again: self._perform(UrgentMessage(stop.stop_key, order, again))) \
             if stop is not None and side == PILOT else None
         self.robot_stops = RobotStops(self._carry_out_stop,
-                                      lambda ack: self._perform(UrgentMessage(stop.ack_key, ack))) \
+                                      lambda ack: self._perform(UrgentMessage(stop.ack_key, ack)),
+                                      threads=self._nursery) \
             if stop is not None and side == ROBOT else None
 
     def _on_keys(self, event: str, send_key: bytes, receive_key: bytes) -> None:
@@ -159,7 +188,7 @@ class Bridge:
                 codec = codec_for(self.config.channel(route.key))
             else:
                 codec = BottleUdpCodec()
-            udp.append(UdpRoute(route, codec))
+            udp.append(UdpRoute.of(route, codec))
         return udp
 
     def start(self) -> None:
@@ -235,7 +264,7 @@ class Bridge:
                 self._sinks.append(RobotStateSink(
                     state.robot, self.nameclient, self.keeper,
                     lambda snapshot: self._post(self.routes[state.key], snapshot),
-                    self.config.state_rate))
+                    self.config.state_rate, self._nursery))
             else:
                 self._sources[state.key] = RobotStateSource(state.robot, self.nameclient)
             self._opened.add(state.key)
@@ -429,7 +458,7 @@ class Bridge:
 
     def cancel(self, module: str, seq: Optional[int]) -> Tuple[List[int], List[int]]:
         """Take back the module's switch or command numbered ``seq`` (every one, for None)
-        if no frame has carried it yet: :meth:`bridge.delivery.Delivery.cancel`."""
+        if no frame has carried it yet: :meth:`bridge.gym.delivery.Delivery.cancel`."""
         return self.delivery.cancel(module, seq)
 
     def _publish_status(self, port: Port) -> None:

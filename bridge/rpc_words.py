@@ -16,7 +16,7 @@ from typing import Any, Dict, List, Optional, Protocol, Sequence, Tuple
 
 from bridge import status as status_codec
 from bridge.errors import BridgeProtocolError, BridgeUsageError
-from bridge.stop_line import Ack
+from bridge.gym.stop_line import Ack
 from yarp_lite.bottle import Bottle
 
 HELP = ("status: link, queues and counters of this bridge; "

@@ -18,9 +18,10 @@ from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 
-from bridge import compact, config, datagrams, fec, frames, link, state_codec, status, tiles
+from bridge import config, status
 from bridge.config import ConfigError
 from bridge.errors import BridgeProtocolError
+from bridge.wire import compact, datagrams, fec, frames, link, state_codec, tiles
 from fuzz.harness import Target, attempt, join_records, split_records
 from walkman.hal import controlboard
 from walkman.hal.controlboard import ControlBoardError
@@ -322,7 +323,7 @@ def _peer_hello() -> bytes:
 
 
 def bridge_link(data: bytes) -> None:
-    """bridge.link.LinkConnection (robot side) fed a stream in pieces, handshake included;
+    """bridge.wire.link.LinkConnection (robot side) fed a stream in pieces, handshake included;
     half the inputs start after a genuine peer HELLO so the fuzzer reaches AUTH and beyond."""
     robot = link.LinkConnection("robot", _LINK_KEY, b"fuzzcfg!", 1, nonce=bytes(16))
     robot.start()
@@ -337,7 +338,7 @@ def bridge_link(data: bytes) -> None:
 
 
 def bridge_sealed_datagrams(data: bytes) -> None:
-    """bridge.link.DatagramOpener over a run of datagrams, some sealed with the right key."""
+    """bridge.wire.link.DatagramOpener over a run of datagrams, some sealed with the right key."""
     opener = link.DatagramOpener()
     opener.install(b"k" * 32)
     sealer = link.DatagramSealer(b"k" * 32)
@@ -695,21 +696,22 @@ TARGETS: Dict[str, Target] = {target.name: target for target in (
            doc="nameserver.service: text and Bottle commands"),
     Target("admin", admin_target, YARP, _admin_seeds, doc="admin: port commands, admin Bottles"),
     Target("bridge_frames", bridge_frames, BRIDGE, _frame_seeds,
-           doc="bridge.frames: FrameSplitter, parse_body"),
+           doc="bridge.wire.frames: FrameSplitter, parse_body"),
     Target("bridge_datagrams", bridge_datagrams, BRIDGE, _datagram_seeds,
-           doc="bridge.datagrams.decode"),
+           doc="bridge.wire.datagrams.decode"),
     Target("bridge_link", bridge_link, BRIDGE, _link_seeds,
-           doc="bridge.link.LinkConnection: handshake, tags, frames"),
+           doc="bridge.wire.link.LinkConnection: handshake, tags, frames"),
     Target("bridge_sealed_datagrams", bridge_sealed_datagrams, BRIDGE, _sealed_seeds,
-           doc="bridge.link.DatagramOpener: counters, tags, replay window"),
-    Target("tiles", tiles_target, BRIDGE, _tile_seeds, doc="bridge.tiles: decode_tile, Canvas"),
+           doc="bridge.wire.link.DatagramOpener: counters, tags, replay window"),
+    Target("tiles", tiles_target, BRIDGE, _tile_seeds,
+           doc="bridge.wire.tiles: decode_tile, Canvas"),
     Target("state_codec", state_target, BRIDGE, _state_seeds,
-           doc="bridge.state_codec.StateDecoder"),
+           doc="bridge.wire.state_codec.StateDecoder"),
     Target("status", status_target, BRIDGE + YARP, _status_seeds,
            doc="bridge.status.from_bottle"),
     Target("compact", compact_target, BRIDGE, _compact_seeds,
-           doc="bridge.compact: decode, decode_delta"),
-    Target("fec", fec_target, BRIDGE, _fec_seeds, doc="bridge.fec.recover"),
+           doc="bridge.wire.compact: decode, decode_delta"),
+    Target("fec", fec_target, BRIDGE, _fec_seeds, doc="bridge.wire.fec.recover"),
     Target("controlboard", controlboard_target, YARP, _controlboard_seeds,
            doc="walkman.hal.controlboard: respond, decode_stream, decode_joint_data"),
     Target("chain_board", chain_board_target, YARP, _chain_board_seeds,

@@ -19,7 +19,7 @@ reported as degradation, not as failure.  Names only the lab shows (robot
 internals the configuration does not bridge) and the bridge's own names in the
 DRC topology are listed as expected; any other name only the DRC topology shows
 is a difference (the bridge shows a module's ports on the pilot side only while
-the module runs on the robot: :mod:`bridge.presence`).
+the module runs on the robot: :mod:`bridge.gym.presence`).
 """
 
 from __future__ import annotations
@@ -99,7 +99,7 @@ def bridge_own_ports(config: Path = BRIDGE_CONFIG) -> List[str]:
     """The ports the configuration has the pilot's bridge open for pilot programs to connect
     to (a custom connection's ``port_to_open``), which no lab program opens."""
     from bridge.config import PILOT, load
-    from bridge.presence import stand_ins
+    from bridge.gym.presence import stand_ins
 
     loaded = load(config)
     shown = stand_ins(loaded, PILOT)

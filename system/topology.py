@@ -178,7 +178,7 @@ def ensure_bridge_key(path: Path) -> bool:
     created exclusively, so the second one finds the first one's key.
     """
     from bridge.errors import BridgeUsageError
-    from bridge.link import generate_key_file
+    from bridge.wire.link import generate_key_file
 
     try:
         generate_key_file(path)

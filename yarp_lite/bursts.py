@@ -5,7 +5,7 @@ after a calm spell must be reported at once.  :class:`Burst` counts one kind of
 problem: the 1st, 10th, 100th ... occurrence of a burst is worth a line, and a
 burst ends after ``quiet`` seconds without the problem.  The ports' refused
 connections, the udp carrier's malformed datagrams and the bridge's drops
-(:mod:`bridge.drops`) all use it.
+(:mod:`bridge.transport.drops`) all use it.
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ carry the same name).  Latched topics keep their last message, which is sent
 again when the link comes back and every few seconds, and the receiving side
 publishes it latched -- once, unless it changed.
 
-Images and point clouds are tiled (:mod:`bridge.tiles`): a partial frame is
+Images and point clouds are tiled (:mod:`bridge.wire.tiles`): a partial frame is
 published with its missing regions black (images), NaN (float images) or NaN
 points (clouds, marked ``is_dense = False``).  Black and NaN are also content
 (a night sky, a point without depth), so the receiving side says what was lost:
@@ -34,9 +34,9 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 
-from bridge import compact, tiles
 from bridge.config import Channel
 from bridge.errors import BridgeProtocolError, BridgeUsageError
+from bridge.wire import compact, tiles
 from yarp_lite.bottle import Bottle
 
 log = logging.getLogger("bridge.ros")

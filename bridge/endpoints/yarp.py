@@ -33,14 +33,16 @@ from typing import Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 
-from bridge import compact
-from nodekit.connections import ConnectionKeeper
 from bridge.config import Channel
-from bridge.presence import READER_GRACE
-from bridge.state_codec import Layout, RobotState, StateDecoder, StateEncoder, split_by_chain
+from bridge.gym.presence import READER_GRACE
+from bridge.transport.nursery import Nursery
+from bridge.wire import compact
+from bridge.wire.state_codec import (Layout, RobotState, StateDecoder, StateEncoder,
+                                     split_by_chain)
+from nodekit.connections import ConnectionKeeper
 from walkman.hal import protocol
-from walkman.hal.protocol import ChainState, HalProtocolError, state_interval
 from walkman.hal.controlboard import JointData, Stamp, encode_joint_data
+from walkman.hal.protocol import ChainState, HalProtocolError, state_interval
 from yarp_lite import network
 from yarp_lite.bottle import Bottle, Vocab
 from yarp_lite.buffered_port import BufferedPort
@@ -156,7 +158,8 @@ class RobotStateSink:
     """Robot side: the HAL's chains, read as one whole-robot state."""
 
     def __init__(self, robot: str, nameclient: NameClient, keeper: ConnectionKeeper,
-                 post: Callable[[Callable[[], RobotState]], None], rate: float) -> None:
+                 post: Callable[[Callable[[], RobotState]], None], rate: float,
+                 threads: Optional[Nursery] = None) -> None:
         self.robot = robot
         self.nameclient = nameclient
         self.keeper = keeper
@@ -172,9 +175,7 @@ class RobotStateSink:
         self._updated = 0.0
         self._posted = 0.0
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="bridge robot state",
-                                        daemon=True)
-        self._thread.start()
+        self._thread = (threads or Nursery()).start_soon(self._run, "robot state")
 
     def _ask_layout(self) -> Optional[Layout]:
         try:

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
 from netem.emulation import EmulatedLink
-from bridge.link import generate_key_file
+from bridge.wire.link import generate_key_file
 from system.processes import ROSCORE_READY
 from system.topology import GENERATED
 from harness import REPO, Implementation, Proc, YarpWorld, free_port, wait_until

@@ -5,7 +5,7 @@ Theory of operation
 Run as root inside the rogue's network namespace
 (:meth:`netem.emulation.EmulatedLink.add_intruder`), whose interface hears
 every frame the robot hears.  The attacker knows the bridge's protocol (it is
-open source: this program builds its frames with :mod:`bridge.frames`), not the
+open source: this program builds its frames with :mod:`bridge.wire.frames`), not the
 key.  Verbs, one process each::
 
     capture FILE   sniff (AF_PACKET) until the pilot->robot TCP stream holds the
@@ -49,10 +49,10 @@ from typing import Dict, Iterator, List, Optional, Tuple
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from bridge import compact, datagrams, frames  # noqa: E402
-from bridge.frames import Auth, DataFrame, Hello  # noqa: E402
-from bridge.link import TAG_SIZE  # noqa: E402
-from bridge.wire import get_varint, varint  # noqa: E402
+from bridge.wire import compact, datagrams, frames  # noqa: E402
+from bridge.wire.frames import Auth, DataFrame, Hello  # noqa: E402
+from bridge.wire.link import TAG_SIZE  # noqa: E402
+from bridge.wire.varint import get_varint, varint  # noqa: E402
 
 ETH_P_ALL = 0x0003
 ETH_P_IP = 0x0800

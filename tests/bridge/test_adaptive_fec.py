@@ -7,9 +7,9 @@ import random
 
 import pytest
 
-from bridge.adaptive_fec import (MAX_FRACTION, MIN_CAP, PRIOR_LOSS, TARGET, WINDOW, FecAdapter,
-                                 LossMeter, repairs_needed, wilson_upper)
-from bridge.datagrams import Report
+from bridge.transport.adaptive_fec import (MAX_FRACTION, MIN_CAP, PRIOR_LOSS, TARGET, WINDOW,
+                                           FecAdapter, LossMeter, repairs_needed, wilson_upper)
+from bridge.wire.datagrams import Report
 
 
 def decodes(k: int, m: int, loss: float) -> float:

@@ -1,7 +1,7 @@
 """Cancelling a queued command: done before it leaves, or refused -- never both.
 
 The pilot bridge's journal replaces a command by a tombstone only while no frame has
-claimed it (bridge.journal); a cancel racing the frame that would carry the command
+claimed it (bridge.transport.journal); a cancel racing the frame that would carry the command
 (the link's return, or the command's own send) therefore either wins -- the robot
 receives the tombstone, the module nothing -- or is told "too late" -- the robot
 receives the command.  Run 50 times through two real TCP channels, the cancel sent
@@ -13,7 +13,7 @@ from __future__ import annotations
 import random
 import time
 
-from bridge.journal import is_tombstone
+from bridge.transport.journal import is_tombstone
 from harness import wait_until
 from test_tcp_channel import COMMAND, pair  # noqa: F401 -- two channels on loopback
 from walkman.gym.validity import split

@@ -6,8 +6,8 @@ import threading
 
 import pytest
 
-from bridge.channel_phase import ChannelPhase
 from bridge.errors import BridgeUsageError
+from bridge.transport.channel_phase import ChannelPhase
 from harness import ManualClock as Clock
 
 

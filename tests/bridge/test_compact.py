@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bridge import compact
 from bridge.errors import BridgeProtocolError
+from bridge.wire import compact
 from codec_helpers import FUZZ, bottles
 from yarp_lite.bottle import Bottle, Dict, Float32, Int8, Vocab, encode
 

@@ -1,5 +1,5 @@
 """Datagram copies of commands and statuses: the codec, which status copy is written, and a
-command that crosses while its TCP frame is stuck (bridge.copies)."""
+command that crosses while its TCP frame is stuck (bridge.transport.copies)."""
 
 from __future__ import annotations
 
@@ -13,12 +13,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bridge import compact
-from bridge.copies import (OVERTAKEN, FirstStatus, ReliableCopy, ReliableCopyCodec,
-                           decode_copy, encode_copy)
-from bridge.drops import Reason
 from bridge.errors import BridgeProtocolError
-from bridge.udp_channel import UdpChannel, UdpRoute
+from bridge.transport.copies import (OVERTAKEN, FirstStatus, ReliableCopy, ReliableCopyCodec,
+                                     decode_copy, encode_copy)
+from bridge.transport.drops import Reason
+from bridge.transport.udp_channel import UdpChannel, UdpRoute
+from bridge.wire import compact
 from codec_helpers import FUZZ
 from harness import free_port, wait_until
 from harness import ManualClock as Clock
@@ -152,7 +152,7 @@ def relayed(tmp_path) -> Iterator[tuple]:
     """A robot and a pilot end, TCP through a :class:`Relay`, their copies on UDP."""
     robot_tcp, robot_udp, pilot_udp = free_port(), free_port(), free_port()
     relay = Relay(robot_tcp)
-    copied = [UdpRoute(route, ReliableCopyCodec()) for route in COPIED_ROUTES if route.copies]
+    copied = [UdpRoute.of(route, ReliableCopyCodec()) for route in COPIED_ROUTES if route.copies]
     robot_copies = UdpChannel(peer="127.0.0.1", port=robot_udp, peer_port=pilot_udp,
                               routes=copied, gather=0.1,
                               on_message=lambda key, copy: robot.channel.accept_copy(key, copy))
@@ -203,12 +203,12 @@ def test_copies_of_a_message_count_once_for_the_loss_and_are_no_drop():
     """Three copies of each message (the stop-all's way, and commands'): the receiver's loss
     report never says more arrived than was sent (it used to, and the report's encoder
     refused it in the sending thread), and the repeats are no drop."""
-    from bridge import datagrams
     from bridge.flows import Carriage, Form, Route
-    from bridge.udp_channel import Reassembler, UdpStats, message_datagrams
+    from bridge.transport.udp_channel import Reassembler, UdpStats, message_datagrams
+    from bridge.wire import datagrams
 
-    route = UdpRoute(Route(COMMAND, "gaze_control/command", Carriage.RELIABLE, Form.BOTTLE,
-                           copies=3), ReliableCopyCodec())
+    route = UdpRoute.of(Route(COMMAND, "gaze_control/command", Carriage.RELIABLE, Form.BOTTLE,
+                              copies=3), ReliableCopyCodec())
     stats = UdpStats()
     reassembler = Reassembler({COMMAND: route}, 0.4, stats)
     published = []

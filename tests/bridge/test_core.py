@@ -11,14 +11,14 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from bridge.config import PILOT, ROBOT, load
-from bridge.copies import ReliableCopy
 from bridge.core import (INBOUND, OUTBOUND, AcceptCopy, BridgeCore, CarryOutStop, Deliver, Drop,
                         FrameLeft, LocalMessage, PeerMessage, SendCopies, SendDatagrams,
                         SendLatest, SendReliable, TakeAck, UrgentMessage)
-from bridge.drops import Reason
 from bridge.errors import BridgeUsageError
 from bridge.flows import Carriage, FlowKey
-from bridge.status_events import StatusEvents
+from bridge.gym.status_events import StatusEvents
+from bridge.transport.copies import ReliableCopy
+from bridge.transport.drops import Reason
 from codec_helpers import FUZZ
 from harness import ManualClock as Clock
 from system.topology import BRIDGE_CONFIG

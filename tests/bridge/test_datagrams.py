@@ -6,10 +6,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bridge import datagrams
-from bridge.datagrams import MAX_DATAGRAM, MAX_INNER, Datagram
-from bridge.link import DatagramOpener, DatagramSealer
 from bridge.errors import BridgeProtocolError, BridgeUsageError
+from bridge.wire import datagrams
+from bridge.wire.datagrams import MAX_DATAGRAM, MAX_INNER, Datagram
+from bridge.wire.link import DatagramOpener, DatagramSealer
 from codec_helpers import FUZZ
 
 

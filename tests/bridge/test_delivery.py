@@ -1,4 +1,4 @@
-"""The inbox's delivery (bridge.delivery) over a real journal, with recorded endpoints: what
+"""The inbox's delivery (bridge.gym.delivery) over a real journal, with recorded endpoints: what
 waits, what is dropped, what is aged, what is said back.  The wiring as processes is in
 test_bridge_processes.py and test_when_the_link_breaks.py."""
 
@@ -9,13 +9,13 @@ from typing import Any, Dict, List, Optional
 
 import pytest
 
-from bridge import compact
 from bridge import config as bridge_config
-from bridge.delivery import RECEIPT_KIND, Delivery
-from bridge.drops import DropLedger
 from bridge.errors import BridgeUsageError
 from bridge.flows import FlowKey
-from bridge.journal import TOMBSTONE, Journal
+from bridge.gym.delivery import RECEIPT_KIND, Delivery
+from bridge.transport.drops import DropLedger
+from bridge.transport.journal import TOMBSTONE, Journal
+from bridge.wire import compact
 from walkman.gym.interfaces import (COMMAND, GYM_PORTS, SWITCH, WARNING, PilotCommand,
                                     encode_command)
 from walkman.gym.validity import Lifetime, split, stamp

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import logging
 
-from bridge import drops
-from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeProtocolError
-from bridge.link import AuthenticationFailed, ForgedInput, ReplayedInput
+from bridge.transport import drops
+from bridge.transport.drops import DropLedger, Reason
+from bridge.wire.link import AuthenticationFailed, ForgedInput, ReplayedInput
 from harness import ManualClock
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from bridge.config import Channel
+from bridge.config import PILOT, ROBOT, Transport, YarpChannel
 from bridge.endpoints import yarp as endpoints
 from bridge.endpoints.yarp import YarpSink, YarpSource
 from harness import wait_until
@@ -13,12 +13,13 @@ from yarp_lite.bottle import Bottle
 from yarp_lite.nameclient import NameClient
 from yarp_lite.port import Port
 
-WARNING = Channel(7, 3, "gaze_control/warning", "robot", "pilot", "yarp", "tcp", True,
-                  "/bridge/robot/gaze_control/warning", "/gaze_control/warning:o",
-                  "/gaze_control/warning:o", None)
-SWITCH = Channel(7, 0, "gaze_control/switch", "pilot", "robot", "yarp", "tcp", True,
-                 "/gaze_control/switch:i", "", "/bridge/robot/gaze_control/switch",
-                 "/gaze_control/switch:i")
+WARNING = YarpChannel(7, 3, "gaze_control/warning", ROBOT, PILOT, Transport.TCP, True,
+                      listen_port="/bridge/robot/gaze_control/warning",
+                      feed_port="/gaze_control/warning:o", emit_port="/gaze_control/warning:o")
+SWITCH = YarpChannel(7, 0, "gaze_control/switch", PILOT, ROBOT, Transport.TCP, True,
+                     listen_port="/gaze_control/switch:i",
+                     emit_port="/bridge/robot/gaze_control/switch",
+                     deliver_port="/gaze_control/switch:i")
 
 
 @pytest.fixture

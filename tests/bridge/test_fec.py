@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bridge import fec
 from bridge.errors import BridgeProtocolError, BridgeUsageError
+from bridge.wire import fec
 from codec_helpers import FUZZ
 
 

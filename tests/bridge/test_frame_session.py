@@ -16,21 +16,24 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bridge import compact, drops, frame_session, frames
-from bridge.copies import ReliableCopy
-from bridge.drops import Reason
 from bridge.errors import BridgeProtocolError, BridgeUsageError
 from bridge.flows import Carriage, FlowKey, Form, Route
-from bridge.frame_session import (DELAYED_ACK, EVENT_MIN_GAP, KEEPALIVE,
-                                  MAX_RELIABLE_PER_FRAME, NUDGE_AFTER, NUDGES, Acknowledged,
-                                  Dropped, Due, FrameSession, KernelQueue, Nudges, PresenceHeard,
-                                  ReliableAccepted, Streams, StreamValue)
-from bridge.frames import DataFrame, Entry
-from bridge.journal import Journal, Queued
-from bridge.link import FrameReceived, LinkConnection, LinkKey, LinkUp, PeerAuthenticated, \
-    PeerHello
-from bridge.state_codec import Layout, RobotState
-from bridge.transit import stamp as clock_stamp
+from bridge.gym.expiry import aged_payload
+from bridge.transport import drops, frame_session
+from bridge.transport.copies import ReliableCopy
+from bridge.transport.drops import Reason
+from bridge.transport.frame_session import (DELAYED_ACK, EVENT_MIN_GAP, KEEPALIVE,
+                                            MAX_RELIABLE_PER_FRAME, NUDGE_AFTER, NUDGES,
+                                            Acknowledged, Dropped, Due, FrameSession, KernelQueue,
+                                            Nudges, PresenceHeard, ReliableAccepted, Streams,
+                                            StreamValue)
+from bridge.transport.journal import Journal, Queued
+from bridge.wire import compact, frames
+from bridge.wire.frames import DataFrame, Entry
+from bridge.wire.link import (FrameReceived, LinkConnection, LinkKey, LinkUp,
+                              PeerAuthenticated, PeerHello)
+from bridge.wire.state_codec import Layout, RobotState
+from bridge.wire.transit import stamp as clock_stamp
 from codec_helpers import FUZZ, bottle_values
 from walkman.gym.validity import Lifetime, split, stamp
 from yarp_lite.bottle import Bottle
@@ -108,7 +111,7 @@ class End:
 
     def open(self, peer: "End") -> FrameSession:
         self.session = FrameSession(self.queues, self.routes, self.streams, peer.queues.session,
-                                    period=PERIOD)
+                                    period=PERIOD, age=aged_payload)
         self.streams.restart()
         return self.session
 
@@ -219,7 +222,7 @@ COPIED = {**ROUTES, COMMAND: dataclasses.replace(ROUTES[COMMAND], copies=2)}
 
 @pytest.fixture
 def copied() -> Tuple[End, End]:
-    """Ends whose commands also go as datagram copies (bridge.copies)."""
+    """Ends whose commands also go as datagram copies (bridge.transport.copies)."""
     robot, pilot = End(0x70B07, routes=COPIED), End(0x9170, routes=COPIED)
     pilot.presence = None                             # only the commands in these frames
     connect(robot, pilot)
@@ -614,7 +617,7 @@ def test_any_story_delivers_each_command_once_in_order_and_the_newest_status(sto
 def test_a_frame_read_late_ages_its_messages_by_the_time_it_was_held(ends):
     """The sender's clock on every frame: a frame left unread 6 s in a stalled bridge's
     socket (or retransmitted after a blackout) is journalled as that much older, whatever
-    the two PCs' clocks say (bridge.transit)."""
+    the two PCs' clocks say (bridge.wire.transit)."""
     robot, pilot = ends
     offset = 5000.0                                   # the robot's clock is 5000 s behind
     robot.session.receive_body(pilot.frame(10.0).body, read_at=10.02 - offset)

@@ -6,10 +6,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bridge import frames
 from bridge.errors import BridgeProtocolError, BridgeUsageError
 from bridge.flows import FlowKey
-from bridge.frames import Auth, DataFrame, Entry, FrameSplitter, Hello, Resume
+from bridge.wire import frames
+from bridge.wire.frames import Auth, DataFrame, Entry, FrameSplitter, Hello, Resume
 from codec_helpers import FUZZ
 
 entries = st.builds(Entry, st.integers(0, 255), st.integers(0, 7), st.binary(max_size=300),

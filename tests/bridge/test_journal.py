@@ -10,7 +10,7 @@ import pytest
 
 from bridge.errors import BridgeProtocolError
 from bridge.flows import FlowKey
-from bridge.journal import Journal, QueueFull
+from bridge.transport.journal import Journal, QueueFull
 
 
 def test_messages_are_numbered_and_survive_a_reopen(tmp_path):
@@ -81,8 +81,8 @@ def test_an_append_that_returned_survives_sigkill(tmp_path):
 
 
 def test_a_message_no_frame_claimed_can_be_cancelled_one_claimed_never(tmp_path):
-    from bridge import compact
-    from bridge.journal import TOMBSTONE, is_tombstone
+    from bridge.transport.journal import TOMBSTONE, is_tombstone
+    from bridge.wire import compact
 
     journal = Journal(tmp_path)
     first = journal.append(7, 1, compact.encode(["go", 1]))

@@ -10,12 +10,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bridge import frames
 from bridge.errors import BridgeProtocolError, BridgeUsageError
-from bridge.frames import DataFrame, Entry
-from bridge.link import (AuthenticationFailed, DatagramOpener, DatagramSealer, ForgedInput,
-                         FrameReceived, LinkConnection, LinkKey, LinkUp, PeerAuthenticated,
-                         PeerHello, ReplayedInput, ReplayWindow, generate_key_file)
+from bridge.wire import frames
+from bridge.wire.frames import DataFrame, Entry
+from bridge.wire.link import (AuthenticationFailed, DatagramOpener, DatagramSealer, ForgedInput,
+                              FrameReceived, LinkConnection, LinkKey, LinkUp, PeerAuthenticated,
+                              PeerHello, ReplayedInput, ReplayWindow, generate_key_file)
 from codec_helpers import FUZZ
 
 KEY = LinkKey(bytes(range(32)))

@@ -38,7 +38,7 @@ def shown_here() -> set:
 
 
 def test_stand_ins_follow_the_word_and_a_closing_one_writes_its_last_warning(pilot_bridge):
-    from bridge import compact
+    from bridge.wire import compact
     from yarp_lite.bottle import Bottle
 
     everything = frozenset(FlowKey(7, kind) for kind in range(4))

@@ -1,10 +1,10 @@
-"""The bridge's threads, started and joined in one place (bridge.nursery)."""
+"""The bridge's threads, started and joined in one place (bridge.transport.nursery)."""
 
 from __future__ import annotations
 
 import threading
 
-from bridge.nursery import Nursery
+from bridge.transport.nursery import Nursery
 
 
 def test_threads_are_named_for_their_owner_joined_in_one_call_and_a_stuck_one_named():

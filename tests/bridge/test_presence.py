@@ -6,7 +6,7 @@ import logging
 
 from bridge import config as bridge_config
 from bridge.flows import FlowKey
-from bridge.presence import PresenceMemory, module_end, stand_ins, watched
+from bridge.gym.presence import PresenceMemory, module_end, stand_ins, watched
 
 CONFIG = """<bridge>
   <modules><module name="gaze_control" id="7"/></modules>
@@ -74,7 +74,7 @@ def test_an_unreadable_memory_is_empty_and_says_why(tmp_path, caplog):
     memory = PresenceMemory(tmp_path, config)
     for text in ("{not json", '{"present": "gaze_control/status"}', "[]"):
         memory.path.write_text(text)
-        with caplog.at_level(logging.WARNING, logger="bridge.presence"):
+        with caplog.at_level(logging.WARNING, logger="bridge.gym.presence"):
             assert memory.load() == frozenset()
         assert "is not a presence file" in caplog.text
         caplog.clear()

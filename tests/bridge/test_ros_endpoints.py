@@ -17,13 +17,13 @@ from typing import Callable, Dict, List, Tuple
 import numpy as np
 import pytest
 
-from bridge import compact, datagrams, tiles
 from bridge.endpoints.ros import (CloudCodec, ImageCodec, Rebuilt, arrival_message,
                                   arrival_topic)
 from bridge.flows import Carriage, FlowKey, Form, Route
-from bridge.link import TAG_SIZE
-from bridge.udp_channel import Reassembler, UdpRoute, UdpStats, message_datagrams
-from bridge.wire import get_varint
+from bridge.transport.udp_channel import Reassembler, UdpRoute, UdpStats, message_datagrams
+from bridge.wire import compact, datagrams, tiles
+from bridge.wire.link import TAG_SIZE
+from bridge.wire.varint import get_varint
 from bridge_harness import HERE, TwoPCs
 from harness import wait_until
 from nodekit.msgs import ensure_importable
@@ -36,8 +36,8 @@ IMAGE_ID, CLOUD_ID = 30, 31
 
 
 def route(ident: int, codec) -> UdpRoute:
-    return UdpRoute(Route(FlowKey(ident, 0), f"flow{ident}", Carriage.DATAGRAMS, Form.ROS),
-                    codec)
+    return UdpRoute.of(Route(FlowKey(ident, 0), f"flow{ident}", Carriage.DATAGRAMS, Form.ROS),
+                       codec)
 
 
 def black_image(height: int = 240, width: int = 320) -> Image:

@@ -11,8 +11,8 @@ from hypothesis import given
 from codec_helpers import FUZZ, bottles
 
 from bridge.errors import BridgeUsageError
+from bridge.gym.stop_line import Ack
 from bridge.rpc_words import answer
-from bridge.stop_line import Ack
 from yarp_lite.bottle import Bottle
 from yarp_lite.bottle_text import parse
 

@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bridge import state_codec
 from bridge.errors import BridgeProtocolError
-from bridge.state_codec import Layout, RobotState, StateDecoder, StateEncoder
+from bridge.wire import state_codec
+from bridge.wire.state_codec import Layout, RobotState, StateDecoder, StateEncoder
 from codec_helpers import FUZZ
 
 LAYOUT = Layout(tuple((chain, tuple(f"{chain}_{i}" for i in range(count))) for chain, count in (

@@ -1,8 +1,8 @@
-"""Which GYM statuses leave at once (bridge.status_events), on a hand-driven clock."""
+"""Which GYM statuses leave at once (bridge.gym.status_events), on a hand-driven clock."""
 
 from __future__ import annotations
 
-from bridge.status_events import COMMAND_WINDOW, StatusEvents
+from bridge.gym.status_events import COMMAND_WINDOW, StatusEvents
 from harness import ManualClock as Clock
 from yarp_lite.bottle import Bottle
 
@@ -34,7 +34,7 @@ def test_changing_data_is_an_event_only_right_after_a_command():
 
 def test_the_status_answering_a_command_is_told_apart_from_later_ones():
     """The first change after a command, and a new state, also go as datagram copies
-    (bridge.copies); later changes within the window are events by TCP only."""
+    (bridge.transport.copies); later changes within the window are events by TCP only."""
     clock = Clock()
     events = StatusEvents(clock)
     events.classify(3, status(2, "running", 40.0))

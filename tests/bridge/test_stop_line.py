@@ -1,4 +1,4 @@
-"""bridge.stop_line: a stop-all is sent until acknowledged and carried out once per id."""
+"""bridge.gym.stop_line: a stop-all is sent until acknowledged and carried out once per id."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import threading
 
 import pytest
 
-from bridge.stop_line import (ANSWER_GAP, Ack, PilotStops, RobotStops, StopLineError, encode_ack,
-                              parse_ack, parse_order)
+from bridge.gym.stop_line import (ANSWER_GAP, Ack, PilotStops, RobotStops, StopLineError,
+                                  encode_ack, parse_ack, parse_order)
 from harness import wait_until
 from yarp_lite.bottle import Bottle
 from yarp_lite.bottle_text import parse

@@ -11,16 +11,17 @@ import select
 import socket
 import threading
 import time
-from typing import Any, List, Tuple
+from typing import Any, Callable, List, Tuple
 
 import pytest
 
-from bridge import compact, frames
-from bridge.drops import Reason
-from bridge.journal import Journal
-from bridge.link import LinkKey
 from bridge.flows import Carriage, FlowKey, Form, Route
-from bridge.tcp_channel import TcpChannel
+from bridge.gym.expiry import aged_payload
+from bridge.transport.drops import Reason
+from bridge.transport.journal import Journal
+from bridge.transport.tcp_channel import TcpChannel, TcpListener, TcpSettings
+from bridge.wire import compact, frames
+from bridge.wire.link import LinkKey
 from harness import free_port, wait_until
 from system.processes import WaitTimeout
 from yarp_lite.bottle import Bottle
@@ -33,12 +34,43 @@ ROUTES = [Route(SWITCH, "gaze_control/switch", Carriage.RELIABLE, Form.BOTTLE),
                 status_events=True)]
 
 
+class Heard(TcpListener):
+    """What the channel tells an :class:`End`, put where the tests read it."""
+
+    def __init__(self, end: "End") -> None:
+        self.end = end
+
+    def message(self, key, value) -> None:
+        self.end.streams.append((key, value))
+
+    def reliable(self) -> None:
+        self.end._drain()
+
+    def presence(self) -> Any:
+        return self.end.here
+
+    def peer_presence(self, flows) -> None:
+        self.end.on_presence(flows)
+
+    def keys(self, event: str, send_key: bytes, receive_key: bytes) -> None:
+        self.end.on_keys(event, send_key, receive_key)
+
+    def copies(self, copies) -> None:
+        self.end.on_copies(copies)
+
+    def age(self, payload: bytes, seconds: float) -> bytes:
+        return aged_payload(payload, seconds)
+
+
 class End:
-    """One side: a channel, its journal, and what it received."""
+    """One side: a channel, its journal, and what it received; ``on_keys``, ``on_copies``:
+    where the link's datagram keys and copies go."""
 
     def __init__(self, side: str, port: int, state_dir, listen: bool, peer: str = "127.0.0.1",
                  config_text: str = "config", period: float = 0.2,
-                 key: LinkKey = KEY, routes: List[Route] = ROUTES, **channel: Any) -> None:
+                 key: LinkKey = KEY, routes: List[Route] = ROUTES,
+                 on_keys: Callable[[str, bytes, bytes], None] = lambda *keys: None,
+                 on_copies: Callable[[list], None] = lambda copies: None) -> None:
         self.state_dir = state_dir
         self.journal = Journal(state_dir)
         self.streams: List[Tuple[Any, Any]] = []
@@ -47,18 +79,14 @@ class End:
         self.lock = threading.Lock()
         self.here: Any = frozenset()      # the presence this side tells (None: not known)
         self.heard: List[Any] = []        # the peer's presences, as they came
-        self.channel = TcpChannel(side=side, peer=peer, port=port, listen=listen,
-                                  config_text=config_text, journal=self.journal, routes=routes,
-                                  period=period, on_message=self._on_message,
-                                  on_reliable=self._drain, link_timeout=2.0, key=key,
-                                  presence=lambda: self.here, on_presence=self.heard.append,
-                                  **channel)
-
-    def _on_message(self, key, value) -> None:
-        self.streams.append((key, value))
+        self.on_presence: Callable[[Any], None] = self.heard.append
+        self.on_keys, self.on_copies = on_keys, on_copies
+        settings = TcpSettings(side, peer, port, listen, config_text, period, link_timeout=2.0,
+                               key=key)
+        self.channel = TcpChannel(settings, self.journal, routes, Heard(self))
 
     def _drain(self) -> None:
-        from bridge import compact
+        from bridge.wire import compact
 
         with self.lock:
             for message in self.journal.undelivered():
@@ -137,7 +165,7 @@ def test_a_status_event_leaves_at_once_and_a_flood_of_them_is_coalesced(pair):
 
 
 def test_bytes_queued_for_a_slow_reader_are_not_taken_for_a_loss():
-    from bridge.tcp_channel import _only_unacknowledged, _unsent_bytes
+    from bridge.transport.tcp_channel import _only_unacknowledged, _unsent_bytes
 
     listener = socket.create_server(("127.0.0.1", 0))
     sender = socket.create_connection(listener.getsockname())
@@ -176,7 +204,7 @@ def wait_for_nudges(end: "End", count: int, what: str) -> None:
 
 def test_an_unacknowledged_event_is_followed_by_empty_frames_and_a_periodic_one_is_not(
         pair, monkeypatch):
-    from bridge import tcp_channel
+    from bridge.transport import tcp_channel
 
     robot, pilot = pair(period=0.1)
     wait_until(lambda: pilot.heard and robot.heard, 3, message="the first words")
@@ -230,7 +258,7 @@ def test_a_word_is_taken_after_the_messages_of_its_frame(pair):
     robot, pilot = pair(period=30.0)  # no periodic frame: one frame carries both
     wait_until(lambda: pilot.heard, 3, message="the first word")
     seen = []
-    pilot.channel.on_presence = lambda flows: seen.append((flows, list(pilot.reliable)))
+    pilot.on_presence = lambda flows: seen.append((flows, list(pilot.reliable)))
     robot.here = frozenset({STATUS})             # the module left after its last warning
     robot.channel.send_reliable(SWITCH, Bottle([1, "overheating"]))
     wait_until(lambda: seen, 3, message="the word")
@@ -462,7 +490,7 @@ def test_frames_sharing_a_read_with_the_handshake_are_not_lost(tmp_path):
 def test_the_backlog_of_a_socket_closed_by_the_receive_thread_is_nothing():
     """The sender asks the kernel for the backlog while the receive thread may have closed
     the socket (the peer died): that is no backlog, not an exception."""
-    from bridge.tcp_channel import _unsent_bytes
+    from bridge.transport.tcp_channel import _unsent_bytes
 
     left, right = socket.socketpair()
     left.sendall(b"x" * 10)
@@ -537,8 +565,8 @@ def _handshakes_look_slowly_at_the_link(monkeypatch) -> None:
 
 def _dial_as_pilot(port: int, config_text: str = "config") -> Tuple[socket.socket, Any]:
     """A pilot's end of the link protocol, by hand: up once both RESUMEs are through."""
-    from bridge.link import LinkConnection, PeerAuthenticated, PeerHello
-    from bridge.tcp_channel import fingerprint
+    from bridge.transport.tcp_channel import fingerprint
+    from bridge.wire.link import LinkConnection, PeerAuthenticated, PeerHello
 
     sock = socket.create_connection(("127.0.0.1", port), timeout=10)
     link = LinkConnection("pilot", KEY, fingerprint(config_text), 0x9170)

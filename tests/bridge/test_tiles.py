@@ -10,11 +10,11 @@ import pytest
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from bridge import tiles
-from bridge import datagrams
-from bridge.datagrams import BODY_BUDGET, Datagram
-from bridge.link import DatagramOpener, DatagramSealer
 from bridge.errors import BridgeProtocolError, BridgeUsageError
+from bridge.wire import tiles
+from bridge.wire import datagrams
+from bridge.wire.datagrams import BODY_BUDGET, Datagram
+from bridge.wire.link import DatagramOpener, DatagramSealer
 from codec_helpers import FUZZ
 
 KEY = bytes(range(32))
@@ -259,7 +259,7 @@ def test_plain_garbage_raises_the_peer_error(data):
 @example(index=5, flip=1)  # first CI failure: the fill byte became NaN on a uint8 raster
 @example(index=8, flip=1)  # a tile's x: the tile layer alone would paint it a column off
 def test_a_corrupted_tile_never_paints_garbage_silently(index, flip):
-    """A tile travels in a sealed datagram (``bridge.link``): one byte flipped anywhere on the
+    """A tile travels in a sealed datagram (``bridge.wire.link``): one byte flipped anywhere on the
     wire is refused before any cell is painted.  (The tile layer alone checks its header
     fields and the zlib stream's checksum, not a tile's place or a JPEG's bytes: the seal
     does.)  Whatever is painted is compared with the image, cell by cell."""

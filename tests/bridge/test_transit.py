@@ -1,11 +1,11 @@
-"""How late a frame came, from the sender's clock stamp and the lowest offset (bridge.transit)."""
+"""How late a frame came, from the sender's clock stamp and the lowest offset (bridge.wire.transit)."""
 
 from __future__ import annotations
 
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bridge.transit import MODULUS, Lateness, stamp
+from bridge.wire.transit import MODULUS, Lateness, stamp
 from codec_helpers import FUZZ
 
 

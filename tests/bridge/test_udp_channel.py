@@ -9,13 +9,13 @@ import time
 import numpy as np
 import pytest
 
-from bridge import datagrams, tiles
-from bridge.drops import Reason
 from bridge.endpoints.yarp import BottleUdpCodec
 from bridge.flows import Carriage, FlowKey, Form, Route
-from bridge.link import DatagramSealer
-from bridge.udp_channel import (Reassembler, UdpChannel, UdpRoute, UdpStats,
-                                message_datagrams, slice_message)
+from bridge.transport.drops import Reason
+from bridge.transport.udp_channel import (Reassembler, UdpChannel, UdpRoute, UdpStats,
+                                          message_datagrams, slice_message)
+from bridge.wire import datagrams, tiles
+from bridge.wire.link import DatagramSealer
 from harness import free_port, wait_until
 from yarp_lite.bottle import Bottle
 
@@ -33,8 +33,8 @@ class RasterCodec:
 
 
 def udp_route(key, label, codec, fec=0.0, adaptive=False) -> UdpRoute:
-    return UdpRoute(Route(FlowKey(*key), label, Carriage.DATAGRAMS, Form.BOTTLE, fec=fec,
-                          fec_auto=adaptive), codec)
+    return UdpRoute.of(Route(FlowKey(*key), label, Carriage.DATAGRAMS, Form.BOTTLE, fec=fec,
+                             fec_auto=adaptive), codec)
 
 
 IMAGE = np.random.default_rng(0).integers(0, 256, (120, 160, 3), dtype=np.uint8)
@@ -311,7 +311,7 @@ def test_adaptive_repairs_follow_the_loss_the_receiver_reports(route, least):
         told = (f"completeness and delivery (s after posting): "
                 f"{[(round(c, 3), round(t - p, 3)) for (c, t), p in zip(received, posted)]}; "
                 f"sender {a.stats}; receiver {b.stats}")
-        if route.adaptive:
+        if route.fec_auto:
             assert 0.25 < a.stats.peer_loss < 0.35 and a.stats.fec_loss_bound > 0.25, told
             assert flow.repairs_sent > 0.6 * len(RasterCodec().encode(IMAGE)) * flow.sent, told
             assert mean >= least, told

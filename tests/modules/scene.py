@@ -92,13 +92,13 @@ def main(args: List[str]) -> None:
     for each joint asked (``JOINT X Y Z upright COS`` for a free body's: the plug, the
     drill); ``--follow JOINT``: that joint's every value (:func:`follow`); ``--onto-ramp
     FORWARD PITCH``: the ``footsteps`` command onto the ramp's surface that far ahead
-    (:func:`tests.modules.walker.ramp_footsteps`)."""
+    (:func:`walkman.courses.ramp_footsteps`)."""
     world = World("/probe/world:i")
     try:
         if args[:1] == ["--follow"] and len(args) == 2:
             follow(world, args[1])
         if args[:1] == ["--onto-ramp"] and len(args) == 3:
-            from tests.modules.walker import ramp_footsteps
+            from walkman.courses import ramp_footsteps
 
             print(ramp_footsteps(world.data(), float(args[1]), float(args[2])))
             return

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 from walkman.control.trajectory import CartesianTrajectory, quintic
+from walkman.courses import free_body
 from walkman.gym.offline import OfflineWorld
 from walkman.hal.sim import SimBackend
 from walkman.model.mjcf import PILOT_POSES, task_harness
 from walkman.model.mjcf import DRILL_GRIP, PLUG_HALF, PLUG_TABLE_TOP, plug_in_socket
 from walkman.modules import drc_door, drc_drive, drc_plug, drc_valve, drc_wall, task
-from tests.modules.walker import free_body
 
 #: The robot on simulated time in this process: no real-time thread (tests/robot_slots.py).
 pytestmark = pytest.mark.offline

@@ -18,15 +18,13 @@ import numpy as np
 import pytest
 
 from harness import wait_until
-from tests.modules.walker import (LOOKING_DOWN, LOWEST_PELVIS, MAX_TILT, both_feet_loaded,
-                                  camera_cloud, camera_course,
-                                  cloud_in_pelvis_frame, footsteps, free_body, ramp_course,
-                                  ramp_down_course, ramp_footsteps,
-                                  seen_from_the_crouched_pelvis,
-                                  sole_heights, soles_in_pelvis_frame,
-                                  upright, walk_through, walker)
 from walkman.control.balance import SAFE_MARGIN
 from walkman.control.ground_ahead import GroundError, first_leg, footsteps_from_cloud
+from walkman.courses import (LOOKING_DOWN, LOWEST_PELVIS, MAX_TILT, both_feet_loaded,
+                             camera_cloud, camera_course, cloud_in_pelvis_frame, footsteps,
+                             free_body, ramp_course, ramp_down_course, ramp_footsteps,
+                             seen_from_the_crouched_pelvis, sole_heights, soles_in_pelvis_frame,
+                             upright, walk_through, walker)
 from walkman.model.mjcf import (DRILL_GRIP, PILOT_POSES, TERRAIN_RAMP, TERRAIN_STEP,
                                 plug_in_socket)
 from walkman.modules import drc_door, drc_plug, drc_wall, walking

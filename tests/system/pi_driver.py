@@ -553,7 +553,7 @@ def terrain(on_camera: bool) -> None:
 
 #: go_straight before each pair of footsteps: up from station ``ramp`` (to the ramp's foot,
 #: then up the slope to its top), down from ``ramp_top`` (to the landing's edge, then down
-#: the slope to its foot) -- tests/modules/walker.py's ramp courses.
+#: the slope to its foot) -- walkman/courses.py's ramp courses.
 RAMP_LEGS = {"up": (0.20, 0.36), "down": (0.08, 0.22)}
 
 

@@ -29,12 +29,12 @@ import pytest
 from system.display import display_env, private_display
 from system.processes import ROSCORE_READY, Proc
 from system.topology import REPO, Pc, Topology, hal_component, task_component
+from walkman.courses import seen_from_the_crouched_pelvis
 from walkman.gym.runner import load_module_class
 from walkman.model.description import STANDING_PELVIS_HEIGHT
 from walkman.model.mjcf import (DRILL_GRIP, STATIONS, TERRAIN_RAMP, TERRAIN_STEP,
                                  plug_in_socket)
 from walkman.modules.walking import CROUCH
-from tests.modules.walker import seen_from_the_crouched_pelvis
 from tests.system.conftest import dump_outputs_if_failed
 
 PYTHON = sys.executable
@@ -312,7 +312,7 @@ def test_the_terrain_course_by_clicks_with_footsteps_placed_in_the_3d_view(tmp_p
 
 #: Each way along the ramp: the station it starts from and, for each pair of footsteps
 #: (onto the slope, then off it), how far ahead of the soles and pitched how -- the offline
-#: courses' (tests/modules/walker.py).
+#: courses' (walkman/courses.py).
 RAMP_WAYS = {"up": ("ramp", ((0.33, -TERRAIN_RAMP[3]), (0.33, 0.0))),
              "down": ("ramp_top", ((0.33, TERRAIN_RAMP[3]), (0.30, 0.0)))}
 

@@ -66,6 +66,33 @@ def test_layers_import_downward_only():
     assert upward == []
 
 
+#: Inside the bridge, bottom up (bridge/__init__.py): the wire's codecs, the transport that
+#: carries them, the GYM policy that uses the transport; the core, the node, its endpoints and
+#: the program on top.  Its vocabulary (errors, flows, config, its status) is below them all.
+BRIDGE_PARTS = {"wire": 0, "transport": 1, "gym": 2}
+BRIDGE_VOCABULARY = {"bridge.errors", "bridge.flows", "bridge.config", "bridge.status"}
+
+
+def bridge_rank(module: str) -> int:
+    parts = module.split(".")
+    if module in BRIDGE_VOCABULARY:
+        return -1
+    if len(parts) > 1 and parts[1] in BRIDGE_PARTS:
+        return BRIDGE_PARTS[parts[1]]
+    return len(BRIDGE_PARTS)
+
+
+def test_the_bridges_parts_import_downward_only():
+    """The transport knows nothing of the GYM, the wire nothing of either (issue 67)."""
+    graph = import_graph()
+    bridge = {name for name in graph if name.split(".")[0] == "bridge"}
+    assert {"bridge.wire.frames", "bridge.transport.journal", "bridge.gym.delivery",
+            "bridge.core"} <= bridge
+    upward = sorted(f"{source} -> {target}" for source in bridge for target in graph[source]
+                    if target in bridge and bridge_rank(target) > bridge_rank(source))
+    assert upward == []
+
+
 def test_no_module_imports_itself_back():
     graph = import_graph()
     index: Dict[str, int] = {}
@@ -96,3 +123,16 @@ def test_no_module_imports_itself_back():
         if module not in index:
             visit(module)
     assert cycles == []
+
+
+def test_the_benchmarks_import_nothing_from_the_tests():
+    """bench/ runs from an installed tree too: what it shares with the tests lives in the
+    packages (walkman.courses, the offline courses), never in tests/."""
+    found = []
+    for path in sorted((REPO / "bench").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            names = [alias.name for alias in node.names] if isinstance(node, ast.Import) else \
+                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            found += [f"{path.name}: {name}" for name in names
+                      if name == "tests" or name.startswith("tests.")]
+    assert found == []

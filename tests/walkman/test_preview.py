@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from tests.modules.walker import seen_from_the_crouched_pelvis, walker
 from tests.walkman.followed import Followed
 from walkman.control.kinematics import Kinematics
+from walkman.courses import seen_from_the_crouched_pelvis, walker
 from walkman.gym.preview import Shadow
 from walkman.model.mjcf import PILOT_POSES
 from walkman.modules import drc_door, drc_valve, drc_wall
@@ -131,7 +131,7 @@ def test_a_walk_s_shadow_refuses_what_the_module_refuses_and_nothing_more():
     is not 'already walking'); a step too high is refused on the pilot PC with the module's
     own words; footsteps measured from the soles (pelvis frame) are judged as the module
     judges them, though the shadow never walked (issue 32)."""
-    from tests.modules.walker import footsteps, soles_in_pelvis_frame, walk_through, walker
+    from walkman.courses import footsteps, soles_in_pelvis_frame, walk_through, walker
     from walkman.modules import walking
 
     world, module = walker("terrain")

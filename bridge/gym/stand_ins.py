@@ -2,7 +2,7 @@
 
 Theory of operation
 -------------------
-The rules are :mod:`bridge.presence`'s (which flows a side watches, which of its
+The rules are :mod:`bridge.gym.presence`'s (which flows a side watches, which of its
 endpoints stand in for the peer's programs, the remembered word); this is the
 thread that applies them, every :data:`PRESENCE_PERIOD` or at once when woken:
 
@@ -13,7 +13,7 @@ thread that applies them, every :data:`PRESENCE_PERIOD` or at once when woken:
   the peer, for a moment, that every module has gone);
 * *the peer's word*: the stand-ins it names are opened, the others closed -- a
   closing one only once it has written what the journal holds for it (at most
-  :data:`bridge.presence.READER_GRACE`), so a module's last warning reaches the
+  :data:`bridge.gym.presence.READER_GRACE`), so a module's last warning reaches the
   pilot.  The word is remembered on disk for a restart during an outage.
 
 The stand-ins are also sources of the link's messages: :meth:`StandIns.source`
@@ -29,11 +29,11 @@ import time
 from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional
 
-from bridge import presence as rules
 from bridge.config import ROBOT, BridgeConfig, Channel
 from bridge.flows import FlowKey
-from bridge.journal import Journal
-from bridge.presence import READER_GRACE, Presence, PresenceMemory
+from bridge.gym import presence as rules
+from bridge.gym.presence import READER_GRACE, Presence, PresenceMemory
+from bridge.transport.journal import Journal
 from yarp_lite.errors import YarpError
 
 log = logging.getLogger("bridge")

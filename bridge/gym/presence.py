@@ -10,7 +10,7 @@ reads ``/M/status:o``), else the receiving side when it writes a program's input
 ``/M/switch:i`` on the pilot's name server) for local programs.  A side watches
 its module ends -- is the connection to the program up? -- and tells the peer,
 on every new connection and whenever it changes (the ``presence`` of a TCP
-frame, :mod:`bridge.frames`); the peer opens a stand-in while its flow is
+frame, :mod:`bridge.wire.frames`); the peer opens a stand-in while its flow is
 present and closes it otherwise, so its programs see the module come and go as
 they would on one name server: a pilot's tools can tell a running module from
 an absent one, and a command to an absent module is refused at the pilot as in
@@ -26,7 +26,7 @@ have no module end here.  A stand-in closes only once it has written what the
 journal holds for it, so a module's last warning still reaches the pilot.
 
 This module is pure: which endpoints are stand-ins, which flows a side watches,
-and the remembered word; :class:`bridge.stand_ins.StandIns` opens and closes ports.
+and the remembered word; :class:`bridge.gym.stand_ins.StandIns` opens and closes ports.
 """
 
 from __future__ import annotations
@@ -38,9 +38,9 @@ from pathlib import Path
 from typing import Optional
 
 from bridge.config import BridgeConfig, Channel
-from bridge.frames import Presence
+from bridge.wire.frames import Presence
 
-log = logging.getLogger("bridge.presence")
+log = logging.getLogger("bridge.gym.presence")
 
 #: Seconds a reliable message waits for a reader of a stand-in local programs read (the
 #: pilot's ``/M/warning:o``, just opened) before it is written with nobody reading, as

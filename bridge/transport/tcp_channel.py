@@ -3,7 +3,7 @@
 Theory of operation
 -------------------
 One TCP connection joins the bridges; the robot side listens, the pilot side
-dials (either can be chosen).  The channel's phase (:mod:`bridge.channel_phase`)
+dials (either can be chosen).  The channel's phase (:mod:`bridge.transport.channel_phase`)
 is down, handshake or up; every failure -- a reset, a forged frame, a silent
 peer for ``link_timeout`` seconds -- drops the connection and the dialer tries
 again every second, forever.
@@ -11,17 +11,17 @@ again every second, forever.
 Each connection speaks two sans-IO protocols, and this module only moves their
 bytes, gives them the time and tells them what the kernel says of the socket:
 
-* the link protocol of :mod:`bridge.link` (:class:`~bridge.link.LinkConnection`):
+* the link protocol of :mod:`bridge.wire.link` (:class:`~bridge.wire.link.LinkConnection`):
   HELLO, mutual authentication with the shared key, RESUME, then frames sealed
   with authentication tags;
-* the frame session of :mod:`bridge.frame_session`
-  (:class:`~bridge.frame_session.FrameSession`): what the data frames say --
-  acknowledgements and resends from the :class:`~bridge.journal.Journal`,
+* the frame session of :mod:`bridge.transport.frame_session`
+  (:class:`~bridge.transport.frame_session.FrameSession`): what the data frames say --
+  acknowledgements and resends from the :class:`~bridge.transport.journal.Journal`,
   duplicates, deltas, the period's frame and the events that leave at once, the
   empty frames that follow an unacknowledged one.
 
 A connection that fails authentication, or later sends a frame whose tag is
-wrong, is dropped and counted (:mod:`bridge.drops`); on the listening side each
+wrong, is dropped and counted (:mod:`bridge.transport.drops`); on the listening side each
 handshake runs in its own thread (at most :data:`MAX_HANDSHAKES`) and an
 established link is only replaced by a connection that has proved the key, so
 a stranger can neither stall the listener nor push the real peer off.  A proven
@@ -46,24 +46,26 @@ import termios
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, List, Optional, Tuple
+from typing import Any, List, Optional, Tuple
 
-from bridge import compact, drops
-from bridge.channel_phase import ChannelPhase
-from bridge.copies import ReliableCopy
-from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeError, BridgeProtocolError
 from bridge.flows import FlowKey, Route
-from bridge.frame_session import (Dropped, Due, Event, FrameSession, KernelQueue, LinkStats,
-                                  PresenceHeard, ReliableAccepted, Streams, StreamValue)
+from bridge.transport import drops
+from bridge.transport.channel_phase import ChannelPhase
+from bridge.transport.copies import ReliableCopy
+from bridge.transport.drops import DropLedger, Reason
+from bridge.transport.frame_session import (Dropped, Due, Event, FrameSession, KernelQueue,
+                                            LinkStats, PresenceHeard, ReliableAccepted, Streams,
+                                            StreamValue, unaged)
+from bridge.transport.journal import Journal
+from bridge.transport.nursery import Nursery
+from bridge.wire import compact
+from bridge.wire.frames import DataFrame, Presence
+from bridge.wire.link import (FrameReceived, LinkConnection, LinkKey, LinkUp, PeerAuthenticated,
+                              PeerHello)
 # The channel's timing constants, named here before the frame session took them over.
-from bridge.frame_session import (DELAYED_ACK, EVENT_MIN_GAP, KEEPALIVE,  # noqa: F401
-                                  MAX_RELIABLE_PER_FRAME, NUDGE_AFTER, NUDGES)
-from bridge.frames import DataFrame, Presence
-from bridge.journal import Journal
-from bridge.link import (FrameReceived, LinkConnection, LinkKey, LinkUp, PeerAuthenticated,
-                         PeerHello)
-from bridge.nursery import Nursery
+from bridge.transport.frame_session import (  # noqa: F401
+    DELAYED_ACK, EVENT_MIN_GAP, KEEPALIVE, MAX_RELIABLE_PER_FRAME, NUDGE_AFTER, NUDGES)
 
 log = logging.getLogger("bridge.tcp")
 
@@ -73,8 +75,6 @@ TCP_INFO_RTT_OFFSET = 68
 HANDSHAKE_TIMEOUT = 5.0
 #: Handshakes run at once on the listening side; more connections are refused.
 MAX_HANDSHAKES = 4
-#: Called with ("offered" | "installed", our UDP sending key, our UDP receiving key).
-KeysHook = Callable[[str, bytes, bytes], None]
 #: ``SIOCOUTQNSD`` (linux/sockios.h): bytes of a TCP socket not yet sent at all.
 SIOCOUTQNSD = 0x894B
 
@@ -341,53 +341,84 @@ class _Connector:
                     raise BridgeProtocolError("peer sent data before the handshake ended")
 
 
+@dataclass(frozen=True)
+class TcpSettings:
+    """Where one side's TCP channel meets the other, and how it holds the link."""
+
+    side: str                 # "robot" or "pilot"
+    peer: str                 # the other PC's address
+    port: int                 # the robot listens on it, the pilot connects to it
+    listen: bool
+    config_text: str          # the bridge's XML: both sides must hold the same (fingerprint)
+    period: float             # seconds between the frames of streaming values
+    link_timeout: float = 5.0  # seconds of silence after which the link is down
+    bind_host: str = ""
+    key: LinkKey = field(default_factory=LinkKey.none)
+
+
+class TcpListener:
+    """What a TCP channel tells its owner, and asks of it: override what you need (as
+    python-can's Listener).  Called from the channel's threads."""
+
+    def message(self, key: FlowKey, value: Any) -> None:
+        """A streaming value arrived (a Bottle or a :class:`RobotState`)."""
+
+    def reliable(self) -> None:
+        """Reliable messages landed in the journal's inbox: deliver them."""
+
+    def connected(self) -> None:
+        """A connection was proven and installed."""
+
+    def keys(self, event: str, send_key: bytes, receive_key: bytes) -> None:
+        """The link's datagram keys, for the UDP channel: ``offered`` (the peer may already
+        send with ``receive_key``), then ``installed`` (send with ``send_key`` from now on)."""
+
+    def presence(self) -> Optional[Presence]:
+        """Which flows have their module end connected here (None: not known yet)."""
+        return frozenset()
+
+    def peer_presence(self, flows: Presence) -> None:
+        """The peer said which of its flows have their module end connected."""
+
+    def copies(self, copies: List[Tuple[FlowKey, ReliableCopy]]) -> None:
+        """A frame left with these reliable messages of flows sent as datagram copies too."""
+
+    def age(self, payload: bytes, seconds: float) -> bytes:
+        """An expiring message as it leaves after ``seconds`` in the outbox."""
+        return unaged(payload, seconds)
+
+
 class TcpChannel:
     """Both directions of the TCP link, with reconnection and exactly-once delivery.
 
-    ``on_message(key, value)`` receives streaming values (a Bottle or a
-    :class:`RobotState`); reliable ones land in the journal's inbox and
-    ``on_reliable()`` is called so the owner delivers them.  ``presence()``
-    says which flows have their module end connected here (None while not yet
-    known); it goes to the peer
-    on each new connection and whenever it changes (call :meth:`kick` to send a
-    change at once), and the peer's arrives through ``on_presence(flows)``.
-    ``on_copies(copies)`` gets, after each frame left, its reliable messages of flows
-    with datagram copies (:mod:`bridge.copies`); the copies that come back go to
+    Streaming values go to ``listener.message``; reliable ones land in the journal's inbox
+    and ``listener.reliable()`` is called so the owner delivers them.  The listener's
+    ``presence()`` goes to the peer on each new connection and whenever it changes (call
+    :meth:`kick` to send a change at once), and the peer's arrives through
+    ``peer_presence``.  After each frame, ``copies`` gets its reliable messages of flows
+    with datagram copies (:mod:`bridge.transport.copies`); the copies that come back go to
     :meth:`accept_copy`.
     """
 
-    def __init__(self, *, side: str, peer: str, port: int, listen: bool, config_text: str,
-                 journal: Journal, routes: List[Route], period: float,
-                 on_message: Callable[[FlowKey, Any], None], on_reliable: Callable[[], None],
-                 on_connected: Callable[[], None] = lambda: None,
-                 link_timeout: float = 5.0, bind_host: str = "",
-                 key: Optional[LinkKey] = None, on_keys: Optional[KeysHook] = None,
-                 presence: Callable[[], Optional[Presence]] = frozenset,
-                 on_presence: Callable[[Presence], None] = lambda flows: None,
-                 on_copies: Callable[[List[Tuple[FlowKey, ReliableCopy]]], None] = lambda copies: None
-                 ) -> None:
-        self.side = side
-        self.on_copies = on_copies
-        self.presence = presence
-        self.on_presence = on_presence
-        self.key = key if key is not None else LinkKey.none()
-        self.on_keys = on_keys
-        self.peer_host = peer
-        self.port = port
-        self.listen = listen
-        self.bind_host = bind_host
-        self.fingerprint = fingerprint(config_text)
+    def __init__(self, settings: TcpSettings, journal: Journal, routes: List[Route],
+                 listener: TcpListener) -> None:
+        self.settings = settings
+        self.listener = listener
+        self.side = settings.side
+        self.key = settings.key
+        self.peer_host = settings.peer
+        self.port = settings.port
+        self.listen = settings.listen
+        self.bind_host = settings.bind_host
+        self.fingerprint = fingerprint(settings.config_text)
         self.journal = journal
         self.routes = {route.key: route for route in routes}
-        self.period = period
-        self.link_timeout = link_timeout
-        self.on_message = on_message
-        self.on_reliable = on_reliable
-        self.on_connected = on_connected
+        self.period = settings.period
+        self.link_timeout = settings.link_timeout
         self.stats = LinkStats()
         self.drops = DropLedger("TCP channel", log)
         self._phase = ChannelPhase()
-        self._streams = Streams(period, time.monotonic())
+        self._streams = Streams(settings.period, time.monotonic())
         self._wake = threading.Condition()   # the current connection, its phase, _urgent
         self._urgent = False
         self._connection: Optional[_Connection] = None
@@ -413,7 +444,7 @@ class TcpChannel:
     def post(self, key: FlowKey, value: Any, event: bool = False) -> None:
         """The newest value of a streaming flow; it leaves with the next period's frame.
 
-        An ``event`` leaves at once (see :mod:`bridge.frame_session`), or when the
+        An ``event`` leaves at once (see :mod:`bridge.transport.frame_session`), or when the
         flow's :data:`EVENT_MIN_GAP` has passed since its last event.
         """
         if self._streams.post(key, value, event):
@@ -421,7 +452,8 @@ class TcpChannel:
                 self._wake.notify_all()
 
     def send_reliable(self, key: FlowKey, bottle: Any) -> int:
-        """Journal a reliable Bottle (raises :class:`~bridge.journal.QueueFull`); send at once."""
+        """Journal a reliable Bottle (raises :class:`~bridge.transport.journal.QueueFull`);
+        send at once."""
         seq = self.journal.append(key.id, key.kind, compact.encode(bottle))
         self.kick()
         return seq
@@ -450,7 +482,7 @@ class TcpChannel:
 
     @property
     def phase(self) -> str:
-        """"down", "handshake" or "up" (:mod:`bridge.channel_phase`)."""
+        """"down", "handshake" or "up" (:mod:`bridge.transport.channel_phase`)."""
         return self._phase.phase
 
     @property
@@ -483,7 +515,7 @@ class TcpChannel:
     def _new_session(self, peer_session: int) -> FrameSession:
         """The frame session of a connection whose peer proved the key."""
         return FrameSession(self.journal, self.routes, self._streams, peer_session,
-                            period=self.period, stats=self.stats)
+                            period=self.period, stats=self.stats, age=self.listener.age)
 
     def _install(self, connection: _Connection) -> bool:
         """Make a proven connection the current one, closing any older one: one step under
@@ -518,16 +550,16 @@ class TcpChannel:
         self._keys_hook("installed", connection.link)
         self._nursery.start_soon(lambda: self._receive_loop(connection), "tcp receive")
         try:
-            self.on_connected()
+            self.listener.connected()
         except Exception:  # noqa: BLE001 -- a hook's bug must not take the link down
             self.stats.internal_errors += 1
-            log.exception("TCP channel: on_connected hook failed")
+            log.exception("TCP channel: the listener's connected() failed")
         return True
 
     def _keys_hook(self, event: str, link: LinkConnection) -> None:
         keys = link.udp_keys
-        if self.on_keys is not None and keys is not None:
-            self.on_keys(event, *keys)
+        if keys is not None:
+            self.listener.keys(event, *keys)
 
     def _drop(self, reason: str, which: Optional[_Connection] = None) -> None:
         """Close the current connection -- or only ``which``, if it is still the current one
@@ -600,7 +632,7 @@ class TcpChannel:
         for event in events:
             if isinstance(event, StreamValue):
                 try:
-                    self.on_message(event.key, event.value)
+                    self.listener.message(event.key, event.value)
                 except Exception:  # noqa: BLE001 -- a consumer's bug loses one latest value
                     self.stats.internal_errors += 1
                     log.exception("TCP channel: delivering %s failed (a bug)",
@@ -609,13 +641,13 @@ class TcpChannel:
                 self.drops.drop(event.reason, event.detail)
         if any(isinstance(event, ReliableAccepted) for event in events):
             self.kick()  # owe an ack
-            self.on_reliable()
+            self.listener.reliable()
         # Taken from the current connection only: a replaced connection's last frames must
         # not overwrite the current word.
         heard = events[-1] if events else None
         if isinstance(heard, PresenceHeard) and connection is self._connection:
             try:
-                self.on_presence(heard.flows)
+                self.listener.peer_presence(heard.flows)
             except Exception:  # noqa: BLE001 -- a consumer's bug; the next change says it
                 self.stats.internal_errors += 1
                 log.exception("TCP channel: taking the peer's presence failed (a bug)")
@@ -652,7 +684,7 @@ class TcpChannel:
     def _send(self, connection: _Connection, now: float, due: Due) -> None:
         """The frame the session says is due, if any."""
         out = connection.session.next_frame(now, wall=time.time(), due=due,
-                                            presence=self.presence(),
+                                            presence=self.listener.presence(),
                                             kernel=_kernel_queue(connection.sock))
         if out.held_back:
             self.drops.drop(Reason.HELD_BACK, f"{out.held_back} bytes still unsent")
@@ -665,7 +697,7 @@ class TcpChannel:
         if out.copies:
             session = self.journal.session
             try:
-                self.on_copies([(key, ReliableCopy(session, seq, payload, out.clock))
+                self.listener.copies([(key, ReliableCopy(session, seq, payload, out.clock))
                                 for key, seq, payload in out.copies])
             except Exception:  # noqa: BLE001 -- a consumer's bug: the frame has them anyway
                 self.stats.internal_errors += 1

@@ -49,9 +49,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Collection, List, Optional, Sequence, Tuple
 
-from bridge import compact
 from bridge.errors import BridgeProtocolError, BridgeUsageError
 from bridge.flows import FlowKey
+from bridge.wire import compact
 
 DEFAULT_LIMIT = 1000
 #: What a cancelled message becomes in the outbox: its number crosses, the receiving bridge
@@ -226,7 +226,7 @@ class Journal:
     def accept(self, session: int, seq: int, ident: int, kind: int, payload: bytes,
                late_by: float = 0.0) -> bool:
         """Keep a received message for delivery; False if it is a repeat.  ``late_by``:
-        seconds its frame came later than the quickest (:mod:`bridge.transit`), counted as
+        seconds its frame came later than the quickest (:mod:`bridge.wire.transit`), counted as
         if it had come off the link that much earlier."""
         with self._lock:
             row = self._db.execute("SELECT accepted FROM peers WHERE session = ?",

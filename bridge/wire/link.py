@@ -68,10 +68,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Dict, List, Optional, Tuple, Union
 
-from bridge import frames
 from bridge.errors import BridgeProtocolError, BridgeUsageError, NeedMoreData
-from bridge.frames import Auth, DataFrame, Frame, Hello, Resume
-from bridge.wire import Buffer, get_varint, varint
+from bridge.wire import frames
+from bridge.wire.frames import Auth, DataFrame, Frame, Hello, Resume
+from bridge.wire.varint import Buffer, get_varint, varint
 
 TAG_SIZE = 8
 KEY_BYTES = 32
@@ -323,7 +323,7 @@ class LinkConnection:
         return self._seal(frames.resume_body(Resume(accepted)))
 
     def send_data(self, body: bytes) -> bytes:
-        """Seal one data frame body (from :func:`bridge.frames.data_body`)."""
+        """Seal one data frame body (from :func:`bridge.wire.frames.data_body`)."""
         if self.our_phase != "up":
             raise BridgeUsageError(f"link: data before the handshake ({self.our_phase})")
         return self._seal(body)

@@ -41,7 +41,7 @@ from typing import List, Optional, Sequence, Tuple
 import numpy as np
 
 from bridge.errors import BridgeProtocolError, NeedMoreData
-from bridge.wire import Buffer, get_svarint, get_varint, put_svarint, put_varint, take
+from bridge.wire.varint import Buffer, get_svarint, get_varint, put_svarint, put_varint, take
 
 ENCODER_RANGE = 4.0            # rad: 16-bit codes cover [-4, 4)
 TORQUE_RANGE = 300.0           # N*m

@@ -6,7 +6,7 @@ A bridge drops input for few reasons, and each is a decision of this module:
 
 * the sender is not the peer (:func:`from_peer`) -- a stranger on the network;
 * the bytes fail the link's tag or replay window -- forged, tampered, replayed
-  (:mod:`bridge.link` raises, the channel reports it here);
+  (:mod:`bridge.wire.link` raises, the channel reports it here);
 * they break a codec -- malformed;
 * they name an id the configuration does not have -- unknown id;
 * they are older than what was already published (:func:`is_newer`) -- stale;
@@ -32,7 +32,7 @@ from enum import Enum
 from typing import Callable, Dict, Iterable, Optional
 
 from bridge.errors import BridgeProtocolError
-from bridge.link import AuthenticationFailed, ForgedInput, ReplayedInput
+from bridge.wire.link import AuthenticationFailed, ForgedInput, ReplayedInput
 from yarp_lite.bursts import Burst
 #: Unsent bytes in the kernel above which a frame's streaming part is held back.
 BACKLOG_LIMIT = 2048

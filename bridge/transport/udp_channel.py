@@ -7,7 +7,7 @@ channel's streams).  The sender thread turns a message into datagrams with the
 flow's codec -- standalone tiles for images and clouds, plain slices for
 anything else -- adds Reed-Solomon repair datagrams when the flow asks for them (a
 fixed repair fraction, or as many as the loss the receiver reports needs:
-:mod:`bridge.adaptive_fec`), and sends them round-robin across flows, paced to ``rate``
+:mod:`bridge.transport.adaptive_fec`), and sends them round-robin across flows, paced to ``rate``
 bits per second (IP and UDP headers included) so a slow link's shaper does not
 drop our bursts.
 
@@ -20,14 +20,14 @@ seconds (the paper's delta-t, 0.4 s) after its first part: a tiled message
 then goes out with its missing regions blank or NaN, a sliced one is counted
 lost.  A datagram for a message older than the last one published is stale
 and dropped.  Every finished message is counted in the receiver's
-:class:`~bridge.adaptive_fec.LossMeter`, whose totals go back to the sender
+:class:`~bridge.transport.adaptive_fec.LossMeter`, whose totals go back to the sender
 every half second as a report datagram.
 
-On the wire every datagram is sealed by the link (:mod:`bridge.link`): a
+On the wire every datagram is sealed by the link (:mod:`bridge.wire.link`): a
 counter and an authentication tag with the UDP key the TCP handshake derived.
 The channel sends nothing before the first handshake, and drops what fails
 the tag or the replay window; every drop is counted by reason
-(:mod:`bridge.drops`).
+(:mod:`bridge.transport.drops`).
 """
 
 from __future__ import annotations
@@ -37,17 +37,18 @@ import socket
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, Callable, Deque, Dict, List, Optional, Protocol, Set, Tuple
 
-from bridge import datagrams, drops, fec, tiles
-from bridge.adaptive_fec import REPORT_INTERVAL, FecAdapter, LossMeter
-from bridge.datagrams import BODY_BUDGET, Datagram
-from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeError, BridgeProtocolError
-from bridge.flows import Carriage, FlowKey, Route
-from bridge.link import DatagramOpener, DatagramSealer
-from bridge.nursery import Nursery
+from bridge.flows import FlowKey, Route
+from bridge.transport import drops
+from bridge.transport.adaptive_fec import REPORT_INTERVAL, FecAdapter, LossMeter
+from bridge.transport.drops import DropLedger, Reason
+from bridge.transport.nursery import Nursery
+from bridge.wire import datagrams, fec, tiles
+from bridge.wire.datagrams import BODY_BUDGET, Datagram
+from bridge.wire.link import DatagramOpener, DatagramSealer
 
 log = logging.getLogger("bridge.udp")
 
@@ -66,37 +67,18 @@ class UdpCodec(Protocol):
         """Tile bodies (tiled) or the whole message as one bytes object (sliced)."""
 
     def decode(self, data: Any, completeness: float) -> Any:
-        """A :class:`~bridge.tiles.Canvas` (tiled) or the message bytes (sliced)."""
+        """A :class:`~bridge.wire.tiles.Canvas` (tiled) or the message bytes (sliced)."""
 
 
 @dataclass(frozen=True)
-class UdpRoute:
-    """A flow's :class:`~bridge.flows.Route` with the codec of its values."""
+class UdpRoute(Route):
+    """A flow's :class:`~bridge.flows.Route` with the codec of its values (:meth:`of`)."""
 
-    route: Route
-    codec: UdpCodec
+    codec: Optional[UdpCodec] = None
 
-    @property
-    def key(self) -> FlowKey:
-        return self.route.key
-
-    @property
-    def label(self) -> str:
-        return self.route.label
-
-    @property
-    def fec(self) -> float:
-        return self.route.fec
-
-    @property
-    def adaptive(self) -> bool:
-        """Repairs sized from the receiver's loss reports (``fec`` is then unused)."""
-        return self.route.fec_auto
-
-    @property
-    def copied(self) -> bool:
-        """Each message comes as several copies: a repeated part is expected, no drop."""
-        return self.route.copies > 0 or self.route.carriage is Carriage.URGENT
+    @classmethod
+    def of(cls, route: Route, codec: UdpCodec) -> "UdpRoute":
+        return cls(**{f.name: getattr(route, f.name) for f in fields(route)}, codec=codec)
 
 
 @dataclass
@@ -109,7 +91,8 @@ class FlowStats:
     completeness_sum: float = 0.0
     repaired: int = 0
     repairs_sent: int = 0
-    #: datagrams that came again (a flow sent as copies, bridge.copies): not a loss, no drop
+    #: datagrams that came again (a flow sent as copies, bridge.transport.copies): not a
+    #: loss, no drop
     repeats: int = 0
 
     @property
@@ -396,7 +379,7 @@ class UdpChannel:
         self._sock.close()
 
     def set_keys(self, event: str, send_key: bytes, receive_key: bytes) -> None:
-        """Keys from the TCP handshake (:data:`bridge.tcp_channel.KeysHook`).
+        """Keys from the TCP handshake (:meth:`bridge.transport.tcp_channel.TcpListener.keys`).
 
         ``offered``: the peer may already send with ``receive_key``; ``installed``:
         the peer proved the key, so we send with ``send_key`` from now on.
@@ -454,7 +437,7 @@ class UdpChannel:
         for key, value in ready:
             route = self.routes[key]
             now = time.monotonic()
-            repairs = (lambda k: self.adapter.repairs(k, now)) if route.adaptive else None
+            repairs = (lambda k: self.adapter.repairs(k, now)) if route.fec_auto else None
             try:
                 encoded = route.codec.encode(value)
                 bodies = encoded if route.codec.tiled else slice_message(encoded)

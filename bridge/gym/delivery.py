@@ -12,7 +12,7 @@ or our bug -- blocks only that flow until the next round, so the thread never
 dies and nothing is lost.
 
 On the way out an expiring message (a GYM switch or command) is aged by the
-time it spent on the link and in the inbox (:func:`bridge.expiry.aged_payload`),
+time it spent on the link and in the inbox (:func:`bridge.gym.expiry.aged_payload`),
 so the module can refuse one that arrives too late for the pilot's intent; one
 the pilot cancelled arrives as a tombstone and is dropped.  Each delivered one
 is said on its module's receipt flow (:mod:`walkman.gym.command_life`).  On the
@@ -27,13 +27,13 @@ import threading
 import time
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
-from bridge import compact
 from bridge.config import PILOT, BridgeConfig
-from bridge.drops import DropLedger, Reason
 from bridge.errors import BridgeProtocolError, BridgeUsageError
-from bridge.expiry import aged_payload
 from bridge.flows import FlowKey, Route
-from bridge.journal import Journal, is_tombstone
+from bridge.gym.expiry import aged_payload
+from bridge.transport.drops import DropLedger, Reason
+from bridge.transport.journal import Journal, is_tombstone
+from bridge.wire import compact
 from walkman.gym.command_life import CommandState, Receipt, encode_receipt
 from walkman.gym.interfaces import GYM_PORTS, RECEIPT, command_seq
 from walkman.gym.validity import ValidityError, split

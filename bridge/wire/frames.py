@@ -24,14 +24,14 @@ of the first reliable entry in the frame, the others follow in order.
 what it journalled.  ``presence`` (sent on a new connection and when it changes)
 lists which flows have the module's end connected on the sender's side, so the
 receiver shows a module's stand-in ports only while the module exists
-(:mod:`bridge.presence`).  ``clock`` is the sender's monotonic clock in ms (modulo
+(:mod:`bridge.gym.presence`).  ``clock`` is the sender's monotonic clock in ms (modulo
 2**28) when the frame left: the receiver tells from it how late a frame came
-(:mod:`bridge.transit`).  A connection opens with HELLO and AUTH from each side and
+(:mod:`bridge.wire.transit`).  A connection opens with HELLO and AUTH from each side and
 a RESUME (the highest number already accepted from the peer's journal
 session): the sender resends everything after it, so nothing is lost or
 repeated across reconnects.
 
-The ``trailer`` is the link's business (:mod:`bridge.link`): none on HELLO and
+The ``trailer`` is the link's business (:mod:`bridge.wire.link`): none on HELLO and
 AUTH, an 8-byte authentication tag on every later frame.  This module only
 splits the stream into ``(body, trailer)`` records -- never half-consuming one
 -- and encodes and parses bodies; any violation raises
@@ -47,7 +47,7 @@ from typing import FrozenSet, Iterable, List, Optional, Tuple, Union
 
 from bridge.errors import BridgeProtocolError, BridgeUsageError, NeedMoreData
 from bridge.flows import FlowKey
-from bridge.wire import Buffer, get_varint, put_varint, take
+from bridge.wire.varint import Buffer, get_varint, put_varint, take
 
 PROTOCOL_VERSION = 4
 DEFAULT_MAX_FRAME = 4 << 20
@@ -71,7 +71,7 @@ class Flags(IntFlag):
 
 _KNOWN_FLAGS = int(Flags.ACK | Flags.SEQ | Flags.HELLO | Flags.RESUME | Flags.AUTH |
                    Flags.PRESENCE | Flags.CLOCK)
-#: The clock field wraps at this (:data:`bridge.transit.MODULUS`).
+#: The clock field wraps at this (:data:`bridge.wire.transit.MODULUS`).
 CLOCK_MODULUS = 1 << 28
 
 #: Which flows are present: ``(id, kind)`` pairs.

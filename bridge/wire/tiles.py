@@ -55,9 +55,9 @@ from typing import Dict, Iterable, List, Optional, Sequence, Set, Tuple
 
 import numpy as np
 
-from bridge.datagrams import BODY_BUDGET
 from bridge.errors import BridgeProtocolError, BridgeUsageError, NeedMoreData
-from bridge.wire import Buffer, get_varint, put_varint, take
+from bridge.wire.datagrams import BODY_BUDGET
+from bridge.wire.varint import Buffer, get_varint, put_varint, take
 
 JPEG, JPEG_FULL, PNG, ZLIB = 1, 2, 3, 4
 CODEC_NAMES = {"jpeg": JPEG, "png": PNG, "zlib": ZLIB}

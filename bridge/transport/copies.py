@@ -13,14 +13,14 @@ it, as N datagrams on the UDP channel, sealed with the link's key like every dat
 The receiver hands a copy (:class:`ReliableCopy`: the sending journal's session, the
 message's number, its payload) to the same journal the TCP channel fills, and only when
 it is the next number it expects from that session on the current connection
-(:meth:`bridge.frame_session.FrameSession.accept_copy`).  Whichever comes first -- the
+(:meth:`bridge.transport.frame_session.FrameSession.accept_copy`).  Whichever comes first -- the
 copy or the frame -- is journalled, the other is a repeat: the journal's numbering keeps
 it exactly once and in order.  A copy that comes ahead of a gap is not taken: TCP brings
 its number in order.  Copies leave only with a frame, so a command queued during a
-blackout is sent (and claimed, :meth:`bridge.journal.Journal.cancel`) no earlier than
+blackout is sent (and claimed, :meth:`bridge.transport.journal.Journal.cancel`) no earlier than
 without them.
 
-A GYM status answering a command (a status *event*, :class:`bridge.status_events.StatusEvents`)
+A GYM status answering a command (a status *event*, :class:`bridge.gym.status_events.StatusEvents`)
 goes the same two ways, ``<datagram_copies statuses="N">``.  Statuses are not
 journalled, so the receiver remembers what it last wrote per flow
 (:class:`FirstStatus`): the same status again is the other copy, and one with an older
@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Dict, Hashable, Optional, Tuple
 
 from bridge.errors import BridgeProtocolError
-from bridge.frames import CLOCK_MODULUS
+from bridge.wire.frames import CLOCK_MODULUS
 
 _HEAD = struct.Struct(">QII")
 #: Seconds during which a status with an older ``seq`` than the one written is a late copy
@@ -48,7 +48,7 @@ OVERTAKEN = 2.0
 @dataclass(frozen=True)
 class ReliableCopy:
     """A reliable message as a datagram copy: whose journal, which number, what, and the
-    clock stamp of the frame that carried it (:mod:`bridge.transit`)."""
+    clock stamp of the frame that carried it (:mod:`bridge.wire.transit`)."""
 
     session: int
     seq: int

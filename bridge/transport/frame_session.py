@@ -2,23 +2,23 @@
 
 Theory of operation
 -------------------
-Everything in this module lives between the link's handshake (:mod:`bridge.link`) and
+Everything in this module lives between the link's handshake (:mod:`bridge.wire.link`) and
 the next one; nothing touches a socket, a thread or a clock.  A :class:`FrameSession`
 takes the data frames a connection received and returns events, and says what to send
-now as a frame body for :meth:`~bridge.link.LinkConnection.send_data` to seal, as h11's
-``Connection`` does.  The TCP channel (:mod:`bridge.tcp_channel`) only moves the bytes,
+now as a frame body for :meth:`~bridge.wire.link.LinkConnection.send_data` to seal, as h11's
+``Connection`` does.  The TCP channel (:mod:`bridge.transport.tcp_channel`) only moves the bytes,
 asks the kernel about the socket's send queue (:class:`KernelQueue`) and passes in the
 time; tests and fuzzers drive the session without a network.
 
 Reliable messages (pilot commands, warnings) live in the journal's outbox and inbox
-(:class:`Queues`, which :class:`~bridge.journal.Journal` is).  After the handshake each
+(:class:`Queues`, which :class:`~bridge.transport.journal.Journal` is).  After the handshake each
 side's RESUME says the highest number it accepted from the other's journal session
 (:meth:`FrameSession.resume_point`); the sender forgets what the peer has and sends the
 rest again, in order (:meth:`FrameSession.peer_resumed`).  A frame numbers its first
 reliable entry (``seq``) and the others follow; the receiver journals each, refuses a
 gap as the peer's error and drops a number it already has (a duplicate, after a
 reconnect).  Every frame that follows an acceptance carries ``ack``, the highest number
-accepted, so the peer can forget it.  A flow with datagram copies (:mod:`bridge.copies`)
+accepted, so the peer can forget it.  A flow with datagram copies (:mod:`bridge.transport.copies`)
 sends each reliable message a second way, on the UDP channel, as its frame leaves
 (:attr:`Outgoing.copies`); the receiving session journals a copy that is the next number
 it expects (:meth:`FrameSession.accept_copy`), and the frame that follows finds it there
@@ -34,8 +34,8 @@ round trip instead of the next period, and a robot standing still sends exactly 
 periodic frames send.  When the kernel still holds unsent bytes (the link is slower than
 we write), the streaming part of a frame is held back rather than queued, so the pilot
 sees fresh state instead of a backlog.  Bottles travel as deltas against the previous
-value sent on the same connection (:mod:`bridge.compact`), robot state in the Table 1
-codec (:mod:`bridge.state_codec`); every codec belongs to one session, so both restart
+value sent on the same connection (:mod:`bridge.wire.compact`), robot state in the Table 1
+codec (:mod:`bridge.wire.state_codec`); every codec belongs to one session, so both restart
 from full values on a new connection and the two ends never disagree.
 
 When a frame the pilot waits for (events, reliable messages, presence) has left but the
@@ -46,7 +46,7 @@ doubling (:class:`Nudges`): a lone lost segment waits for TCP's retransmission t
 makes the kernel resend it at once.  Bytes still queued (a slow link) are not a loss:
 nothing follows them.  A frame also leaves, empty, after :data:`KEEPALIVE` of silence.
 
-Which flows have their module connected (:mod:`bridge.presence`) is said on each new
+Which flows have their module connected (:mod:`bridge.gym.presence`) is said on each new
 connection and whenever it changes; on receipt it is the last event of its frame, after
 the frame's reliable messages are journalled.
 """
@@ -56,19 +56,19 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass, field
-from typing import (AbstractSet, Any, Dict, FrozenSet, List, Mapping, Optional, Protocol,
-                    Sequence, Tuple, Union)
+from typing import (AbstractSet, Any, Callable, Dict, FrozenSet, List, Mapping, Optional,
+                    Protocol, Sequence, Tuple, Union)
 
-from bridge import compact, drops, frames
-from bridge.copies import ReliableCopy
-from bridge.drops import Reason
 from bridge.errors import BridgeProtocolError, BridgeUsageError
-from bridge.expiry import aged_payload
 from bridge.flows import Carriage, FlowKey, Form, Route
-from bridge.frames import DataFrame, Entry, Presence
-from bridge.journal import Queued
-from bridge.state_codec import StateDecoder, StateEncoder
-from bridge.transit import Lateness, stamp
+from bridge.transport import drops
+from bridge.transport.copies import ReliableCopy
+from bridge.transport.drops import Reason
+from bridge.transport.journal import Queued
+from bridge.wire import compact, frames
+from bridge.wire.frames import DataFrame, Entry, Presence
+from bridge.wire.state_codec import StateDecoder, StateEncoder
+from bridge.wire.transit import Lateness, stamp
 
 MAX_RELIABLE_PER_FRAME = 256
 #: Shortest time between two event sends of one flow; more frequent events wait (coalesced).
@@ -117,7 +117,7 @@ class Outbox(Protocol):
 
     def unacknowledged(self, after: int = 0, limit: int = 1 << 30) -> List[Queued]:
         """What the next frame carries; the journal then counts them as claimed (too late
-        to cancel: :meth:`bridge.journal.Journal.cancel`)."""
+        to cancel: :meth:`bridge.transport.journal.Journal.cancel`)."""
 
     def acknowledge(self, upto: int) -> int:
         """Forget up to ``upto``; :class:`BridgeProtocolError` past what was ever sent."""
@@ -134,7 +134,7 @@ class Inbox(Protocol):
 
 
 class Queues(Outbox, Inbox, Protocol):
-    """Both halves, as :class:`~bridge.journal.Journal` holds them."""
+    """Both halves, as :class:`~bridge.transport.journal.Journal` holds them."""
 
 
 # -- events ------------------------------------------------------------------------------
@@ -307,13 +307,22 @@ class Outgoing:
     #: streaming values were held back behind this many unsent bytes (0: none)
     held_back: int = 0
     #: the reliable messages of copied flows in this frame, as sent, for their datagram
-    #: copies (:mod:`bridge.copies`)
+    #: copies (:mod:`bridge.transport.copies`)
     copies: Tuple[Tuple[FlowKey, int, bytes], ...] = ()
-    #: the frame's clock stamp (:mod:`bridge.transit`), which its copies carry too
+    #: the frame's clock stamp (:mod:`bridge.wire.transit`), which its copies carry too
     clock: int = 0
 
 
 # -- the session -------------------------------------------------------------------------
+
+
+#: What an expiring message becomes as it leaves after waiting so many seconds.
+Age = Callable[[bytes, float], bytes]
+
+
+def unaged(payload: bytes, seconds: float) -> bytes:
+    """A message as it was: for a transport that carries no validity."""
+    return payload
 
 
 class FrameSession:
@@ -326,8 +335,12 @@ class FrameSession:
 
     def __init__(self, queues: Queues, routes: Mapping[FlowKey, Route], streams: Streams,
                  peer_session: int, *, period: float,
-                 stats: Optional[LinkStats] = None) -> None:
+                 stats: Optional[LinkStats] = None, age: Age = unaged) -> None:
+        """``age(payload, seconds)``: an expiring message as it leaves after waiting
+        ``seconds`` in the outbox (the GYM's validity, :func:`bridge.gym.expiry.aged_payload`;
+        the transport knows only that a route is ``expiring``)."""
         self.queues = queues
+        self.age = age
         self.routes = routes
         self.streams = streams
         self.peer_session = peer_session
@@ -421,7 +434,8 @@ class FrameSession:
 
     def accept_copy(self, key: FlowKey, copy: ReliableCopy,
                     read_at: Optional[float] = None) -> Optional[Event]:
-        """A reliable message that came as a datagram copy (:mod:`bridge.copies`): journalled
+        """A reliable message that came as a datagram copy (:mod:`~bridge.transport.copies`):
+        journalled
         if it is the next number from this connection's peer session; None when its frame
         came first, when it is ahead of a gap the frames fill in order, or when it belongs
         to another session.  :class:`BridgeProtocolError` for a payload no codec reads.
@@ -493,7 +507,7 @@ class FrameSession:
             route = self.routes.get(FlowKey(item.id, item.kind))
             payload = item.payload
             if route is not None and route.expiring:   # it waited here: the module must know
-                payload = aged_payload(payload, wall - item.queued)
+                payload = self.age(payload, wall - item.queued)
             encoded.append(self._reliable_entry(item, payload))
             if route is not None and route.copies:
                 copies.append((route.key, item.seq, payload))

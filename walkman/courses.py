@@ -1,7 +1,9 @@
 """The walking module offline on the simulated robot, the harness off: a robot standing at a
 station, walks run to their end with the base checked upright, the soles as a pilot measures
-them, and the rough-ground courses (tests/modules/test_walking.py, tests/walkman/test_preview.py,
-bench/bench_walking.py)."""
+them, and the rough-ground courses (the terrain's step, the ramp both ways, the kerb from the
+head camera).  Shared by the tests (tests/modules/test_walking.py, tests/walkman/
+test_preview.py, the PI's driver) and the benchmarks (bench/bench_walking.py), which must not
+import the tests."""
 
 from __future__ import annotations
 

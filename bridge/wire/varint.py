@@ -2,7 +2,7 @@
 
 Varints are LEB128 (7 bits per byte, low group first) as in protobuf; signed
 values go through zigzag so small negatives stay small.  (Frames and datagrams are
-sealed by :mod:`bridge.link`'s tags, which also catch what a CRC would.)
+sealed by :mod:`bridge.wire.link`'s tags, which also catch what a CRC would.)
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from typing import Optional
 
-from bridge.frames import CLOCK_MODULUS
+from bridge.wire.frames import CLOCK_MODULUS
 
 #: Stamps wrap every 2**28 ms (74 hours); a varint of at most 4 bytes.
 MODULUS = CLOCK_MODULUS

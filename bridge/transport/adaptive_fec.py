@@ -10,7 +10,7 @@ adapts:
 * :class:`LossMeter` (receiving side) counts, over every message it finishes,
   the data datagrams it expected (the message's ``parts``) and those that came
   off the wire (before any repair).  Its totals only grow, and a report
-  (:class:`bridge.datagrams.Report`) carries them back every
+  (:class:`bridge.wire.datagrams.Report`) carries them back every
   :data:`REPORT_INTERVAL`, sealed like any datagram: a lost report costs
   nothing, the next one covers it.
 * :class:`FecAdapter` (sending side) turns the reports into a loss estimate --
@@ -37,7 +37,7 @@ from collections import deque
 from functools import lru_cache
 from typing import Deque, Optional, Tuple
 
-from bridge.datagrams import Report
+from bridge.wire.datagrams import Report
 
 #: Probability that one FEC group decodes, which the adapter aims for.
 TARGET = 0.995

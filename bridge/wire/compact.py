@@ -48,7 +48,7 @@ import struct
 from typing import Any, List, Optional, Sequence, Tuple
 
 from bridge.errors import BridgeProtocolError, NeedMoreData
-from bridge.wire import Buffer, get_svarint, get_varint, put_svarint, put_varint, take
+from bridge.wire.varint import Buffer, get_svarint, get_varint, put_svarint, put_varint, take
 from yarp_lite.bottle import (Bottle, Dict, Float32, Int8, Int16, Int64, Tag, Vocab, tag_of,
                               vocab_encode)
 

@@ -14,16 +14,16 @@ payload of a 1500-byte Ethernet frame, so IP never fragments them::
 rebuilds by it and drops replays and stragglers.  Data parts are numbered
 ``index`` 0..parts-1; with forward error correction every ``group`` data parts
 are followed by repair datagrams (``index`` = the group, ``row`` = the repair
-row, see :mod:`bridge.fec`).  What a data body holds depends on the channel:
-a standalone tile (:mod:`bridge.tiles`) or a plain slice of the message.
+row, see :mod:`bridge.wire.fec`).  What a data body holds depends on the channel:
+a standalone tile (:mod:`bridge.wire.tiles`) or a plain slice of the message.
 
 The receiving side answers with reports (:class:`Report`, for
-:mod:`bridge.adaptive_fec`): how many data datagrams it expected and received
+:mod:`bridge.transport.adaptive_fec`): how many data datagrams it expected and received
 so far, totals that only grow::
 
     report   := 0xB8 varint(expected) varint(received)
 
-On the wire every datagram is sealed by the link (:mod:`bridge.link`: a
+On the wire every datagram is sealed by the link (:mod:`bridge.wire.link`: a
 counter and an authentication tag, which also catch corrupted bytes), so the
 budget for a body leaves room for the seal.
 """
@@ -33,8 +33,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from bridge.errors import BridgeProtocolError, BridgeUsageError, NeedMoreData
-from bridge.link import SEAL_OVERHEAD
-from bridge.wire import Buffer, get_varint, put_varint
+from bridge.wire.link import SEAL_OVERHEAD
+from bridge.wire.varint import Buffer, get_varint, put_varint
 
 MAGIC = 0xB7
 REPORT_MAGIC = 0xB8

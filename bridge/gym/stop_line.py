@@ -30,6 +30,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, Optional, Tuple
 
+from bridge.transport.nursery import Nursery
 from yarp_lite.bottle import Bottle
 
 log = logging.getLogger("bridge.stop")
@@ -131,11 +132,13 @@ class PilotStops:
 @dataclass
 class RobotStops:
     """The robot side: carries out each order once (``carry_out(word, id) -> Ack``, run in
-    a thread of its own), answers its copies, at most once per :data:`ANSWER_GAP`."""
+    a thread of its own, started by ``threads``), answers its copies, at most once per
+    :data:`ANSWER_GAP`."""
 
     carry_out: Callable[[str, int], Ack]
     send: Send
     clock: Callable[[], float] = time.monotonic
+    threads: Nursery = field(default_factory=Nursery)
     _done: Dict[int, Optional[Ack]] = field(default_factory=dict)
     _answered: Dict[int, float] = field(default_factory=dict)
     _lock: threading.Lock = field(default_factory=threading.Lock)
@@ -160,8 +163,7 @@ class RobotStops:
                 gone = next(iter(self._done))
                 del self._done[gone]
                 self._answered.pop(gone, None)
-        threading.Thread(target=self._carry_out, args=(word, stop_id),
-                         name=f"stop {stop_id}", daemon=True).start()
+        self.threads.start_soon(lambda: self._carry_out(word, stop_id), f"stop {stop_id}")
 
     def _carry_out(self, word: str, stop_id: int) -> None:
         ack = self.carry_out(word, stop_id)

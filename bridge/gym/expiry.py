@@ -11,8 +11,8 @@ is not a Bottle is the peer's error and is left for the codec to refuse.
 
 from __future__ import annotations
 
-from bridge import compact
 from bridge.errors import BridgeProtocolError
+from bridge.wire import compact
 from walkman.gym import validity
 
 
