@@ -49,7 +49,7 @@ def _realtime(priority: int) -> None:
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     except PermissionError:
-        pass
+        pass     # not root: it runs at normal priority, and its figures then show no real time
 
 
 def _burn() -> None:

@@ -17,7 +17,7 @@ def _cpu_model() -> str:
                 if line.startswith("model name"):
                     return line.split(":", 1)[1].strip()
     except OSError:
-        pass
+        pass     # no /proc (not Linux): the platform's own name below
     return platform.processor() or "unknown CPU"
 
 

@@ -302,7 +302,7 @@ def bridge_frames(data: bytes) -> None:
                     break
                 attempt(BRIDGE, frames.parse_body, record[0])
     except BridgeProtocolError:
-        pass
+        pass     # the splitter refused the stream by name: what the target expects of garbage
     frames.parse_body(data)
 
 
