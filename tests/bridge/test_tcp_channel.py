@@ -7,6 +7,7 @@ threads and sockets around them: who may connect, who may replace whom.
 
 from __future__ import annotations
 
+import math
 import select
 import socket
 import threading
@@ -208,7 +209,11 @@ def test_an_unacknowledged_event_is_followed_by_empty_frames_and_a_periodic_one_
 
     robot, pilot = pair(period=0.1)
     wait_until(lambda: pilot.heard and robot.heard, 3, message="the first words")
-    time.sleep(2 * tcp_channel.NUDGE_AFTER)           # ... acknowledged
+    # ... acknowledged, and a frame built since has seen it: no nudge planned.  (A fixed
+    # 0.1 s sleep here was too short beside two burners in fc135: the sender built its next
+    # frame only after the patch below, took the words for unacknowledged, and nudged 3 times.)
+    wait_until(lambda: robot.channel._connection.session.nudges.at == math.inf, 10,
+               message="the words' nudges called off")
     monkeypatch.setattr(tcp_channel, "_only_unacknowledged", lambda sock: True)  # never acked
     for seq in range(2, 12):                          # periodic frames only
         robot.channel.post(STATUS, Bottle([seq, "a"]))
