@@ -495,7 +495,7 @@ class PilotWindow(QMainWindow):
         sinks = list(self.module_widgets.get(module, [])) if module else []
         if isinstance(event, events.LinkEvent):     # every module's widgets show the link
             sinks = [w for widgets in self.module_widgets.values() for w in widgets]
-        sinks += [self.status, self.log, self.camera, self.link_widget]
+        sinks += [self.status, self.log, self.camera, self.link_widget, self.view3d]
         for sink in sinks:
             if sink is not None and hasattr(sink, method):
                 getattr(sink, method)(event)
@@ -506,7 +506,7 @@ class PilotWindow(QMainWindow):
         for widgets in self.module_widgets.values():
             for widget in widgets:
                 widget.tick()
-        for sink in (self.status, self.link_widget, self.camera):
+        for sink in (self.status, self.link_widget, self.camera, self.view3d):
             if sink is not None:
                 sink.tick()
 

@@ -10,7 +10,7 @@ each widget shows; widgets call it with their own clock (``time.monotonic``), te
 from __future__ import annotations
 
 import time
-from typing import Callable, Optional
+from typing import Callable, Optional, Sequence, Tuple
 
 
 def age_text(seconds: float) -> str:
@@ -40,9 +40,17 @@ class LinkCut:
     def banner(self, what: str, last: Optional[float]) -> str:
         """``link down for 18 s: <what> as of 21 s ago`` (``last``: when what is shown
         arrived, on this clock; None: nothing arrived), or "" while the link is up."""
+        return self.banner_of([(what, last)])
+
+    def banner_of(self, shown: Sequence[Tuple[str, Optional[float]]]) -> str:
+        """The same for several things one widget shows, each with its own age:
+        ``link down for 18 s: the robot as of 18 s ago, the cloud as of 21 s ago``."""
         down = self.down_for
         if down is None:
             return ""
-        shown = "nothing received yet" if last is None else \
-            f"{what} as of {age_text(self.clock() - last)} ago"
-        return f"link down for {age_text(down)}: {shown}"
+        now = self.clock()
+        ages = [f"{what}: nothing received yet" if last is None else
+                f"{what} as of {age_text(now - last)} ago" for what, last in shown]
+        if len(ages) == 1 and shown[0][1] is None:
+            ages = ["nothing received yet"]
+        return f"link down for {age_text(down)}: {', '.join(ages)}"

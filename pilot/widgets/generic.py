@@ -40,6 +40,7 @@ from python_qt_binding.QtWidgets import (QComboBox, QDoubleSpinBox, QGridLayout,
 from python_qt_binding.QtGui import QColor
 
 from pilot.catalogue import Catalogue, catalogue_of, legal_switches
+from pilot.link_cut import age_text
 from pilot.link import (CommandStateEvent, CountdownEvent, LinkEvent, StatusEvent,
                         WarningEvent)
 from pilot.widgets.timed_button import TimedButton
@@ -319,7 +320,7 @@ class GenericWidget(QGroupBox):
             last = "never heard" if self.state is None else \
                 f"silent since before the cut (last: {self.state})" if self.silent_before_cut \
                 else f"last heard {self.state}"
-            self.status_label.setText(f"link down for {down:.0f} s; module {last}")
+            self.status_label.setText(f"link down for {age_text(down)}; module {last}")
         elif presence == "absent":
             self.status_label.setText(
                 f"not launched on the robot (walkman-module {self.module} starts it)"

@@ -405,6 +405,9 @@ class StatusTab(QWidget):
             text = "never" if heard is None else f"{now - heard:.1f} s ago"
             self.table.item(row, 2).setText(text if down is None else
                                             f"{text} (link down {age_text(down)})")
+            if heard is None:           # "not running" is more than a cut link can tell
+                self.table.item(row, 1).setText("not running" if down is None else
+                                                "unknown: never heard, link down")
         banner = self.cut.banner("the states, charts and battery below", self.charts_at)
         self.link_banner.setText(banner)
         self.link_banner.setVisible(bool(banner))

@@ -19,6 +19,9 @@ Every new render process is told all of it again, so a restart is a blink,
 not a loss.  A drag in the child comes back as ``moved`` and moves the task
 widget's pose fields, as it did when librviz lived in the PI.
 
+While the link is down a banner above the view says so, and how old the robot's pose and
+the cloud it draws are: librviz keeps drawing the last of each as if it were now.
+
 The embedded window belongs to the child: when the child dies its window is
 gone, and we drop our container at once, before the next child can be
 given the dead window's X id (the X server reuses a dead client's ids).
@@ -34,6 +37,8 @@ from typing import Callable, Dict, List, Optional, Sequence
 from python_qt_binding.QtCore import Qt, Signal
 from python_qt_binding.QtWidgets import QLabel, QVBoxLayout, QWidget
 
+from pilot.link_cut import LinkCut
+from pilot.widgets.generic import LINK_DOWN_COLOUR
 from pilot.view3d_process import ChildExit, RenderSupervisor
 from pilot.view3d_protocol import (AddMarker, EnableDisplay, MarkerMoved, Message, RemoveMarker,
                                    RosNodes, UpdateMarker)
@@ -63,6 +68,16 @@ class View3D(QWidget):
         self.markers_topic = f"/pilot_markers/{pi_name}"
         self.layout_ = QVBoxLayout(self)
         self.layout_.setContentsMargins(0, 0, 0, 0)
+        #: While the link is down: how old the robot's pose and the cloud drawn are.
+        self.cut = LinkCut()
+        self.robot_at: Optional[float] = None    # when the last joint states came
+        self.cloud_at: Optional[float] = None    # when the last cloud came
+        self.link_banner = QLabel("")
+        self.link_banner.setObjectName("view3d_link")
+        self.link_banner.setWordWrap(True)
+        self.link_banner.setStyleSheet(f"color: {LINK_DOWN_COLOUR}; font-weight: bold;")
+        self.link_banner.setVisible(False)
+        self.layout_.addWidget(self.link_banner)
         self.status = QLabel("3-D view: waiting for the pilot roscore")
         self.status.setObjectName("view3d_status")
         self.status.setAlignment(Qt.AlignCenter)
@@ -147,6 +162,25 @@ class View3D(QWidget):
         if self.supervisor is not None:
             self.supervisor.close()
         self._drop_container()
+
+    # -- what the robot sends (through the PI's link) -------------------------------------
+
+    def on_joints(self, event) -> None:
+        self.robot_at = self.cut.clock()
+
+    def on_cloud(self, event) -> None:
+        self.cloud_at = self.cut.clock()
+
+    def on_link(self, event) -> None:
+        self.cut.on_link(event)
+        self.tick()
+
+    def tick(self) -> None:
+        """The banner's ages, each second of a cut (the window's timer)."""
+        banner = self.cut.banner_of([("the robot", self.robot_at),
+                                     ("the cloud", self.cloud_at)])
+        self.link_banner.setText(banner)
+        self.link_banner.setVisible(bool(banner))
 
     # -- what the render process says ------------------------------------------------------
 

@@ -1022,6 +1022,9 @@ def screenshot_of(name: str, *shown) -> None:
     (their status lines: a layout's column is often wider and taller than the window)."""
     from python_qt_binding.QtWidgets import QScrollArea
 
+    for index in range(window.tabs.count()):       # the tab that holds them, on screen
+        if window.tabs.widget(index).isAncestorOf(shown[0]):
+            window.tabs.setCurrentIndex(index)
     area = shown[0].parentWidget()
     while area is not None and not isinstance(area, QScrollArea):
         area = area.parentWidget()
@@ -1033,6 +1036,42 @@ def screenshot_of(name: str, *shown) -> None:
     window.screenshot(OUT / name)
 
 
+#: How old the cut is when every tab is read: what is shown then must be at least as old.
+READ_CUT_AT_S = 6.0
+
+
+def every_tab_during_a_cut() -> None:
+    """Each tab on screen in turn (a screenshot each: ``link-down-TITLE.png``), then a
+    ``TEXT where | text`` line for every line of the window that shows what the robot sent:
+    the Status tab's banner and each module's "heard", the camera's caption, the 3-D view's
+    banner, the link's summary and every module widget's line ("(hidden)" when hidden)."""
+    for index in range(window.tabs.count()):
+        window.tabs.setCurrentIndex(index)
+        pump(0.6)                   # the window's timer (0.5 s) ticks every widget once
+        window.screenshot(OUT / f"link-down-{window.tabs.tabText(index).lower()}.png")
+    texts = []
+
+    def shown(where: str, label) -> None:
+        texts.append((where, label.text() + (" (hidden)" if label.isHidden() else "")))
+
+    if window.status is not None:
+        shown("status banner", window.status.link_banner)
+        for module, row in window.status.rows.items():
+            texts.append((f"status state {module}", window.status.table.item(row, 1).text()))
+            texts.append((f"status heard {module}", window.status.table.item(row, 2).text()))
+    if window.camera is not None:
+        shown("camera caption", window.camera.caption)
+    if window.view3d is not None:
+        shown("3-D view banner", window.view3d.link_banner)
+    if window.link_widget is not None:
+        shown("link summary", window.link_widget.summary)
+    for widgets in window.module_widgets.values():
+        for each in widgets:
+            shown(each.objectName(), each.status_label)
+    for where, text in texts:
+        say(f"TEXT {where} | {text}")
+
+
 def link_down() -> None:
     """``link VICTIM OTHER``, for tests/system/test_pilot_link_down.py: start both modules
     by clicks; after the test says ``killed`` (VICTIM kill -9'd, link up) VICTIM's widget
@@ -1040,8 +1079,10 @@ def link_down() -> None:
     (the link's blackout began at wall time TIME) print ``LINKDOWN module seconds text``
     when each module widget first shows "link down" (the label polled every 10 ms), and
     ``GATEWAY module seconds`` when the gateway said so; no widget says "not running",
-    neither module's start is enabled; after ``restored`` OTHER shows its state again and
-    VICTIM "not running".  Screenshots: module-dead, link-down, link-back."""
+    neither module's start is enabled; once the cut is :data:`READ_CUT_AT_S` old, every
+    tab's text (:func:`every_tab_during_a_cut`); after ``restored`` OTHER shows its state
+    again and VICTIM "not running".  Screenshots: module-dead, link-down, a link-down one per
+    tab, link-back."""
     from pilot.widgets.generic import ABSENT_S
     from walkman.gym.lifecycle import State, lifecycle_of_status
 
@@ -1092,6 +1133,10 @@ def link_down() -> None:
     if dead:
         fail(f"widgets say not running while only the link is down: {dead}")
     say("STEP link down shown")
+    pump(max(0.0, READ_CUT_AT_S - (time.time() - cut)))
+    began = time.time() - cut
+    every_tab_during_a_cut()
+    say(f"STEP every tab read, {began:.1f} s into the cut")
 
     said("restored", 120)
     wait(lambda: other.presence == "running" and
