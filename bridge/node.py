@@ -427,7 +427,7 @@ class Bridge:
             "cancelled_dropped": self.delivery.cancelled_dropped,
             "internal_errors": self.internal_errors + self.stand_ins.internal_errors +
             self.delivery.internal_errors,
-            "authenticated": self.tcp.key.keyed,
+            "authenticated": self.tcp.settings.key.keyed,
             "modules_here": self._modules(self.stand_ins.here() or frozenset()),
             "modules_shown": self._modules(self.stand_ins.shown()),
             "dropped": self._dropped(),

@@ -101,6 +101,7 @@ class PilotStops:
         started = time.monotonic()
         deadline = started + timeout
         order = Bottle([word, stop_id])
+        log.info("%s %d: sent", word, stop_id)
         wait, again = RESEND, False
         with self._lock:
             while stop_id not in self._acks:
@@ -159,6 +160,7 @@ class RobotStops:
                     self.send(encode_ack(ack))
                 return                   # a copy while it is carried out: one answer comes
             self._done[stop_id] = None
+            log.info("%s %d: its first copy arrived, carrying it out", word, stop_id)
             while len(self._done) > REMEMBERED:
                 gone = next(iter(self._done))
                 del self._done[gone]
@@ -167,6 +169,8 @@ class RobotStops:
 
     def _carry_out(self, word: str, stop_id: int) -> None:
         ack = self.carry_out(word, stop_id)
+        log.info("%s %d: %s, the HAL %s, in %.1f ms", word, stop_id, ack.word,
+                 "with it" if ack.hal else "NOT with it", ack.took_ms)
         with self._lock:
             self._done[stop_id] = ack
             self._answered[stop_id] = self.clock()

@@ -63,9 +63,6 @@ from bridge.wire import compact
 from bridge.wire.frames import DataFrame, Presence
 from bridge.wire.link import (FrameReceived, LinkConnection, LinkKey, LinkUp, PeerAuthenticated,
                               PeerHello)
-# The channel's timing constants, named here before the frame session took them over.
-from bridge.transport.frame_session import (  # noqa: F401
-    DELAYED_ACK, EVENT_MIN_GAP, KEEPALIVE, MAX_RELIABLE_PER_FRAME, NUDGE_AFTER, NUDGES)
 
 log = logging.getLogger("bridge.tcp")
 
@@ -193,15 +190,15 @@ class _Connector:
 
     def open(self) -> None:
         """Listen, if this side listens (at once, so a port in use fails the start)."""
-        channel = self.channel
-        if not channel.listen:
+        settings = self.channel.settings
+        if not settings.listen:
             return
         self._listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         self._listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        self._listener.bind((channel.bind_host, channel.port))
+        self._listener.bind((settings.bind_host, settings.port))
         self._listener.listen(4)
         self._listener.settimeout(0.5)
-        log.info("TCP channel listening on port %d for %s", channel.port, channel.peer_host)
+        log.info("TCP channel listening on port %d for %s", settings.port, settings.peer)
 
     def close(self) -> None:
         if self._listener is not None:
@@ -210,6 +207,7 @@ class _Connector:
     def run(self) -> None:
         """The connect thread: accept, or dial while no link is up, until the channel stops."""
         channel, announced = self.channel, False
+        settings = channel.settings
         while not self.stopping.is_set():
             if self._listener is not None:
                 self._accept_once()
@@ -218,12 +216,12 @@ class _Connector:
                 self.stopping.wait(0.5)
                 continue
             try:
-                sock = socket.create_connection((channel.peer_host, channel.port), timeout=3)
+                sock = socket.create_connection((settings.peer, settings.port), timeout=3)
             except OSError as exc:
                 self.stats.last_error = f"connect: {exc.strerror or exc}"
                 if not announced:
                     log.warning("TCP channel: peer %s:%d unreachable, retrying every second",
-                                channel.peer_host, channel.port)
+                                settings.peer, settings.port)
                     announced = True
                 self.stopping.wait(1.0)
                 continue
@@ -233,7 +231,7 @@ class _Connector:
 
     def _resolve_peer(self) -> set:
         try:
-            return {info[4][0] for info in socket.getaddrinfo(self.channel.peer_host, None,
+            return {info[4][0] for info in socket.getaddrinfo(self.channel.settings.peer, None,
                                                                socket.AF_INET)}
         except OSError:
             return set()
@@ -248,7 +246,7 @@ class _Connector:
         self._peer_ips = self._resolve_peer() or self._peer_ips
         if not drops.from_peer(address[0], self._peer_ips):
             self.drops.drop(Reason.STRANGER, f"connection from {address[0]} (expecting "
-                                             f"{self.channel.peer_host})")
+                                             f"{self.channel.settings.peer})")
             sock.close()
             return
         if not self._handshakes.acquire(blocking=False):
@@ -299,7 +297,7 @@ class _Connector:
     def _handshake(self, sock: socket.socket, peer: str) -> _Connection:
         """The link's handshake over ``sock``, the frame session's RESUMEs with it."""
         channel = self.channel
-        link = LinkConnection(channel.side, channel.key, channel.fingerprint,
+        link = LinkConnection(channel.settings.side, channel.settings.key, channel.fingerprint,
                               channel.journal.session)
         session: Optional[FrameSession] = None
         deadline = time.monotonic() + HANDSHAKE_TIMEOUT
@@ -404,17 +402,9 @@ class TcpChannel:
                  listener: TcpListener) -> None:
         self.settings = settings
         self.listener = listener
-        self.side = settings.side
-        self.key = settings.key
-        self.peer_host = settings.peer
-        self.port = settings.port
-        self.listen = settings.listen
-        self.bind_host = settings.bind_host
         self.fingerprint = fingerprint(settings.config_text)
         self.journal = journal
         self.routes = {route.key: route for route in routes}
-        self.period = settings.period
-        self.link_timeout = settings.link_timeout
         self.stats = LinkStats()
         self.drops = DropLedger("TCP channel", log)
         self._phase = ChannelPhase()
@@ -515,7 +505,7 @@ class TcpChannel:
     def _new_session(self, peer_session: int) -> FrameSession:
         """The frame session of a connection whose peer proved the key."""
         return FrameSession(self.journal, self.routes, self._streams, peer_session,
-                            period=self.period, stats=self.stats, age=self.listener.age)
+                            period=self.settings.period, stats=self.stats, age=self.listener.age)
 
     def _install(self, connection: _Connection) -> bool:
         """Make a proven connection the current one, closing any older one: one step under
@@ -545,7 +535,7 @@ class TcpChannel:
         self.stats.last_error = ""
         log.info("TCP channel up with %s (%s, peer session %x, resending after %d)",
                  connection.peer,
-                 "authenticated" if self.key.keyed else "NOT authenticated: --no-auth",
+                 "authenticated" if self.settings.key.keyed else "NOT authenticated: --no-auth",
                  connection.session.peer_session, connection.session.sent_upto or 0)
         self._keys_hook("installed", connection.link)
         self._nursery.start_soon(lambda: self._receive_loop(connection), "tcp receive")
@@ -593,7 +583,7 @@ class TcpChannel:
             if connection.closed or self._stopping.is_set():
                 return
             try:
-                received = connection.read(self.link_timeout, self.stats)
+                received = connection.read(self.settings.link_timeout, self.stats)
             except _Lost as lost:
                 self._drop(str(lost), connection)
                 return

@@ -206,6 +206,7 @@ def wait_for_nudges(end: "End", count: int, what: str) -> None:
 def test_an_unacknowledged_event_is_followed_by_empty_frames_and_a_periodic_one_is_not(
         pair, monkeypatch):
     from bridge.transport import tcp_channel
+    from bridge.transport.frame_session import NUDGES
 
     robot, pilot = pair(period=0.1)
     wait_until(lambda: pilot.heard and robot.heard, 3, message="the first words")
@@ -222,16 +223,16 @@ def test_an_unacknowledged_event_is_followed_by_empty_frames_and_a_periodic_one_
     assert robot.channel.stats.nudges == 0
     robot.channel.post(STATUS, Bottle([20, "b"]), event=True)
     # (a bound for a loaded box, not a figure: fc6 beside two burners took over 3 s)
-    wait_for_nudges(robot, tcp_channel.NUDGES, "the nudges")
+    wait_for_nudges(robot, NUDGES, "the nudges")
     time.sleep(0.5)                                   # the thing under test: no more than that
-    assert robot.channel.stats.nudges == tcp_channel.NUDGES
+    assert robot.channel.stats.nudges == NUDGES
     pilot.channel.send_reliable(SWITCH, Bottle(["start", 1]))   # a command is awaited too
-    wait_for_nudges(pilot, tcp_channel.NUDGES, "the command's nudges")
+    wait_for_nudges(pilot, NUDGES, "the command's nudges")
     monkeypatch.setattr(tcp_channel, "_only_unacknowledged", lambda sock: False)  # acked
     robot.channel.post(STATUS, Bottle([21, "c"]), event=True)
     wait_until(lambda: pilot.streams[-1][1][0] == 21, 3, message="the event")
     time.sleep(0.5)
-    assert robot.channel.stats.nudges == tcp_channel.NUDGES
+    assert robot.channel.stats.nudges == NUDGES
     assert robot.reliable == [Bottle(["start", 1])] and robot.channel.connected
 
 
