@@ -101,6 +101,8 @@ def main() -> int:
     parser.add_argument("--rounds", type=int, default=40, help="stop-alls per profile")
     parser.add_argument("--only", default="drc,degraded",
                         help="which profiles (default drc,degraded)")
+    parser.add_argument("--each", action="store_true",
+                        help="also print every stop's held and acknowledged times, in order")
     options = parser.parse_args()
     wanted = options.only.split(",")
     unknown = sorted(set(wanted) - {profile for profile, _ in CASES})
@@ -115,12 +117,13 @@ def main() -> int:
           f"{'failed':>6} {'goal p99':>14} | {'robot median':>12}")
     for profile in wanted:
         # Each profile's own topology: the bridges pace perception to its link (udp_budget).
-        measure(profile, [loss for name, loss in CASES if name == profile], options.rounds)
+        measure(profile, [loss for name, loss in CASES if name == profile], options.rounds,
+                options.each)
     say_machine()
     return 0
 
 
-def measure(profile: str, losses: List[float], rounds: int) -> None:
+def measure(profile: str, losses: List[float], rounds: int, each: bool = False) -> None:
     """The drc topology started for ``profile``'s link; ``rounds`` stop-alls at each loss."""
     link = EmulatedLink(f"wbs{os.getpid() % 10000}", random.randint(20, 250))
     with tempfile.TemporaryDirectory(prefix="bench-stop-") as root:
@@ -164,6 +167,9 @@ def measure(profile: str, losses: List[float], rounds: int) -> None:
                       f"{never:>5} {'' if held_goal is None else f'<= {held_goal:.0f}':>9} | "
                       f"{statistics.median(acks):>8.1f}ms {percentile(acks, 0.99):>6.1f}ms "
                       f"{failed:>6} {goal:>14} | {statistics.median(robot):>10.1f}ms")
+                if each:
+                    print(f"  held ms, in order: {' '.join(f'{v:.0f}' for v in held)}")
+                    print(f"  acknowledged ms, in order: {' '.join(f'{v:.0f}' for v in acks)}")
         finally:
             topology.close()
             link.down()

@@ -99,11 +99,13 @@ class SendDatagrams:
 
 @dataclass(frozen=True)
 class SendCopies:
-    """``value`` as ``count`` datagrams now, the first copy to arrive wins."""
+    """``value`` as ``count`` datagrams now, the first copy to arrive wins (``again``: a
+    resending of what already went, which a full radio's queue does without)."""
 
     key: FlowKey
     value: Any
     count: int
+    again: bool = False
 
 
 @dataclass(frozen=True)
@@ -225,7 +227,7 @@ class BridgeCore:
         connection already carries) and repeated datagrams."""
         actions: List[Action] = [SendLatest(key, value, True)] if tcp else []
         if self.datagrams and self.stop is not None:
-            actions.append(SendCopies(key, value, self.stop.copies))
+            actions.append(SendCopies(key, value, self.stop.copies, again=not tcp))
         return actions
 
     # -- inbound, by carriage ----------------------------------------------------------------

@@ -91,6 +91,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--udp-rate", type=parse_rate,
                         help="pace UDP output to this many bit/s (e.g. 600k); default: "
                              "unpaced")
+    parser.add_argument("--link-rate", type=parse_rate,
+                        help="what the link carries, bit/s (e.g. 9600 or 1M): the bridge "
+                             "keeps the radio's queue short, so a stop-all never waits behind "
+                             "telemetry (streaming data waits for room); default: no budget")
     parser.add_argument("--link-timeout", type=float, default=5.0,
                         help="seconds of silence before the link is declared down")
     parser.add_argument("--queue-limit", type=int, default=1000,
@@ -187,7 +191,8 @@ def main(argv: Optional[List[str]] = None) -> int:
                         tcp_port=options.port, udp_port=options.udp_port,
                         peer_udp_port=options.peer_udp_port, listen=options.listen,
                         state_dir=options.state_dir or default_state_dir(options.side),
-                        udp_rate=options.udp_rate, link_timeout=options.link_timeout,
+                        udp_rate=options.udp_rate, link_rate=options.link_rate,
+                        link_timeout=options.link_timeout,
                         queue_limit=options.queue_limit, fsync=options.fsync, key=key)
         bridge.start()
     except OSError as exc:

@@ -55,6 +55,7 @@ from bridge.transport.copies import ReliableCopy, ReliableCopyCodec
 from bridge.transport.drops import DropLedger, Reason
 from bridge.transport.journal import Journal, QueueFull
 from bridge.transport.nursery import Nursery
+from bridge.transport.link_budget import LinkBudget
 from bridge.transport.tcp_channel import TcpChannel, TcpListener, TcpSettings
 from bridge.transport.udp_channel import UdpChannel, UdpRoute
 from bridge.wire.link import LinkKey
@@ -111,8 +112,8 @@ class Bridge:
     def __init__(self, config: BridgeConfig, config_text: str, *, side: str, peer: str,
                  tcp_port: int, udp_port: int, peer_udp_port: Optional[int] = None,
                  listen: Optional[bool] = None, state_dir: Path,
-                 udp_rate: Optional[float] = None, link_timeout: float = 5.0,
-                 queue_limit: int = 1000, fsync: bool = False,
+                 udp_rate: Optional[float] = None, link_rate: Optional[float] = None,
+                 link_timeout: float = 5.0, queue_limit: int = 1000, fsync: bool = False,
                  key: Optional[LinkKey] = None) -> None:
         if side not in (ROBOT, PILOT):
             raise ValueError(f"side must be robot or pilot, not {side!r}")
@@ -150,17 +151,22 @@ class Bridge:
                                (side == ROBOT) if listen is None else listen, config_text,
                                config.period, link_timeout,
                                key=key if key is not None else LinkKey.none())
-        self.tcp = TcpChannel(settings, self.journal, tcp_routes, _TcpEvents(self))
+        #: the radio's queue as both channels fill it (None: no --link-rate, no budget)
+        self.budget = LinkBudget(link_rate) if link_rate else None
+        self.tcp = TcpChannel(settings, self.journal, tcp_routes, _TcpEvents(self), self.budget)
         self.udp = UdpChannel(peer=peer, port=udp_port, peer_port=peer_udp_port or udp_port,
                               routes=udp_routes, gather=config.gather,
-                              on_message=self._on_message, rate=udp_rate) if udp_routes else None
+                              on_message=self._on_message, rate=udp_rate,
+                              budget=self.budget) if udp_routes else None
         stop = config.emergency_stop
         self.stop_all_here = None        # the robot's StopAll, once the name server answers
         self.pilot_stops = PilotStops(
-            lambda order, again: self._perform(UrgentMessage(stop.stop_key, order, again))) \
+            lambda order, again: self._perform(UrgentMessage(stop.stop_key, order, again)),
+            round_trip=lambda: (self.tcp.round_trip_ms() or 0.0) / 1000.0) \
             if stop is not None and side == PILOT else None
         self.robot_stops = RobotStops(self._carry_out_stop,
-                                      lambda ack: self._perform(UrgentMessage(stop.ack_key, ack)),
+                                      lambda ack, again: self._perform(
+                                          UrgentMessage(stop.ack_key, ack, again)),
                                       threads=self._nursery) \
             if stop is not None and side == ROBOT else None
 
@@ -338,8 +344,8 @@ class Bridge:
                     self.tcp.post(key, value, event=urgent)
                 case SendDatagrams(key, value) if self.udp is not None:
                     self.udp.post(key, value)
-                case SendCopies(key, value, count) if self.udp is not None:
-                    self.udp.send_now(key, value, count)
+                case SendCopies(key, value, count, again) if self.udp is not None:
+                    self.udp.send_now(key, value, count, again)
                 case AcceptCopy(key, copy):
                     self.tcp.accept_copy(key, copy)
                 case Deliver(key, value):
@@ -434,6 +440,11 @@ class Bridge:
             "tcp": {**asdict(stats), "drops": dict(self.tcp.drops.counts),
                     "last_drop": self.tcp.drops.last_error},
         }
+        if self.budget is not None:
+            out["link_budget"] = {"rate": self.budget.rate, "limit": int(self.budget.limit),
+                                  "queued": int(self.budget.queued(time.monotonic())),
+                                  "spent": self.budget.spent,
+                                  "spent_over_limit": self.budget.spent_over}
         if self.udp is not None:
             udp = {**asdict(self.udp.stats), "drops": dict(self.udp.drops.counts),
                    "last_drop": self.udp.drops.last_error}

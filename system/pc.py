@@ -85,7 +85,7 @@ def plan(side: str, options: argparse.Namespace) -> Dict[str, List[str]]:
         if component.name.startswith("bridge_"):
             argv = bridge_argv(side, options.config, options.peer, options.bridge_port,
                                options.udp_port, options.peer_udp_port or options.udp_port,
-                               options.key, options.udp_rate)
+                               options.key, options.udp_rate, options.link_rate)
         else:
             argv = component.command(bag)
         out[component.name] = argv
@@ -111,6 +111,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--peer-udp-port", type=int, help="the peer's UDP port (default: ours)")
     parser.add_argument("--udp-rate", default="600k",
                         help="perception budget on the link, bit/s (default 600k)")
+    parser.add_argument("--link-rate", help="what the link to the other PC carries, bit/s "
+                        "(e.g. 9600 or 1M): the bridge keeps the radio's queue short, so a "
+                        "stop-all never waits behind telemetry; default: no budget")
     parser.add_argument("--config", type=Path, default=BRIDGE_CONFIG,
                         help="bridge configuration (same file on both PCs)")
     parser.add_argument("--key", type=Path, default=DEFAULT_KEY,

@@ -129,11 +129,14 @@ def components(kind: str, perception_rate: float = 1.0, tasks: bool = False,
 
 
 def bridge_argv(side: str, config: Path, peer: str, tcp_port: int, udp_port: int,
-                peer_udp_port: int, key: Path, udp_rate: str = "600k") -> List[str]:
-    """``walkman-bridge`` for one side: 0.6 Mbit/s of perception leaves room on a 1 Mbit/s link."""
+                peer_udp_port: int, key: Path, udp_rate: str = "600k",
+                link_rate: Optional[str] = None) -> List[str]:
+    """``walkman-bridge`` for one side: 0.6 Mbit/s of perception leaves room on a 1 Mbit/s
+    link; ``link_rate``: what the link carries (the bridge's budget for the radio's queue)."""
     return [PYTHON, "-m", "bridge.main", "--side", side, "--config", str(config),
             "--peer", peer, "--port", str(tcp_port), "--udp-port", str(udp_port),
             "--peer-udp-port", str(peer_udp_port), "--udp-rate", udp_rate,
+            *(("--link-rate", link_rate) if link_rate else ()),
             "--link-timeout", "5", "--key", str(key)]
 
 
@@ -161,14 +164,19 @@ def udp_budget(profile: str) -> str:
     queue (bench/bench_valve_topologies.py: the valve task took 2.1x the lab's time; 1.2x
     at 15 %, as without perception).
     """
+    bits = link_rate(profile)
+    if bits is None:
+        return "600k"      # lab: the link is fast; pace to what a DRC radio would carry
+    return f"{float(bits) * (0.6 if float(bits) >= 100_000 else 0.15):.0f}"
+
+
+def link_rate(profile: str) -> Optional[str]:
+    """What a profile's link carries, bit/s, as the bridges' ``--link-rate`` (None: lab)."""
     from netem.emulation import PROFILES
     from bridge.main import parse_rate
 
     rate = PROFILES.get(profile, {}).get("rate")
-    if rate is None:
-        return "600k"      # lab: the link is fast; pace to what a DRC radio would carry
-    bits = parse_rate(rate.replace("bit", ""))
-    return f"{bits * (0.6 if bits >= 100_000 else 0.15):.0f}"
+    return None if rate is None else f"{parse_rate(rate.replace('bit', '')):.0f}"
 
 
 def ensure_bridge_key(path: Path) -> bool:
@@ -376,7 +384,8 @@ class Topology:
             other = "pilot" if side == "robot" else "robot"
             return bridge_argv(side, self.bridge_config, self.pcs[other].address,
                                self.tcp_port, self.udp_ports[side], self.udp_ports[other],
-                               self.bridge_key, udp_budget(self.profile))
+                               self.bridge_key, udp_budget(self.profile),
+                               link_rate(self.profile))
         if component.name == "gateway":  # the modules the bridges carry, from the same file
             return [*component.command(self.bag_path), "--config", str(self.bridge_config)]
         return component.command(self.bag_path)

@@ -82,16 +82,22 @@ def parse_ack(bottle: Any) -> Ack:
                tuple(str(m) for m in bottle[4:]))
 
 
-Send = Callable[[Bottle], None]
 #: ``send(order, again)``: ``again`` is a resending (datagrams only, :mod:`bridge.node`).
 SendOrder = Callable[[Bottle, bool], None]
 
 
 class PilotStops:
-    """The pilot side: sends a stop or release until acknowledged."""
+    """The pilot side: sends a stop or release until acknowledged.
 
-    def __init__(self, send: SendOrder) -> None:
+    The first resending waits :data:`RESEND`, or the link's measured round trip
+    (``round_trip()``, seconds: the TCP channel's) where that is longer: on a 9600 bit/s
+    radio an answer takes most of a second to come back, and copies sent meanwhile only
+    queue in front of the next stop, each answered again by the robot.
+    """
+
+    def __init__(self, send: SendOrder, round_trip: Callable[[], float] = lambda: 0.0) -> None:
         self._send = send
+        self._round_trip = round_trip
         self._lock = threading.Condition()
         self._acks: Dict[int, Ack] = {}
 
@@ -102,7 +108,7 @@ class PilotStops:
         deadline = started + timeout
         order = Bottle([word, stop_id])
         log.info("%s %d: sent", word, stop_id)
-        wait, again = RESEND, False
+        wait, again = min(max(RESEND, self._round_trip()), RESEND_MAX), False
         with self._lock:
             while stop_id not in self._acks:
                 self._send(order, again)
@@ -115,6 +121,8 @@ class PilotStops:
                 wait, again = min(2 * wait, RESEND_MAX), True
             ack = self._acks.pop(stop_id)
         rtt = (time.monotonic() - started) * 1000.0
+        log.info("%s %d: acknowledged (%s) %.0f ms after it was sent", word, stop_id, ack.word,
+                 rtt)
         return Ack(ack.stop_id, ack.word, ack.hal, ack.took_ms, ack.modules, rtt)
 
     def on_ack(self, bottle: Any) -> None:
@@ -134,10 +142,11 @@ class PilotStops:
 class RobotStops:
     """The robot side: carries out each order once (``carry_out(word, id) -> Ack``, run in
     a thread of its own, started by ``threads``), answers its copies, at most once per
-    :data:`ANSWER_GAP`."""
+    :data:`ANSWER_GAP`: ``send(ack, again)``, ``again`` for every answer after the first
+    (datagrams only: the TCP connection carries the first)."""
 
     carry_out: Callable[[str, int], Ack]
-    send: Send
+    send: SendOrder
     clock: Callable[[], float] = time.monotonic
     threads: Nursery = field(default_factory=Nursery)
     _done: Dict[int, Optional[Ack]] = field(default_factory=dict)
@@ -157,7 +166,7 @@ class RobotStops:
                 if ack is not None and now - self._answered.get(stop_id, -ANSWER_GAP) >= \
                         ANSWER_GAP:      # a copy after the answer: answer again, now and then
                     self._answered[stop_id] = now
-                    self.send(encode_ack(ack))
+                    self.send(encode_ack(ack), True)
                 return                   # a copy while it is carried out: one answer comes
             self._done[stop_id] = None
             log.info("%s %d: its first copy arrived, carrying it out", word, stop_id)
@@ -174,4 +183,4 @@ class RobotStops:
         with self._lock:
             self._done[stop_id] = ack
             self._answered[stop_id] = self.clock()
-        self.send(encode_ack(ack))
+        self.send(encode_ack(ack), False)

@@ -48,6 +48,7 @@ class Reason(str, Enum):
     STALE = "stale"                    # older than what was already published
     DUPLICATE = "duplicate"            # reliable message already accepted
     HELD_BACK = "held_back"            # streaming value waits: the link is slower
+    COPY_SKIPPED = "copy_skipped"      # a datagram copy not sent: the radio's queue is full
     NOT_READY = "not_ready"            # no local endpoint yet for it
     UNCONFIGURED = "unconfigured"      # queued for a flow the configuration dropped
     BUSY = "busy"                      # too many handshakes at once

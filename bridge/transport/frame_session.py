@@ -33,7 +33,8 @@ instead, alone or with other events, at most once per :data:`EVENT_MIN_GAP` per 
 round trip instead of the next period, and a robot standing still sends exactly what the
 periodic frames send.  When the kernel still holds unsent bytes (the link is slower than
 we write), the streaming part of a frame is held back rather than queued, so the pilot
-sees fresh state instead of a backlog.  Bottles travel as deltas against the previous
+sees fresh state instead of a backlog; so it is while the link budget says the radio's queue
+is full (:mod:`bridge.transport.link_budget`).  Bottles travel as deltas against the previous
 value sent on the same connection (:mod:`bridge.wire.compact`), robot state in the Table 1
 codec (:mod:`bridge.wire.state_codec`); every codec belongs to one session, so both restart
 from full values on a new connection and the two ends never disagree.
@@ -292,6 +293,10 @@ class KernelQueue:
     only_unacknowledged: bool = False
     #: the kernel's smoothed round trip, in seconds (0: unknown)
     round_trip: float = 0.0
+    #: bytes in the radio's queue as the link budget models it (:mod:`~bridge.transport.
+    #: link_budget`), and whether that is all streaming data may fill
+    radio_queued: int = 0
+    radio_full: bool = False
 
 
 @dataclass(frozen=True)
@@ -304,7 +309,8 @@ class Outgoing:
     awaited: bool = False
     #: the outbox has more than one frame carries: build the next one at once
     more: bool = False
-    #: streaming values were held back behind this many unsent bytes (0: none)
+    #: streaming values were held back behind this many bytes, unsent in the kernel or
+    #: in the radio's queue (0: none)
     held_back: int = 0
     #: the reliable messages of copied flows in this frame, as sent, for their datagram
     #: copies (:mod:`bridge.transport.copies`)
@@ -514,8 +520,8 @@ class FrameSession:
         held_back = 0
         carries_event = False
         if streams is None or streams:
-            if drops.hold_back(kernel.unsent):
-                held_back = kernel.unsent
+            if drops.hold_back(kernel.unsent) or kernel.radio_full:
+                held_back = max(kernel.unsent, kernel.radio_queued, 1)
                 # The stop-all is never held back behind a backlog: it is what must arrive.
                 urgent = {key for key, route in self.routes.items()
                           if route.carriage is Carriage.URGENT and

@@ -58,6 +58,7 @@ from bridge.transport.frame_session import (Dropped, Due, Event, FrameSession, K
                                             LinkStats, PresenceHeard, ReliableAccepted, Streams,
                                             StreamValue, unaged)
 from bridge.transport.journal import Journal
+from bridge.transport.link_budget import LinkBudget, tcp_bytes
 from bridge.transport.nursery import Nursery
 from bridge.wire import compact
 from bridge.wire.frames import DataFrame, Presence
@@ -116,10 +117,14 @@ def _round_trip_ms(sock: socket.socket) -> Optional[float]:
     return struct.unpack_from("<I", info, TCP_INFO_RTT_OFFSET)[0] / 1000.0
 
 
-def _kernel_queue(sock: socket.socket) -> KernelQueue:
-    """What the frame session needs to know of ``sock`` before each frame (cheap ioctls)."""
+def _kernel_queue(sock: socket.socket, budget: Optional[LinkBudget],
+                  now: float) -> KernelQueue:
+    """What the frame session needs to know of ``sock`` before each frame (cheap ioctls),
+    and of the radio's queue where a link budget models it."""
+    queued = 0 if budget is None else int(budget.queued(now))
     return KernelQueue(_unsent_bytes(sock), _only_unacknowledged(sock),
-                       (_round_trip_ms(sock) or 0.0) / 1000.0)
+                       (_round_trip_ms(sock) or 0.0) / 1000.0, queued,
+                       budget is not None and queued >= budget.limit)
 
 
 def _shut(sock: socket.socket) -> None:
@@ -399,8 +404,12 @@ class TcpChannel:
     """
 
     def __init__(self, settings: TcpSettings, journal: Journal, routes: List[Route],
-                 listener: TcpListener) -> None:
+                 listener: TcpListener, budget: Optional[LinkBudget] = None) -> None:
         self.settings = settings
+        #: the radio's queue, shared with the UDP channel: full, streaming values wait
+        self.budget = budget
+        if budget is not None:      # what the socket holds is in the radio's queue, or soon
+            budget.outstanding = self._outstanding
         self.listener = listener
         self.fingerprint = fingerprint(settings.config_text)
         self.journal = journal
@@ -644,6 +653,11 @@ class TcpChannel:
 
     # -- sending -----------------------------------------------------------------------
 
+    def _outstanding(self) -> int:
+        """Bytes the current connection's socket holds for the peer (0: none)."""
+        connection = self._connection
+        return 0 if connection is None else _unsent_bytes(connection.sock)
+
     def _send_loop(self) -> None:
         while not self._stopping.is_set():
             with self._wake:
@@ -675,13 +689,17 @@ class TcpChannel:
         """The frame the session says is due, if any."""
         out = connection.session.next_frame(now, wall=time.time(), due=due,
                                             presence=self.listener.presence(),
-                                            kernel=_kernel_queue(connection.sock))
+                                            kernel=_kernel_queue(connection.sock, self.budget,
+                                                                 now))
         if out.held_back:
-            self.drops.drop(Reason.HELD_BACK, f"{out.held_back} bytes still unsent")
+            self.drops.drop(Reason.HELD_BACK, f"{out.held_back} bytes queued ahead of them "
+                                              f"(the kernel's or the radio's)")
         if out.body is None:
             return
         frame = connection.link.send_data(out.body)
         connection.sock.sendall(frame)
+        if self.budget is not None:
+            self.budget.spend(tcp_bytes(len(frame)), time.monotonic())
         self.stats.frames_out += 1
         self.stats.bytes_out += len(frame)
         if out.copies:

@@ -41,10 +41,11 @@ from dataclasses import dataclass, field, fields
 from typing import Any, Callable, Deque, Dict, List, Optional, Protocol, Set, Tuple
 
 from bridge.errors import BridgeError, BridgeProtocolError
-from bridge.flows import FlowKey, Route
+from bridge.flows import Carriage, FlowKey, Route
 from bridge.transport import drops
 from bridge.transport.adaptive_fec import REPORT_INTERVAL, FecAdapter, LossMeter
 from bridge.transport.drops import DropLedger, Reason
+from bridge.transport.link_budget import LinkBudget, datagram_bytes
 from bridge.transport.nursery import Nursery
 from bridge.wire import datagrams, fec, tiles
 from bridge.wire.datagrams import BODY_BUDGET, Datagram
@@ -328,12 +329,15 @@ class UdpChannel:
 
     def __init__(self, *, peer: str, port: int, peer_port: int, routes: List[UdpRoute],
                  gather: float, on_message: Callable[[FlowKey, Any], None],
-                 rate: Optional[float] = None, bind_host: str = "") -> None:
+                 rate: Optional[float] = None, bind_host: str = "",
+                 budget: Optional[LinkBudget] = None) -> None:
         self.peer = peer
         self.port = port
         self.peer_port = peer_port
         self.routes = {route.key: route for route in routes}
         self.rate = rate
+        #: the radio's queue, shared with the TCP channel: paced datagrams wait for room
+        self.budget = budget
         self.on_message = on_message
         self.stats = UdpStats()
         self.drops = DropLedger("UDP channel", log)
@@ -399,12 +403,27 @@ class UdpChannel:
             self._slots[key] = value
             self._cond.notify_all()
 
-    def send_now(self, key: FlowKey, value: Any, copies: int) -> int:
+    def send_now(self, key: FlowKey, value: Any, copies: int, again: bool = False) -> int:
         """``value`` as ``copies`` copies of one message, sent from this thread ahead of the
         paced queue (the stop-all: small, rare, and worth more than any image).  The
         receiver takes the first copy and drops the others as repeats of the message it
-        has.  Returns the datagrams sent (0 before the handshake: nothing leaves unsealed)."""
+        has.  ``again``: a resending of what already went.  Returns the datagrams sent (0
+        before the handshake: nothing leaves unsealed)."""
         route = self.routes[key]
+        if self.budget is not None and self.budget.full(time.monotonic()):
+            # Copies are insurance against loss; the TCP frame carries the message anyway.
+            # Queued behind a full radio they only delay what comes next -- the next stop
+            # among it.  A command's or status's copies, or a resending (the last sending
+            # is still in the radio's queue), are not sent; a stop or its acknowledgement
+            # goes as one datagram instead of ``copies``.
+            if route.carriage is not Carriage.URGENT or again:
+                self.drops.drop(Reason.COPY_SKIPPED, f"{route.label}: the radio's queue is full"
+                                + (" (a resending)" if again else ""), copies)
+                return 0
+            if copies > 1:
+                self.drops.drop(Reason.COPY_SKIPPED, f"{route.label}: the radio's queue is "
+                                                     f"full, one copy of {copies}", copies - 1)
+                copies = 1
         with self._cond:
             number = self._next_message_number(key)
         encoded = slice_message(route.codec.encode(value))
@@ -472,7 +491,17 @@ class UdpChannel:
         with self._seal_lock:
             datagram = self._sealer.seal(inner)
         self._pace(len(datagram) + IP_UDP_OVERHEAD)
+        self._wait_for_room(datagram_bytes(len(datagram)))
         self._sendto(key, datagram)
+
+    def _wait_for_room(self, size: int) -> None:
+        """A paced datagram waits until the radio's queue has room for it (the stop-all's
+        copies, sent by :meth:`send_now`, never wait)."""
+        while self.budget is not None and not self._stopping.is_set():
+            wait = self.budget.wait_for(size, time.monotonic())
+            if wait <= 0:
+                return
+            self._stopping.wait(wait)
 
     def _sendto(self, key: Optional[FlowKey], datagram: bytes) -> bool:
         try:
@@ -481,6 +510,8 @@ class UdpChannel:
             self.stats.send_errors += 1
             self.drops.last_error = f"send: {exc.strerror or exc}"
             return False
+        if self.budget is not None:
+            self.budget.spend(datagram_bytes(len(datagram)), time.monotonic())
         self.stats.datagrams_out += 1
         self.stats.bytes_out += len(datagram)
         if key is not None:

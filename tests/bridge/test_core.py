@@ -106,7 +106,7 @@ def test_a_frame_with_copied_commands_sends_their_copies_and_a_stop_goes_every_w
         [SendLatest(STOP.stop_key, "stop", True), SendCopies(STOP.stop_key, "stop", STOP.copies)]
     # A resending: the TCP connection already carries it, the datagrams go again.
     assert bridge.handle(UrgentMessage(STOP.stop_key, "stop", again=True)) == \
-        [SendCopies(STOP.stop_key, "stop", STOP.copies)]
+        [SendCopies(STOP.stop_key, "stop", STOP.copies, again=True)]
 
 
 def test_a_local_message_on_no_configured_flow_is_dropped_by_name():

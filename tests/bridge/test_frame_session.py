@@ -341,13 +341,16 @@ def test_a_backlog_holds_streaming_values_back_but_not_commands(ends):
     assert send(robot, pilot, 0.1, None) == [StreamValue(STATUS, Bottle([2, "a"]))]
 
 
-def test_a_backlog_never_holds_back_the_stop_all(ends):
+@pytest.mark.parametrize("slow, held", [
+    (KernelQueue(unsent=drops.BACKLOG_LIMIT + 1), drops.BACKLOG_LIMIT + 1),
+    # the link budget's radio queue is full (bridge.transport.link_budget), the kernel not
+    (KernelQueue(unsent=0, radio_queued=400, radio_full=True), 400)])
+def test_a_backlog_never_holds_back_the_stop_all(ends, slow, held):
     robot, pilot = ends
     robot.streams.post(STATUS, Bottle([2, "a"]))
     robot.streams.post(STOP, Bottle(["stop_all", 42]), event=True)
-    slow = KernelQueue(unsent=drops.BACKLOG_LIMIT + 1)
     out = robot.frame(0.0, None, kernel=slow)
-    assert out.held_back == drops.BACKLOG_LIMIT + 1
+    assert out.held_back == held
     assert [e for e in pilot.session.receive_body(out.body) if isinstance(e, StreamValue)] \
         == [StreamValue(STOP, Bottle(["stop_all", 42]))]                # the status waits
     assert send(robot, pilot, 0.1, None) == [StreamValue(STATUS, Bottle([2, "a"]))]

@@ -35,7 +35,8 @@ def test_the_robot_carries_out_each_stop_once_and_answers_copies_now_and_then():
         done.append((word, stop_id))
         return Ack(stop_id, "held", True, 3.0, ("m",))
 
-    robot = RobotStops(carry_out, answers.append, clock=lambda: now[0])
+    robot = RobotStops(carry_out, lambda ack, again: answers.append((ack, again)),
+                       clock=lambda: now[0])
     for _ in range(3):                          # three copies before it is done: one answer
         robot.on_order(Bottle(["stop_all", 7]))
     gate.set()
@@ -46,7 +47,7 @@ def test_the_robot_carries_out_each_stop_once_and_answers_copies_now_and_then():
     robot.on_order(Bottle(["stop_all", 7]))     # and its twin: not again so soon
     robot.on_order(Bottle(["stop", 7]))         # garbage: logged, nothing done
     assert done == [("stop_all", 7)]
-    assert [parse_ack(a).stop_id for a in answers] == [7, 7]
+    assert [(parse_ack(a).stop_id, again) for a, again in answers] == [(7, False), (7, True)]
 
 
 def test_the_pilot_resends_until_the_robot_answers():

@@ -217,6 +217,42 @@ def test_pacing_holds_the_configured_rate():
         sink.close()
 
 
+STOP = UdpRoute.of(Route(FlowKey(250, 0), "stop_all", Carriage.URGENT, Form.BOTTLE),
+                   BottleUdpCodec())
+
+
+def test_a_full_radio_takes_one_copy_of_a_stop_and_no_copies_of_the_rest():
+    """Issue 66: behind a full radio, copies only delay the next stop.  The stop (or its
+    acknowledgement) goes as one datagram, a resending of it and a command's copies not at
+    all; with room, every copy goes; paced data waits for room."""
+    from bridge.transport.link_budget import LinkBudget
+
+    port_a, port_b = free_port(), free_port()
+    budget = LinkBudget(9600)
+    a = UdpChannel(peer="127.0.0.1", port=port_a, peer_port=port_b, routes=[BLOB, STOP],
+                   gather=0.4, on_message=lambda k, v: None, budget=budget)
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink.bind(("127.0.0.1", port_b))
+    a.set_keys("installed", A_TO_B, B_TO_A)
+    try:
+        assert a.send_now(STOP.key, Bottle(["stop_all", 7]), 3) == 3      # room: every copy
+        budget.spend(600, time.monotonic())       # telemetry already in the radio's queue
+        assert budget.full(time.monotonic())
+        assert a.send_now(STOP.key, Bottle(["stop_all", 8]), 3) == 1      # full: one
+        assert a.send_now(STOP.key, Bottle(["stop_all", 8]), 3, again=True) == 0
+        assert a.send_now(BLOB.key, Bottle(["command"]), 2) == 0
+        assert a.drops.get(Reason.COPY_SKIPPED) == 2 + 3 + 2
+        spent = budget.spent
+        a.start()
+        a.post(BLOB.key, Bottle(["telemetry", bytes(100)]))
+        time.sleep(0.1)
+        assert budget.spent == spent          # paced data waits while the radio is full
+        wait_until(lambda: budget.spent > spent, 5, message="the telemetry once there is room")
+    finally:
+        a.stop()
+        sink.close()
+
+
 def test_a_tile_whose_metadata_has_the_wrong_shape_is_dropped_not_raised():
     """Found by fuzzing: a valid compact Bottle of the wrong shape as an image's metadata
     raised ValueError out of the receive loop (a peer holding the key could stop it)."""
