@@ -20,6 +20,8 @@ adapts:
   ``m`` of its ``k + m`` datagrams lost, binomially) with probability
   :data:`TARGET`: :func:`repairs_needed`.  Until the first report it assumes
   :data:`PRIOR_LOSS`.
+* A stop-all is one datagram sent several times; :func:`copies_needed` sizes its copies
+  from the same estimate.
 * The link's rate budget caps it: repairs may add no more than the paced rate
   leaves free beyond the data the channel sends (measured, with headroom), so
   repairs never crowd the data out of the shaper.
@@ -56,6 +58,10 @@ MIN_CAP = 4
 RATE_HEADROOM = 0.9
 #: z of the Wilson bound (one-sided 97.5 %).
 Z = 1.96
+#: Probability that at least one copy of a stop-all arrives, which its copies aim for ...
+COPIES_TARGET = 0.999
+#: ... with at most this many.
+MAX_COPIES = 8
 
 
 @lru_cache(maxsize=4096)
@@ -75,6 +81,20 @@ def repairs_needed(k: int, loss: float, target: float = TARGET,
         if decodes >= target:
             return m
     return cap
+
+
+def copies_needed(loss: float, least: int, target: float = COPIES_TARGET,
+                  most: int = MAX_COPIES) -> int:
+    """Copies of a one-datagram message (the stop-all) for at least one to arrive with
+    probability ``target`` when each is lost with probability ``loss``: never fewer than
+    ``least`` (the configuration's), never more than ``most``.  At 30 % loss three copies
+    all fail 2.7 % of the time, and the stop waits a resending."""
+    if loss <= 0:
+        return least
+    if loss >= 1:
+        return max(least, most)
+    needed = math.ceil(math.log(1 - target) / math.log(loss))
+    return max(least, min(most, needed))
 
 
 def wilson_upper(lost: int, total: int, z: float = Z) -> float:

@@ -16,10 +16,11 @@ Streaming data -- the robot state's periodic frames, perception's datagrams -- l
 while the model's queue has room (:attr:`LinkBudget.limit`: the rate times
 :data:`TARGET_DELAY`); a datagram larger than the limit waits for an empty queue.  What must
 arrive -- the stop-all and its acknowledgement, commands, receipts -- always leaves, and
-counts.  The model does not see when the kernel lets TCP's bytes go, or its retransmissions:
-so what is queued is the larger of the model and what the TCP socket still holds for the
-peer, sent or not (:attr:`LinkBudget.outstanding`, which the TCP channel sets).  The peer's
-TCP acknowledgements share the link too: the target leaves room for them.
+counts.  The TCP channel also holds its streaming data back while its socket holds more
+than the limit for the peer, sent or not: those bytes are in the radio's queue, or will be
+before the next frame.  (Not so for the datagrams: bytes a lossy link lost wait in the
+socket for their retransmission, and a stop's datagrams must not wait for them.)  The
+peer's TCP acknowledgements share the link too: the target leaves room for them.
 
 Pure arithmetic over a clock passed in; a lock, because both channels' threads spend.
 """
@@ -29,7 +30,6 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass, field
-from typing import Callable
 
 #: Seconds of the link's rate the radio's queue may hold of streaming data: a stop handed
 #: to the radio behind it waits at most this, plus the frame being sent.
@@ -70,8 +70,6 @@ class LinkBudget:
     #: bytes spent in all, and of them those that left although the queue was full
     spent: int = 0
     spent_over: int = 0
-    #: bytes the TCP socket still holds for the peer, sent or not (unacknowledged)
-    outstanding: Callable[[], int] = lambda: 0
 
     def __post_init__(self) -> None:
         if not (isinstance(self.rate, (int, float)) and math.isfinite(self.rate) and
@@ -89,7 +87,7 @@ class LinkBudget:
     def queued(self, now: float) -> float:
         """Bytes still in the radio's queue at ``now``, as far as this bridge knows."""
         with self._lock:
-            return max(self._drain(now), self.outstanding())
+            return self._drain(now)
 
     def full(self, now: float) -> bool:
         """No room for streaming data: hold it back (it will be newer next time)."""
@@ -106,7 +104,7 @@ class LinkBudget:
         """``size`` wire bytes were handed to the link at ``now``."""
         with self._lock:
             queued = self._drain(now)
-            if max(queued, self.outstanding()) >= self.limit:
+            if queued >= self.limit:
                 self.spent_over += size
             self._queued = queued + size
             self.spent += size

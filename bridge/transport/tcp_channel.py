@@ -120,9 +120,11 @@ def _round_trip_ms(sock: socket.socket) -> Optional[float]:
 def _kernel_queue(sock: socket.socket, budget: Optional[LinkBudget],
                   now: float) -> KernelQueue:
     """What the frame session needs to know of ``sock`` before each frame (cheap ioctls),
-    and of the radio's queue where a link budget models it."""
-    queued = 0 if budget is None else int(budget.queued(now))
-    return KernelQueue(_unsent_bytes(sock), _only_unacknowledged(sock),
+    and of the radio's queue where a link budget models it: the larger of the model and
+    what the socket still holds for the peer (in the radio's queue, or soon)."""
+    unsent = _unsent_bytes(sock)
+    queued = 0 if budget is None else int(max(budget.queued(now), unsent))
+    return KernelQueue(unsent, _only_unacknowledged(sock),
                        (_round_trip_ms(sock) or 0.0) / 1000.0, queued,
                        budget is not None and queued >= budget.limit)
 
@@ -408,8 +410,6 @@ class TcpChannel:
         self.settings = settings
         #: the radio's queue, shared with the UDP channel: full, streaming values wait
         self.budget = budget
-        if budget is not None:      # what the socket holds is in the radio's queue, or soon
-            budget.outstanding = self._outstanding
         self.listener = listener
         self.fingerprint = fingerprint(settings.config_text)
         self.journal = journal
@@ -653,10 +653,6 @@ class TcpChannel:
 
     # -- sending -----------------------------------------------------------------------
 
-    def _outstanding(self) -> int:
-        """Bytes the current connection's socket holds for the peer (0: none)."""
-        connection = self._connection
-        return 0 if connection is None else _unsent_bytes(connection.sock)
 
     def _send_loop(self) -> None:
         while not self._stopping.is_set():

@@ -43,13 +43,14 @@ from typing import Any, Callable, Deque, Dict, List, Optional, Protocol, Set, Tu
 from bridge.errors import BridgeError, BridgeProtocolError
 from bridge.flows import Carriage, FlowKey, Route
 from bridge.transport import drops
-from bridge.transport.adaptive_fec import REPORT_INTERVAL, FecAdapter, LossMeter
+from bridge.transport.adaptive_fec import (REPORT_INTERVAL, FecAdapter, LossMeter,
+                                           copies_needed)
 from bridge.transport.drops import DropLedger, Reason
 from bridge.transport.link_budget import LinkBudget, datagram_bytes
 from bridge.transport.nursery import Nursery
 from bridge.wire import datagrams, fec, tiles
 from bridge.wire.datagrams import BODY_BUDGET, Datagram
-from bridge.wire.link import DatagramOpener, DatagramSealer
+from bridge.wire.link import SEAL_OVERHEAD, DatagramOpener, DatagramSealer
 
 log = logging.getLogger("bridge.udp")
 
@@ -343,6 +344,9 @@ class UdpChannel:
         self.drops = DropLedger("UDP channel", log)
         self.loss_meter = LossMeter()
         self.adapter = FecAdapter(rate)
+        #: the loss on the way in, over the same window: a radio loses both ways alike, and
+        #: a stop's copies tell the peer nothing of the loss (a lost one is never missed)
+        self.loss_in = FecAdapter()
         self.reassembler = Reassembler(self.routes, gather, self.stats, self.drops,
                                        self.loss_meter)
         self._next_report = 0.0
@@ -410,24 +414,33 @@ class UdpChannel:
         has.  ``again``: a resending of what already went.  Returns the datagrams sent (0
         before the handshake: nothing leaves unsealed)."""
         route = self.routes[key]
-        if self.budget is not None and self.budget.full(time.monotonic()):
+        full = self.budget is not None and self.budget.full(time.monotonic())
+        if full and (route.carriage is not Carriage.URGENT or again):
             # Copies are insurance against loss; the TCP frame carries the message anyway.
             # Queued behind a full radio they only delay what comes next -- the next stop
             # among it.  A command's or status's copies, or a resending (the last sending
-            # is still in the radio's queue), are not sent; a stop or its acknowledgement
-            # goes as one datagram instead of ``copies``.
-            if route.carriage is not Carriage.URGENT or again:
-                self.drops.drop(Reason.COPY_SKIPPED, f"{route.label}: the radio's queue is full"
-                                + (" (a resending)" if again else ""), copies)
-                return 0
-            if copies > 1:
-                self.drops.drop(Reason.COPY_SKIPPED, f"{route.label}: the radio's queue is "
-                                                     f"full, one copy of {copies}", copies - 1)
-                copies = 1
+            # is still in the radio's queue), are not sent.
+            self.drops.drop(Reason.COPY_SKIPPED, f"{route.label}: the radio's queue is full"
+                            + (" (a resending)" if again else ""), copies)
+            return 0
         with self._cond:
             number = self._next_message_number(key)
         encoded = slice_message(route.codec.encode(value))
         inner = message_datagrams(route, number, encoded)
+        if route.carriage is Carriage.URGENT:
+            # A stop or its acknowledgement: as many copies as the link's loss needs for one
+            # to arrive (30 %: 6), as far as the radio has room for them -- one when full.
+            wanted = copies_needed(max(self.adapter.loss_bound(), self.loss_in.loss_bound()),
+                                   copies)
+            copies = wanted
+            if self.budget is not None:
+                room = self.budget.limit - self.budget.queued(time.monotonic())
+                size = sum(datagram_bytes(len(body) + SEAL_OVERHEAD) for body in inner)
+                copies = max(1, min(wanted, int(room // size)))
+            if copies < wanted:
+                self.drops.drop(Reason.COPY_SKIPPED, f"{route.label}: room in the radio's "
+                                                     f"queue for {copies} of {wanted} copies",
+                                wanted - copies)
         sent = 0
         for _ in range(copies):
             for body in inner:
@@ -526,6 +539,8 @@ class UdpChannel:
             return
         self._next_report = now + REPORT_INTERVAL
         report = self.loss_meter.report()
+        if report is not None:
+            self.loss_in.on_report(report, now)
         if report is not None:
             self._send(None, datagrams.encode_report(report))
 

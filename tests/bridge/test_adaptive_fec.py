@@ -92,3 +92,13 @@ def test_the_rate_budget_caps_the_repairs():
     unpaced = FecAdapter()
     unpaced.on_report(Report(700, 1000), now=0.0)
     assert unpaced.repairs(32, now=5.0) == repairs_needed(32, round(unpaced.loss_bound(), 3))
+
+
+def test_a_stops_copies_follow_the_loss_never_fewer_than_configured():
+    from bridge.transport.adaptive_fec import MAX_COPIES, copies_needed
+
+    assert copies_needed(0.0, 3) == 3 and copies_needed(0.05, 3) == 3
+    assert copies_needed(0.3, 3) == 6            # 0.3 ** 6 = 0.07 % all lost
+    assert 0.3 ** copies_needed(0.3, 3) <= 0.001 < 0.3 ** (copies_needed(0.3, 3) - 1)
+    assert copies_needed(0.9, 3) == copies_needed(1.0, 3) == MAX_COPIES
+    assert copies_needed(0.3, 10) == 10          # the configuration's, when it asks more

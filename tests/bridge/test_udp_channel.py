@@ -253,6 +253,27 @@ def test_a_full_radio_takes_one_copy_of_a_stop_and_no_copies_of_the_rest():
         sink.close()
 
 
+def test_a_stop_goes_in_as_many_copies_as_the_loss_coming_in_needs():
+    """At 30 % loss three copies of a stop all fail 2.7 % of the time.  A stop's copies
+    tell the peer nothing of the loss (a lost one is never missed), so the loss this end
+    measures on the way in sizes them: six."""
+    from bridge.wire.datagrams import Report
+
+    port_a, port_b = free_port(), free_port()
+    a = UdpChannel(peer="127.0.0.1", port=port_a, peer_port=port_b, routes=[BLOB, STOP],
+                   gather=0.4, on_message=lambda k, v: None)
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink.bind(("127.0.0.1", port_b))
+    a.set_keys("installed", A_TO_B, B_TO_A)
+    try:
+        a.loss_in.on_report(Report(received=7000, expected=10000), time.monotonic())
+        assert a.send_now(STOP.key, Bottle(["stop_all", 7]), 3) == 6
+        assert a.send_now(BLOB.key, Bottle(["command"]), 2) == 2     # copies as configured
+    finally:
+        a.stop()
+        sink.close()
+
+
 def test_a_tile_whose_metadata_has_the_wrong_shape_is_dropped_not_raised():
     """Found by fuzzing: a valid compact Bottle of the wrong shape as an image's metadata
     raised ValueError out of the receive loop (a peer holding the key could stop it)."""
