@@ -26,9 +26,22 @@ module last heard running" instead.  Pure: statuses and times in, states out;
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from enum import Enum
 from typing import Any, Dict, Optional, Sequence
 
-UP, DOWN, DIRECT, UNKNOWN = "up", "down", "direct", "unknown"
+class LinkPhase(str, Enum):
+    """What a reader sees of the link (equal to its word: ``LinkPhase.UP == "up"``)."""
+
+    UP = "up"
+    DOWN = "down"
+    DIRECT = "direct"
+    UNKNOWN = "unknown"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+UP, DOWN, DIRECT, UNKNOWN = LinkPhase.UP, LinkPhase.DOWN, LinkPhase.DIRECT, LinkPhase.UNKNOWN
 #: Seconds without a frame from the other side's bridge after which the link counts as down.
 SILENT_DOWN = 1.5
 #: Seconds without a status from this side's bridge after which it counts as gone.
@@ -39,7 +52,7 @@ PEER = {"pilot": "robot", "robot": "pilot"}
 
 @dataclass(frozen=True)
 class LinkState:
-    state: str
+    state: LinkPhase
     since: float            # the watcher's clock when it entered this state
     reason: str = ""
     round_trip_ms: float = 0.0

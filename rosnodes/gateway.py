@@ -42,6 +42,13 @@ log shows every command; the shared 3-D scene crosses between stations the same 
 (:mod:`rosnodes.scene_keeper`).  One roscore has one gateway: a second would forward every topic
 command again, so it refuses to start.  Statuses are decoded with the module's list of states
 (the ``statuses`` attribute in the bridge configuration, or the module's class).
+
+Its parts: :mod:`rosnodes.module_link` (one module's ports), :mod:`rosnodes.gateway_ros`
+(the services and command topics, as ROS messages), :mod:`rosnodes.pilot_topics` (what it
+publishes), :mod:`rosnodes.stations` (station numbers, what the others sent) and
+:mod:`rosnodes.scene_keeper` (the shared scene); this module decides and sends.  A message
+from a topic is sent by its module's sender thread, never inside a rospy callback (it may
+wait for its module's connection).
 """
 
 from __future__ import annotations
@@ -50,13 +57,15 @@ import argparse
 import logging
 import math
 import os
+import queue
 import re
 import socket
 import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from bridge import config as bridge_config
 from bridge import rpc_words
@@ -64,19 +73,20 @@ from bridge import status as bridge_status
 from bridge.errors import BridgeProtocolError, BridgeUsageError
 from nodekit.connections import ConnectionKeeper
 from nodekit.logs import configure_logging
-from nodekit.link_watch import LinkState, LinkWatch
-from rosnodes.pilot_topics import PilotTopics, status_msg
+from nodekit.link_watch import LinkPhase, LinkState, LinkWatch
+from rosnodes.module_link import HeardStatus, ModuleLink, Sent
+from rosnodes.gateway_ros import RosFace
+from rosnodes.pilot_topics import PilotTopics
 from rosnodes.scene_keeper import SceneKeeper
 from rosnodes.stations import (SequenceNumbers, StationError, claim_station, parse_sent,
                                sent_bottle_fields)
 from rosnodes.timed import CANCELLED, SENT, Countdowns
-from walkman.gym.lifecycle import TARGET, lifecycle_of_status
+from walkman.gym.lifecycle import TARGET
 from walkman.modules import module_class
 from walkman.gym.command_life import (CommandLife, CommandState, Ledger, Receipt,
                                       ReceiptError, decode_receipt)
-from walkman.gym.interfaces import (COMMAND, RECEIPT, STATUS, SWITCH, WARNING, InterfaceError,
-                                    PilotCommand, command_text, decode_command, decoder_for,
-                                    decode_status, encode_command, readable)
+from walkman.gym.interfaces import (InterfaceError, PilotCommand, command_text, decode_command,
+                                    decoder_for, decode_status, encode_command, readable)
 from walkman.gym.validity import (DANGEROUS_GRACE, Lifetime, ValidityError, check_validity,
                                   stamp)
 from yarp_lite.bottle import Bottle
@@ -90,8 +100,6 @@ from walkman import MODELS_DIR
 log = logging.getLogger("walkman.gateway")
 
 DEFAULT_CONFIG = MODELS_DIR / "bridge_drc.xml"
-#: How long a command waits for the connection to its module before it is refused (s).
-CONNECT_GRACE = 10.0
 #: Where the pilot bridge says how the link is (:mod:`bridge.node`), and takes cancels.
 BRIDGE_STATUS = "/bridge/pilot/status:o"
 BRIDGE_RPC = "/bridge/pilot/rpc:i"
@@ -99,6 +107,33 @@ BRIDGE_RPC = "/bridge/pilot/rpc:i"
 EXPECTED = {switch.value: state.value for switch, state in TARGET.items()}
 
 
+@dataclass(frozen=True)
+class Switched:
+    """A switch-and-wait's outcome: the module's state then, and why not, if not."""
+
+    ok: bool
+    state: str
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class Cancelled:
+    """A cancel's outcome: the numbers taken back, and what happened, in words."""
+
+    ok: bool
+    numbers: List[int]
+    message: str
+
+
+@dataclass(frozen=True)
+class Stopped:
+    """A stop-all's or release's outcome, as ``/pilot/stop_all`` answers it."""
+
+    ok: bool
+    message: str
+    round_trip_ms: float = 0.0
+    robot_ms: float = 0.0
+    paused: List[str] = field(default_factory=list)
 
 
 class GatewayError(Exception):
@@ -138,10 +173,6 @@ def life_text(sent: str) -> str:
         return sent
 
 
-def lifecycle_of(state: str) -> str:
-    return lifecycle_of_status(state).value
-
-
 def build_command(msg: Any, seq: int,
                   decode: Callable[[Bottle], PilotCommand] = decode_command) -> PilotCommand:
     """A ``walkman_msgs/Command`` (or SendCommand request) as the GYM command it names."""
@@ -157,58 +188,6 @@ def build_command(msg: Any, seq: int,
         raise GatewayError(f"command name {msg.command!r} must be one word (or use text)")
     return PilotCommand(name, (*[str(w) for w in msg.words], *[float(n) for n in msg.numbers]),
                         seq)
-
-
-class ModuleLink:
-    """One module's YARP ports (:data:`GYM_PORTS`), as the pilot sees them."""
-
-    def __init__(self, module: str, statuses: List[str], prefix: str, nameclient: NameClient,
-                 keeper: ConnectionKeeper, on_status, on_warning, on_receipt) -> None:
-        self.module = module
-        self.statuses = statuses
-        # Everything the readers touch exists before a port opens: a message may arrive at once.
-        self.last_status: Optional[Tuple[int, str, list, Bottle]] = None
-        self.changed = threading.Condition()
-        self.warnings: List[str] = []
-        base = f"{prefix}/{module}"
-        self.switch = Port(nameclient=nameclient).open(f"{base}/switch:o", wait=math.inf)
-        self.command = Port(nameclient=nameclient).open(f"{base}/command:o", wait=math.inf)
-        self.status = Port(nameclient=nameclient, reader=lambda b: on_status(self, b))
-        self.status.open(f"{base}/status:i", wait=math.inf)
-        self.warning = Port(nameclient=nameclient, reader=lambda b: on_warning(self, b))
-        self.warning.open(f"{base}/warning:i", wait=math.inf)
-        self.receipt = Port(nameclient=nameclient, reader=lambda b: on_receipt(self, b))
-        self.receipt.open(f"{base}/receipt:i", wait=math.inf)
-        keeper.want(self.switch.name, SWITCH.of(module), self.switch, ours_is_source=True)
-        keeper.want(self.command.name, COMMAND.of(module), self.command, ours_is_source=True)
-        for theirs, ours in ((STATUS, self.status), (WARNING, self.warning),
-                             (RECEIPT, self.receipt)):
-            keeper.want(theirs.of(module), ours.name, ours, ours_is_source=False)
-
-    def send(self, port: Port, bottle: Bottle) -> Tuple[bool, str]:
-        # A pilot's first command may come before the connection keeper made the
-        # connection (just after start-up, or a restart of the bridge): wait for it a while
-        # rather than drop the command.
-        deadline = time.monotonic() + CONNECT_GRACE
-        if port.output_count == 0:
-            log.info("%s: no connection to /%s yet; the message waits for it up to %g s",
-                     port.name, self.module, CONNECT_GRACE)
-        while port.output_count == 0:
-            if time.monotonic() > deadline:
-                return False, (f"/{self.module} is not reachable (no connection to its port "
-                               f"within {CONNECT_GRACE:g} s)")
-            time.sleep(0.05)
-        if not port.write(bottle):
-            return False, f"/{self.module} did not accept the message"
-        return True, ""
-
-    @property
-    def lifecycle(self) -> str:
-        return lifecycle_of(self.last_status[1]) if self.last_status else "unknown"
-
-    def close(self) -> None:
-        for port in (self.switch, self.command, self.status, self.warning, self.receipt):
-            port.close()
 
 
 class Gateway:
@@ -241,6 +220,11 @@ class Gateway:
         self.topics = PilotTopics(modules)
         self._ros_handlers: List[Any] = []   # subscribers and services, kept alive
         self._stop = threading.Event()
+        #: what the pilots' topics ask of each module, done in order by the module's sender
+        #: thread: a message may wait up to CONNECT_GRACE for its connection, never in a
+        #: rospy callback, and never in front of another module's
+        self._asked: Dict[str, "queue.Queue[Callable[[], None]]"] = {
+            module: queue.Queue() for module in modules}
         #: set when the gateway must end: a signal, or ``error`` (another gateway is here)
         self.finished = threading.Event()
         self.error = ""
@@ -262,7 +246,7 @@ class Gateway:
             self.links[module] = ModuleLink(module, statuses, self.prefix, self.nameclient,
                                             self.keeper, self._on_status, self._on_warning,
                                             self._on_receipt)
-        if self.link_watch.state.state == "direct":
+        if self.link_watch.state.state is LinkPhase.DIRECT:
             from walkman.gym.stop_all import StopAll
 
             self._stopper = StopAll("walkman", list(self.modules), f"{self.prefix}/stop_all",
@@ -320,7 +304,7 @@ class Gateway:
                 self._link_changed(changed)
 
     def _link_changed(self, state: LinkState) -> None:
-        if state.state == "down":
+        if state.state is LinkPhase.DOWN:
             log.warning("gateway: the link to the robot is down (%s); %d command(s) held",
                         state.reason, state.queued)
             with self._ledger_lock:
@@ -355,7 +339,7 @@ class Gateway:
             return
         code = str(bottle[1])
         with link.changed:
-            link.last_status = (seq, state, data, bottle)
+            link.last_status = HeardStatus(seq, state, data, bottle)
             link.changed.notify_all()
         self.topics.status(link.module, seq, state, code, data)
 
@@ -405,9 +389,6 @@ class Gateway:
     def _open_ros(self) -> None:
         """Once the node is registered (a roscore restart registers the same again:
         :class:`nodekit.ros_node.RosNode`)."""
-        import rospy
-        from walkman_msgs.srv import StopAll
-
         while not self.yarp_open.wait(1.0):    # the station numbers what ROS brings
             if self.finished.is_set():
                 return
@@ -421,73 +402,54 @@ class Gateway:
             return
         self.topics.open()
         self._publish_link()
-        self._ros_handlers = [
-            rospy.Service("/pilot/stop_all", StopAll, lambda r: self._stop_srv("stop_all")),
-            rospy.Service("/pilot/release", StopAll, lambda r: self._stop_srv("release")),
-            *[handler for module in self.modules for handler in self._open_module_ros(module)]]
+        self._ros_handlers = RosFace(self).open()
         for module, link in self.links.items():
-            if link.last_status is not None:
-                seq, state, data, bottle = link.last_status
-                self.topics.status(module, seq, state, str(bottle[1]), data)
+            heard = link.last_status
+            if heard is not None:
+                self.topics.status(module, heard.seq, heard.state, heard.code, heard.data)
         self.scene.open_ros()
         threading.Thread(target=self._countdown_loop, name="gateway countdowns",
                          daemon=True).start()
+        for module, asked in self._asked.items():
+            threading.Thread(target=self._sender_loop, args=(asked,),
+                             name=f"gateway sender {module}", daemon=True).start()
         log.info("gateway: ROS topics and services up for %s", ", ".join(self.modules))
-
-    def _open_module_ros(self, module: str) -> List[Any]:
-        """The module's command topics and services, into this gateway."""
-        import rospy
-        from walkman_msgs.msg import Command, Switch
-        from walkman_msgs.srv import Cancel, GetStatus, SendCommand, SwitchModule
-
-        return [rospy.Subscriber(f"/{module}/switch", Switch,
-                                 lambda m: self._on_switch_topic(module, m)),
-                rospy.Subscriber(f"/{module}/command", Command,
-                                 lambda m: self._on_command_topic(module, m)),
-                rospy.Service(f"/{module}/switch_and_wait", SwitchModule,
-                              lambda r: self._switch_and_wait(module, r)),
-                rospy.Service(f"/{module}/send_command", SendCommand,
-                              lambda r: self._send_command_srv(module, r)),
-                rospy.Service(f"/{module}/get_status", GetStatus,
-                              lambda r: self._get_status(module)),
-                rospy.Service(f"/{module}/cancel", Cancel,
-                              lambda r: self._cancel_srv(module, r))]
 
     # -- sending -----------------------------------------------------------------------
 
     def send_switch(self, module: str, word: str, seq: int = 0, sender: str = "",
-                    validity: float = 0.0) -> Tuple[bool, str, int]:
+                    validity: float = 0.0) -> Sent:
         link = self.links[module]
         word = word.strip().lower()
         if word not in EXPECTED:
-            return False, f"'{word}' is not a switch command (start, pause, resume, stop, quit)", 0
+            return Sent(False, f"'{word}' is not a switch command (start, pause, resume, "
+                               f"stop, quit)")
         seq = seq or self.sequence.next()
         try:
             life = lifetime(module, validity)
         except GatewayError as exc:
-            return False, str(exc), 0
+            return Sent(False, str(exc))
         sent_at = self.topics.now()     # before the send: its receipt may come back at once
-        ok, message = link.send(link.switch, stamp(Bottle([word, seq]), life))
-        if ok:
+        sent = link.send(link.switch, stamp(Bottle([word, seq]), life))
+        if sent.ok:
             if word in ("stop", "quit"):
                 for event in self.countdowns.cancel_all(module):
                     self._publish_countdown(event, sender)
             self._log_sent(module, "switch", f"{word} {seq}", seq, sender, sent_at)
-        return ok, message, seq
+        return replace(sent, seq=seq)
 
     def send_command(self, module: str, command: PilotCommand,
-                     sender: str = "") -> Tuple[bool, str]:
+                     sender: str = "") -> Sent:
         link = self.links[module]
         if command.lifetime is None:
-            command = PilotCommand(command.name, command.args, command.seq,
-                                   lifetime(module, 0.0))
+            command = replace(command, lifetime=lifetime(module, 0.0))
         sent_at = self.topics.now()     # before the send: its receipt may come back at once
-        ok, message = link.send(link.command, encode_command(command))
-        if ok:
-            shown = encode_command(PilotCommand(command.name, command.args, command.seq))
+        sent = link.send(link.command, encode_command(command))
+        if sent.ok:
+            shown = encode_command(replace(command, lifetime=None))
             self._log_sent(module, "command", readable(shown), command.seq or 0, sender,
                            sent_at)
-        return ok, message
+        return replace(sent, seq=command.seq or 0)
 
     def _log_sent(self, module: str, port: str, text: str, seq: int, sender: str,
                   sent_at: Optional[Any] = None) -> None:
@@ -504,7 +466,8 @@ class Gateway:
             life = CommandLife(module, port, seq, life_text(text), sender or "rostopic",
                                station)
             with self._ledger_lock:
-                changed = self.ledger.sent(life, link_down=self.link_watch.state.state == "down")
+                changed = self.ledger.sent(
+                    life, link_down=self.link_watch.state.state is LinkPhase.DOWN)
             self._publish_states(changed)
         self.topics.sent(module, port, text, seq, sender, station, sent_at)
 
@@ -527,13 +490,34 @@ class Gateway:
         log.warning("gateway: %s", text)
         self.topics.warning(module, 0, f"gateway: {text}")
 
-    def _on_switch_topic(self, module: str, msg: Any) -> None:
-        ok, message, _ = self.send_switch(module, msg.command, msg.seq, msg.sender,
-                                          getattr(msg, "validity", 0.0))
-        if not ok:
-            self._refuse(module, message)
+    def _sender_loop(self, asked: "queue.Queue[Callable[[], None]]") -> None:
+        while not self._stop.is_set():
+            try:
+                job = asked.get(timeout=0.25)
+            except queue.Empty:
+                continue
+            try:
+                job()
+            except Exception:  # noqa: BLE001 -- our bug: seen; the next message still goes
+                log.exception("gateway: sending a pilot's message failed (a bug)")
 
-    def _on_command_topic(self, module: str, msg: Any) -> None:
+    def ask_switch(self, module: str, msg: Any) -> None:
+        """A ``walkman_msgs/Switch`` from a topic: sent by the module's sender thread, in
+        order (a rospy callback returns at once)."""
+        self._asked[module].put(lambda: self._switch_from_topic(module, msg))
+
+    def ask_command(self, module: str, msg: Any) -> None:
+        """A ``walkman_msgs/Command`` from a topic: counted down if dangerous, else sent,
+        by the module's sender thread, in order (a rospy callback returns at once)."""
+        self._asked[module].put(lambda: self._command_from_topic(module, msg))
+
+    def _switch_from_topic(self, module: str, msg: Any) -> None:
+        sent = self.send_switch(module, msg.command, msg.seq, msg.sender,
+                                getattr(msg, "validity", 0.0))
+        if not sent.ok:
+            self._refuse(module, sent.message)
+
+    def _command_from_topic(self, module: str, msg: Any) -> None:
         try:
             command = build_command(msg, msg.seq or 0, command_decoder(module))
             life = lifetime(module, getattr(msg, "validity", 0.0))
@@ -541,7 +525,7 @@ class Gateway:
             self._refuse(module, str(exc))
             return
         if msg.dangerous:
-            text = encode_command(PilotCommand(command.name, command.args)).to_text()
+            text = encode_command(replace(command, seq=None, lifetime=None)).to_text()
             sender = msg.sender or "rostopic"
             now = time.monotonic()
             countdown = float(msg.countdown) or self.countdowns.default
@@ -559,10 +543,10 @@ class Gateway:
                      f"waiting {event.remaining:.1f} s (send it again to cancel)", sender)
             self._publish_countdown(event, sender)
             return
-        ok, message = self.send_command(module, PilotCommand(
-            command.name, command.args, command.seq or self.sequence.next(), life), msg.sender)
-        if not ok:
-            self._refuse(module, message)
+        sent = self.send_command(module, replace(
+            command, seq=command.seq or self.sequence.next(), lifetime=life), msg.sender)
+        if not sent.ok:
+            self._refuse(module, sent.message)
 
     def _countdown_loop(self) -> None:
         while not self._stop.wait(0.1):
@@ -570,11 +554,11 @@ class Gateway:
             for event in self.countdowns.tick(now):
                 command, sender, life, asked = event.pending.payload
                 if event.state == SENT:
-                    ok, message = self.send_command(event.pending.module, PilotCommand(
-                        command.name, command.args, command.seq or self.sequence.next(),
-                        life.older(now - asked)), sender)
-                    if not ok:
-                        self._refuse(event.pending.module, message)
+                    sent = self.send_command(event.pending.module, replace(
+                        command, seq=command.seq or self.sequence.next(),
+                        lifetime=life.older(now - asked)), sender)
+                    if not sent.ok:
+                        self._refuse(event.pending.module, sent.message)
                 self._publish_countdown(event, sender)
 
     def _publish_countdown(self, event, sender: str = "") -> None:
@@ -583,60 +567,58 @@ class Gateway:
 
     # -- services ----------------------------------------------------------------------
 
-    def _switch_and_wait(self, module: str, request: Any) -> Any:
-        from walkman_msgs.srv import SwitchModuleResponse
-
+    def switch_and_wait(self, module: str, word: str, timeout: float) -> "Switched":
+        """Send ``word`` and wait, up to ``timeout`` s, for the state it leads to, or for a
+        warning of the module's that names it."""
         link = self.links[module]
-        word = request.command.strip().lower()
-        timeout = float(request.timeout) or 5.0
+        word = word.strip().lower()
         with link.changed:
             warnings_before = len(link.warnings)
-        ok, message, _ = self.send_switch(module, word, sender="service")
-        if not ok:
-            return SwitchModuleResponse(False, link.lifecycle, message)
+        sent = self.send_switch(module, word, sender="service")
+        if not sent.ok:
+            return Switched(False, link.lifecycle, sent.message)
         wanted = EXPECTED[word]
         deadline = time.monotonic() + timeout
         with link.changed:
             while True:
                 if link.lifecycle == wanted:
-                    return SwitchModuleResponse(True, link.last_status[1], "")
+                    return Switched(True, link.last_status.state)
                 news = [w for w in link.warnings[warnings_before:] if word in w]
                 if news:
-                    return SwitchModuleResponse(False, link.lifecycle, news[-1])
+                    return Switched(False, link.lifecycle, news[-1])
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
-                    return SwitchModuleResponse(False, link.lifecycle,
-                                                f"no {wanted} state within {timeout:g} s")
+                    return Switched(False, link.lifecycle,
+                                    f"no {wanted} state within {timeout:g} s")
                 link.changed.wait(remaining)
 
-    def _send_command_srv(self, module: str, request: Any) -> Any:
-        from walkman_msgs.srv import SendCommandResponse
-
+    def send_request(self, module: str, request: Any) -> Sent:
+        """A ``walkman_msgs/SendCommand`` request, numbered now and sent."""
         try:
             command = build_command(request, self.sequence.next(), command_decoder(module))
-            command = PilotCommand(command.name, command.args, command.seq,
-                                   lifetime(module, getattr(request, "validity", 0.0)))
+            command = replace(command,
+                              lifetime=lifetime(module, getattr(request, "validity", 0.0)))
         except GatewayError as exc:
-            return SendCommandResponse(False, 0, str(exc))
-        ok, message = self.send_command(module, command, "service")
-        return SendCommandResponse(ok, command.seq if ok else 0, message)
+            return Sent(False, str(exc))
+        return self.send_command(module, command, "service")
 
-    def cancel(self, module: str, seq: int) -> Tuple[bool, List[int], str]:
+    def cancel(self, module: str, seq: int) -> Cancelled:
         """Take back the module's queued command ``seq`` (0: all of them) from the pilot
-        bridge: ``(ok, cancelled, what happened)``.  Only what no frame has carried can be
-        taken back; a command already on its way is said so, never claimed cancelled."""
-        if self.link_watch.state.state == "direct":
-            return False, [], ("no bridge here (the lab): a command goes straight to its "
-                               "module and never waits, so there is nothing to cancel")
+        bridge.  Only what no frame has carried can be taken back; a command already on its
+        way is said so, never claimed cancelled."""
+        if self.link_watch.state.state is LinkPhase.DIRECT:
+            return Cancelled(False, [], "no bridge here (the lab): a command goes straight to "
+                                        "its module and never waits, so there is nothing to "
+                                        "cancel")
         try:
             cancelled, too_late = rpc_words.read_cancel_reply(
                 self._ask_bridge(rpc_words.cancel_request(module, seq or None), timeout=5.0))
         except YarpError as exc:
-            return False, [], f"cannot reach the pilot bridge ({BRIDGE_RPC}): {exc}"
+            return Cancelled(False, [], f"cannot reach the pilot bridge ({BRIDGE_RPC}): {exc}")
         except BridgeUsageError as exc:
-            return False, [], f"the pilot bridge refused: {exc}"
+            return Cancelled(False, [], f"the pilot bridge refused: {exc}")
         except BridgeProtocolError as exc:
-            return False, [], f"the pilot bridge's answer is malformed: {exc}"
+            return Cancelled(False, [], f"the pilot bridge's answer is malformed: {exc}")
         with self._ledger_lock:
             changed = [life for n in cancelled for life in self.ledger.receipt(
                 module, Receipt(n, CommandState.CANCELLED, "cancelled by a pilot"))]
@@ -651,36 +633,36 @@ class Gateway:
             parts.append(f"no queued command {seq}" if seq else "nothing queued")
         message = "; ".join(parts)
         log.info("gateway: cancel %s %s: %s", module, seq or "all", message)
-        return bool(cancelled) or not too_late and not seq, cancelled, message
+        return Cancelled(bool(cancelled) or not too_late and not seq, list(cancelled), message)
 
-    def stop_all(self, word: str) -> Tuple[bool, str, float, float, List[str]]:
+    def stop_all(self, word: str) -> Stopped:
         """``stop_all`` or ``release``: through the pilot bridge (its stop line), or in the
-        lab by this gateway itself; ``(ok, message, round trip ms, robot ms, paused)``."""
+        lab by this gateway itself."""
         started = time.monotonic()
-        if self.link_watch.state.state == "direct":
+        if self.link_watch.state.state is LinkPhase.DIRECT:
             try:
                 stopper = self._local_stop_all()
             except GatewayError as exc:
-                return False, str(exc), 0.0, 0.0, []
+                return Stopped(False, str(exc))
             report = stopper.stop(self.sequence.next()) if word == "stop_all" \
                 else stopper.release(self.sequence.next())
             took = (time.monotonic() - started) * 1000.0
-            return report.hal, report.line() if report.hal or word == "stop_all" else \
-                f"release: {report.problem}", took, report.took_ms, list(report.modules)
+            return Stopped(report.hal, report.line() if report.hal or word == "stop_all" else
+                           f"release: {report.problem}", took, report.took_ms,
+                           list(report.modules))
         try:
             ack = rpc_words.read_stop_reply(self._ask_bridge(Bottle([word]), timeout=8.0))
         except YarpError as exc:
-            return False, f"cannot reach the pilot bridge ({BRIDGE_RPC}): {exc}", 0.0, 0.0, []
+            return Stopped(False, f"cannot reach the pilot bridge ({BRIDGE_RPC}): {exc}")
         except BridgeUsageError as exc:   # its words: "stop_all: the robot did not ..."
-            return False, str(exc) if str(exc).startswith(word) else f"{word}: {exc}", \
-                0.0, 0.0, []
+            return Stopped(False, str(exc) if str(exc).startswith(word) else f"{word}: {exc}")
         except BridgeProtocolError as exc:
-            return False, f"{word}: the pilot bridge's answer is malformed: {exc}", 0.0, 0.0, []
+            return Stopped(False, f"{word}: the pilot bridge's answer is malformed: {exc}")
         paused = list(ack.modules)
         message = (f"{word}: {'HAL held' if ack.hal else 'HAL NOT held'}; pause sent to "
                    f"{', '.join(paused) or 'no module'}" if word == "stop_all" else
                    f"release: HAL {'free' if ack.hal else 'NOT released'}")
-        return ack.hal, message, ack.round_trip_ms, ack.took_ms, paused
+        return Stopped(ack.hal, message, ack.round_trip_ms, ack.took_ms, paused)
 
     def _ask_bridge(self, request: Bottle, timeout: float) -> Bottle:
         """One request to the pilot bridge's RPC port (:mod:`bridge.rpc_words`)."""
@@ -696,31 +678,6 @@ class Gateway:
         if self._stopper is None:
             raise GatewayError("the gateway's YARP side is not open yet")
         return self._stopper
-
-    def _stop_srv(self, word: str) -> Any:
-        from walkman_msgs.srv import StopAllResponse
-
-        ok, message, rtt, robot, paused = self.stop_all(word)
-        (log.warning if word == "stop_all" else log.info)("gateway: %s (%.0f ms)", message,
-                                                           rtt)
-        return StopAllResponse(ok, message, rtt, robot, paused)
-
-    def _cancel_srv(self, module: str, request: Any) -> Any:
-        from walkman_msgs.srv import CancelResponse
-
-        ok, cancelled, message = self.cancel(module, int(request.seq))
-        return CancelResponse(ok, cancelled, message)
-
-    def _get_status(self, module: str) -> Any:
-        from walkman_msgs.msg import Status
-        from walkman_msgs.srv import GetStatusResponse
-
-        link = self.links[module]
-        if link.last_status is None:
-            return GetStatusResponse(False, "unknown", Status())
-        seq, state, data, bottle = link.last_status
-        return GetStatusResponse(True, link.lifecycle,
-                                 status_msg(module, seq, state, str(bottle[1]), data))
 
     def close(self) -> None:
         self._stop.set()

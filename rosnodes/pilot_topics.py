@@ -150,7 +150,7 @@ class PilotTopics:
 
         msg = Link()
         msg.header.stamp = rospy.Time.now()
-        msg.state, msg.reason, msg.queued = state.state, state.reason, state.queued
+        msg.state, msg.reason, msg.queued = state.state.value, state.reason, state.queued
         msg.since = float(since_s)
         msg.round_trip_ms = float(state.round_trip_ms)
         self._link.publish(msg)

@@ -220,7 +220,7 @@ class Chaos:
         """Every module shows a running state after ``back`` and the first plain command
         accepted after ``back`` was executed (a short-lived or cancelled one may rightly
         never run)."""
-        from rosnodes.gateway import lifecycle_of
+        from rosnodes.module_link import lifecycle_of
 
         for statuses in self.record.statuses.values():
             if not statuses or statuses[-1]["t"] < back or \
