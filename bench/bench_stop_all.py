@@ -48,6 +48,13 @@ from system.topology import PYTHON, Topology  # noqa: E402
 CASES: List[Tuple[str, float]] = [("drc", 5.0), ("drc", 30.0), ("degraded", 0.0)]
 #: Issue 66's goals for click-to-held p99, ms, by case.
 HELD_GOALS: Dict[Tuple[str, float], float] = {("drc", 30.0): 200.0, ("degraded", 0.0): 500.0}
+#: What this bench measured before the link budget (2026-12-07, 20-100 clicks, load < 2),
+#: printed beside today's figures.
+BEFORE: Dict[Tuple[str, float], str] = {
+    ("drc", 5.0): "held 54 / 56 ms, acknowledged 106 / 110 ms",
+    ("drc", 30.0): "held 53 / 304 ms, acknowledged 106 / 356 ms",
+    ("degraded", 0.0): "held 125 / 2566 ms, acknowledged 2622 / 4821 ms, 2 of 20 unanswered",
+}
 #: ``<time> [bridge...] INFO bridge.stop: stop_all ID: ...``, as each bridge logs a stop.
 STOP_LOG = re.compile(r"^(?P<time>\d+\.\d+) .*bridge\.stop: stop_all (?P<id>\d+): "
                       r"(?P<what>sent|its first copy arrived|held, .* in (?P<ms>[\d.]+) ms)")
@@ -167,6 +174,8 @@ def measure(profile: str, losses: List[float], rounds: int, each: bool = False) 
                       f"{never:>5} {'' if held_goal is None else f'<= {held_goal:.0f}':>9} | "
                       f"{statistics.median(acks):>8.1f}ms {percentile(acks, 0.99):>6.1f}ms "
                       f"{failed:>6} {goal:>14} | {statistics.median(robot):>10.1f}ms")
+                if (profile, loss) in BEFORE:
+                    print(f"  before the link budget (median / p99): {BEFORE[(profile, loss)]}")
                 if each:
                     print(f"  held ms, in order: {' '.join(f'{v:.0f}' for v in held)}")
                     print(f"  acknowledged ms, in order: {' '.join(f'{v:.0f}' for v in acks)}")

@@ -40,3 +40,45 @@ def test_bench_yarp_lite_smoke_run_prints_every_table():
                     "Name server"):
         assert heading in result.stdout, result.stdout
     assert "(n/a)" not in result.stdout, result.stdout
+
+
+def test_the_stop_bench_reads_click_to_held_from_the_bridges_own_log_lines(monkeypatch):
+    """bench_stop_all's *held* comes from the lines both bridges log for each stop, with the
+    wall-clock time WALKMAN_LOG_TIME puts first: made here by the real stop line's two ends
+    and the real log format, not typed in."""
+    import logging
+
+    from bridge.gym.stop_line import Ack, PilotStops, RobotStops
+    from nodekit.logs import LOG_TIME_ENV, line_format
+
+    sys.path.insert(0, str(BENCH))
+    try:
+        import bench_stop_all
+    finally:
+        sys.path.remove(str(BENCH))
+    monkeypatch.setenv(LOG_TIME_ENV, "1")
+    lines = []
+
+    class Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            lines.append(self.format(record))
+
+    keep = Keep()
+    keep.setFormatter(logging.Formatter(line_format("bridge")))
+    logger = logging.getLogger("bridge.stop")
+    level = logger.level
+    logger.addHandler(keep)
+    logger.setLevel(logging.INFO)
+    try:
+        robot = RobotStops(lambda word, stop_id: Ack(stop_id, "held", True, 2.5),
+                           lambda ack, again: pilot.on_ack(ack))
+        pilot = PilotStops(lambda order, again: robot.on_order(order))
+        ack = pilot.order("stop_all", timeout=5.0)
+        unanswered = PilotStops(lambda order, again: None).order("stop_all", timeout=0.3)
+    finally:
+        logger.removeHandler(keep)
+        logger.setLevel(level)
+    assert ack is not None and unanswered is None
+    held, never = bench_stop_all.held_times(lines, lines)
+    assert len(held) == 1 and never == 1, lines          # the unanswered one never held
+    assert 2.5 <= held[0] < 2.5 + 1000, held             # the robot's 2.5 ms, and the way there
