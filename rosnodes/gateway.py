@@ -47,8 +47,8 @@ Its parts: :mod:`rosnodes.module_link` (one module's ports), :mod:`rosnodes.gate
 (the services and command topics, as ROS messages), :mod:`rosnodes.pilot_topics` (what it
 publishes), :mod:`rosnodes.stations` (station numbers, what the others sent) and
 :mod:`rosnodes.scene_keeper` (the shared scene); this module decides and sends.  A message
-from a topic is sent by its module's sender thread, never inside a rospy callback (it may
-wait for its module's connection).
+from a topic is sent by a sender thread of its module and topic, never inside a rospy
+callback (it may wait for its module's connection).
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ import threading
 import time
 from pathlib import Path
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Dict, List, Optional, Sequence
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 from bridge import config as bridge_config
 from bridge import rpc_words
@@ -220,11 +220,12 @@ class Gateway:
         self.topics = PilotTopics(modules)
         self._ros_handlers: List[Any] = []   # subscribers and services, kept alive
         self._stop = threading.Event()
-        #: what the pilots' topics ask of each module, done in order by the module's sender
-        #: thread: a message may wait up to CONNECT_GRACE for its connection, never in a
-        #: rospy callback, and never in front of another module's
-        self._asked: Dict[str, "queue.Queue[Callable[[], None]]"] = {
-            module: queue.Queue() for module in modules}
+        #: what the pilots' topics ask of each module, its switches and its commands each
+        #: done in order by a sender thread of their own (as rospy gave each topic one): a
+        #: message may wait up to CONNECT_GRACE for its connection, never in a rospy
+        #: callback, in front of another module's, or a switch (a stop) behind a command
+        self._asked: Dict[Tuple[str, str], "queue.Queue[Callable[[], None]]"] = {
+            (module, kind): queue.Queue() for module in modules for kind in ("switch", "command")}
         #: set when the gateway must end: a signal, or ``error`` (another gateway is here)
         self.finished = threading.Event()
         self.error = ""
@@ -410,9 +411,9 @@ class Gateway:
         self.scene.open_ros()
         threading.Thread(target=self._countdown_loop, name="gateway countdowns",
                          daemon=True).start()
-        for module, asked in self._asked.items():
+        for (module, kind), asked in self._asked.items():
             threading.Thread(target=self._sender_loop, args=(asked,),
-                             name=f"gateway sender {module}", daemon=True).start()
+                             name=f"gateway {module} {kind}", daemon=True).start()
         log.info("gateway: ROS topics and services up for %s", ", ".join(self.modules))
 
     # -- sending -----------------------------------------------------------------------
@@ -502,14 +503,14 @@ class Gateway:
                 log.exception("gateway: sending a pilot's message failed (a bug)")
 
     def ask_switch(self, module: str, msg: Any) -> None:
-        """A ``walkman_msgs/Switch`` from a topic: sent by the module's sender thread, in
+        """A ``walkman_msgs/Switch`` from a topic: sent by the module's switch sender, in
         order (a rospy callback returns at once)."""
-        self._asked[module].put(lambda: self._switch_from_topic(module, msg))
+        self._asked[(module, "switch")].put(lambda: self._switch_from_topic(module, msg))
 
     def ask_command(self, module: str, msg: Any) -> None:
         """A ``walkman_msgs/Command`` from a topic: counted down if dangerous, else sent,
-        by the module's sender thread, in order (a rospy callback returns at once)."""
-        self._asked[module].put(lambda: self._command_from_topic(module, msg))
+        by the module's command sender, in order (a rospy callback returns at once)."""
+        self._asked[(module, "command")].put(lambda: self._command_from_topic(module, msg))
 
     def _switch_from_topic(self, module: str, msg: Any) -> None:
         sent = self.send_switch(module, msg.command, msg.seq, msg.sender,

@@ -6,7 +6,7 @@ Theory of operation
 into its calls and its answers into ROS responses, per module (``/M/switch``,
 ``/M/command``, ``/M/switch_and_wait``, ``/M/send_command``, ``/M/get_status``,
 ``/M/cancel``) and for the whole robot (``/pilot/stop_all``, ``/pilot/release``).  A topic's
-message is handed to its module's sender thread in the gateway (:meth:`Gateway.ask_switch`,
+message is handed to a sender thread of its module and topic (:meth:`Gateway.ask_switch`,
 :meth:`Gateway.ask_command`): a rospy callback never waits for a module's connection.  A
 service waits for its answer, as a ROS service does, in the thread rospy gives each call.
 """
@@ -14,20 +14,33 @@ service waits for its answer, as a ROS service does, in the thread rospy gives e
 from __future__ import annotations
 
 import logging
-from typing import TYPE_CHECKING, Any, List
+from typing import Any, Dict, List, Mapping, Protocol
 
+from rosnodes.module_link import ModuleLink, Sent
 from rosnodes.pilot_topics import status_msg
 
-if TYPE_CHECKING:
-    from rosnodes.gateway import Gateway
-
 log = logging.getLogger("walkman.gateway")
+
+
+class Desk(Protocol):
+    """What the face asks of the gateway (:class:`rosnodes.gateway.Gateway`), which imports
+    this module: the face may not import it back."""
+
+    modules: Mapping[str, List[str]]
+    links: Dict[str, ModuleLink]
+
+    def ask_switch(self, module: str, msg: Any) -> None: ...
+    def ask_command(self, module: str, msg: Any) -> None: ...
+    def switch_and_wait(self, module: str, word: str, timeout: float) -> Any: ...
+    def send_request(self, module: str, request: Any) -> Sent: ...
+    def stop_all(self, word: str) -> Any: ...
+    def cancel(self, module: str, seq: int) -> Any: ...
 
 
 class RosFace:
     """Every ROS service and command topic of one gateway."""
 
-    def __init__(self, gateway: "Gateway") -> None:
+    def __init__(self, gateway: Desk) -> None:
         self.gateway = gateway
 
     def open(self) -> List[Any]:
