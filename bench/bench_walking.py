@@ -15,10 +15,11 @@ The rough-ground courses (walkman/courses.py): up a 5-cm step, along it and down
 (station ``terrain``); onto a 10-degree ramp, up it and onto its top (station ``ramp``), and
 back down from the top (station ``ramp_top``), at once and, as through the PI, standing 15 s
 before each pair of footsteps is measured: each command's time and smallest ZMP margin,
-each course's speed; then the step and the ramp on footsteps the head camera places, look
-by look.  ``--contact`` runs the courses on each of the simulator's contact models
-(walkman.hal.sim.CONTACT_MODELS: ``soft``, MuJoCo's defaults, where a loaded sole creeps
-down a slope, and ``firm``), side by side.
+each course's speed; then the step, the ramp and the debris field (boards lying across the
+way, stepped over) on footsteps the head camera places, look by look.  ``--contact`` runs
+the courses on each of the simulator's contact models (walkman.hal.sim.CONTACT_MODELS:
+``soft``, MuJoCo's defaults, where a loaded sole creeps down a slope, and ``firm``), side
+by side.
 """
 
 from __future__ import annotations
@@ -39,8 +40,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench_tasks import timed_ticks  # noqa: E402  (bench/ is the script's folder)
 from host import say_machine  # noqa: E402
 from walkman.control.ground_ahead import GroundError  # noqa: E402
-from walkman.courses import (camera_course, ramp_course, ramp_down_course,  # noqa: E402
-                             terrain_course, tilt, upright, walker)
+from walkman.courses import (DEBRIS_FIELD_END, camera_course, ramp_course,  # noqa: E402
+                             ramp_down_course, terrain_course, tilt, upright, walker)
 from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import CONTACT_MODELS, SimBackend
 from walkman.model.mjcf import TERRAIN_RAMP, TERRAIN_STEP
@@ -104,14 +105,15 @@ COURSES = (("terrain", "terrain", terrain_course), ("ramp", "ramp", ramp_course)
             functools.partial(ramp_down_course, standing=15.0)),
            ("terrain by camera", "terrain", by_camera(TERRAIN_STEP[1] + 0.40)),
            ("ramp by camera", "ramp",
-            by_camera(RAMP_FOOT + RAMP_LENGTH * math.cos(RAMP_SLOPE) + 0.30)))
+            by_camera(RAMP_FOOT + RAMP_LENGTH * math.cos(RAMP_SLOPE) + 0.30)),
+           ("debris field by camera", "debris_field", by_camera(DEBRIS_FIELD_END + 0.40)))
 
 
 def rough_ground(contact: str = "soft") -> List[str]:
     """The rough-ground courses (walkman/courses.py): the 5-cm step of station
     ``terrain`` and the 10-degree ramp of station ``ramp``, up and (``ramp_top``) down, by
-    commands, then the step and the ramp by the camera's footsteps: per command its time and
-    smallest ZMP margin, then each course's speed and balance trips."""
+    commands, then the step, the ramp and the debris field by the camera's footsteps: per
+    command its time and smallest ZMP margin, then each course's speed and balance trips."""
     rows = []
     for label, station, course in COURSES:
         world, module = walker(station, contact)

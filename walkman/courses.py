@@ -21,7 +21,8 @@ from walkman.control.ground_ahead import first_leg, footsteps_from_cloud
 from walkman.gym.offline import OfflineModule, OfflineWorld
 from walkman.hal.sim import SimBackend
 from walkman.model.description import STANDING_PELVIS_HEIGHT
-from walkman.model.mjcf import PILOT_POSES, STATIONS, TERRAIN_COURSE, TERRAIN_RAMP
+from walkman.model.mjcf import (DEBRIS_BOARD_HALF, DEBRIS_BOARDS, DEBRIS_FIELD_LANE,
+                                PILOT_POSES, STATIONS, TERRAIN_COURSE, TERRAIN_RAMP)
 from walkman.modules import walking
 
 #: The pelvis walks CROUCH below its standing height; lower than this (m) it has fallen.
@@ -153,6 +154,23 @@ def footsteps(*soles: Sequence[float]) -> str:
 
 
 Leg = Tuple[str, float, float]   # a course's command, its smallest ZMP margin (m), seconds
+
+#: The debris field's boards lying across the way (nearly square to it), by index
+#: (:data:`walkman.model.mjcf.DEBRIS_BOARDS`); the others lie beside the feet's lanes.
+BOARDS_ACROSS = tuple(index for index, (_, _, yaw) in enumerate(DEBRIS_BOARDS)
+                      if abs(math.cos(yaw)) > 0.9)
+#: World x of the debris field's far end: the far edge of its last board across the way.
+DEBRIS_FIELD_END = max(DEBRIS_BOARDS[index][0] for index in BOARDS_ACROSS) + \
+    DEBRIS_BOARD_HALF[1]
+
+
+def board_pose(source, index: int) -> np.ndarray:
+    """Where debris board ``index`` lies now: world x, y offset from the field's lane, yaw
+    (as :data:`walkman.model.mjcf.DEBRIS_BOARDS` gives it)."""
+    d = _data(source)
+    x, y, _ = d.body(f"debris_board{index}").xpos
+    turn = d.body(f"debris_board{index}").xmat.reshape(3, 3)
+    return np.array([x, y - DEBRIS_FIELD_LANE, math.atan2(turn[1, 0], turn[0, 0])])
 
 
 def timed_walk(world, module, command: str) -> Leg:

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from walkman.control.footsteps import Ground, Timing, WalkPlan, compose, inverse
+from walkman.control.footsteps import Ground, Reach, Timing, WalkPlan, compose, inverse
 
 FEET = {"left": (0.0, 0.11, 0.0), "right": (0.0, -0.11, 0.0)}
 planar = st.tuples(st.floats(-3, 3), st.floats(-3, 3), st.floats(-math.pi, math.pi))
@@ -169,6 +169,29 @@ def test_a_step_the_legs_cannot_make_is_refused_whole_before_a_foot_lifts(forwar
     with pytest.raises(ValueError, match=re.escape(problem)):
         plan.step_to(forward, height, 0.0)
     assert not plan.walking and plan.feet == FEET and plan.end_time() == 0.0
+
+
+def test_a_long_level_step_over_a_board_reaches_further_and_swings_slowly():
+    """Over a board lying on the floor (:mod:`walkman.control.ground_ahead` steps over it):
+    onto ground level with the other foot's a foot lands up to ``Reach.level_ahead`` ahead of
+    it, swung as slowly as a climb, the second foot beside the first as slowly; a walk's
+    own strides swing at their pace.  Further, or onto higher ground that far, is refused."""
+    timing = Timing()
+    plan = WalkPlan(dict(FEET))
+    assert plan.place([(0.38, -0.11, 0.0, 0.0, 0.0), (0.38, 0.11, 0.0, 0.0, 0.0)], 0.0) == 2
+    assert [step.strides_over for step in plan.steps] == [True, True]
+    assert [step.land_at - step.lift_at for step in plan.steps] == \
+        pytest.approx([timing.swing + timing.climb] * 2)
+    walk = WalkPlan(dict(FEET))
+    walk.plan(1.0, 0.0, 0.0, 0.0)
+    assert not any(step.strides_over for step in walk.steps)
+    assert {round(step.land_at - step.lift_at, 6) for step in walk.steps} == {timing.swing}
+    for footstep, problem in (
+            ((Reach.level_ahead + 0.02, -0.11, 0.0, 0.0, 0.0),
+             f"0.42 m ahead of the other foot (at most {Reach.level_ahead:.2f})"),
+            ((0.38, -0.11, 0.0, 0.03, 0.0), "0.38 m ahead of the other foot (at most 0.36)")):
+        with pytest.raises(ValueError, match=re.escape(problem)):
+            WalkPlan(dict(FEET)).place([footstep], 0.0)
 
 
 def test_placed_footsteps_are_played_in_turn_from_the_side_of_the_first():

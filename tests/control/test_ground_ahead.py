@@ -13,8 +13,9 @@ import pytest
 from hypothesis import example, given, settings, strategies as st
 
 from walkman.control.ground_ahead import (CLUMP_POINTS, CROSS_REACH, FOOTPRINT_INSET,
-                                          HEEL_MARGIN, MAX_RISE, SOLE_HALF_LENGTH,
-                                          SOLE_HALF_WIDTH, STRAY_SHARE, STRIDE, TOE_MARGIN,
+                                          HEEL_MARGIN, MAX_RISE, OVER_MARGIN, OVER_REACH,
+                                          SOLE_HALF_LENGTH, SOLE_HALF_WIDTH, STEP_OVER,
+                                          STRAY_SHARE, TOE_MARGIN,
                                           GroundError, Pose, Surface,
                                           first_leg, footing_problem, footsteps_from_cloud,
                                           place, profile)
@@ -157,12 +158,14 @@ def test_the_pis_look_from_the_kerbs_top_places_the_steps_down_its_far_side():
 def test_the_pis_look_at_the_debris_lane_is_refused_naming_what_lies_in_the_way():
     """Station ``debris`` through the PI: a block of the lane lies across the walking line
     between the feet, 0.37 m ahead.  The strip's profile sees it as a 2-cm surface 3-4 cm up
-    with the floor on both sides -- not ground to stand on, not an edge to climb: refused as
-    something lying there, with its size and where."""
+    with the floor on both sides -- not ground to stand on, not an edge to climb: something
+    lying there, measured across both feet's lanes, too high for a swinging foot to clear:
+    refused with its size and where."""
     points, soles = pi_look("pi-look-at-debris.npz")
     for distance in (0.3, 1.0):
-        with pytest.raises(GroundError, match=r"^something [34] cm high and 2 cm long lies on "
-                                              r"the walking line 0\.37 m ahead.*\(debris\?\)"):
+        with pytest.raises(GroundError, match=r"^something [34] cm high and [23] cm long lies "
+                                              r"on the walking line 0\.3[78] m ahead.*"
+                                              r"\(debris\?\): a swinging foot clears 2\.5 cm"):
             footsteps_from_cloud(points, soles, distance)
 
 
@@ -181,6 +184,73 @@ def test_a_short_bump_or_dip_with_level_ground_beyond_is_named_not_called_a_surf
     short for a sole."""
     with pytest.raises(GroundError, match="^" + re.escape(what)):
         place(profile(cloud(ground), 0.0, -0.1, 2.2), SOLES, 1.0)
+
+
+def board(at: float, width: float, height: float = 0.02,
+          yaw: float = 0.0) -> Callable[[float, float], float]:
+    """A board lying across the way: its near edge ``at`` m ahead on the walking line,
+    ``width`` wide, turned ``yaw`` from square to the way (its edges run along
+    x = at + y tan(yaw))."""
+    def ground(x: float, y: float = 0.0) -> float:
+        near = at + y * math.tan(yaw)
+        return FLOOR + (height if near <= x < near + width / math.cos(yaw) else 0.0)
+    return ground
+
+
+def board_cloud(ground: Callable[[float, float], float]) -> np.ndarray:
+    """:func:`cloud`'s points over ground whose height varies across the way as well."""
+    points = cloud(lambda x: FLOOR)
+    points[:, 2] += [ground(x, y) - FLOOR if np.isfinite(x) else 0.0
+                     for x, y in points[:, :2]]
+    return points
+
+
+@settings(max_examples=30)
+@given(at=st.floats(0.45, 1.2), width=st.floats(0.03, 0.04), yaw=st.floats(-0.025, 0.025))
+@example(at=0.45, width=0.04, yaw=0.025)
+def test_a_board_lying_across_the_way_is_stepped_over_each_sole_clear_of_it(at, width, yaw):
+    """Issue 66, debris: a board 2 cm high lying across the way, 3-4 cm wide (narrower, the
+    strip's 2-cm bins take it for a bump, and the footing check refuses a sole on it),
+    nearly square to it (its edges 5 cm apart at most across both feet's lanes), the floor
+    before it seen (the camera sees from 0.2 m past the toes).  The feet come together
+    before it, then each steps over it in one step within a level step's reach, every
+    sole at least :data:`OVER_MARGIN` off the board in its own lane (less the cloud's 1-cm
+    spacing); the first leg goes on over it -- from its foot the body hides it -- and ends
+    with the feet together past it."""
+    ground = board(at, width, yaw=yaw)
+    steps = footsteps_from_cloud(board_cloud(ground), SOLES, 1.4)
+    feet = {"left": SOLES["left"][0], "right": SOLES["right"][0]}
+    crossings = 0
+    for x, y, *_ in steps:
+        side, other = ("left", "right") if y > 0 else ("right", "left")
+        lane = [y - SOLE_HALF_WIDTH, y + SOLE_HALF_WIDTH]
+        near = at + min(v * math.tan(yaw) for v in lane)
+        far = at + max(v * math.tan(yaw) for v in lane) + width / math.cos(yaw)
+        clear = OVER_MARGIN - 0.011
+        assert x + SOLE_HALF_LENGTH <= near - clear or x - SOLE_HALF_LENGTH >= far + clear, \
+            (x, near, far, steps)
+        if feet[side] < near <= x:
+            crossings += 1
+            assert x - feet[other] <= OVER_REACH + 1e-9, (x, feet, steps)
+        feet[side] = x
+    assert crossings == 2, steps
+    leg = first_leg(steps)
+    assert min(step[0] for step in leg[-2:]) - SOLE_HALF_LENGTH > at, leg
+    assert abs(leg[-1][0] - leg[-2][0]) < 0.006, leg
+
+
+@pytest.mark.parametrize("ground, why", [
+    (board(0.6, 0.04, height=STEP_OVER + 0.01),
+     r"\(debris\?\): a swinging foot clears 2\.5 cm"),
+    (board(0.6, 0.12), r"\(debris\?\): stepping over it reaches 0\.4\d m, a step at most "
+                       r"0\.39; clear it aside"),
+])
+def test_a_board_too_high_or_too_wide_to_step_over_is_refused_saying_why(ground, why):
+    """Higher than a swinging foot clears over the ground, or wider than a level step
+    reaches over: refused before a foot lifts, with what lies where and why."""
+    with pytest.raises(GroundError, match=r"^something \d cm high and \d+ cm long lies on the "
+                                          r"walking line 0\.\d\d m ahead.*" + why):
+        footsteps_from_cloud(board_cloud(ground), SOLES, 1.4)
 
 
 def test_a_patch_of_floor_seen_between_two_stretches_not_seen_is_no_dip():

@@ -20,13 +20,14 @@ import pytest
 from harness import wait_until
 from walkman.control.balance import SAFE_MARGIN
 from walkman.control.ground_ahead import GroundError, first_leg, footsteps_from_cloud
-from walkman.courses import (LOOKING_DOWN, LOWEST_PELVIS, MAX_TILT, both_feet_loaded,
-                             camera_cloud, camera_course, cloud_in_pelvis_frame, footsteps,
+from walkman.courses import (BOARDS_ACROSS, DEBRIS_FIELD_END, LOOKING_DOWN, LOWEST_PELVIS,
+                             MAX_TILT, board_pose, both_feet_loaded, camera_cloud,
+                             camera_course, cloud_in_pelvis_frame, footsteps,
                              free_body, ramp_course, ramp_down_course, ramp_footsteps,
                              seen_from_the_crouched_pelvis, sole_heights, soles_in_pelvis_frame,
                              upright, walk_through, walker)
-from walkman.model.mjcf import (DRILL_GRIP, PILOT_POSES, TERRAIN_RAMP, TERRAIN_STEP,
-                                plug_in_socket)
+from walkman.model.mjcf import (DEBRIS_BOARDS, DRILL_GRIP, PILOT_POSES, TERRAIN_RAMP,
+                                TERRAIN_STEP, plug_in_socket)
 from walkman.modules import drc_door, drc_plug, drc_wall, walking
 from yarp_lite.bottle import Bottle
 from yarp_lite.rpc import RpcClient
@@ -383,6 +384,33 @@ def test_the_terrain_course_by_footsteps_placed_from_the_head_camera_s_cloud(tmp
     assert min(heels) > end, (heels, plans)        # off the platform, on the floor beyond it
     assert min(margins) > 0.02, list(zip(margins, plans))   # the ZMP never near the edge
     assert not [w for w in module.warnings if "foothold" in w], module.warnings
+
+
+@pytest.mark.offline
+def test_the_debris_field_is_crossed_on_footsteps_placed_from_the_head_camera_s_cloud(tmp_path):
+    """Issue 66, the DRC's debris course: light boards (2 cm thick, 4 cm wide, 0.25 kg) lie
+    scattered on the floor of station ``debris_field``, three across the way, two beside
+    it.  Looking down, the robot places footsteps from the head camera's cloud
+    (:mod:`walkman.control.ground_ahead`): up to a board, over it one foot then the other,
+    look again.  The outcome is read from the world: the soles and the pelvis past the
+    field, upright all the way (:func:`walkman.courses.walk_through`) and standing at the
+    end, and the boards across the way where they lay -- stepped over, not kicked."""
+    world, module = walker("debris_field")
+    backend = world.backend
+    lying = {index: board_pose(backend, index) for index in range(len(DEBRIS_BOARDS))}
+    legs, plans = camera_course(world, module, DEBRIS_FIELD_END + 0.40, tmp_path)
+    world.step(1.0)
+    assert upright(backend) and both_feet_loaded(backend), plans
+    assert sole_heights(backend) == pytest.approx((0.0, 0.0), abs=0.005), plans
+    heels = [float(backend.plant.d.body(f"{side}_foot").xpos[0]) + 0.03 - 0.13 for side in "lr"]
+    assert min(heels) > DEBRIS_FIELD_END, (heels, plans)
+    assert backend.plant.base_pose()[0] > DEBRIS_FIELD_END, plans
+    assert len(plans) == len(BOARDS_ACROSS) + 1, plans      # a look per board, one to the goal
+    for index in BOARDS_ACROSS:
+        moved = board_pose(backend, index) - lying[index]
+        assert np.abs(moved[:2]).max() < 0.01 and abs(moved[2]) < 0.05, (index, moved)
+    assert min(margin for _, margin, _ in legs) > 0.02, list(zip(legs, plans))
+    assert not [w for w in module.warnings if "balance" in w], module.warnings
 
 
 def looked_down_at(station: str, folder):

@@ -27,7 +27,11 @@ them from what the camera sees.  Pure: points in, footsteps or a refusal out.
    edge the feet come together as close to it as the toes may go, then cross one by
    one, the second landing beside the first (as walking's ``step_up``: a long swing
    onto higher ground left the ZMP 3.5 mm inside the feet), rising or dropping at most
-   :data:`MAX_RISE` (walking's reach).  Heights are
+   :data:`MAX_RISE` (walking's reach).  A surface shorter than a sole, raised off ground
+   that goes on level beyond it, is a thing lying there (a board): measured from the
+   points across both feet's lanes (:func:`_measured_things`), it is stepped over
+   (:func:`_over`), the toes and the heel :data:`OVER_MARGIN` off it, if a swinging foot
+   clears it and a level step reaches over it.  Heights are
    taken relative to the surface under the feet, so a camera's height error cancels.
    The camera does not see under the toes: the first surface seen is taken to go on
    back under the feet if it begins within :data:`MAX_UNSEEN` of the toes and lies
@@ -119,6 +123,14 @@ OWN_BODY_REACH = 0.25
 OBSTACLE_TOP = 0.6
 #: m: how far beyond the goal the ground is looked at (the last steps need their footing)
 BEYOND = 1.0
+#: m: the tallest thing lying on the ground a foot steps over (its swing clears
+#: ``Timing.lift`` over the ground), and how far a sole stays off its ends
+STEP_OVER = Timing.lift - 0.015
+OVER_MARGIN = 0.04
+OVER_REACH = Reach.level_ahead - 0.01
+#: m: the most floor a thing lying there hides beyond it from the camera (a 2.5-cm board
+#: seen from 2 m ahead of a camera 1.5 m up hides 3.3 cm); the floor goes on under it
+MAX_SHADOW = 0.05
 #: m: two soles this close along the line stand together
 TOGETHER = 0.006
 #: m: a footstep this much lower than the last is a step down a drop (a ramp's strides
@@ -403,23 +415,89 @@ def _across(surfaces: Sequence[Surface], stand: _Foot, here: float) -> Tuple[flo
         raise GroundError(f"the ground past the edge {edge - here:.2f} m ahead begins "
                           f"{landing.start - edge:.2f} m beyond it: a step reaches "
                           f"{CROSS_REACH:.2f} m")
+    height = _lying_thing(surfaces, after)
+    if height is not None:
+        return _over(surfaces, stand, after, height, here)
     if x > landing.end - SOLE_HALF_LENGTH - TOE_MARGIN:
         length = landing.end - landing.start
-        middle = (landing.start + landing.end) / 2
-        rise = landing.z(middle) - standing.z(middle)       # over the feet's ground, continued
-        beyond = surfaces[after + 1] if after + 1 < len(surfaces) else None
-        if length < 2 * SOLE_HALF_LENGTH and abs(rise) > JUMP and beyond is not None and \
-                abs(beyond.z(beyond.start) - standing.z(beyond.start)) <= JUMP:
-            # shorter than a sole, the feet's ground going on beyond it: a thing lying there
-            what, guess = (f"something {rise * 100:.0f} cm high", "debris?") if rise > 0 \
-                else (f"a dip {-rise * 100:.0f} cm deep", "a groove?")
-            raise GroundError(f"{what} and {length * 100:.0f} cm long lies on the walking "
-                              f"line {landing.start - here:.2f} m ahead, the ground beyond it "
-                              f"level with the feet's ({guess}): footsteps from the camera do "
-                              f"not step over it; place the footsteps by hand")
         raise GroundError(f"the surface {landing.start - here:.2f} m ahead is {length:.2f} m "
                           f"long: too short for a sole and its margins")
     return x, after
+
+
+def _lying_thing(surfaces: Sequence[Surface], index: int) -> Optional[float]:
+    """How high the thing ``surfaces[index]`` is, if it is one lying on the ground: shorter
+    than a sole, raised (or sunk: a groove) off the ground before it by more than
+    :data:`JUMP`, that ground going on level beyond it; None if it is not such a thing."""
+    if not 0 < index < len(surfaces) - 1:
+        return None
+    thing, before, beyond = surfaces[index - 1:index + 2][1], surfaces[index - 1], \
+        surfaces[index + 1]
+    middle = (thing.start + thing.end) / 2
+    height = thing.z(middle) - before.z(middle)
+    if thing.end - thing.start < 2 * SOLE_HALF_LENGTH and abs(height) > JUMP and \
+            abs(beyond.z(beyond.start) - before.z(beyond.start)) <= JUMP:
+        return height
+    return None
+
+
+def _over(surfaces: Sequence[Surface], stand: _Foot, index: int, height: float,
+          here: float) -> Tuple[float, int]:
+    """Where the moving foot lands stepping over the thing ``surfaces[index]`` lying on the
+    ground (a board, :func:`_lying_thing`), the standing foot's toes before it: its heel past
+    the thing's far end by :data:`OVER_MARGIN` (:func:`_measured_things` measured both ends
+    over both feet's lanes) on the ground beyond, within a step's reach; what it will not
+    step over is refused, saying why."""
+    thing, beyond = surfaces[index], surfaces[index + 1]
+    length = thing.end - thing.start
+    size = f"something {height * 100:.0f} cm high" if height > 0 else \
+        f"a dip {-height * 100:.0f} cm deep"
+    what = (f"{size} and {length * 100:.0f} cm long lies on the walking line "
+            f"{thing.start - here:.2f} m ahead, the ground beyond it level with the feet's")
+    if height < 0:
+        raise GroundError(f"{what} (a groove?): footsteps from the camera do not step over a "
+                          f"dip; place the footsteps by hand")
+    if height > STEP_OVER:
+        raise GroundError(f"{what} (debris?): a swinging foot clears "
+                          f"{STEP_OVER * 100:.1f} cm; place the footsteps by hand")
+    x = max(beyond.start, thing.end + OVER_MARGIN) + SOLE_HALF_LENGTH
+    if x - stand.x > OVER_REACH:
+        raise GroundError(f"{what} (debris?): stepping over it reaches "
+                          f"{x - stand.x:.2f} m, a step at most {OVER_REACH:.2f}; clear it "
+                          f"aside or place the footsteps by hand")
+    if x > beyond.end - SOLE_HALF_LENGTH - TOE_MARGIN:
+        raise GroundError(f"{what} (debris?): the ground seen past it, "
+                          f"{beyond.end - beyond.start:.2f} m, is too short for a sole")
+    return x, index + 1
+
+
+def _measured_things(surfaces: List[Surface], points: np.ndarray, line_y: float,
+                     half_width: float, clearance: float) -> List[Surface]:
+    """``surfaces`` with each thing lying on the ground (:func:`_lying_thing`) measured
+    from the points themselves, not the strip's bins: from the nearest to the furthest
+    point raised off the ground before it by more than ``clearance``, across the lanes
+    ``half_width`` either side of the walking line (a board lying aslant reaches further
+    in a foot's lane than between the feet).  The ground before it then ends
+    :data:`OVER_MARGIN` short of it, the ground beyond begins as far past it, so a toe
+    stopping before it and a heel landing past it miss it by that much."""
+    out = list(surfaces)
+    for index in range(1, len(out) - 1):
+        if _lying_thing(out, index) is None or _lying_thing(out, index) < 0:
+            continue
+        before, thing, beyond = out[index - 1], out[index], out[index + 1]
+        near = points[(np.abs(points[:, 1] - line_y) <= half_width) &
+                      (points[:, 0] > before.end - 2 * BIN) &
+                      (points[:, 0] < beyond.start + 2 * BIN)]
+        raised = near[near[:, 2] - np.array([before.z(x) for x in near[:, 0]]) > clearance]
+        if len(raised) < MIN_POINTS:
+            continue
+        start, end = float(raised[:, 0].min()), float(raised[:, 0].max())
+        out[index - 1] = replace(before, end=min(before.end, start - OVER_MARGIN))
+        out[index] = replace(thing, start=start, end=end, z0=thing.z(start))
+        # the ground the thing hides from the camera, beyond it, is the ground going on
+        after = end + OVER_MARGIN if beyond.start - end <= MAX_SHADOW else beyond.start
+        out[index + 1] = replace(beyond, start=after, z0=beyond.z(after))
+    return out
 
 
 def footsteps_from_cloud(points: np.ndarray, soles: Dict[str, Pose],
@@ -442,8 +520,10 @@ def footsteps_from_cloud(points: np.ndarray, soles: Dict[str, Pose],
     near = points[np.abs(above) <= BAND]
     x_from = min(pose[0] for pose in soles.values()) - SOLE_HALF_LENGTH
     x_to = max(pose[0] for pose in soles.values()) + distance + BEYOND
-    steps, offset = _place(profile(near, line, x_from, x_to), soles, distance)
     clearance = max(CLEARANCE, NOISE_SIGMAS * camera_noise(near, line, x_from, x_to))
+    lanes = max(abs(pose[1] - line) for pose in soles.values()) + SOLE_HALF_WIDTH
+    surfaces = _measured_things(profile(near, line, x_from, x_to), near, line, lanes, clearance)
+    steps, offset = _place(surfaces, soles, distance)
     here = min(pose[0] for pose in soles.values())
     for number, step in enumerate(steps, 1):
         problem = footing_problem(judged, step, offset, clearance)
@@ -556,7 +636,8 @@ def first_leg(steps: Sequence[Pose]) -> List[Pose]:
     the footsteps down were refused), so the leg goes on over a drop, the second foot
     beside the first, placed by the look that found it.  So it does over a bend (a ramp's
     foot or top): from the bend the camera sees only the slope beyond, not where it
-    begins."""
+    begins; and over a thing lying on the ground (a board, :func:`_over`): from its foot
+    the body hides it."""
     for end in range(2, len(steps) + 1):
         if abs(steps[end - 1][0] - steps[end - 2][0]) >= TOGETHER:
             continue
@@ -565,6 +646,9 @@ def first_leg(steps: Sequence[Pose]) -> List[Pose]:
         if end < len(steps) and abs(steps[end][4] - steps[end - 1][4]) > MAX_BEND_PITCH and \
                 _along_the_slope(steps[end - 1], steps[end]):
             continue                                  # together at a bend: on over it
+        if end < len(steps) and abs(steps[end][2] - steps[end - 1][2]) <= JUMP and \
+                steps[end][0] - steps[end - 1][0] > STRIDE + TOGETHER:
+            continue                   # together before a thing lying there: on over it
         return list(steps[:end])
     return list(steps)
 

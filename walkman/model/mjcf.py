@@ -31,7 +31,9 @@ The scene (``drc=True``) adds what the DRC modules act on, all articulated:
 
 * the rough-ground course (station ``terrain``): a 5-cm step across the way,
   a 10-degree ramp up to a level landing in the lane to the right (station
-  ``ramp`` stands before it), debris blocks in the lane to the left.
+  ``ramp`` stands before it), debris blocks in the lane to the left;
+* the debris field (station ``debris_field``): light boards, free bodies, lying
+  scattered on the floor in a lane of their own, asleep until a foot touches one.
 
 Stations (:data:`STATIONS`) are where the robot starts: in front of the
 valve, seated in the car, before the door, at the plug's table and the
@@ -86,6 +88,16 @@ TERRAIN_RAMP = (-1.2, -5.6, 0.6, 0.1745)
 TERRAIN_COURSE = ("go_straight 0.12", "step_up 0.05", "go_straight 0.48", "step_down 0.05")
 TERRAIN_DEBRIS = ((-5.55, 1.15, 0.3, 0.05, 0.03, 0.02), (-5.30, 1.30, -0.6, 0.08, 0.02, 0.015),
                   (-5.05, 1.05, 1.1, 0.04, 0.04, 0.03), (-4.80, 1.25, 0.2, 0.10, 0.015, 0.01))
+#: The debris field (issue 66): light boards scattered on the floor in a lane of their own
+#: (world y), as the DRC's debris course had them -- laths 4 cm wide, 2 cm thick and 60 cm
+#: long (pine, 0.25 kg), free to be kicked aside; three lie across the way, nearly square to
+#: it, two beside it.  Each: world x, y offset from the lane, yaw (0: square across the
+#: way), half sizes along the board (its length), across it, and up.
+DEBRIS_FIELD_LANE = 2.4
+DEBRIS_BOARDS = ((-5.50, 0.00, 0.03), (-4.85, 0.03, -0.02), (-4.20, -0.02, 0.04),
+                 (-5.20, 0.42, 1.45), (-4.50, -0.45, 1.62))
+DEBRIS_BOARD_HALF = (0.30, 0.02, 0.01)
+DEBRIS_BOARD_DENSITY = 520.0     # kg/m3: pine
 #: Where the robot can start: station -> (x, y, yaw) of the pelvis in the world, standing on
 #: the floor -- or on ground as high as :data:`STATION_GROUND` says (``ramp_top``: on the
 #: ramp's landing, facing down the ramp, the toes 10 cm from the landing's edge).  ``debris``
@@ -96,6 +108,7 @@ STATIONS = {"valve": (0.0, 0.0, 0.0), "car": (0.0, -2.5, 0.0), "door": (0.34, 2.
             "wall": (0.0, -7.5, 0.0), "terrain": (-6.0, 0.0, 0.0),
             "ramp": (-6.0, -1.2, 0.0),
             "debris": (-6.0, 1.2, 0.0), "kerb_side": (-6.0, 0.42, 0.0),
+            "debris_field": (-6.0, DEBRIS_FIELD_LANE, 0.0),
             "ramp_top": (TERRAIN_RAMP[1] + TERRAIN_RAMP[2] * math.cos(TERRAIN_RAMP[3]) + 0.26,
                          TERRAIN_RAMP[0], math.pi)}
 #: The height (m) of the ground a station stands on, where it is not the floor.
@@ -213,7 +226,7 @@ def scene_bodies() -> List[str]:
     return """    <!-- valve: a hand wheel on a wall in front of the robot -->
     <body name="valve_wall" pos="0.78 0 1.0">
       <geom name="valve_wall" type="box" size="0.05 0.8 1.0" rgba="0.8 0.8 0.75 1"/>
-      <body name="valve_wheel" pos="-0.12 0.25 0.2">
+      <body name="valve_wheel" pos="-0.12 0.25 0.2" sleep="never">
         <joint name="valve" type="hinge" axis="1 0 0" damping="0.5" frictionloss="0.5"/>
         <geom name="valve_rim" type="cylinder" size="0.15 0.012" euler="0 1.5708 0" rgba="0.8 0.1 0.1 1"/>
         <geom name="valve_hub" type="cylinder" size="0.025 0.06" euler="0 1.5708 0" pos="0.06 0 0" rgba="0.3 0.3 0.3 1"/>
@@ -229,13 +242,13 @@ def scene_bodies() -> List[str]:
       <geom name="car_dash" type="box" size="0.05 0.4 0.3" pos="0.9 0 0.8" rgba="0.3 0.3 0.35 1"/>
       <body name="steering_column" pos="0.55 0.1 0.80" euler="0 -1.0472 0">
         <geom name="steering_shaft" type="cylinder" size="0.02 0.15" pos="0 0 -0.15" rgba="0.2 0.2 0.2 1"/>
-        <body name="steering_wheel">
+        <body name="steering_wheel" sleep="never">
           <joint name="steering" type="hinge" axis="0 0 1" range="-6.28 6.28" damping="0.8" frictionloss="1.5"/>
           <geom name="steering_rim" type="cylinder" size="0.18 0.015" rgba="0.1 0.1 0.1 1"/>
           <site name="steering_grip" pos="0 0.18 0" size="0.015" rgba="1 1 0 0.6"/>
         </body>
       </body>
-      <body name="throttle_pedal" pos="0.60 -0.11 0.08">
+      <body name="throttle_pedal" pos="0.60 -0.11 0.08" sleep="never">
         <joint name="throttle" type="hinge" axis="0 1 0" range="0 0.35" stiffness="60" springref="0" damping="2"/>
         <geom name="throttle_pad" type="box" size="0.09 0.06 0.008" pos="0.09 0 0" euler="0 -0.349 0" rgba="0.1 0.1 0.1 1"/>
       </body>
@@ -244,7 +257,7 @@ def scene_bodies() -> List[str]:
     <body name="door_frame" pos="0.9 2.5 1.1">
       <geom name="door_post_a" type="box" size="0.05 0.05 1.1" pos="0 -0.4 0" rgba="0.6 0.5 0.4 1"/>
       <geom name="door_post_b" type="box" size="0.05 0.05 1.1" pos="0 0.4 0" rgba="0.6 0.5 0.4 1"/>
-      <body name="door" pos="0 0.36 0">
+      <body name="door" pos="0 0.36 0" sleep="never">
         <joint name="door" type="hinge" axis="0 0 1" range="-0.02 1.7" damping="3" frictionloss="1"/>
         <geom name="door_panel" type="box" size="0.02 0.35 1.0" pos="0 -0.35 0" rgba="0.7 0.55 0.35 1"/>
         <body name="door_handle" pos="-0.06 -0.6 0.05">
@@ -253,7 +266,8 @@ def scene_bodies() -> List[str]:
           <site name="door_handle_grip" pos="0 0.09 0" size="0.015" rgba="1 1 0 0.6"/>
         </body>
       </body>
-    </body>""".splitlines() + plug_bodies() + wall_bodies() + terrain_bodies()
+    </body>""".splitlines() + plug_bodies() + wall_bodies() + terrain_bodies() + \
+        debris_field_bodies()
 
 
 #: The plug's body: a 5x5x8 cm block (half sizes) with a handle bar along y on a post.
@@ -297,7 +311,7 @@ def plug_bodies() -> List[str]:
                        f'rgba="0.2 0.2 0.25 1"/>')
         out.append("    </body>")
     hx, hy, hz = PLUG_HALF
-    out += [f'    <body name="plug" pos="{xa:g} {ya:g} {top + hz + 0.001:g}">',
+    out += [f'    <body name="plug" pos="{xa:g} {ya:g} {top + hz + 0.001:g}" sleep="never">',
             '      <freejoint name="plug"/>',
             # Props do not touch each other (contype 2, conaffinity 1); the plug must touch
             # the table and the sockets as well as the robot.
@@ -351,7 +365,8 @@ def wall_bodies() -> List[str]:
         f'      <site name="wall_circle" pos="{-half_thick:g} {cy - (cy + 0.1):g} {cz - 0.8:g}" '
         f'size="0.01" rgba="1 0 0 0.6"/>',
         "    </body>",
-        f'    <body name="drill" pos="{gx:g} {gy:g} {top + DRILL_FOOT + 0.001:g}">',
+        f'    <body name="drill" pos="{gx:g} {gy:g} {top + DRILL_FOOT + 0.001:g}" '
+        f'sleep="never">',
         '      <freejoint name="drill"/>',
         # The drill touches the table and the robot (contype 3); its bit touches nothing:
         # the drywall's cut is judged from the bit's path (walkman/hal/drywall.py).
@@ -395,11 +410,28 @@ def terrain_bodies() -> List[str]:
     return out
 
 
+def debris_field_bodies() -> List[str]:
+    """The debris field's boards: free bodies lying on the floor (:data:`DEBRIS_BOARDS`)."""
+    length, width, thick = DEBRIS_BOARD_HALF
+    out = ["    <!-- the debris field: light boards scattered on the floor -->"]
+    for index, (x, dy, yaw) in enumerate(DEBRIS_BOARDS):
+        # a board's length runs across the way at yaw 0: its box's y half size
+        out += [f'    <body name="debris_board{index}" pos="{x:g} {DEBRIS_FIELD_LANE + dy:g} '
+                f'{thick:g}" euler="0 0 {yaw:g}" sleep="init">',
+                f'      <freejoint name="debris_board{index}"/>',
+                f'      <geom name="debris_board{index}" type="box" size="{width:g} {length:g} '
+                f'{thick:g}" density="{DEBRIS_BOARD_DENSITY:g}" friction="0.6" contype="3" '
+                f'conaffinity="3"\n        rgba="0.76 0.6 0.42 1"/>',
+                "    </body>"]
+    return out
+
+
 def harness_body(robot: Robot) -> List[str]:
     """The trolley the pelvis hangs from (see the module docstring)."""
     weight = robot.total_mass * 9.81
     springref = HARNESS_SHARE * weight / HARNESS_STIFFNESS
-    return [f'    <body name="harness_trolley" pos="0 0 {STANDING_PELVIS_HEIGHT:g}">',
+    return [f'    <body name="harness_trolley" pos="0 0 {STANDING_PELVIS_HEIGHT:g}" '
+            f'sleep="never">',
             '      <joint name="harness_x" type="slide" axis="1 0 0" damping="150"/>',
             '      <joint name="harness_y" type="slide" axis="0 1 0" damping="150"/>',
             f'      <joint name="harness_z" type="slide" axis="0 0 1" range="-0.15 0.05" '
@@ -446,11 +478,19 @@ def mjcf_joint_order(robot: Robot) -> List[str]:
     return order
 
 
+SLEEP_FLAG = '<flag sleep="enable"/>'
+
+
 def to_mjcf(robot: Robot, drc: bool = True, timestep: float = 0.001) -> str:
     lines = ["<!-- Generated by walkman.model.mjcf from walkman.model.description; do not edit. -->",
              f'<mujoco model="{robot.name}{"_drc" if drc else ""}">',
              '  <compiler angle="radian" autolimits="true"/>',
-             f'  <option timestep="{timestep:g}" integrator="implicitfast"/>',
+             # MuJoCo's sleeping: a tree at rest is left out of the step until something
+             # touches it.  Only the debris field's boards may sleep (they lie still until a
+             # foot kicks one: asleep, five boards on the floor cost nothing, awake 50 us a
+             # step); every other part of the scene is marked never to.
+             f'  <option timestep="{timestep:g}" integrator="implicitfast">'
+             f'{SLEEP_FLAG if drc else ""}</option>',
              '  <visual><global offwidth="640" offheight="480"/></visual>',
              # The robot does not collide with itself (contype 1 / conaffinity 2); the
              # floor and the props (contype 2 / conaffinity 1) collide with the robot.
