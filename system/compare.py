@@ -25,6 +25,7 @@ the module runs on the robot: :mod:`bridge.gym.presence`).
 from __future__ import annotations
 
 import argparse
+import difflib
 import json
 import math
 import re
@@ -187,6 +188,43 @@ def command_latencies(record: SessionRecord) -> List[CommandLatency]:
         else:
             out.append(CommandLatency(name, answered - sent["stamp"]))
     return out
+
+
+LatencyRow = Tuple[str, Optional[CommandLatency], Optional[CommandLatency]]
+
+
+def paired_latencies(lab: List[CommandLatency], drc: List[CommandLatency]) -> List[LatencyRow]:
+    """The two runs' commands side by side: the n-th sending of a command (its words,
+    without the run's own sequence number) beside the n-th sending of the same words in the
+    other run, in the order they were sent; a command only one run sent has its row, the
+    other side None.  Zipping the lists in order paired fc140's commands one row off when
+    the lab's recorder missed the first."""
+    def keys(latencies: List[CommandLatency]) -> List[Tuple[str, int]]:
+        seen: Dict[str, int] = {}
+        out = []
+        for latency in latencies:
+            words = command_words(latency.name)
+            seen[words] = seen.get(words, 0) + 1
+            out.append((words, seen[words]))
+        return out
+
+    lab_keys, drc_keys = keys(lab), keys(drc)
+    rows: List[LatencyRow] = []
+    matcher = difflib.SequenceMatcher(a=lab_keys, b=drc_keys, autojunk=False)
+    for tag, i1, i2, j1, j2 in matcher.get_opcodes():
+        if tag == "equal":
+            rows += [(lab_keys[i][0], lab[i], drc[j]) for i, j in zip(range(i1, i2),
+                                                                      range(j1, j2))]
+        else:
+            rows += [(lab_keys[i][0], lab[i], None) for i in range(i1, i2)]
+            rows += [(drc_keys[j][0], None, drc[j]) for j in range(j1, j2)]
+    return rows
+
+
+def command_words(name: str) -> str:
+    """A command's module and words without the sequence number the gateway gave it."""
+    head, _, last = name.rpartition(" ")
+    return head if head and last.isdigit() else name
 
 
 def valid_points(record: SessionRecord) -> List[Tuple[float, float]]:
@@ -405,9 +443,11 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
     lines += ["", "## Command latency (sent by the gateway -> the module's receipt for it: "
                   "accepted or refused)", "",
               "| command | lab (ms) | drc (ms) |", "|---|---|---|"]
-    lab_lat, drc_lat = command_latencies(lab_record), command_latencies(drc_record)
-    for a, b in zip(lab_lat, drc_lat):
-        lines.append(f"| {a.name} | {a.shown()} | {b.shown()} |")
+    latency_rows = paired_latencies(command_latencies(lab_record),
+                                    command_latencies(drc_record))
+    for words, a, b in latency_rows:
+        lines.append(f"| {words} | {a.shown() if a else 'not sent'} | "
+                     f"{b.shown() if b else 'not sent'} |")
     bandwidth = bandwidth_by_id(drc_record)
     if bandwidth:
         means = mean_bandwidth(drc_record)
@@ -437,8 +477,9 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
          "observed_drc": drc}, default=str))
     summary = [f"verdict: {'no observable difference' if not problems else 'DIFFERENT'}"]
     summary += [f"  - {p}" for p in problems]
-    lab_figures = [c.seconds for c in lab_lat if c.seconds is not None]
-    drc_figures = [c.seconds for c in drc_lat if c.seconds is not None]
+    # the medians of the figures the table shows, nothing else
+    lab_figures = [a.seconds for _, a, _ in latency_rows if a and a.seconds is not None]
+    drc_figures = [b.seconds for _, _, b in latency_rows if b and b.seconds is not None]
     if lab_figures and drc_figures:
         summary.append(f"command -> receipt latency, median: lab "
                        f"{statistics.median(lab_figures) * 1000:.0f} ms, drc "

@@ -194,6 +194,9 @@ def _parse_bridge_status(line: str) -> Optional[dict]:
 
 # -- the recorder (runs on the pilot PC) ----------------------------------------------------
 
+#: s the recorder waits for the gateway's command topics before it says it is recording
+RECORDER_CONNECT_S = 30.0
+
 
 def record_main() -> int:
     import numpy as np
@@ -222,12 +225,12 @@ def record_main() -> int:
             f"/{mod}/warning", seq=m.seq, text=m.text))
     rospy.Subscriber("/gaze_control/countdown", Countdown, lambda m: emit(
         "/gaze_control/countdown", command=m.command, state=m.state, remaining=m.remaining))
-    rospy.Subscriber("/pilot/sent_commands", SentCommand, lambda m: emit(
+    commands = [rospy.Subscriber("/pilot/sent_commands", SentCommand, lambda m: emit(
         "/pilot/sent_commands", module=m.module, port=m.port, text=m.text, seq=m.seq,
-        stamp=m.header.stamp.to_sec()))
-    rospy.Subscriber("/pilot/command_states", CommandState, lambda m: emit(
-        "/pilot/command_states", module=m.module, port=m.port, seq=m.seq, state=m.state,
-        stamp=m.header.stamp.to_sec()), queue_size=50)
+        stamp=m.header.stamp.to_sec())),
+        rospy.Subscriber("/pilot/command_states", CommandState, lambda m: emit(
+            "/pilot/command_states", module=m.module, port=m.port, seq=m.seq, state=m.state,
+            stamp=m.header.stamp.to_sec()), queue_size=50)]
 
     def on_joints(msg: Any) -> None:
         names = list(msg.name)
@@ -245,6 +248,16 @@ def record_main() -> int:
         "/multisense/left/image_color", stamp=m.header.stamp.to_sec()), queue_size=5)
     rospy.Subscriber("/tf", TFMessage, lambda m: emit("/tf", frames=len(m.transforms)),
                      queue_size=50)
+    # The session's first command must not go out before the recorder hears the gateway:
+    # a ROS subscription connects after it is made (fc140's lab run missed its first
+    # command, and the report paired the rest with the drc run's one row off).
+    deadline = time.monotonic() + RECORDER_CONNECT_S
+    while any(sub.get_num_connections() == 0 for sub in commands):
+        if time.monotonic() > deadline:
+            print(f"the gateway's command topics have no publisher after "
+                  f"{RECORDER_CONNECT_S:g} s: is the gateway running?", file=sys.stderr)
+            return 1
+        time.sleep(0.05)
     print("recording", flush=True)
     try:
         while not rospy.is_shutdown():

@@ -135,6 +135,27 @@ def test_command_latency_is_timed_to_the_receipt_of_that_very_command():
     assert [c.shown() for c in compare.command_latencies(record)] == ["12", "no receipt"]
 
 
+def test_the_two_runs_commands_are_paired_by_their_words_not_their_order():
+    """fc140: the lab's recorder missed the session's first command, and zipping the two
+    runs in order put every drc figure beside the lab's next command.  Paired by the
+    command's words (the gateway's sequence number is each run's own) and how many times it
+    was sent before, a command one run lacks gets a row of its own."""
+    L = compare.CommandLatency
+    lab = [L("temperature start 860004433", 0.002), L("gaze_control pause 860126625", 0.004),
+           L("gaze_control (look_at 0.66 0.25 0.08) 860077057", 0.010),
+           L("gaze_control (look_at 0.66 0.25 0.08) 860420097", 0.010)]
+    drc = [L("gaze_control start 860884449", 0.149), L("temperature start 860948657", 0.111),
+           L("gaze_control pause 861074065", 0.115),
+           L("gaze_control (look_at 0.66 0.25 0.08) 861015601", 0.122),
+           L("gaze_control (look_at 0.66 0.25 0.08) 861384769", 0.112)]
+    rows = compare.paired_latencies(lab, drc)
+    assert [(words, a and a.seconds, b and b.seconds) for words, a, b in rows] == [
+        ("gaze_control start", None, 0.149), ("temperature start", 0.002, 0.111),
+        ("gaze_control pause", 0.004, 0.115),
+        ("gaze_control (look_at 0.66 0.25 0.08)", 0.010, 0.122),
+        ("gaze_control (look_at 0.66 0.25 0.08)", 0.010, 0.112)]
+
+
 def test_a_receipt_stamped_before_its_command_gives_no_figure():
     record = session("drc")
     record.records = [
