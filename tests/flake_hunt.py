@@ -120,7 +120,7 @@ KNOWN: Tuple[Known, ...] = (
           "burners (fc27 of the second 2026-11-28 session): a port took 512 silent connections, "
           "each waiting out its handshake, and a real client queued behind the rest in the "
           "listen backlog; a port now keeps at most 64 connections that have not introduced "
-          "themselves, closing the oldest for the newest (yarp_lite.port.MAX_INTRODUCING); 3 "
+          "themselves, closing the oldest for the newest (yarp_lite.port_inputs.MAX_INTRODUCING); 3 "
           "of 3 beside four burners since"),
     Known("tests/integration/test_text_and_cli.py::test_cli_conf_namespace_where_clean",
           "`yarp-lite clean` got 'connection refused' from the test's name server right after "

@@ -6,7 +6,8 @@ Public surface::
 
 Layers, bottom up: :mod:`bottle`/:mod:`bottle_text`/:mod:`framing` (pure
 codecs), :mod:`carriers` (tcp, fast_tcp, udp, text, text_ack, name_ser),
-:mod:`connection`/:mod:`stream` (sockets), :mod:`port` (ports),
+:mod:`connection`/:mod:`stream` (sockets), :mod:`port` (ports: their inputs,
+delivery, outputs and registration in modules of their own),
 :mod:`nameclient`/:mod:`network` (the network), :mod:`nameserver` (the
 server) and :mod:`cli` (the ``yarp-lite`` tool).
 """

@@ -113,6 +113,7 @@ class YarpSource:
             time.monotonic() - self._opened > READER_GRACE
 
     def deliver(self, bottle: Bottle) -> bool:
+        self.port.drop_closed_outputs()     # a reader gone is no reader (ready asks)
         if not self.ready:
             return False
         return self.port.write(bottle) and self.port.is_open

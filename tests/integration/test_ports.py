@@ -323,7 +323,7 @@ def test_persistent_connection_before_ports_exist_and_after_restart(lite_world, 
 
 
 def test_subscriptions_and_registrations_survive_a_server_restart(lite_world, ports):
-    from yarp_lite.port import RegistrationKeeper
+    from yarp_lite.registration import RegistrationKeeper
 
     received = []
     ports(Port, "/s/in", reader=received.append)
@@ -345,7 +345,7 @@ def test_subscriptions_and_registrations_survive_a_server_restart(lite_world, po
 
 def test_noticing_a_restart_costs_one_query_per_name_server_not_a_list_per_port(
         lite_world, ports, monkeypatch):
-    from yarp_lite.port import RegistrationKeeper
+    from yarp_lite.registration import RegistrationKeeper
 
     for index in range(6):
         ports(Port, f"/keep/p{index}", reader=lambda bottle: None)
@@ -548,3 +548,87 @@ def test_what_is_written_while_a_reader_is_handed_the_backlog_comes_after_it(lit
                message=f"got {len(received)}")
     time.sleep(0.1)
     assert received == list(range(60))     # each once, in the order written
+
+
+# -- the port's parts: registration, delivery, outputs (issue 67) -------------------------
+
+
+def test_a_registration_keeper_given_to_ports_keeps_them_and_its_thread_ends_with_the_last(
+        lite_world, ports):
+    """Whoever opens ports may give them a keeper of its own; its thread runs while it
+    keeps a port, ends soon after the last one closes, and starts again with the next."""
+    from yarp_lite.registration import RegistrationKeeper
+
+    keeper = RegistrationKeeper()
+    first = ports(Port, "/keeper/a", keeper=keeper)
+    second = ports(Port, "/keeper/b", keeper=keeper)
+    thread = keeper._thread
+    assert thread is not None and thread.is_alive()
+    lite_world.stop_server()
+    lite_world.start_server()
+    keeper.check_now()
+    wait_until(lambda: NameClient().query("/keeper/b") is not None, timeout=10,
+               message="the keeper registered its ports again")
+    first.close()
+    assert thread.is_alive()                 # one port left to keep
+    second.close()
+    thread.join(timeout=5.0)
+    assert not thread.is_alive()
+    ports(Port, "/keeper/c", keeper=keeper)
+    assert keeper._thread is not None and keeper._thread.is_alive()
+
+
+def test_a_delivery_of_the_owners_own_gets_every_message_with_its_source(lite_world, ports):
+    """A port's delivery strategy (yarp_lite.delivery) replaces the callback and the
+    blocking read: it hears each data message with where it came from, and its reply goes
+    back to a sender that asked for one."""
+
+    class Recorder:
+        latest_only = False
+
+        def __init__(self) -> None:
+            self.envelope = ""
+            self.seen = []
+
+        def deliver(self, message, source):
+            self.seen.append((message.bottle().to_text(), source.route.source,
+                              source.remote_host))
+            return Bottle(["got", len(self.seen)])
+
+        def superseded(self, message) -> None:
+            raise AssertionError("a delivery that is not latest-only skips nothing")
+
+        def pace(self) -> None:
+            pass
+
+        def close(self) -> None:
+            pass
+
+    recorder = Recorder()
+    ports(Port, "/delivery/in", delivery=recorder)
+    client = ports(RpcClient, "/delivery/client", "/delivery/in")
+    assert client.call(["hello", 1]).to_text() == "got 1"
+    writer = ports(Port, "/delivery/out")
+    assert writer.add_output("/delivery/in")
+    writer.write(Bottle(["again"]))
+    wait_until(lambda: len(recorder.seen) == 2)
+    assert recorder.seen == [("hello 1", "/delivery/client", "127.0.0.1"),
+                             ("again", "/delivery/out", "127.0.0.1")]
+    with pytest.raises(ValueError, match="a reader or a delivery, not both"):
+        Port(reader=print, delivery=recorder)
+
+
+def test_asking_for_a_ports_outputs_changes_nothing_the_next_write_drops_a_dead_one(
+        lite_world, ports):
+    """``output_routes``/``output_count`` leave out an output whose reader has gone but
+    do not drop it; the next write does."""
+    reader = ports(Port, "/query/in", reader=lambda bottle: None)
+    writer = ports(Port, "/query/out")
+    assert writer.add_output("/query/in")
+    assert writer.output_count == 1
+    reader.close()
+    wait_until(lambda: writer.output_count == 0)
+    assert writer.has_outputs                 # still there: a query dropped nothing
+    assert writer.output_count == 0 and writer.output_routes() == []
+    wait_until(lambda: not writer.write(Bottle(["anyone?"])) or not writer.has_outputs)
+    assert not writer.has_outputs

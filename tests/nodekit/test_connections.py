@@ -9,7 +9,8 @@ from harness import wait_until
 from nodekit import connections
 from nodekit.connections import ConnectionKeeper
 from yarp_lite.nameclient import NameClient
-from yarp_lite.port import Port, RegistrationKeeper
+from yarp_lite.port import Port
+from yarp_lite.registration import RegistrationKeeper
 
 
 class CountingClient(NameClient):

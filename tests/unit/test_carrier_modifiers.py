@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from yarp_lite.carriers import make_carrier, send_period, with_send_period
 from yarp_lite.errors import LocalProtocolError
-from yarp_lite.port import _OutputUnit
+from yarp_lite.port_outputs import OutputUnit
 
 
 def test_a_period_is_read_from_the_carrier_and_written_back():
@@ -41,7 +41,7 @@ def test_every_period_written_reads_back(seconds):
 def _sent(period: float, every: float, jitter: float, count: int) -> list:
     """When a stream written every ``every`` s (each write up to ``jitter`` late, in turn)
     goes to an output that asked for ``period``."""
-    unit = _OutputUnit(None, None, "", period)
+    unit = OutputUnit(None, None, "", period)
     times = [i * every + (jitter if i % 2 else 0.0) for i in range(count)]
     return [t for t in times if unit.due(t)]
 
@@ -57,7 +57,7 @@ def test_a_500_hz_stream_with_jitter_goes_out_at_the_rate_asked(period, expected
 
 def test_without_a_period_every_message_goes_and_after_a_pause_the_next_one_does():
     assert len(_sent(0.0, every=0.002, jitter=0.0, count=100)) == 100
-    unit = _OutputUnit(None, None, "", 0.01)
+    unit = OutputUnit(None, None, "", 0.01)
     assert unit.due(0.0) and not unit.due(0.005)
     assert unit.due(10.0)                       # the writer was silent: sent at once ...
     assert not unit.due(10.005) and unit.due(10.01)   # ... and the schedule starts again

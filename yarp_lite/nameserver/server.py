@@ -28,6 +28,7 @@ from yarp_lite import network
 from yarp_lite.bottle import Bottle
 from yarp_lite.carriers import Incoming, Payload
 from yarp_lite.contact import Contact, safe_name
+from yarp_lite.delivery import Source
 from yarp_lite.errors import LocalProtocolError, YarpError
 from yarp_lite.nameconfig import (DEFAULT_PORT, ServerAddress, config_file, data_home,
                                   namespace as current_namespace, read_server_address,
@@ -59,17 +60,27 @@ class ServerOptions:
     silent: bool = False
 
 
-class _ServerPort(Port):
-    """The server's own port: every data message is a name server request."""
+class _Requests:
+    """The server's own port's delivery (:mod:`yarp_lite.delivery`): every data message is
+    a name server request, answered in the input's thread."""
+
+    latest_only = False
 
     def __init__(self, server: "NameServer") -> None:
         self._server = server
-        super().__init__(register=False)
+        self.envelope = ""
 
-    def _deliver(self, message: Incoming, unit) -> Optional[Payload]:  # type: ignore[override]
-        command = message.bottle()
-        remote = unit.stream.remote_address[0] if unit.stream.remote_address else ""
-        return self._server.handle(command, remote)
+    def deliver(self, message: Incoming, source: Source) -> Optional[Payload]:
+        return self._server.handle(message.bottle(), source.remote_host)
+
+    def superseded(self, message: Incoming) -> None:
+        """Never: every request is answered."""
+
+    def pace(self) -> None:
+        """No wait: the next request is read at once."""
+
+    def close(self) -> None:
+        """Nobody waits on it."""
 
 
 class Connector:
@@ -146,7 +157,7 @@ class NameServer:
         self.options = options
         self.namespace = options.namespace or current_namespace()
         self.lock = threading.Lock()
-        self.port: Optional[_ServerPort] = None
+        self.port: Optional[Port] = None
         self.service: Optional[NameService] = None
         self.connector: Optional[Connector] = None
         self.address: Optional[ServerAddress] = None
@@ -188,7 +199,7 @@ class NameServer:
         self.service = NameService(registry, subscriptions, self.address.host,
                                    self.address.port, silent=options.silent)
         self.connector = Connector(self.service)
-        self.port = _ServerPort(self)
+        self.port = Port(register=False, delivery=_Requests(self))
         bind_host = "" if self.address.host not in ("127.0.0.1", "localhost") else "127.0.0.1"
         self.port.open(self.namespace, host=bind_host, socket_number=self.address.port)
         self.port.address = Contact(self.namespace, "tcp", self.address.host, self.address.port)
@@ -209,7 +220,8 @@ class NameServer:
             outcome: Outcome = self.service.apply(command, remote)
         for action in outcome.actions:
             self.connector.submit(action)
-        if outcome.events and self.port is not None and self.port.output_count:
+        if outcome.events and self.port is not None:
+            self.port.drop_closed_outputs()      # a gone listener's socket is not kept
             for event in outcome.events:
                 self.port.write(event)
         reply = outcome.reply
