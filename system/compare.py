@@ -399,20 +399,49 @@ def _plots(out: Path, lab_record: SessionRecord, drc_record: SessionRecord) -> L
     return files
 
 
+#: What the bridge is designed to give each stream at the pilot (the report's last column).
+DESIGNED_RATES = {"/joint_states": "1/T = 2 (bridge period 0.5 s)",
+                  "/gaze_control/status": "2 a second, and each change (GYM; bridge: "
+                                          "latest per T, changes as events)",
+                  "/temperature/status": "2 a second, and each change",
+                  "/multisense/points": "1 (camera rate)",
+                  "/multisense/left/image_color": "1", "/tf": "TF at 10 Hz on new state"}
+
+
 def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
            drc_record: SessionRecord, profile: str, loss: Optional[float],
            emulated: bool) -> Tuple[str, List[str]]:
+    """Write ``report.md``, the plots and ``sessions.json`` into ``out``; the summary a
+    user reads on the terminal, and the observable differences (none: the verdict)."""
     out.mkdir(parents=True, exist_ok=True)
     problems = verdict(lab, drc, lab_record, drc_record)
     plots = _plots(out, lab_record, drc_record)
     link = f"{profile} profile{f', {loss:g} % loss' if loss is not None else ''}" \
         if emulated else "loopback (no emulated network: needs root)"
+    latency_rows = paired_latencies(command_latencies(lab_record),
+                                    command_latencies(drc_record))
     lines = ["# Lab versus DRC topology", "",
              f"Generated {time.strftime('%Y-%m-%d %H:%M:%S')}; DRC link: {link}.", "",
              "**Verdict: " + ("no observable difference**" if not problems else
                               f"{len(problems)} observable difference(s)**"), ""]
     lines += [f"* {p}" for p in problems]
-    lines += ["", "## What the pilot can observe", "", "| name | lab | drc |", "|---|---|---|"]
+    lines += _observable_section(lab, drc) + _session_section(lab_record, drc_record)
+    lines += _latency_section(latency_rows) + _link_section(drc_record)
+    bags = [name for name in ("lab.bag", "drc.bag") if (out / name).exists()]
+    if bags:
+        lines += ["", "## Recordings", "", "What the pilot's roscore carried, for `rosbag info` "
+                  "and `rosbag play`: " + ", ".join(f"`{name}`" for name in bags) + "."]
+    lines += ["", "## Plots", ""] + [f"![{p}]({p})" for p in plots]
+    (out / "report.md").write_text("\n".join(lines) + "\n")
+    (out / "sessions.json").write_text(json.dumps(
+        {"lab": asdict(lab_record), "drc": asdict(drc_record), "observed_lab": lab,
+         "observed_drc": drc}, default=str))
+    return _summary(problems, latency_rows, lab_record, drc_record), problems
+
+
+def _observable_section(lab: dict, drc: dict) -> List[str]:
+    """What the pilot can observe in each topology, and the differences expected."""
+    lines = ["", "## What the pilot can observe", "", "| name | lab | drc |", "|---|---|---|"]
     lab_contract, drc_contract = contract(lab), contract(drc)
     lines += [f"| `{name}` | {lab_contract[name]} | {drc_contract[name]} |"
               for name in lab_contract]
@@ -420,7 +449,12 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
         lines += ["", f"Expected differences, {title} ({len(names)}): " +
                   (", ".join(f"`{n}`" for n in names[:60]) or "none") +
                   (" ..." if len(names) > 60 else "")]
-    lines += ["", "## The session", "", "| step | lab (s) | drc (s) |", "|---|---|---|"]
+    return lines
+
+
+def _session_section(lab_record: SessionRecord, drc_record: SessionRecord) -> List[str]:
+    """The session's steps, the commands the robot ran, the streams' rates."""
+    lines = ["", "## The session", "", "| step | lab (s) | drc (s) |", "|---|---|---|"]
     for a, b in zip(lab_record.steps, drc_record.steps):
         mark = lambda s: f"{s['end'] - s['start']:.1f}" + ("" if s["ok"] else " FAILED")  # noqa
         lines.append(f"| {a['label']} | {mark(a)} | {mark(b)} |")
@@ -432,24 +466,26 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
     lines += ["", "## Streams at the pilot (messages per second during the session)", "",
               "| topic | lab | drc | designed (drc) |", "|---|---|---|---|"]
     lab_rates, drc_rates = rates(lab_record), rates(drc_record)
-    designed = {"/joint_states": "1/T = 2 (bridge period 0.5 s)",
-                "/gaze_control/status": "2 a second, and each change (GYM; bridge: "
-                                        "latest per T, changes as events)",
-                "/temperature/status": "2 a second, and each change", "/multisense/points": "1 (camera rate)",
-                "/multisense/left/image_color": "1", "/tf": "TF at 10 Hz on new state"}
     for topic in sorted(set(lab_rates) | set(drc_rates)):
         lines.append(f"| `{topic}` | {lab_rates.get(topic, 0):.2f} | "
-                     f"{drc_rates.get(topic, 0):.2f} | {designed.get(topic, '')} |")
-    lines += ["", "## Command latency (sent by the gateway -> the module's receipt for it: "
-                  "accepted or refused)", "",
-              "| command | lab (ms) | drc (ms) |", "|---|---|---|"]
-    latency_rows = paired_latencies(command_latencies(lab_record),
-                                    command_latencies(drc_record))
-    for words, a, b in latency_rows:
+                     f"{drc_rates.get(topic, 0):.2f} | {DESIGNED_RATES.get(topic, '')} |")
+    return lines
+
+
+def _latency_section(rows: List[LatencyRow]) -> List[str]:
+    lines = ["", "## Command latency (sent by the gateway -> the module's receipt for it: "
+                 "accepted or refused)", "",
+             "| command | lab (ms) | drc (ms) |", "|---|---|---|"]
+    for words, a, b in rows:
         lines.append(f"| {words} | {a.shown() if a else 'not sent'} | "
                      f"{b.shown() if b else 'not sent'} |")
-    bandwidth = bandwidth_by_id(drc_record)
-    if bandwidth:
+    return lines
+
+
+def _link_section(drc_record: SessionRecord) -> List[str]:
+    """What the bridge carried: bandwidth per id, and perception's completeness."""
+    lines: List[str] = []
+    if bandwidth_by_id(drc_record):
         means = mean_bandwidth(drc_record)
         names = id_names()
         lines += ["", "## Bridge bandwidth, robot to pilot (no IP headers)", "",
@@ -466,15 +502,12 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
                   "|---|---|"]
         lines += [f"| {name} | {value:.3f} |" for name, value in
                   sorted(drc_record.completeness.items())]
-    bags = [name for name in ("lab.bag", "drc.bag") if (out / name).exists()]
-    if bags:
-        lines += ["", "## Recordings", "", "What the pilot's roscore carried, for `rosbag info` "
-                  "and `rosbag play`: " + ", ".join(f"`{name}`" for name in bags) + "."]
-    lines += ["", "## Plots", ""] + [f"![{p}]({p})" for p in plots]
-    (out / "report.md").write_text("\n".join(lines) + "\n")
-    (out / "sessions.json").write_text(json.dumps(
-        {"lab": asdict(lab_record), "drc": asdict(drc_record), "observed_lab": lab,
-         "observed_drc": drc}, default=str))
+    return lines
+
+
+def _summary(problems: List[str], latency_rows: List[LatencyRow], lab_record: SessionRecord,
+             drc_record: SessionRecord) -> str:
+    """The terminal's lines: the verdict, the table's median latencies, what arrived."""
     summary = [f"verdict: {'no observable difference' if not problems else 'DIFFERENT'}"]
     summary += [f"  - {p}" for p in problems]
     # the medians of the figures the table shows, nothing else
@@ -486,9 +519,10 @@ def report(out: Path, lab: dict, drc: dict, lab_record: SessionRecord,
                        f"{statistics.median(drc_figures) * 1000:.0f} ms")
     for name, value in sorted(drc_record.completeness.items()):
         summary.append(f"through the bridge, {name}: {value:.3f} of each frame arrived")
+    lab_rates, drc_rates = rates(lab_record), rates(drc_record)
     summary.append(f"joint states at the pilot: lab {lab_rates.get('/joint_states', 0):.1f} Hz,"
                    f" drc {drc_rates.get('/joint_states', 0):.1f} Hz")
-    return "\n".join(summary), problems
+    return "\n".join(summary)
 
 
 def open_link(loopback: bool, progress, prefix: str = "wc", subnet: int = 60):
