@@ -319,7 +319,45 @@ def _place(surfaces: Sequence[Surface], soles: Dict[str, Pose],
         raise GroundError(f"walk 0-5 m ahead, not {distance:g}")
     feet = {side: _Foot(side, float(pose[0]), float(pose[1]), 0) for side, pose in soles.items()}
     here = min(feet.values(), key=lambda foot: foot.x).x
-    toes = max(foot.x for foot in feet.values()) + SOLE_HALF_LENGTH
+    surfaces, offset = _from_under_the_feet(surfaces, soles)
+    goal = here + distance
+    steps: List[Pose] = []
+    mover = min(feet.values(), key=lambda foot: (foot.x, foot.side != "left"))
+    while len(steps) < 40:
+        stand = next(foot for foot in feet.values() if foot is not mover)
+        index = stand.surface
+        surface = surfaces[index]
+        last = surface.end - SOLE_HALF_LENGTH - TOE_MARGIN     # the toes short of its end
+        limit = min(last, goal)
+        x = stand.x + STRIDE
+        if x >= limit - MIN_STEP:                             # no shuffle before a limit
+            x = limit
+        if mover.surface != index:      # the other foot across the edge: beside it, as
+            x = stand.x                 # walking's step_up lands its second foot
+        if x <= mover.x + 0.005:
+            if stand.x < min(last, goal) - 0.005 or goal <= stand.x + 0.005:
+                break                                         # side by side at the goal
+            x, index = _across(surfaces, stand, here)         # together at the edge: over
+        landing = surfaces[index]
+        rise = landing.z(x) - surfaces[mover.surface].z(mover.x)
+        if abs(rise) > MAX_RISE + 1e-9:
+            raise GroundError(f"an edge {abs(rise) * 100:.0f} cm {'up' if rise > 0 else 'down'} "
+                              f"{landing.start - here:.2f} m ahead: the legs climb at most "
+                              f"{MAX_RISE * 100:.0f} cm")
+        mover.x, mover.surface = x, index
+        steps.append((x, mover.y, landing.z(x) + offset, 0.0, landing.pitch, 0.0))
+        mover = stand
+    return steps, offset
+
+
+def _from_under_the_feet(surfaces: Sequence[Surface],
+                         soles: Dict[str, Pose]) -> Tuple[List[Surface], float]:
+    """The surfaces from under the feet on, and how far the soles stand above the ground
+    seen (the camera's error): the camera does not see under the toes, so the first surface
+    seen goes on back under the feet -- or the feet stand at an edge or a bend right
+    there; :class:`GroundError` where what lies between is out of sight."""
+    here = min(float(pose[0]) for pose in soles.values())
+    toes = max(float(pose[0]) for pose in soles.values()) + SOLE_HALF_LENGTH
     ahead = [s for s in surfaces if s.end > toes]
     if not ahead or ahead[0].start > toes + MAX_UNSEEN:
         seen = f"only from {ahead[0].start - toes:.2f} m" if ahead else "nowhere"
@@ -366,34 +404,7 @@ def _place(surfaces: Sequence[Surface], soles: Dict[str, Pose],
         raise GroundError(f"the ground seen {first.start - toes:.2f} m ahead of the toes is "
                           f"{-offset * 100:+.0f} cm from the soles' own: an edge out of sight "
                           f"or a camera out of calibration; place the footsteps by hand")
-    goal = here + distance
-    steps: List[Pose] = []
-    mover = min(feet.values(), key=lambda foot: (foot.x, foot.side != "left"))
-    while len(steps) < 40:
-        stand = next(foot for foot in feet.values() if foot is not mover)
-        index = stand.surface
-        surface = surfaces[index]
-        last = surface.end - SOLE_HALF_LENGTH - TOE_MARGIN     # the toes short of its end
-        limit = min(last, goal)
-        x = stand.x + STRIDE
-        if x >= limit - MIN_STEP:                             # no shuffle before a limit
-            x = limit
-        if mover.surface != index:      # the other foot across the edge: beside it, as
-            x = stand.x                 # walking's step_up lands its second foot
-        if x <= mover.x + 0.005:
-            if stand.x < min(last, goal) - 0.005 or goal <= stand.x + 0.005:
-                break                                         # side by side at the goal
-            x, index = _across(surfaces, stand, here)         # together at the edge: over
-        landing = surfaces[index]
-        rise = landing.z(x) - surfaces[mover.surface].z(mover.x)
-        if abs(rise) > MAX_RISE + 1e-9:
-            raise GroundError(f"an edge {abs(rise) * 100:.0f} cm {'up' if rise > 0 else 'down'} "
-                              f"{landing.start - here:.2f} m ahead: the legs climb at most "
-                              f"{MAX_RISE * 100:.0f} cm")
-        mover.x, mover.surface = x, index
-        steps.append((x, mover.y, landing.z(x) + offset, 0.0, landing.pitch, 0.0))
-        mover = stand
-    return steps, offset
+    return list(surfaces), offset
 
 
 def _across(surfaces: Sequence[Surface], stand: _Foot, here: float) -> Tuple[float, int]:
