@@ -103,19 +103,11 @@ def follow_battery(robot: str, publishers) -> "tuple":
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="walkman-joint-state",
-                                     description="The HAL's joints as JointState and TF.")
-    parser.add_argument("--robot", default="walkman")
-    parser.add_argument("--rate", type=float, default=50.0, help="Hz (default 50)")
-    parser.add_argument("--no-tf", action="store_true", help="only /joint_states")
-    parser.add_argument("--no-battery", dest="battery", action="store_false",
-                        help="no /battery (the pilot's copy: the bridge brings the robot's)")
-    options = parser.parse_args(argv)
-    if not 0 < options.rate <= 500:
-        parser.error("--rate must be in (0, 500]")
+    options = _arguments(argv)
     from nodekit.logs import configure_logging
 
     configure_logging("joint_state", False)
+    from nodekit.msgs import ensure_importable
     from nodekit.ros_node import RosNode
     from walkman.control.kinematics import Kinematics
     from walkman.hal.protocol import state_interval
@@ -123,29 +115,9 @@ def main(argv=None) -> int:
 
     kinematics = None if options.no_tf else Kinematics()
     ros = RosNode("walkman_joint_state")
-    publishers = {}
-
-    def open_topics() -> None:
-        import rospy
-        from sensor_msgs.msg import JointState
-        from walkman_msgs.msg import JointTemperatures
-
-        publishers["joints"] = rospy.Publisher("/joint_states", JointState, queue_size=5)
-        publishers["temperatures"] = rospy.Publisher("/joint_temperatures", JointTemperatures,
-                                                     queue_size=2)
-        if options.battery:
-            from sensor_msgs.msg import BatteryState
-
-            publishers["battery"] = rospy.Publisher("/battery", BatteryState, queue_size=2)
-        if kinematics is not None:
-            from tf2_msgs.msg import TFMessage
-
-            publishers["tf"] = rospy.Publisher("/tf", TFMessage, queue_size=5)
-
-    from nodekit.msgs import ensure_importable
-
+    publishers: dict = {}
     ensure_importable()
-    ros.when_ready(open_topics)
+    ros.when_ready(lambda: publishers.update(_topics(options.battery, kinematics is not None)))
     ros.start()
     robot = Robot("/joint_state", robot=options.robot, connect_timeout=float("inf"),
                   state_interval=state_interval(1.0 / options.rate), sensors=False)
@@ -156,9 +128,56 @@ def main(argv=None) -> int:
 
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
-    tf_every = max(1, int(round(options.rate / 10)))  # TF at 10 Hz is plenty for display
+    _publish_until(stop, robot, publishers, kinematics, options.rate)
+    if battery is not None:
+        battery[1].stop()
+        battery[0].close()
+    robot.close()
+    ros.stop()
+    return 0
+
+
+def _arguments(argv) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="walkman-joint-state",
+                                     description="The HAL's joints as JointState and TF.")
+    parser.add_argument("--robot", default="walkman")
+    parser.add_argument("--rate", type=float, default=50.0, help="Hz (default 50)")
+    parser.add_argument("--no-tf", action="store_true", help="only /joint_states")
+    parser.add_argument("--no-battery", dest="battery", action="store_false",
+                        help="no /battery (the pilot's copy: the bridge brings the robot's)")
+    options = parser.parse_args(argv)
+    if not 0 < options.rate <= 500:
+        parser.error("--rate must be in (0, 500]")
+    return options
+
+
+def _topics(battery: bool, tf: bool) -> dict:
+    """The node's publishers, opened once the ROS side is up."""
+    import rospy
+    from sensor_msgs.msg import JointState
+    from walkman_msgs.msg import JointTemperatures
+
+    publishers = {"joints": rospy.Publisher("/joint_states", JointState, queue_size=5),
+                  "temperatures": rospy.Publisher("/joint_temperatures", JointTemperatures,
+                                                  queue_size=2)}
+    if battery:
+        from sensor_msgs.msg import BatteryState
+
+        publishers["battery"] = rospy.Publisher("/battery", BatteryState, queue_size=2)
+    if tf:
+        from tf2_msgs.msg import TFMessage
+
+        publishers["tf"] = rospy.Publisher("/tf", TFMessage, queue_size=5)
+    return publishers
+
+
+def _publish_until(stop: threading.Event, robot, publishers: dict, kinematics,
+                   rate: float) -> None:
+    """Each new state read at ``rate`` as /joint_states, /tf at 10 Hz, the temperatures once
+    a second, until ``stop``."""
+    tf_every = max(1, int(round(rate / 10)))  # TF at 10 Hz is plenty for display
     tick, published_seq, slow_at = 0, 0, 0.0
-    while not stop.wait(1.0 / options.rate):
+    while not stop.wait(1.0 / rate):
         if not publishers or robot.last_seq == published_seq:
             continue
         published_seq = robot.last_seq
@@ -178,12 +197,6 @@ def main(argv=None) -> int:
         tick += 1
         if "tf" in publishers and tick % tf_every == 0:
             publishers["tf"].publish(robot_tf(kinematics, q, now))
-    if battery is not None:
-        battery[1].stop()
-        battery[0].close()
-    robot.close()
-    ros.stop()
-    return 0
 
 
 if __name__ == "__main__":
