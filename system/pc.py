@@ -96,7 +96,7 @@ def plan(side: str, options: argparse.Namespace) -> Dict[str, List[str]]:
     return out
 
 
-def main(argv: Optional[List[str]] = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="walkman-pc", description=__doc__.split("\n")[0])
     parser.add_argument("side", choices=["robot", "pilot", "lab"])
     parser.add_argument("--peer", help="the other PC's address (robot and pilot sides)")
@@ -135,6 +135,12 @@ def main(argv: Optional[List[str]] = None) -> int:
                              "docs/simulated-time.md")
     parser.add_argument("--shuffle", action="store_true",
                         help="start the programs in a random order, 0-2 s apart")
+    return parser
+
+
+def _options(argv: Optional[List[str]]) -> argparse.Namespace:
+    """The command line, checked: each mistake named with its option."""
+    parser = _parser()
     options = parser.parse_args(argv)
     options.skip = {name.strip() for name in options.skip.split(",") if name.strip()}
     if options.sim_time and options.side != "robot":
@@ -158,6 +164,11 @@ def main(argv: Optional[List[str]] = None) -> int:
         if ensure_bridge_key(options.key):
             print(f"[{options.side}] created a new bridge key {options.key}: copy it to the "
                   f"other PC (scp -p {options.key} <other>:{options.key})", flush=True)
+    return options
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    options = _options(argv)
     from nodekit.msgs import generate
 
     generate()
