@@ -15,7 +15,7 @@ the controllers and the simulator, not a CAD model.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Tuple
+from typing import Callable, Dict, List, Optional, Tuple
 
 Vec3 = Tuple[float, float, float]
 
@@ -149,16 +149,7 @@ def _box(hx: float, hy: float, hz: float, pos: Vec3 = (0, 0, 0), rgba=(0.6, 0.6,
 def walkman() -> Robot:
     """Walk-Man: 31 body joints + 2 hands, joint table from FACTS.md."""
     robot = Robot(name="walkman", base="pelvis")
-
-    def link(name: str, mass: float, *geoms: Geom, com: Vec3 = (0, 0, 0)) -> str:
-        robot.links[name] = Link(name, mass, geoms, com)
-        return name
-
-    def joint(name: str, chain: str, parent: str, child: str, origin: Vec3, axis: Vec3,
-              lower: float, upper: float, effort: float, **extra) -> None:
-        robot.joints.append(Joint(name, chain, parent, child, origin, axis, lower, upper,
-                                  effort, **extra))
-
+    link, joint = _link(robot), _joint(robot)
     link("pelvis", 14.0, _box(0.12, 0.17, 0.08, (0, 0, -0.02), DARK), com=(0, 0, -0.02))
 
     # -- torso: WaistLat (roll), WaistSag (pitch), WaistYaw ------------------------------
@@ -177,65 +168,90 @@ def walkman() -> Robot:
     joint("NeckPitchj", "head", "neck", "head", (0, 0, 0.08), Y, -0.2618, 1.0472, 60.0)
     robot.sensors.append(Sensor("multisense", "camera", "head", (0.12, 0.0, 0.08)))
 
-    # -- arms: ShSag, ShLat, ShYaw, Elbj, ForearmPlate, Wrj1, Wrj2 + hand ------------------
     for side, sign in (("l", 1.0), ("r", -1.0)):
-        prefix = side.upper()
-        chain = "left_arm" if side == "l" else "right_arm"
-        lat_limits = (0.0873, 3.8572) if side == "l" else (-3.8572, -0.1222)
-        names = [link(f"{side}_shoulder_sag", 1.2, _box(0.05, 0.05, 0.05)),
-                 link(f"{side}_shoulder_lat", 1.2, _box(0.04, 0.04, 0.05)),
-                 link(f"{side}_upper_arm", 3.0, _capsule(0.05, 0.24), com=(0, 0, -0.12)),
-                 link(f"{side}_elbow", 1.0, _capsule(0.045, 0.08), com=(0, 0, -0.04)),
-                 link(f"{side}_forearm", 2.0, _capsule(0.04, 0.2), com=(0, 0, -0.1)),
-                 link(f"{side}_wrist", 0.4, _box(0.03, 0.03, 0.02)),
-                 link(f"{side}_hand", 1.2, _box(0.03, 0.05, 0.06, (0, 0, -0.07), DARK),
-                      com=(0, 0, -0.07)),
-                 link(f"{side}_fingers", 0.3, _box(0.02, 0.045, 0.035, (0.0, 0, -0.035)))]
-        joint(f"{prefix}ShSag", chain, "torso", names[0], (0, sign * 0.25, 0.40), Y,
-              -2.8798, 2.7925, 120.0)
-        joint(f"{prefix}ShLat", chain, names[0], names[1], (0, sign * 0.03, 0), X,
-              *lat_limits, 120.0)
-        joint(f"{prefix}ShYaw", chain, names[1], names[2], (0, 0, -0.06), Z,
-              -2.8449, 2.8449, 120.0)
-        joint(f"{prefix}Elbj", chain, names[2], names[3], (0, 0, -0.24), Y,
-              -2.9671, 0.5934, 60.0)
-        joint(f"{prefix}ForearmPlate", chain, names[3], names[4], (0, 0, -0.08), Z,
-              -2.529, 2.529, 60.0)
-        joint(f"{prefix}Wrj1", chain, names[4], names[5], (0, 0, -0.2), Y, -1.48, 1.48, 60.0)
-        joint(f"{prefix}Wrj2", chain, names[5], names[6], (0, 0, -0.02), X, -1.48, 1.48, 60.0)
-        joint(f"{side}_handj", "left_hand" if side == "l" else "right_hand", names[6], names[7],
-              (0.03, 0, -0.08), Y, 0.0, 1.5, 20.0, stiffness=100000.0)
-        robot.sensors.append(Sensor(f"{side}_arm_ft", "ft", names[6], (0, 0, -0.01)))
-
-    support = {"damping": SUPPORT_DAMPING}
-    # -- legs: HipLat, HipYaw, HipSag, KneeSag, AnkSag, AnkLat ---------------------------
+        _arm(robot, side, sign)
     for side, sign in (("l", 1.0), ("r", -1.0)):
-        prefix = side.upper()
-        chain = "left_leg" if side == "l" else "right_leg"
-        hip_lat = (-0.6978, 0.8722) if side == "l" else (-0.8722, 0.6978)
-        hip_yaw = (-0.8722, 1.57) if side == "l" else (-1.57, 0.8722)
-        names = [link(f"{side}_hip_lat", 2.0, _box(0.05, 0.05, 0.04)),
-                 link(f"{side}_hip_yaw", 2.0, _box(0.05, 0.05, 0.04)),
-                 link(f"{side}_thigh", 8.0, _capsule(0.07, 0.42), com=(0, 0, -0.21)),
-                 link(f"{side}_shank", 5.0, _capsule(0.06, 0.42), com=(0, 0, -0.21)),
-                 link(f"{side}_ankle", 1.0, _box(0.04, 0.04, 0.03)),
-                 link(f"{side}_foot", 2.0, _box(0.13, 0.07, 0.025, (0.03, 0, -0.075), DARK),
-                      com=(0.03, 0, -0.075))]
-        joint(f"{prefix}HipLat", chain, "pelvis", names[0], (0, sign * 0.11, -0.08), X,
-              *hip_lat, 220.0, **support)
-        joint(f"{prefix}HipYaw", chain, names[0], names[1], (0, 0, -0.05), Z, *hip_yaw, 120.0, **support)
-        joint(f"{prefix}HipSag", chain, names[1], names[2], (0, 0, -0.05), Y,
-              -2.0933, 1.0467, 220.0, **support)
-        joint(f"{prefix}KneeSag", chain, names[2], names[3], (0, 0, -0.42), Y, 0.0, 2.4422, 220.0,
-              **support)
-        joint(f"{prefix}AnkSag", chain, names[3], names[4], (0, 0, -0.42), Y,
-              -1.3956, 0.6978, 220.0, **support)
-        joint(f"{prefix}AnkLat", chain, names[4], names[5], (0, 0, 0.0), X, -0.785, 0.785, 120.0,
-              **support)
-        robot.sensors.append(Sensor(f"{side}_leg_ft", "ft", names[5], (0, 0, -0.05)))
-
+        _leg(robot, side, sign)
     robot.sensors.append(Sensor("imu", "imu", "pelvis", (0, 0, 0)))
     return robot
+
+
+def _arm(robot: Robot, side: str, sign: float) -> None:
+    """An arm: ShSag, ShLat, ShYaw, Elbj, ForearmPlate, Wrj1, Wrj2, and its hand."""
+    link, joint = _link(robot), _joint(robot)
+    prefix = side.upper()
+    chain = "left_arm" if side == "l" else "right_arm"
+    lat_limits = (0.0873, 3.8572) if side == "l" else (-3.8572, -0.1222)
+    names = [link(f"{side}_shoulder_sag", 1.2, _box(0.05, 0.05, 0.05)),
+             link(f"{side}_shoulder_lat", 1.2, _box(0.04, 0.04, 0.05)),
+             link(f"{side}_upper_arm", 3.0, _capsule(0.05, 0.24), com=(0, 0, -0.12)),
+             link(f"{side}_elbow", 1.0, _capsule(0.045, 0.08), com=(0, 0, -0.04)),
+             link(f"{side}_forearm", 2.0, _capsule(0.04, 0.2), com=(0, 0, -0.1)),
+             link(f"{side}_wrist", 0.4, _box(0.03, 0.03, 0.02)),
+             link(f"{side}_hand", 1.2, _box(0.03, 0.05, 0.06, (0, 0, -0.07), DARK),
+                  com=(0, 0, -0.07)),
+             link(f"{side}_fingers", 0.3, _box(0.02, 0.045, 0.035, (0.0, 0, -0.035)))]
+    joint(f"{prefix}ShSag", chain, "torso", names[0], (0, sign * 0.25, 0.40), Y,
+          -2.8798, 2.7925, 120.0)
+    joint(f"{prefix}ShLat", chain, names[0], names[1], (0, sign * 0.03, 0), X,
+          *lat_limits, 120.0)
+    joint(f"{prefix}ShYaw", chain, names[1], names[2], (0, 0, -0.06), Z,
+          -2.8449, 2.8449, 120.0)
+    joint(f"{prefix}Elbj", chain, names[2], names[3], (0, 0, -0.24), Y,
+          -2.9671, 0.5934, 60.0)
+    joint(f"{prefix}ForearmPlate", chain, names[3], names[4], (0, 0, -0.08), Z,
+          -2.529, 2.529, 60.0)
+    joint(f"{prefix}Wrj1", chain, names[4], names[5], (0, 0, -0.2), Y, -1.48, 1.48, 60.0)
+    joint(f"{prefix}Wrj2", chain, names[5], names[6], (0, 0, -0.02), X, -1.48, 1.48, 60.0)
+    joint(f"{side}_handj", "left_hand" if side == "l" else "right_hand", names[6], names[7],
+          (0.03, 0, -0.08), Y, 0.0, 1.5, 20.0, stiffness=100000.0)
+    robot.sensors.append(Sensor(f"{side}_arm_ft", "ft", names[6], (0, 0, -0.01)))
+
+
+def _leg(robot: Robot, side: str, sign: float) -> None:
+    """A leg: HipLat, HipYaw, HipSag, KneeSag, AnkSag, AnkLat, damped for support."""
+    link, joint = _link(robot), _joint(robot)
+    support = {"damping": SUPPORT_DAMPING}
+    prefix = side.upper()
+    chain = "left_leg" if side == "l" else "right_leg"
+    hip_lat = (-0.6978, 0.8722) if side == "l" else (-0.8722, 0.6978)
+    hip_yaw = (-0.8722, 1.57) if side == "l" else (-1.57, 0.8722)
+    names = [link(f"{side}_hip_lat", 2.0, _box(0.05, 0.05, 0.04)),
+             link(f"{side}_hip_yaw", 2.0, _box(0.05, 0.05, 0.04)),
+             link(f"{side}_thigh", 8.0, _capsule(0.07, 0.42), com=(0, 0, -0.21)),
+             link(f"{side}_shank", 5.0, _capsule(0.06, 0.42), com=(0, 0, -0.21)),
+             link(f"{side}_ankle", 1.0, _box(0.04, 0.04, 0.03)),
+             link(f"{side}_foot", 2.0, _box(0.13, 0.07, 0.025, (0.03, 0, -0.075), DARK),
+                  com=(0.03, 0, -0.075))]
+    joint(f"{prefix}HipLat", chain, "pelvis", names[0], (0, sign * 0.11, -0.08), X,
+          *hip_lat, 220.0, **support)
+    joint(f"{prefix}HipYaw", chain, names[0], names[1], (0, 0, -0.05), Z, *hip_yaw, 120.0, **support)
+    joint(f"{prefix}HipSag", chain, names[1], names[2], (0, 0, -0.05), Y,
+          -2.0933, 1.0467, 220.0, **support)
+    joint(f"{prefix}KneeSag", chain, names[2], names[3], (0, 0, -0.42), Y, 0.0, 2.4422, 220.0,
+          **support)
+    joint(f"{prefix}AnkSag", chain, names[3], names[4], (0, 0, -0.42), Y,
+          -1.3956, 0.6978, 220.0, **support)
+    joint(f"{prefix}AnkLat", chain, names[4], names[5], (0, 0, 0.0), X, -0.785, 0.785, 120.0,
+          **support)
+    robot.sensors.append(Sensor(f"{side}_leg_ft", "ft", names[5], (0, 0, -0.05)))
+
+
+def _link(robot: Robot) -> Callable[..., str]:
+    """``link(name, mass, *geoms, com=...)``: add a link to ``robot``; its name."""
+    def link(name: str, mass: float, *geoms: Geom, com: Vec3 = (0, 0, 0)) -> str:
+        robot.links[name] = Link(name, mass, geoms, com)
+        return name
+    return link
+
+
+def _joint(robot: Robot) -> Callable[..., None]:
+    """``joint(name, chain, parent, child, origin, axis, lower, upper, effort, **extra)``."""
+    def joint(name: str, chain: str, parent: str, child: str, origin: Vec3, axis: Vec3,
+              lower: float, upper: float, effort: float, **extra) -> None:
+        robot.joints.append(Joint(name, chain, parent, child, origin, axis, lower, upper,
+                                  effort, **extra))
+    return joint
 
 
 #: Height of the pelvis frame above the floor when standing with all joints at zero.
