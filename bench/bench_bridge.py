@@ -430,6 +430,136 @@ def pilot_loop(link: EmulatedLink, count: int, rate: float,
 # -- main ----------------------------------------------------------------------------------
 
 
+def _bench_1(link: EmulatedLink, options: argparse.Namespace) -> None:
+    """Table 1's workload: the bridge's bit/s against YARP tcp's, still and moving."""
+    duration = 15 if options.quick else 40
+    say(f"\n1. Table 1 workload, robot -> pilot, T = 1 s ({duration:.0f} s per run)")
+    say("   bridge: its frames' payload and framing (its counters), then on the cable "
+        "(veth, TCP/IP without Ethernet); YARP tcp: the same messages once a second, "
+        "direct, on the cable")
+    say(f"   {'robot':<8} {'payload':>9} {'framing':>9} {'total':>9} "
+        f"{'+TCP/IP':>9} {'packets/s':>9} {'YARP tcp':>9} {'packets/s':>9}   (bit/s)")
+    link.apply("lab")
+    for mode in ("still", "moving"):
+        figures = table_1(link, mode, duration)
+        direct = direct_table_1(link, mode, duration)
+        say(f"   {mode:<8} {figures['payload']:>9.0f} {figures['framing']:>9.0f} "
+            f"{figures['total']:>9.0f} {figures['with_tcp_ip']:>9.0f} "
+            f"{figures['packets']:>9.1f} {direct['with_tcp_ip']:>9.0f} "
+            f"{direct['packets']:>9.1f}")
+    say(f"   paper Table 1 (no TCP/IP): {PAPER_TABLE_1} bit/s; goal <= 1200")
+
+
+def _bench_2(link: EmulatedLink, options: argparse.Namespace) -> None:
+    """Perception's completeness through loss: plain, fixed FEC, adaptive FEC, YARP udp."""
+    frames = 20 if options.quick else 40
+    say(f"\n2. Completeness at delta-t 0.4 s, 320x240 image + 80x60 cloud at 2 Hz, "
+        f"{frames} frames each")
+    say("   FEC 0.3: a fixed repair fraction; auto: sized from the loss the receiver "
+        "reports (repairs per frame, image/cloud)")
+    say(f"   {'loss':>5} {'limit':>6} {'image':>7} {'cloud':>7} {'img 0.3':>8} "
+        f"{'cld 0.3':>8} {'img auto':>8} {'cld auto':>8} {'repairs':>9} "
+        f"{'YARP udp img':>13} {'YARP udp cld':>13}")
+    link.apply("lab")
+    for loss in (int(x) for x in options.losses.split(",")):
+        plain = completeness(link, loss, 0.0, frames)
+        repaired = completeness(link, loss, 0.3, frames)
+        auto = completeness(link, loss, "auto", frames)
+        image_base = whole_message_baseline(link, loss, IMAGE_BYTES, frames)
+        cloud_base = whole_message_baseline(link, loss, CLOUD_BYTES, frames)
+        repairs = f"{auto['image repairs']:.0f}/{auto['cloud repairs']:.0f}"
+        say(f"   {loss:>4}% {1 - loss / 100:>6.2f} {plain['image']:>7.3f} "
+            f"{plain['cloud']:>7.3f} {repaired['image']:>8.3f} "
+            f"{repaired['cloud']:>8.3f} {auto['image']:>8.3f} {auto['cloud']:>8.3f} "
+            f"{repairs:>9} {image_base:>13.3f} {cloud_base:>13.3f}")
+
+
+def _bench_3(link: EmulatedLink, options: argparse.Namespace) -> None:
+    """A pilot command's one-way latency through the bridge and direct, per profile."""
+    count = 200 if options.quick else 600
+    say(f"\n3. Pilot command latency, one way ({count} commands at 20 Hz), ms")
+    say(f"   {'profile':<22} {'bridge med':>10} {'bridge p99':>10} {'direct med':>10} "
+        f"{'direct p99':>10}")
+    for profile, loss, extra in (("lab", 0.0, ()), ("lab", 0.0, ("--fsync",)),
+                                 ("drc", 0.0, ()), ("drc", 5.0, ())):
+        link.apply(profile, loss=loss)
+        through = latency_bridge(link, count, *extra)
+        direct = latency_direct(link, count)
+        label = f"{profile} ({loss:g} % loss){' --fsync' if extra else ''}"
+        say(f"   {label:<22} {statistics.median(through):>10.2f} "
+            f"{percentile(through, 0.99):>10.2f} {statistics.median(direct):>10.2f} "
+            f"{percentile(direct, 0.99):>10.2f}")
+
+
+def _bench_4(link: EmulatedLink, options: argparse.Namespace) -> None:
+    """All 256 ids in use beside 8 modules: start-up, CPU, memory, command latency."""
+    count, duration = (100, 10) if options.quick else (400, 30)
+    say(f"\n4. All 256 ids in use (lab): 8 modules beside 256 (4 flows each), every "
+        f"status once a second; CPU over {duration} s linked, {count} commands to the "
+        f"last id")
+    say(f"   {'modules':>7} {'ready s':>13} {'open s':>11} {'connect s':>11} "
+        f"{'CPU %':>11} {'server %':>8} {'RSS MiB':>11} {'bit/s':>8} {'cmd med ms':>10} "
+        f"{'p99':>7}   (robot/pilot; server: the robot's name server)")
+    link.apply("lab")
+    for modules in (8, 256, 8, 256):  # interleaved: each size twice
+        f = many_ids(link, modules, count, duration)
+        say(f"   {modules:>7} {f['ready robot']:>6.1f}/{f['ready pilot']:<6.1f} "
+            f"{f['open robot']:>5.1f}/{f['open pilot']:<5.1f} "
+            f"{f['connect robot']:>5.1f}/{f['connect pilot']:<5.1f} "
+            f"{f['cpu robot']:>5.1f}/{f['cpu pilot']:<5.1f} "
+            f"{f['cpu robot server']:>8.1f} "
+            f"{f['mib robot']:>5.0f}/{f['mib pilot']:<5.0f} {f['bits']:>8.0f} "
+            f"{f['median']:>10.2f} {f['p99']:>7.2f}")
+
+
+def _bench_5(link: EmulatedLink, options: argparse.Namespace) -> None:
+    """Presence: how soon the pilot's name server shows a module's ports come and go."""
+    rounds = 5 if options.quick else 15
+    say(f"\n5. Presence: a module's ports opened and closed on the robot ({rounds} "
+        f"rounds, 3 s each way) until the pilot's name server shows them / stops, ms")
+    say(f"   {'profile':<16} {'appear med':>10} {'max':>7} {'leave med':>10} {'max':>7}"
+        f" {'1 server: appear':>17} {'leave':>7}")
+    for label in each_profile(link):
+        appear, leave = presence(link, rounds, bridge=True)
+        appear_1, leave_1 = presence(link, rounds, bridge=False)
+        if min(len(appear), len(leave)) < rounds:
+            say(f"   {label}: the pilot saw {len(appear)} of {rounds} appearances "
+                f"and {len(leave)} departures")
+        if not appear or not leave:
+            continue
+        say(f"   {label:<16} {statistics.median(appear):>10.0f} "
+            f"{max(appear):>7.0f} {statistics.median(leave):>10.0f} {max(leave):>7.0f}"
+            f" {statistics.median(appear_1):>17.0f} {statistics.median(leave_1):>7.0f}")
+
+
+def _bench_6(link: EmulatedLink, options: argparse.Namespace) -> None:
+    """The pilot's loop: a command to the module's status answering it, per profile."""
+    count = 100 if options.quick else 400
+    say(f"\n6. The pilot's loop: command -> the module's status answering it, at the "
+        f"pilot ({count} commands at 4 Hz), ms")
+    say("   bridge: TCP only; + copies: commands and answering statuses also as two "
+        "datagrams each")
+    say(f"   {'profile':<16} {'bridge med':>10} {'p99':>7} {'lost':>5} "
+        f"{'+ copies med':>12} {'p99':>7} {'lost':>5} "
+        f"{'1 server med':>12} {'p99':>7} {'lost':>5}")
+    for label in each_profile(link):
+        through, lost = pilot_loop(link, count, 4.0, bridge=True)
+        copied, lost_c = pilot_loop(link, count, 4.0, bridge=True, copies=True)
+        direct, lost_1 = pilot_loop(link, count, 4.0, bridge=False)
+        say(f"   {label:<16} {statistics.median(through):>10.1f} "
+            f"{percentile(through, 0.99):>7.1f} {lost:>5} "
+            f"{statistics.median(copied):>12.1f} {percentile(copied, 0.99):>7.1f} "
+            f"{lost_c:>5} "
+            f"{statistics.median(direct):>12.1f} {percentile(direct, 0.99):>7.1f} "
+            f"{lost_1:>5}")
+    say("   goal on drc: median <= 100 ms + the radio's round trip; with copies, "
+        "p99 close to the median")
+
+
+#: The benchmarks by number (``--only``).
+BENCHES = {1: _bench_1, 2: _bench_2, 3: _bench_3, 4: _bench_4, 5: _bench_5, 6: _bench_6}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="shorter runs (noisier figures)")
@@ -438,123 +568,23 @@ def main() -> int:
     parser.add_argument("--losses", default="0,5,10,20,30",
                         help="loss percentages of benchmark 2 (default 0,5,10,20,30)")
     options = parser.parse_args()
+    try:
+        only = {int(x) for x in options.only.split(",")}
+    except ValueError:
+        parser.error(f"--only takes benchmark numbers separated by commas, not {options.only!r}")
+    if only - BENCHES.keys():
+        parser.error(f"--only: no benchmark {', '.join(map(str, sorted(only - BENCHES.keys())))}"
+                     f"; they are {', '.join(map(str, BENCHES))}")
     say_machine()
     reason = emulation.available()
     if reason:
         say(f"bench_bridge: {reason}")
         return 1
-    only = {int(x) for x in options.only.split(",")}
     link = EmulatedLink("wb", 41)
     link.up()
     try:
-        if 1 in only:
-            duration = 15 if options.quick else 40
-            say(f"\n1. Table 1 workload, robot -> pilot, T = 1 s ({duration:.0f} s per run)")
-            say("   bridge: its frames' payload and framing (its counters), then on the cable "
-                "(veth, TCP/IP without Ethernet); YARP tcp: the same messages once a second, "
-                "direct, on the cable")
-            say(f"   {'robot':<8} {'payload':>9} {'framing':>9} {'total':>9} "
-                f"{'+TCP/IP':>9} {'packets/s':>9} {'YARP tcp':>9} {'packets/s':>9}   (bit/s)")
-            link.apply("lab")
-            for mode in ("still", "moving"):
-                figures = table_1(link, mode, duration)
-                direct = direct_table_1(link, mode, duration)
-                say(f"   {mode:<8} {figures['payload']:>9.0f} {figures['framing']:>9.0f} "
-                    f"{figures['total']:>9.0f} {figures['with_tcp_ip']:>9.0f} "
-                    f"{figures['packets']:>9.1f} {direct['with_tcp_ip']:>9.0f} "
-                    f"{direct['packets']:>9.1f}")
-            say(f"   paper Table 1 (no TCP/IP): {PAPER_TABLE_1} bit/s; goal <= 1200")
-        if 2 in only:
-            frames = 20 if options.quick else 40
-            say(f"\n2. Completeness at delta-t 0.4 s, 320x240 image + 80x60 cloud at 2 Hz, "
-                f"{frames} frames each")
-            say("   FEC 0.3: a fixed repair fraction; auto: sized from the loss the receiver "
-                "reports (repairs per frame, image/cloud)")
-            say(f"   {'loss':>5} {'limit':>6} {'image':>7} {'cloud':>7} {'img 0.3':>8} "
-                f"{'cld 0.3':>8} {'img auto':>8} {'cld auto':>8} {'repairs':>9} "
-                f"{'YARP udp img':>13} {'YARP udp cld':>13}")
-            link.apply("lab")
-            for loss in (int(x) for x in options.losses.split(",")):
-                plain = completeness(link, loss, 0.0, frames)
-                repaired = completeness(link, loss, 0.3, frames)
-                auto = completeness(link, loss, "auto", frames)
-                image_base = whole_message_baseline(link, loss, IMAGE_BYTES, frames)
-                cloud_base = whole_message_baseline(link, loss, CLOUD_BYTES, frames)
-                repairs = f"{auto['image repairs']:.0f}/{auto['cloud repairs']:.0f}"
-                say(f"   {loss:>4}% {1 - loss / 100:>6.2f} {plain['image']:>7.3f} "
-                    f"{plain['cloud']:>7.3f} {repaired['image']:>8.3f} "
-                    f"{repaired['cloud']:>8.3f} {auto['image']:>8.3f} {auto['cloud']:>8.3f} "
-                    f"{repairs:>9} {image_base:>13.3f} {cloud_base:>13.3f}")
-        if 3 in only:
-            count = 200 if options.quick else 600
-            say(f"\n3. Pilot command latency, one way ({count} commands at 20 Hz), ms")
-            say(f"   {'profile':<22} {'bridge med':>10} {'bridge p99':>10} {'direct med':>10} "
-                f"{'direct p99':>10}")
-            for profile, loss, extra in (("lab", 0.0, ()), ("lab", 0.0, ("--fsync",)),
-                                         ("drc", 0.0, ()), ("drc", 5.0, ())):
-                link.apply(profile, loss=loss)
-                through = latency_bridge(link, count, *extra)
-                direct = latency_direct(link, count)
-                label = f"{profile} ({loss:g} % loss){' --fsync' if extra else ''}"
-                say(f"   {label:<22} {statistics.median(through):>10.2f} "
-                    f"{percentile(through, 0.99):>10.2f} {statistics.median(direct):>10.2f} "
-                    f"{percentile(direct, 0.99):>10.2f}")
-        if 4 in only:
-            count, duration = (100, 10) if options.quick else (400, 30)
-            say(f"\n4. All 256 ids in use (lab): 8 modules beside 256 (4 flows each), every "
-                f"status once a second; CPU over {duration} s linked, {count} commands to the "
-                f"last id")
-            say(f"   {'modules':>7} {'ready s':>13} {'open s':>11} {'connect s':>11} "
-                f"{'CPU %':>11} {'server %':>8} {'RSS MiB':>11} {'bit/s':>8} {'cmd med ms':>10} "
-                f"{'p99':>7}   (robot/pilot; server: the robot's name server)")
-            link.apply("lab")
-            for modules in (8, 256, 8, 256):  # interleaved: each size twice
-                f = many_ids(link, modules, count, duration)
-                say(f"   {modules:>7} {f['ready robot']:>6.1f}/{f['ready pilot']:<6.1f} "
-                    f"{f['open robot']:>5.1f}/{f['open pilot']:<5.1f} "
-                    f"{f['connect robot']:>5.1f}/{f['connect pilot']:<5.1f} "
-                    f"{f['cpu robot']:>5.1f}/{f['cpu pilot']:<5.1f} "
-                    f"{f['cpu robot server']:>8.1f} "
-                    f"{f['mib robot']:>5.0f}/{f['mib pilot']:<5.0f} {f['bits']:>8.0f} "
-                    f"{f['median']:>10.2f} {f['p99']:>7.2f}")
-        if 5 in only:
-            rounds = 5 if options.quick else 15
-            say(f"\n5. Presence: a module's ports opened and closed on the robot ({rounds} "
-                f"rounds, 3 s each way) until the pilot's name server shows them / stops, ms")
-            say(f"   {'profile':<16} {'appear med':>10} {'max':>7} {'leave med':>10} {'max':>7}"
-                f" {'1 server: appear':>17} {'leave':>7}")
-            for label in each_profile(link):
-                appear, leave = presence(link, rounds, bridge=True)
-                appear_1, leave_1 = presence(link, rounds, bridge=False)
-                if min(len(appear), len(leave)) < rounds:
-                    say(f"   {label}: the pilot saw {len(appear)} of {rounds} appearances "
-                        f"and {len(leave)} departures")
-                if not appear or not leave:
-                    continue
-                say(f"   {label:<16} {statistics.median(appear):>10.0f} "
-                    f"{max(appear):>7.0f} {statistics.median(leave):>10.0f} {max(leave):>7.0f}"
-                    f" {statistics.median(appear_1):>17.0f} {statistics.median(leave_1):>7.0f}")
-        if 6 in only:
-            count = 100 if options.quick else 400
-            say(f"\n6. The pilot's loop: command -> the module's status answering it, at the "
-                f"pilot ({count} commands at 4 Hz), ms")
-            say("   bridge: TCP only; + copies: commands and answering statuses also as two "
-                "datagrams each")
-            say(f"   {'profile':<16} {'bridge med':>10} {'p99':>7} {'lost':>5} "
-                f"{'+ copies med':>12} {'p99':>7} {'lost':>5} "
-                f"{'1 server med':>12} {'p99':>7} {'lost':>5}")
-            for label in each_profile(link):
-                through, lost = pilot_loop(link, count, 4.0, bridge=True)
-                copied, lost_c = pilot_loop(link, count, 4.0, bridge=True, copies=True)
-                direct, lost_1 = pilot_loop(link, count, 4.0, bridge=False)
-                say(f"   {label:<16} {statistics.median(through):>10.1f} "
-                    f"{percentile(through, 0.99):>7.1f} {lost:>5} "
-                    f"{statistics.median(copied):>12.1f} {percentile(copied, 0.99):>7.1f} "
-                    f"{lost_c:>5} "
-                    f"{statistics.median(direct):>12.1f} {percentile(direct, 0.99):>7.1f} "
-                    f"{lost_1:>5}")
-            say("   goal on drc: median <= 100 ms + the radio's round trip; with copies, "
-                "p99 close to the median")
+        for number in sorted(only):
+            BENCHES[number](link, options)
     finally:
         link.down()
     return 0
