@@ -4,7 +4,7 @@
 #   tests/fresh_clone_run.sh NAME [BURNERS] [pytest args...]
 #
 # clones this repository's HEAD (what is committed, nothing else) beside it as
-# ../fresh-clone-NAME, so its ../shared is this checkout's; starts BURNERS busy loops (0) as a
+# ../fresh-clone-NAME (or into $FRESH_CLONE_PARENT), so its ../shared is this checkout's; starts BURNERS busy loops (0) as a
 # loaded CI box has; runs launch_scripts/run_tests.sh there with a JUnit report whose suite
 # name says what ran beside it; and appends a line to out/fresh-clones/summary.txt.  The log
 # and the report go to out/fresh-clones/NAME.{log,xml}; `tests/flake_hunt.py --junit
@@ -19,7 +19,11 @@ name=$1; shift
 burners=0
 if [[ $# -gt 0 && $1 =~ ^[0-9]+$ ]]; then burners=$1; shift; fi
 repo=$(cd "$(dirname "$0")/.." && pwd)
-clone=$(dirname "$repo")/fresh-clone-$name
+# FRESH_CLONE_PARENT: clone into that folder instead (e.g. a mode-700 one made by mktemp -d,
+# as root's home is), with ../shared linked beside the clone
+parent=${FRESH_CLONE_PARENT:-$(dirname "$repo")}
+if [[ ! -e $parent/shared ]]; then ln -s "$(dirname "$repo")/shared" "$parent/shared" || exit 2; fi
+clone=$parent/fresh-clone-$name
 records=$repo/out/fresh-clones
 mkdir -p "$records"
 if [[ -e $clone ]]; then echo "fresh_clone_run: $clone is there already" >&2; exit 2; fi
