@@ -442,8 +442,7 @@ def _lying_thing(surfaces: Sequence[Surface], index: int) -> Optional[float]:
     :data:`JUMP`, that ground going on level beyond it; None if it is not such a thing."""
     if not 0 < index < len(surfaces) - 1:
         return None
-    thing, before, beyond = surfaces[index - 1:index + 2][1], surfaces[index - 1], \
-        surfaces[index + 1]
+    before, thing, beyond = surfaces[index - 1:index + 2]
     middle = (thing.start + thing.end) / 2
     height = thing.z(middle) - before.z(middle)
     if thing.end - thing.start < 2 * SOLE_HALF_LENGTH and abs(height) > JUMP and \
@@ -493,13 +492,14 @@ def _measured_things(surfaces: List[Surface], points: np.ndarray, line_y: float,
     stopping before it and a heel landing past it miss it by that much."""
     out = list(surfaces)
     for index in range(1, len(out) - 1):
-        if _lying_thing(out, index) is None or _lying_thing(out, index) < 0:
+        height = _lying_thing(out, index)
+        if height is None or height < 0:
             continue
         before, thing, beyond = out[index - 1], out[index], out[index + 1]
         near = points[(np.abs(points[:, 1] - line_y) <= half_width) &
                       (points[:, 0] > before.end - 2 * BIN) &
                       (points[:, 0] < beyond.start + 2 * BIN)]
-        raised = near[near[:, 2] - np.array([before.z(x) for x in near[:, 0]]) > clearance]
+        raised = near[near[:, 2] - before.z(near[:, 0]) > clearance]
         if len(raised) < MIN_POINTS:
             continue
         start, end = float(raised[:, 0].min()), float(raised[:, 0].max())
